@@ -1,0 +1,30 @@
+# The two commands of the README. Each creates the virtual environment and installs the
+# package first, so a fresh machine needs only Python >= 3.10.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+RESULTS ?= results
+
+.PHONY: reproduce test bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+## Run every registered experiment in quick mode and write results/report.html and results/report.md
+reproduce: $(STAMP)
+	$(BIN)/mmconcepts reproduce --quick --output $(RESULTS)
+
+## Run the test-suite (slow tests included)
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+## Speed comparisons against the peer libraries (see benchmarks/README.md)
+bench: $(STAMP)
+	$(BIN)/python benchmarks/nmf.py
+
+clean:
+	rm -rf $(VENV) $(RESULTS) .pytest_cache

@@ -1,0 +1,352 @@
+"""The ``mmconcepts`` command line: list, run and reproduce the thesis' experiments.
+
+Examples
+--------
+::
+
+    mmconcepts list
+    mmconcepts run ch2-nmf-recovery                # quick preset, results in ./results
+    mmconcepts run ch2-nmf-recovery --full --seed 3 --workers 8
+    mmconcepts reproduce --data choreo1=~/data/choreo1 --output results-full --full
+    mmconcepts report results
+
+Exit codes: 0 on success, 1 if an experiment failed (or another error occurred), 2 on a
+usage error (bad option, unknown experiment id, bad ``--data``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import textwrap
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from . import __version__
+from ._paths import DEFAULT_RESULTS_DIR
+
+# mmconcepts.errors (and through it scikit-learn) and the experiments are imported inside
+# the commands, so that `mmconcepts --help` answers at once.
+
+__all__ = ["main", "build_parser"]
+
+logger = logging.getLogger("mmconcepts")
+
+
+class _UsageError(Exception):
+    """An error in what the user asked for (exit code 2)."""
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def _common_flags() -> argparse.ArgumentParser:
+    # -v/-q accepted both before and after the subcommand; SUPPRESS keeps a value given
+    # before the subcommand from being reset by the subparser's default.
+    parent = argparse.ArgumentParser(add_help=False)
+    group = parent.add_argument_group("output")
+    group.add_argument(
+        "-v", "--verbose", action="count", default=argparse.SUPPRESS,
+        help="more log output (-vv for debug); show tracebacks of errors",
+    )
+    group.add_argument(
+        "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+        help="only warnings and errors, no progress bars",
+    )
+    return parent
+
+
+def _workers(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1 or -1 (one per CPU); got {text!r}") from None
+    if value < 1 and value != -1:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1 or -1 (one per CPU); got {value}")
+    return value
+
+
+def _run_options(parser: argparse.ArgumentParser) -> None:
+    preset = parser.add_mutually_exclusive_group()
+    preset.add_argument(
+        "--quick", dest="preset", action="store_const", const="quick",
+        help="small config that runs in seconds to minutes (default)",
+    )
+    preset.add_argument(
+        "--full", dest="preset", action="store_const", const="full",
+        help="the thesis-sized config (can take hours)",
+    )
+    parser.set_defaults(preset="quick")
+    parser.add_argument(
+        "--output", "-o", metavar="DIR", type=Path, default=DEFAULT_RESULTS_DIR,
+        help="results folder (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--data", metavar="NAME=PATH", action="append", default=[],
+        help="a real data set for the experiments that use NAME (repeatable; "
+             "see `mmconcepts list` for the names)",
+    )
+    parser.add_argument(
+        "--workers", "-j", metavar="N", type=_workers, default=1,
+        help="parallel worker processes (default: %(default)s; -1 for one per CPU)",
+    )
+    parser.add_argument(
+        "--force", action="store_true",
+        help="recompute even when an up-to-date result exists",
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of the ``mmconcepts`` command."""
+    common = _common_flags()
+    parser = argparse.ArgumentParser(
+        prog="mmconcepts",
+        description=textwrap.fill(
+            "Reproduce the experiments of O. Mangin's thesis 'The emergence of multimodal "
+            "concepts' (2014). Each experiment reproduces one table or figure, writes a JSON "
+            "record and PNG figures, and checks the thesis' claims on its own numbers.",
+            width=80,
+        ),
+        epilog=textwrap.dedent(
+            """\
+            examples:
+              mmconcepts list
+              mmconcepts run ch2-nmf-recovery
+              mmconcepts run ch2-nmf-recovery --full --seed 3 --workers 8
+              mmconcepts reproduce --full --data choreo1=~/data/choreo1
+              mmconcepts report results
+
+            exit codes: 0 success, 1 an experiment failed, 2 usage error"""
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        parents=[common],
+    )
+    parser.add_argument("--version", action="version", version=f"mmconcepts {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser(
+        "list", parents=[common], help="list the experiments",
+        description="List every experiment: id, title, where the thesis reports it, and the "
+                    "real data sets it accepts with --data.",
+    )
+    p.set_defaults(func=_cmd_list)
+
+    p = sub.add_parser(
+        "run", parents=[common], help="run one experiment",
+        description="Run one experiment, write DIR/ID.json and DIR/ID/*.png, and print its "
+                    "metrics beside the thesis' and the verdict on each claim. A result that "
+                    "is up to date (same config, seed, version and data) is not recomputed.",
+    )
+    p.add_argument("id", metavar="ID", help="experiment id (see `mmconcepts list`)")
+    p.add_argument("--seed", type=int, metavar="N", default=None, help="replace the preset's random seed")
+    _run_options(p)
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser(
+        "reproduce", parents=[common], help="run every experiment and write the report",
+        description="Run every experiment (or those given with --only), keep going when one "
+                    "fails, then write DIR/report.html and DIR/report.md. Up-to-date results "
+                    "are not recomputed. Experiments needing absent real data are skipped.",
+    )
+    _run_options(p)
+    p.add_argument("--only", metavar="ID", nargs="+", default=None, help="run only these experiments")
+    p.set_defaults(func=_cmd_reproduce)
+
+    p = sub.add_parser(
+        "report", parents=[common], help="write the HTML/Markdown report of a results folder",
+        description="Read the JSON result records of DIR and write DIR/report.html and DIR/report.md.",
+    )
+    p.add_argument("dir", metavar="DIR", type=Path, nargs="?", default=DEFAULT_RESULTS_DIR,
+                   help="results folder (default: %(default)s)")
+    p.set_defaults(func=_cmd_report)
+    return parser
+
+
+# --------------------------------------------------------------------------- output
+
+
+def _setup_logging(verbose: int, quiet: bool) -> None:
+    root = logging.getLogger("mmconcepts")
+    for handler in list(root.handlers):
+        if getattr(handler, "_mmconcepts_cli", False):
+            root.removeHandler(handler)
+    handler = logging.StreamHandler(sys.stderr)
+    handler._mmconcepts_cli = True  # type: ignore[attr-defined]
+    handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s" if verbose else "%(message)s"))
+    root.addHandler(handler)
+    if quiet:
+        root.setLevel(logging.WARNING)
+    elif verbose >= 2:
+        root.setLevel(logging.DEBUG)
+    else:
+        root.setLevel(logging.INFO)
+
+
+def _columns(rows: list[list[str]], indent: str = "  ") -> str:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join(indent + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+
+
+_VERDICT = {True: "holds", False: "does not hold", None: "not evaluated"}
+
+
+def _print_record(record: dict[str, Any], json_path: Path) -> None:
+    from .report._model import format_number as _fmt
+
+    status = record["status"]
+    print(f"{record['experiment']}: {record['title']} [{record.get('thesis_ref', '')}]")
+    print(f"  status: {status}   preset: {record['preset']}   seed: {record['seed']}   "
+          f"time: {record.get('elapsed_s', 0):.1f} s")
+    print(f"  result: {json_path}")
+    if status != "ok":
+        print(f"  {status}: {record.get('message')}")
+        return
+    metrics, reference = record.get("metrics") or {}, record.get("reference") or {}
+    names = list(metrics) + [n for n in reference if n not in metrics]
+    if names:
+        rows = [["metric", "ours", "thesis"]] + [[n, _fmt(metrics.get(n)), _fmt(reference.get(n))] for n in names]
+        print(_columns(rows))
+    claims = record.get("claims") or []
+    if claims:
+        n_hold = sum(c.get("holds") is True for c in claims)
+        print(f"  claims: {n_hold}/{len(claims)} hold")
+        for c in claims:
+            print(f"    [{_VERDICT[c.get('holds')]}] {c['text']}  ({c['rule']})")
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def _data(args: argparse.Namespace) -> dict[str, Path]:
+    from .errors import MMConceptsError
+    from .experiments import parse_data_args
+
+    try:
+        return parse_data_args(args.data)
+    except MMConceptsError as exc:
+        raise _UsageError(str(exc)) from exc
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from .experiments import all_experiments
+
+    experiments = all_experiments()
+    if not experiments:
+        print("no experiments registered")
+        return 0
+    rows = [["id", "title", "thesis", "data"]]
+    rows += [[e.id, e.title, e.thesis_ref, ", ".join(e.datasets) or "-"] for e in experiments]
+    print(_columns(rows, indent=""))
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .errors import MMConceptsError
+    from .experiments import check_data, get, load_experiments, run_experiment
+
+    data = _data(args)
+    load_experiments()  # an experiment module that does not import is not a usage error
+    try:
+        exp = get(args.id)
+        exp.make_config(args.preset, seed=args.seed)
+        check_data(data, [exp])
+    except MMConceptsError as exc:
+        raise _UsageError(str(exc)) from exc
+    record = run_experiment(
+        exp, preset=args.preset, seed=args.seed, output=args.output, data=data,
+        workers=args.workers, force=args.force, progress=not args.quiet, raise_errors=False,
+    )
+    _print_record(record, args.output / f"{exp.id}.json")
+    if record["status"] == "failed" and args.verbose and record.get("traceback"):
+        print(record["traceback"], file=sys.stderr, end="")
+    return 1 if record["status"] == "failed" else 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from .errors import MMConceptsError
+    from .experiments import all_experiments, check_data, get, load_experiments, reproduce
+    from .report import write_report
+
+    data = _data(args)
+    load_experiments()
+    try:
+        for exp_id in args.only or ():
+            get(exp_id)
+        check_data(data, all_experiments())
+    except MMConceptsError as exc:
+        raise _UsageError(str(exc)) from exc
+    records = reproduce(
+        preset=args.preset, output=args.output, data=data, workers=args.workers,
+        force=args.force, ids=args.only, progress=not args.quiet,
+    )
+    html_path, md_path = write_report(args.output)
+    rows = []
+    for r in records:
+        claims = r.get("claims") or []
+        verdict = f"{sum(c.get('holds') is True for c in claims)}/{len(claims)} claims hold" if claims else "no claims"
+        message = ((r.get("message") or "").splitlines() or [""])[0]
+        rows.append([r["experiment"], r["status"], verdict if r["status"] == "ok" else message])
+    print(_columns(rows, indent=""))
+    print(f"report: {html_path}")
+    print(f"        {md_path}")
+    failed = [r["experiment"] for r in records if r["status"] == "failed"]
+    if failed and args.verbose:
+        for r in records:
+            if r["status"] == "failed" and r.get("traceback"):
+                print(f"--- {r['experiment']}", file=sys.stderr)
+                print(r["traceback"], file=sys.stderr, end="")
+    return 1 if failed else 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .report import write_report
+
+    html_path, md_path = write_report(args.dir)
+    print(f"report: {html_path}")
+    print(f"        {md_path}")
+    return 0
+
+
+# --------------------------------------------------------------------------- main
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``mmconcepts`` command line.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code: 0 success, 1 an experiment failed or an error occurred, 2 usage error.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version or a usage error
+        return int(exc.code) if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    from .errors import MMConceptsError
+
+    args.verbose = getattr(args, "verbose", 0)
+    args.quiet = getattr(args, "quiet", False)
+    _setup_logging(args.verbose, args.quiet)
+    try:
+        return args.func(args)
+    except _UsageError as exc:
+        if args.verbose:
+            logger.error("usage error", exc_info=exc.__cause__ or exc)
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except MMConceptsError as exc:
+        if args.verbose:
+            logger.exception("error")
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130

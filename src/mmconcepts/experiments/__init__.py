@@ -1,0 +1,61 @@
+"""Experiments: one module per thesis table or figure, and the machinery to run them.
+
+An experiment (:class:`Experiment`) has a stable id, a frozen config dataclass with
+``quick()`` and ``full()`` presets and a seed, a ``run(config, ctx) -> Result`` function,
+the thesis' reference numbers, and claims whose rules are checked on our numbers.
+Experiment modules register themselves when imported; the modules are listed in
+:data:`EXPERIMENT_MODULES` and imported on the first call of :func:`get` or
+:func:`all_experiments`.
+
+Run one with :func:`run_experiment` (``mmconcepts run ID``) or all with
+:func:`reproduce` (``mmconcepts reproduce``); results are JSON records plus PNG figures
+(see :mod:`mmconcepts.experiments.runner` for the record schema), turned into an HTML and
+Markdown report by :func:`mmconcepts.report.write_report`.
+
+See :mod:`mmconcepts.experiments.base` for a complete example module.
+"""
+
+from __future__ import annotations
+
+from .base import PRESETS, Claim, Experiment, ExperimentSkipped, Result, RunContext, Table
+from .registry import all_experiments, get, load_experiments, register, unregister
+from .rules import Rule, evaluate_rule, parse_rule
+from .runner import (
+    RECORD_KEYS,
+    SCHEMA_VERSION,
+    check_data,
+    load_record,
+    parse_data_args,
+    reproduce,
+    run_experiment,
+)
+
+#: Modules that register experiments when imported, in no particular order
+#: (experiments are listed and run sorted by id).
+EXPERIMENT_MODULES: tuple[str, ...] = ("mmconcepts.experiments.ch2_nmf_recovery",)
+
+__all__ = [
+    "EXPERIMENT_MODULES",
+    "PRESETS",
+    "RECORD_KEYS",
+    "SCHEMA_VERSION",
+    "Claim",
+    "Experiment",
+    "ExperimentSkipped",
+    "Result",
+    "Rule",
+    "RunContext",
+    "Table",
+    "all_experiments",
+    "check_data",
+    "evaluate_rule",
+    "get",
+    "load_experiments",
+    "load_record",
+    "parse_data_args",
+    "parse_rule",
+    "register",
+    "reproduce",
+    "run_experiment",
+    "unregister",
+]

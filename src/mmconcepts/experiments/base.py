@@ -1,0 +1,417 @@
+"""The pieces an experiment is made of: Experiment, Claim, Result, Table, RunContext.
+
+An experiment reproduces one table or figure of the thesis. It has a stable id, a frozen
+dataclass config with ``quick()`` and ``full()`` presets and a ``seed`` field, a function
+``run(config, ctx) -> Result``, the thesis' reference numbers and its claims, each with a
+rule checked on our numbers (see :mod:`mmconcepts.experiments.rules`).
+
+Example
+-------
+A complete experiment module (``src/mmconcepts/experiments/ch2_example.py``)::
+
+    from dataclasses import dataclass
+
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from mmconcepts.experiments import Claim, Experiment, Result, RunContext, Table, register
+
+
+    @dataclass(frozen=True)
+    class Config:
+        n_trials: int = 10
+        seed: int = 0
+
+        @classmethod
+        def quick(cls) -> "Config":
+            return cls(n_trials=3)
+
+        @classmethod
+        def full(cls) -> "Config":
+            return cls(n_trials=100)
+
+
+    def _trial(seed):                       # module level, so it pickles for ctx.parallel
+        return float(np.random.default_rng(seed).random())
+
+
+    def run(config: Config, ctx: RunContext) -> Result:
+        seeds = np.random.SeedSequence(config.seed).generate_state(config.n_trials)
+        scores = ctx.parallel(_trial, list(seeds), desc="trials")
+        fig = Figure()
+        fig.subplots().plot(scores)
+        return Result(
+            metrics={"score": float(np.mean(scores))},
+            tables={"scores": Table("Per-trial scores", ["trial", "score"],
+                                    [[i, s] for i, s in enumerate(scores)])},
+            figures={"scores": fig},
+        )
+
+
+    register(Experiment(
+        id="ch2-example", title="An example", thesis_ref="Section 2.1, Table 2.1",
+        config_cls=Config, run=run, reference={"score": 0.5},
+        claims=[Claim("The score is about one half.", "abs(score - 0.5) < 0.1")],
+    ))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import numbers
+import os
+import re
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any, TypeVar
+
+from .._paths import data_home
+from ..errors import ExperimentError, ParameterError
+from .rules import is_valid_metric_name, parse_rule
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "Claim",
+    "Experiment",
+    "ExperimentSkipped",
+    "Result",
+    "RunContext",
+    "Table",
+    "PRESETS",
+]
+
+#: The preset names every experiment config provides.
+PRESETS = ("quick", "full")
+
+_ID = re.compile(r"[a-z0-9]+(?:-[a-z0-9]+)*\Z")
+_FIGURE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
+_T = TypeVar("_T")
+_R = TypeVar("_R")
+
+
+class ExperimentSkipped(ExperimentError):
+    """Raised by an experiment's ``run`` when it cannot run here, e.g. real data is absent.
+
+    The runner records the experiment as ``"skipped"`` with this message instead of as a
+    failure. :meth:`RunContext.require_data` raises it for a missing ``--data`` set.
+    """
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A statement of the thesis and the rule that checks it on our metrics.
+
+    Parameters
+    ----------
+    text : str
+        The claim in words, e.g. "NMF with the Frobenius loss beats the SVM".
+    rule : str
+        A boolean expression over metric names, e.g.
+        ``"nmf_frobenius.l_full > svm.l_full"`` (see :mod:`mmconcepts.experiments.rules`).
+        Its syntax is checked when the claim is made.
+    """
+
+    text: str
+    rule: str
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.text, str) or not self.text.strip():
+            raise ExperimentError(f"Claim.text must be a non-empty string; got {self.text!r}.")
+        parse_rule(self.rule)  # syntax and type check; metric names are checked at run time
+
+
+@dataclass
+class Table:
+    """A result table, kept JSON-friendly.
+
+    Parameters
+    ----------
+    title : str
+        Caption, e.g. "Table 3.2: classification scores".
+    columns : list of str
+        Column headers.
+    rows : list of list
+        One list per row, each with ``len(columns)`` cells (numbers, strings or None).
+    note : str, default=""
+        A remark shown under the table.
+    """
+
+    title: str
+    columns: list[str]
+    rows: list[list[Any]]
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        self.columns = [str(c) for c in self.columns]
+        self.rows = [list(row) for row in self.rows]
+        for i, row in enumerate(self.rows):
+            if len(row) != len(self.columns):
+                raise ExperimentError(
+                    f"table {self.title!r}: row {i} has {len(row)} cells but there are "
+                    f"{len(self.columns)} columns ({', '.join(self.columns)})."
+                )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return ``{"title", "columns", "rows", "note"}`` (cells not yet JSON-cleaned)."""
+        return {"title": self.title, "columns": list(self.columns), "rows": [list(r) for r in self.rows], "note": self.note}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "Table":
+        """Rebuild a table from :meth:`to_dict` output (as read back from JSON)."""
+        return cls(title=d.get("title", ""), columns=list(d["columns"]), rows=[list(r) for r in d["rows"]], note=d.get("note", "") or "")
+
+
+@dataclass
+class Result:
+    """What an experiment's ``run`` returns.
+
+    Parameters
+    ----------
+    metrics : dict of str to float
+        Named numbers; names are runs of ``[A-Za-z0-9_.]`` (``"16.nmf_kl.l_full"``), the
+        ones claim rules and the reference use. NaN means "not measured".
+    tables : dict of str to Table
+        Result tables, by a short name.
+    figures : dict of str to matplotlib.figure.Figure
+        Figures, by a file-name-safe name; the runner saves each as ``<id>/<name>.png``
+        and closes it. Prefer :class:`matplotlib.figure.Figure` over pyplot.
+    notes : list of str
+        Remarks for the report (what differs from the thesis and why, ...).
+    extra : dict
+        Anything else JSON-able worth keeping (per-trial scores, ...).
+    """
+
+    metrics: dict[str, float] = field(default_factory=dict)
+    tables: dict[str, Table] = field(default_factory=dict)
+    figures: dict[str, "Figure"] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def validate(self) -> None:
+        """Check names and types; raise :class:`ExperimentError` naming the culprit."""
+        for name, value in self.metrics.items():
+            if not is_valid_metric_name(name):
+                raise ExperimentError(
+                    f"metric name {name!r} is not allowed: use letters, digits, '_' and '.', "
+                    "not a plain number nor one of and/or/not/abs/min/max."
+                )
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise ExperimentError(f"metric {name!r} must be a real number; got {value!r} ({type(value).__name__}).")
+        for name, table in self.tables.items():
+            if not isinstance(table, Table):
+                raise ExperimentError(f"table {name!r} must be a Table; got {type(table).__name__}.")
+        for name, fig in self.figures.items():
+            if not isinstance(name, str) or not _FIGURE_NAME.fullmatch(name):
+                raise ExperimentError(f"figure name {name!r} must be a file-name-safe word ([A-Za-z0-9_.-]).")
+            if not hasattr(fig, "savefig"):
+                raise ExperimentError(f"figure {name!r} must be a matplotlib Figure; got {type(fig).__name__}.")
+        if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
+            raise ExperimentError("Result.notes must be a list of strings.")
+
+
+def _progress_enabled(show: bool) -> bool:
+    try:
+        return bool(show) and sys.stderr is not None and sys.stderr.isatty()
+    except (AttributeError, ValueError):  # closed or replaced stream
+        return False
+
+
+@dataclass
+class RunContext:
+    """What an experiment's ``run`` gets besides its config.
+
+    Parameters
+    ----------
+    workers : int, default=1
+        Processes for :meth:`parallel`; -1 means one per CPU.
+    data : mapping of str to Path
+        Real data sets given with ``--data NAME=PATH``, restricted to the experiment's
+        ``datasets``. Use :meth:`require_data` to get one or skip.
+    cache_dir : Path, optional
+        Folder for generated data and caches (default :func:`mmconcepts._paths.data_home`).
+    logger : logging.Logger, optional
+        Where to log (default ``logging.getLogger("mmconcepts.experiments")``).
+    show_progress : bool, default=True
+        Show progress bars; they are shown only when stderr is a terminal.
+    """
+
+    workers: int = 1
+    data: Mapping[str, Path] = field(default_factory=dict)
+    cache_dir: Path = field(default_factory=lambda: data_home())
+    logger: logging.Logger = field(default_factory=lambda: logging.getLogger("mmconcepts.experiments"))
+    show_progress: bool = True
+
+    def __post_init__(self) -> None:
+        if isinstance(self.workers, bool) or not isinstance(self.workers, numbers.Integral):
+            raise ParameterError(f"workers must be an int >= 1 or -1; got {self.workers!r}.")
+        if self.workers == -1:
+            self.workers = os.cpu_count() or 1
+        if self.workers < 1:
+            raise ParameterError(f"workers must be an int >= 1 or -1 (all CPUs); got {self.workers}.")
+        self.workers = int(self.workers)
+        self.data = MappingProxyType({str(k): Path(v) for k, v in self.data.items()})
+        self.cache_dir = Path(self.cache_dir)
+
+    def progress(self, iterable: Iterable[_T], *, total: int | None = None, desc: str | None = None) -> Iterable[_T]:
+        """Wrap ``iterable`` in a tqdm progress bar (silent when quiet or not on a terminal).
+
+        Parameters
+        ----------
+        iterable : iterable
+        total : int, optional
+            Number of items, when ``len(iterable)`` is not available.
+        desc : str, optional
+            Label shown before the bar.
+        """
+        from tqdm.auto import tqdm
+
+        return tqdm(iterable, total=total, desc=desc, disable=not _progress_enabled(self.show_progress), leave=False)
+
+    def parallel(self, fn: Callable[[_T], _R], items: Iterable[_T], *, desc: str | None = None) -> list[_R]:
+        """Return ``[fn(item) for item in items]``, computed over :attr:`workers` processes.
+
+        With ``workers == 1`` this is a plain loop in this process. Otherwise joblib's
+        process pool is used, so ``fn`` and the items must pickle (define ``fn`` at
+        module level) and each item must carry its own seed. Order is preserved.
+
+        Parameters
+        ----------
+        fn : callable
+        items : iterable
+        desc : str, optional
+            Progress-bar label.
+        """
+        items = list(items)
+        if self.workers == 1 or len(items) <= 1:
+            return [fn(item) for item in self.progress(items, total=len(items), desc=desc)]
+        from joblib import Parallel, delayed
+
+        n_jobs = min(self.workers, len(items))
+        gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(fn)(item) for item in items)
+        return list(self.progress(gen, total=len(items), desc=desc))
+
+    def require_data(self, name: str, *, hint: str = "") -> Path:
+        """Return the path given for data set ``name``, or skip the experiment.
+
+        Raises
+        ------
+        ExperimentSkipped
+            If ``--data name=PATH`` was not given.
+        """
+        if name in self.data:
+            return self.data[name]
+        more = f" {hint}" if hint else ""
+        raise ExperimentSkipped(f"needs the real data set {name!r}: pass --data {name}=PATH.{more}")
+
+
+def _check_config_cls(exp_id: str, config_cls: Any) -> None:
+    if not (isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)):
+        raise ExperimentError(f"experiment {exp_id!r}: config_cls must be a dataclass type; got {config_cls!r}.")
+    if not config_cls.__dataclass_params__.frozen:  # type: ignore[attr-defined]
+        raise ExperimentError(f"experiment {exp_id!r}: config_cls {config_cls.__name__} must be frozen (@dataclass(frozen=True)).")
+    if "seed" not in {f.name for f in dataclasses.fields(config_cls)}:
+        raise ExperimentError(f"experiment {exp_id!r}: config_cls {config_cls.__name__} needs a field 'seed: int'.")
+    for preset in PRESETS:
+        if not callable(getattr(config_cls, preset, None)):
+            raise ExperimentError(
+                f"experiment {exp_id!r}: config_cls {config_cls.__name__} needs a classmethod {preset}() returning the preset."
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class Experiment:
+    """One thesis table or figure, reproducible from the command line.
+
+    Parameters
+    ----------
+    id : str
+        Stable identifier, lowercase words joined by ``-``, e.g. ``"ch2-nmf-recovery"``.
+    title : str
+        One-line title.
+    thesis_ref : str
+        Where the thesis reports it, e.g. ``"Section 2.1, Appendix A.2"``.
+    config_cls : type
+        A frozen dataclass with a ``seed: int`` field and classmethods ``quick()`` and
+        ``full()`` returning the presets.
+    run : callable
+        ``run(config, ctx: RunContext) -> Result``; prints nothing.
+    reference : mapping of str to float, optional
+        The thesis' values, by the metric names ``run`` reports.
+    claims : sequence of Claim, optional
+        The thesis' claims, each with a rule over metric names.
+    datasets : tuple of str, optional
+        Names of real data sets accepted by ``--data NAME=PATH`` (empty if synthetic).
+    description : str, optional
+        A paragraph for ``mmconcepts list`` and the report.
+    """
+
+    id: str
+    title: str
+    thesis_ref: str
+    config_cls: type
+    run: Callable[[Any, RunContext], Result]
+    reference: Mapping[str, float] = field(default_factory=dict)
+    claims: Sequence[Claim] = ()
+    datasets: tuple[str, ...] = ()
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.id, str) or not _ID.fullmatch(self.id):
+            raise ExperimentError(
+                f"experiment id {self.id!r} must be lowercase letters and digits joined by '-', e.g. 'ch2-nmf-recovery'."
+            )
+        _check_config_cls(self.id, self.config_cls)
+        if not callable(self.run):
+            raise ExperimentError(f"experiment {self.id!r}: run must be callable run(config, ctx) -> Result.")
+        reference = {}
+        for name, value in dict(self.reference).items():
+            if not is_valid_metric_name(name):
+                raise ExperimentError(f"experiment {self.id!r}: reference key {name!r} is not a valid metric name.")
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise ExperimentError(f"experiment {self.id!r}: reference value for {name!r} must be a number; got {value!r}.")
+            reference[name] = float(value)
+        object.__setattr__(self, "reference", MappingProxyType(reference))
+        claims = tuple(self.claims)
+        for claim in claims:
+            if not isinstance(claim, Claim):
+                raise ExperimentError(f"experiment {self.id!r}: claims must be Claim objects; got {claim!r}.")
+        object.__setattr__(self, "claims", claims)
+        if isinstance(self.datasets, str):
+            raise ExperimentError(f"experiment {self.id!r}: datasets must be a tuple of names, e.g. ('choreo1',), not a string.")
+        datasets = tuple(self.datasets)
+        for name in datasets:
+            if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
+                raise ExperimentError(f"experiment {self.id!r}: dataset name {name!r} must be a word ([A-Za-z0-9_.-]).")
+        object.__setattr__(self, "datasets", datasets)
+
+    def make_config(self, preset: str = "quick", *, seed: int | None = None) -> Any:
+        """Return the ``preset`` config, with ``seed`` replaced when given.
+
+        Parameters
+        ----------
+        preset : {"quick", "full"}
+        seed : int, optional
+            A non-negative seed replacing the preset's.
+        """
+        if preset not in PRESETS:
+            raise ParameterError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}.")
+        config = getattr(self.config_cls, preset)()
+        if not isinstance(config, self.config_cls):
+            raise ExperimentError(
+                f"experiment {self.id!r}: {self.config_cls.__name__}.{preset}() returned "
+                f"{type(config).__name__}, not a {self.config_cls.__name__}."
+            )
+        if seed is not None:
+            if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+                raise ParameterError(f"seed must be a non-negative int; got {seed!r}.")
+            config = dataclasses.replace(config, seed=int(seed))
+        return config
+
+    def __repr__(self) -> str:
+        return f"Experiment(id={self.id!r}, title={self.title!r}, thesis_ref={self.thesis_ref!r})"

@@ -1,0 +1,218 @@
+"""ch2-nmf-recovery: beta-NMF recovers a known dictionary when the problem is identifiable.
+
+Thesis section 2.1 (multiplicative updates, eq. 2.15-2.19, Table 2.2; projected gradient,
+eq. 2.9-2.13; comparison up to scaling and permutation, section 2.1.1) and Appendix A.2
+(the factorization is unique, up to scaling and permutation, only when the data fill a
+simplicial cone that cannot be widened).
+
+Data are drawn from a known nonnegative dictionary H (n_components x n_features) and
+coefficients W, then corrupted by multiplicative Gamma noise (E = 1, a relative spread set by
+``noise``; it keeps every cell positive, so that beta <= 0 is defined). Two generators:
+
+* *identifiable*: every atom owns a block of features that no other atom uses (a separable
+  dictionary), and coefficients are sparse (Dirichlet with alpha < 1), so some examples lie
+  near each extreme ray of the cone: the sufficient conditions of Donoho & Stodden;
+* *non-identifiable*: dense atoms and dense coefficients (Dirichlet alpha = 5), whose data
+  fill only the middle of the cone, which a wider cone also explains.
+
+Each beta in ``betas`` is fit with multiplicative updates (MM exponent), the heuristic
+update (eq. 2.17) where it differs, and projected gradient for beta in ``pg_betas``; the
+recovered dictionary is compared with the truth by the Hungarian matching distance
+(mean cosine distance between matched atoms).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..nmf import beta_nmf, match_components
+from .base import Claim, Experiment, Result, RunContext, Table
+from .registry import register
+
+__all__ = ["Config", "run", "make_data"]
+
+
+@dataclass(frozen=True)
+class Config:
+    """Sizes, betas and solvers of the recovery experiment."""
+
+    n_samples: int = 600
+    n_features: int = 120
+    n_components: int = 8
+    noise: float = 0.05
+    betas: tuple[float, ...] = (0.0, 0.5, 1.0, 1.5, 2.0, 2.5)
+    pg_betas: tuple[float, ...] = (1.0, 2.0)
+    max_iter: int = 1000
+    pg_max_iter: int = 500
+    n_repeats: int = 3
+    seed: int = 0
+
+    @classmethod
+    def quick(cls) -> "Config":
+        return cls(n_samples=300, n_features=60, n_components=5, max_iter=400, pg_max_iter=400, n_repeats=2)
+
+    @classmethod
+    def full(cls) -> "Config":
+        return cls(n_samples=1000, n_features=200, n_components=10, max_iter=2000, pg_max_iter=1000, n_repeats=5)
+
+
+def make_data(kind: str, n_samples: int, n_features: int, n_components: int, noise: float,
+              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Return (X, H_true): noisy data (n_samples, n_features) and its true dictionary.
+
+    ``kind`` is 'identifiable' (separable atoms, sparse coefficients) or
+    'nonidentifiable' (dense atoms, dense coefficients).
+    """
+    k, m = n_components, n_features
+    if kind == "identifiable":
+        H = np.zeros((k, m))
+        blocks = np.array_split(rng.permutation(m), k)
+        for i, cols in enumerate(blocks):
+            H[i, cols] = rng.uniform(0.5, 1.5, cols.size)
+        W = rng.dirichlet(np.full(k, 0.3), n_samples)
+    elif kind == "nonidentifiable":
+        H = rng.uniform(0.2, 1.0, (k, m))
+        W = rng.dirichlet(np.full(k, 5.0), n_samples)
+    else:
+        raise ValueError(f"kind must be 'identifiable' or 'nonidentifiable'; got {kind!r}")
+    H /= H.sum(axis=1, keepdims=True) / m  # atoms of mean 1
+    W *= rng.uniform(5.0, 15.0, (n_samples, 1))
+    clean = W @ H
+    shape = 1.0 / noise**2  # Gamma(shape, 1/shape): mean 1, relative std = noise
+    X = clean * rng.gamma(shape, 1.0 / shape, clean.shape) + 1e-3 * clean.mean()
+    return X, H
+
+
+def _methods(config: Config) -> list[tuple[str, float, str, str]]:
+    out = []
+    for beta in config.betas:
+        out.append((f"beta_{beta:g}.mu", beta, "mu", "mm"))
+        if beta < 1.0 or beta > 2.0:
+            out.append((f"beta_{beta:g}.mu_heuristic", beta, "mu", "heuristic"))
+    for beta in config.pg_betas:
+        out.append((f"beta_{beta:g}.pg", beta, "pg", "mm"))
+    return out
+
+
+def _one_run(task):
+    config, kind, repeat, name, beta, solver, rule, seed = task
+    rng = np.random.default_rng(seed)
+    X, H_true = make_data(kind, config.n_samples, config.n_features, config.n_components, config.noise, rng)
+    t0 = time.perf_counter()
+    loss_every = 1 if solver == "mu" else 10
+    max_iter = config.max_iter if solver == "mu" else config.pg_max_iter
+    res = beta_nmf(X, config.n_components, beta_loss=beta, solver=solver, update_rule=rule, init="nndsvda",
+                   random_state=seed, max_iter=max_iter, tol=0, loss_every=loss_every)
+    elapsed = time.perf_counter() - t0
+    match = match_components(res.H, H_true)
+    hist = res.loss_history
+    increase = float(np.max(np.diff(hist)) / abs(hist[0])) if hist.size > 1 else 0.0
+    return dict(kind=kind, repeat=repeat, name=name, beta=beta, solver=solver, rule=rule,
+                distance=match.distance, max_rel_increase=increase, final_loss=float(hist[-1]),
+                history=(res.loss_iterations.tolist(), (hist / hist[0]).tolist()), seconds=elapsed,
+                n_iter=res.n_iter)
+
+
+def run(config: Config, ctx: RunContext) -> Result:
+    seeds = np.random.SeedSequence(config.seed)
+    tasks = []
+    for kind in ("identifiable", "nonidentifiable"):
+        for repeat in range(config.n_repeats):
+            data_seed = int(seeds.spawn(1)[0].generate_state(1)[0])
+            for name, beta, solver, rule in _methods(config):
+                tasks.append((config, kind, repeat, name, beta, solver, rule, data_seed))
+    runs = ctx.parallel(_one_run, tasks, desc="NMF fits")
+
+    metrics: dict[str, float] = {}
+    rows = []
+    for name, beta, solver, rule in _methods(config):
+        for kind in ("identifiable", "nonidentifiable"):
+            sel = [r for r in runs if r["name"] == name and r["kind"] == kind]
+            dist = float(np.median([r["distance"] for r in sel]))
+            metrics[f"{kind}.{name}.distance"] = dist
+            if kind == "identifiable":
+                rows.append([f"{beta:g}", solver, rule, dist,
+                             float(np.median([next(s for s in runs if s["name"] == name and s["kind"] == "nonidentifiable"
+                                                   and s["repeat"] == r["repeat"])["distance"] for r in sel])),
+                             max(r["max_rel_increase"] for r in sel),
+                             float(np.median([r["seconds"] for r in sel]))])
+    mm = [r for r in runs if r["solver"] == "mu" and r["rule"] == "mm"]
+    metrics["mu_mm.max_relative_increase"] = max(r["max_rel_increase"] for r in mm)
+    ident = [r["distance"] for r in runs if r["kind"] == "identifiable"]
+    nonident = [r["distance"] for r in runs if r["kind"] == "nonidentifiable"]
+    metrics["identifiable.max_distance"] = float(np.max(ident))
+    metrics["identifiable.worst_method_median_distance"] = max(
+        metrics[f"identifiable.{m[0]}.distance"] for m in _methods(config))
+    metrics["identifiable.median_distance"] = float(np.median(ident))
+    metrics["nonidentifiable.median_distance"] = float(np.median(nonident))
+    rng = np.random.default_rng(config.seed)
+    _, H_true = make_data("identifiable", config.n_samples, config.n_features, config.n_components, config.noise, rng)
+    metrics["random_dictionary.distance"] = match_components(rng.random(H_true.shape), H_true).distance
+
+    table = Table(
+        "Dictionary recovery (median over repeats; matching distance = mean cosine distance of matched atoms)",
+        ["beta", "solver", "update", "distance (identifiable)", "distance (non-identifiable)",
+         "max relative loss increase", "seconds"],
+        rows,
+        note=f"{config.n_samples} samples, {config.n_features} features, k = {config.n_components}, "
+             f"Gamma noise {config.noise:.0%}, {config.max_iter} MU and {config.pg_max_iter} projected-gradient iterations.",
+    )
+
+    fig_loss = Figure(figsize=(7, 4.5))
+    ax = fig_loss.subplots()
+    first = [r for r in runs if r["kind"] == "identifiable" and r["repeat"] == 0]
+    for r in first:
+        its, h = r["history"]
+        ax.plot(np.maximum(its, 1), h, label=r["name"], lw=1.2, ls="-" if r["solver"] == "mu" else "--")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("objective / initial objective")
+    ax.set_title("Loss curves on identifiable data (first repeat)")
+    ax.legend(fontsize=7, ncol=2)
+    fig_loss.tight_layout()
+
+    fig_dist = Figure(figsize=(7, 4))
+    ax = fig_dist.subplots()
+    names = [m[0] for m in _methods(config)]
+    x = np.arange(len(names))
+    ax.bar(x - 0.2, [metrics[f"identifiable.{n}.distance"] for n in names], 0.4, label="identifiable")
+    ax.bar(x + 0.2, [metrics[f"nonidentifiable.{n}.distance"] for n in names], 0.4, label="non-identifiable")
+    ax.axhline(metrics["random_dictionary.distance"], color="k", ls=":", label="random dictionary")
+    ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylabel("matching distance to the true dictionary")
+    ax.legend(fontsize=8)
+    fig_dist.tight_layout()
+
+    return Result(metrics=metrics, tables={"recovery": table}, figures={"loss_curves": fig_loss, "distances": fig_dist},
+                  notes=["The thesis gives no numbers for this check; its claims are qualitative (section 2.1.2, "
+                         "Appendix A.2)."])
+
+
+register(
+    Experiment(
+        id="ch2-nmf-recovery",
+        title="Beta-NMF: monotone multiplicative updates and dictionary recovery",
+        thesis_ref="Section 2.1 (eq. 2.2-2.19, Table 2.2), Appendix A.2",
+        config_cls=Config,
+        run=run,
+        reference={},
+        claims=[
+            Claim("The objective never increases under multiplicative updates with the MM exponent of Table 2.2 "
+                  "(every beta, every iteration).", "mu_mm.max_relative_increase <= 0.000000001"),
+            Claim("On identifiable data every beta and solver recovers the dictionary up to scaling and "
+                  "permutation in the median run (matching distance below 0.02, against about 0.5 for a random "
+                  "dictionary; single runs can stop in a local minimum, see identifiable.max_distance).",
+                  "identifiable.worst_method_median_distance < 0.02 and "
+                  "random_dictionary.distance > 10 * identifiable.worst_method_median_distance"),
+            Claim("Without the identifiability conditions of Appendix A.2 the recovered dictionary is further from "
+                  "the truth.", "nonidentifiable.median_distance > 2 * identifiable.median_distance"),
+        ],
+        description=__doc__.split("\n\n")[0],
+    )
+)

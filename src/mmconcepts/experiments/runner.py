@@ -1,0 +1,546 @@
+"""Run experiments, write their results as JSON + PNG, skip what is up to date.
+
+A result record is a JSON object with a stable schema (``schema_version`` 1)::
+
+    schema_version  1
+    experiment      id                       title, thesis_ref
+    status          "ok" | "failed" | "skipped"
+    message         why it failed or was skipped (null when ok)
+    traceback       the traceback text of a failure (else null)
+    preset          "quick" | "full"         config (the dataclass as a dict), seed
+    version         mmconcepts.__version__   data (name -> absolute path)
+    metrics         name -> number (null for NaN or infinite, read back as NaN)
+    reference       name -> the thesis' number
+    claims          [{text, rule, holds}]    holds: true, false or null (not evaluated)
+    tables          name -> {title, columns, rows, note}
+    figures         name -> path of the PNG, relative to the results folder
+    notes, extra    remarks and JSON-able extras
+    elapsed_s, started_at (ISO 8601, UTC), python, platform
+
+``<output>/<id>.json`` and the figures ``<output>/<id>/<name>.png`` are written
+atomically (a temporary file in the same folder, then :func:`os.replace`), figures first,
+so a JSON file on disk always describes complete results.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import enum
+import io
+import json
+import logging
+import math
+import numbers
+import os
+import platform
+import re
+import tempfile
+import time
+import traceback
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path, PurePath
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from .._paths import DEFAULT_RESULTS_DIR, data_home
+from ..errors import ExperimentError, ParameterError
+from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext
+from .registry import all_experiments, get
+from .rules import evaluate_rule
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "RECORD_KEYS",
+    "run_experiment",
+    "reproduce",
+    "parse_data_args",
+    "check_data",
+    "load_record",
+    "to_jsonable",
+]
+
+logger = logging.getLogger("mmconcepts.experiments")
+
+#: Version of the result-record schema written by :func:`run_experiment`.
+SCHEMA_VERSION = 1
+
+#: Keys present in every result record, whatever its status.
+RECORD_KEYS = (
+    "schema_version",
+    "experiment",
+    "title",
+    "thesis_ref",
+    "status",
+    "message",
+    "traceback",
+    "preset",
+    "config",
+    "seed",
+    "version",
+    "data",
+    "metrics",
+    "reference",
+    "claims",
+    "tables",
+    "figures",
+    "notes",
+    "extra",
+    "elapsed_s",
+    "started_at",
+    "python",
+    "platform",
+)
+
+_DATA_NAME = re.compile(r"[A-Za-z0-9_.-]+\Z")
+
+
+# --------------------------------------------------------------------------- JSON
+
+
+def to_jsonable(obj: Any, *, where: str = "value") -> Any:
+    """Convert ``obj`` to plain JSON types.
+
+    Dataclasses become dicts, tuples and sets lists, numpy scalars and arrays Python
+    numbers and lists, paths strings; NaN and infinite floats become None (JSON null).
+
+    Raises
+    ------
+    ExperimentError
+        If something cannot be represented (the message says where).
+    """
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist(), where=where)
+    if isinstance(obj, np.generic):
+        return to_jsonable(obj.item(), where=where)
+    if isinstance(obj, numbers.Integral):
+        return int(obj)
+    if isinstance(obj, numbers.Real):
+        value = float(obj)
+        return value if math.isfinite(value) else None
+    if isinstance(obj, enum.Enum):
+        return to_jsonable(obj.value, where=where)
+    if isinstance(obj, PurePath):
+        return str(obj)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: to_jsonable(getattr(obj, f.name), where=f"{where}.{f.name}") for f in dataclasses.fields(obj)}
+    if isinstance(obj, Mapping):
+        out = {}
+        for key, value in obj.items():
+            if not isinstance(key, (str, int, float, bool)) and not isinstance(key, np.generic):
+                raise ExperimentError(f"{where}: dictionary key {key!r} cannot be a JSON key; use strings.")
+            out[str(key)] = to_jsonable(value, where=f"{where}[{key!r}]")
+        return out
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v, where=f"{where}[{i}]") for i, v in enumerate(obj)]
+    if isinstance(obj, (set, frozenset)):
+        return [to_jsonable(v, where=where) for v in sorted(obj, key=repr)]
+    raise ExperimentError(
+        f"{where}: a {type(obj).__name__} value ({obj!r:.60}) cannot be stored in a JSON result; "
+        "convert it to numbers, strings, lists or dicts."
+    )
+
+
+def _dumps(record: Mapping[str, Any]) -> str:
+    return json.dumps(record, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file in the same folder and os.replace."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def load_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """Read a result record, or return None if ``path`` does not hold one.
+
+    Metric values stored as null are read back as NaN.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``<id>.json`` file written by :func:`run_experiment`.
+
+    Returns
+    -------
+    dict or None
+        The record; None when the file is not valid JSON, not a result record, or of a
+        newer schema version.
+    """
+    path = Path(path)
+    try:
+        obj = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        logger.debug("%s: not readable as JSON (%s)", path, exc)
+        return None
+    if not isinstance(obj, dict) or not {"schema_version", "experiment", "status"} <= obj.keys():
+        return None
+    if not isinstance(obj["schema_version"], int) or obj["schema_version"] > SCHEMA_VERSION:
+        logger.debug("%s: schema version %r is not supported", path, obj.get("schema_version"))
+        return None
+    metrics = obj.get("metrics") or {}
+    if not isinstance(metrics, dict):
+        return None
+    obj["metrics"] = {k: (math.nan if v is None else float(v)) for k, v in metrics.items()}
+    return obj
+
+
+# --------------------------------------------------------------------------- data
+
+
+def parse_data_args(items: Iterable[str] | None) -> dict[str, Path]:
+    """Parse ``--data NAME=PATH`` arguments into ``{name: path}``.
+
+    Raises
+    ------
+    ExperimentError
+        On an item without ``=``, an empty or malformed name, an empty path, or a name
+        given twice.
+    """
+    out: dict[str, Path] = {}
+    for item in items or ():
+        name, sep, path = str(item).partition("=")
+        name = name.strip()
+        if not sep or not name or not path:
+            raise ExperimentError(f"--data expects NAME=PATH (e.g. choreo1=/data/choreo1); got {item!r}.")
+        if not _DATA_NAME.fullmatch(name):
+            raise ExperimentError(f"--data {item!r}: the name {name!r} must be a word ([A-Za-z0-9_.-]).")
+        if name in out:
+            raise ExperimentError(f"--data {name}=... is given twice ({out[name]} and {path}); give each data set once.")
+        out[name] = Path(path).expanduser()
+    return out
+
+
+def check_data(
+    data: Mapping[str, str | os.PathLike[str]] | None, experiments: Sequence[Experiment] | None = None
+) -> dict[str, Path]:
+    """Validate ``--data`` names and paths; return ``{name: absolute path}``.
+
+    Parameters
+    ----------
+    data : mapping of str to path, optional
+    experiments : sequence of Experiment, optional
+        Experiments whose declared data-set names are accepted without consulting the
+        registry; any other name must be declared by some registered experiment.
+
+    Raises
+    ------
+    ExperimentError
+        If no experiment declares a name, or a path does not exist (both are named).
+    """
+    if not data:
+        return {}
+    if isinstance(data, (str, bytes)) or not isinstance(data, Mapping):
+        raise ExperimentError(f"data must be a mapping of data-set names to paths; got {type(data).__name__}.")
+    resolved = {str(name): Path(path).expanduser() for name, path in data.items()}
+    declared = {n for exp in experiments or () for n in exp.datasets}
+    if any(name not in declared for name in resolved):
+        registered = all_experiments()
+        declared |= {n for exp in registered for n in exp.datasets}
+    unknown = sorted(name for name in resolved if name not in declared)
+    if unknown:
+        known = ", ".join(sorted(declared)) or "none"
+        raise ExperimentError(
+            f"--data {unknown[0]}=...: no experiment uses a data set named {unknown[0]!r}. "
+            f"Known data-set names: {known} (see `mmconcepts list`)."
+        )
+    for name, path in resolved.items():
+        if not path.exists():
+            raise ExperimentError(f"--data {name}={path}: the path {str(path)!r} does not exist.")
+    return {name: path.resolve() for name, path in resolved.items()}
+
+
+# --------------------------------------------------------------------------- running
+
+
+def _up_to_date(existing: Mapping[str, Any] | None, fresh: Mapping[str, Any], output: Path) -> bool:
+    if existing is None or existing.get("status") != "ok":
+        return False
+    if existing.get("schema_version") != SCHEMA_VERSION or existing.get("experiment") != fresh["experiment"]:
+        return False
+    for key in ("config", "version", "data", "preset"):
+        if existing.get(key) != fresh[key]:
+            return False
+    figures = existing.get("figures") or {}
+    return all((output / rel).is_file() for rel in figures.values())
+
+
+def _close_figures(figures: Mapping[str, Any]) -> None:
+    if not figures:
+        return
+    import matplotlib.pyplot as plt
+
+    for fig in figures.values():
+        try:
+            plt.close(fig)
+        except Exception:  # pragma: no cover - a non-pyplot figure or already closed
+            pass
+
+
+def _remove_stale_figures(fig_dir: Path, keep: Iterable[str]) -> None:
+    if not fig_dir.is_dir():
+        return
+    keep = set(keep)
+    for png in fig_dir.glob("*.png"):
+        if png.name not in keep:
+            png.unlink()
+    try:
+        fig_dir.rmdir()  # only succeeds when empty
+    except OSError:
+        pass
+
+
+def _resolve(exp_or_id: Experiment | str) -> Experiment:
+    if isinstance(exp_or_id, Experiment):
+        return exp_or_id
+    if isinstance(exp_or_id, str):
+        return get(exp_or_id)
+    raise ExperimentError(f"expected an Experiment or an experiment id; got {type(exp_or_id).__name__}.")
+
+
+def run_experiment(
+    exp_or_id: Experiment | str,
+    *,
+    preset: str = "quick",
+    seed: int | None = None,
+    output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
+    data: Mapping[str, str | os.PathLike[str]] | None = None,
+    workers: int = 1,
+    force: bool = False,
+    progress: bool = True,
+    raise_errors: bool = True,
+) -> dict[str, Any]:
+    """Run one experiment and write ``<output>/<id>.json`` and its figures.
+
+    If ``<output>/<id>.json`` already holds a successful result for the same config,
+    package version, data and preset, it is returned without recomputing (unless
+    ``force``).
+
+    Parameters
+    ----------
+    exp_or_id : Experiment or str
+        The experiment or its registered id.
+    preset : {"quick", "full"}, default="quick"
+        Which config preset to run.
+    seed : int, optional
+        Replaces the preset's seed.
+    output : str or path-like, default="results"
+        Results folder (created if needed).
+    data : mapping of str to path, optional
+        Real data sets by name (``--data NAME=PATH``). Names the experiment does not
+        declare are ignored if another registered experiment declares them.
+    workers : int, default=1
+        Processes for :meth:`RunContext.parallel`; -1 for one per CPU.
+    force : bool, default=False
+        Recompute even if an up-to-date result exists.
+    progress : bool, default=True
+        Show progress bars (only on a terminal).
+    raise_errors : bool, default=True
+        If the experiment raises (other than :class:`ExperimentSkipped`), re-raise after
+        writing the failure record. When False, return the failure record instead.
+
+    Returns
+    -------
+    dict
+        The result record (see the module docstring); ``record["status"]`` is ``"ok"``,
+        ``"skipped"`` (the experiment raised :class:`ExperimentSkipped`) or ``"failed"``.
+
+    Raises
+    ------
+    ExperimentError
+        On an unknown id, a bad preset or data argument, or (with ``raise_errors``) the
+        experiment's own error.
+    """
+    exp = _resolve(exp_or_id)
+    config = exp.make_config(preset, seed=seed)
+    all_data = check_data(data, [exp])
+    exp_data = {name: path for name, path in all_data.items() if name in exp.datasets}
+    for name in sorted(set(all_data) - set(exp_data)):
+        logger.debug("%s: ignoring --data %s (not used by this experiment)", exp.id, name)
+
+    output = Path(output)
+    json_path = output / f"{exp.id}.json"
+    fig_dir = output / exp.id
+    config_json = json.loads(json.dumps(to_jsonable(config, where="config"), allow_nan=False))
+    record: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
+        "experiment": exp.id,
+        "title": exp.title,
+        "thesis_ref": exp.thesis_ref,
+        "status": "ok",
+        "message": None,
+        "traceback": None,
+        "preset": preset,
+        "config": config_json,
+        "seed": to_jsonable(config.seed),
+        "version": __version__,
+        "data": {name: str(path) for name, path in sorted(exp_data.items())},
+        "metrics": {},
+        "reference": dict(exp.reference),
+        "claims": [{"text": c.text, "rule": c.rule, "holds": None} for c in exp.claims],
+        "tables": {},
+        "figures": {},
+        "notes": [],
+        "extra": {},
+        "elapsed_s": 0.0,
+        "started_at": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+    }
+
+    ctx = RunContext(
+        workers=workers,
+        data=exp_data,
+        cache_dir=data_home(),
+        logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"),
+        show_progress=progress,
+    )
+    if not force and json_path.exists():
+        existing = load_record(json_path)
+        if existing is not None and _up_to_date(existing, record, output):
+            logger.info("%s: skipped: up to date (%s)", exp.id, json_path)
+            return existing
+
+    output.mkdir(parents=True, exist_ok=True)
+    logger.info("%s: running (%s preset, seed %s)", exp.id, preset, config.seed)
+    t0 = time.perf_counter()
+    result: Any = None
+    error: BaseException | None = None
+    try:
+        result = exp.run(config, ctx)
+        if not isinstance(result, Result):
+            raise ExperimentError(f"{exp.id}: run() must return a Result; got {type(result).__name__}.")
+        result.validate()
+        metrics = {name: float(value) for name, value in result.metrics.items()}
+        for claim in record["claims"]:
+            claim["holds"] = evaluate_rule(claim["rule"], metrics)
+        missing = sorted(set(exp.reference) - set(metrics))
+        if missing:
+            logger.warning("%s: reference values without a metric of ours: %s", exp.id, ", ".join(missing))
+        bad = sorted(k for k, v in metrics.items() if math.isinf(v))
+        if bad:
+            logger.warning("%s: infinite metric(s) stored as null: %s", exp.id, ", ".join(bad))
+        record["metrics"] = to_jsonable(metrics, where="metrics")
+        record["tables"] = {
+            str(name): to_jsonable(table.to_dict(), where=f"tables[{name!r}]") for name, table in result.tables.items()
+        }
+        record["notes"] = list(result.notes)
+        record["extra"] = to_jsonable(result.extra, where="extra")
+        for name, fig in result.figures.items():
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+            _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
+            record["figures"][name] = f"{exp.id}/{name}.png"
+    except ExperimentSkipped as exc:
+        record["status"] = "skipped"
+        record["message"] = str(exc)
+        logger.warning("%s: skipped: %s", exp.id, exc)
+    except Exception as exc:
+        error = exc
+        record["status"] = "failed"
+        record["message"] = f"{type(exc).__name__}: {exc}"
+        record["traceback"] = traceback.format_exc()
+        logger.error("%s: failed: %s", exp.id, record["message"])
+    finally:
+        if isinstance(result, Result):
+            _close_figures(result.figures)
+
+    if record["status"] != "ok":
+        for key, empty in (("metrics", {}), ("tables", {}), ("figures", {}), ("notes", []), ("extra", {})):
+            record[key] = empty
+        for claim in record["claims"]:
+            claim["holds"] = None
+    record["elapsed_s"] = round(time.perf_counter() - t0, 3)
+    _atomic_write(json_path, _dumps(record).encode("utf-8"))
+    _remove_stale_figures(fig_dir, (Path(p).name for p in record["figures"].values()))
+    if record["status"] == "ok":
+        logger.info("%s: done in %.1f s, wrote %s", exp.id, record["elapsed_s"], json_path)
+    if error is not None and raise_errors:
+        raise error
+    record["metrics"] = {k: (math.nan if v is None else float(v)) for k, v in record["metrics"].items()}
+    return record
+
+
+def reproduce(
+    *,
+    preset: str = "quick",
+    output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
+    data: Mapping[str, str | os.PathLike[str]] | None = None,
+    workers: int = 1,
+    force: bool = False,
+    ids: Sequence[str] | None = None,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """Run every registered experiment (or those in ``ids``), keeping going on failures.
+
+    An experiment that raises is recorded with ``status: "failed"`` and its traceback;
+    one that raises :class:`ExperimentSkipped` with ``status: "skipped"``. The report is
+    not written here (the report layer sits above this one): call
+    :func:`mmconcepts.report.write_report` on ``output`` afterwards, as
+    ``mmconcepts reproduce`` does.
+
+    Parameters
+    ----------
+    preset : {"quick", "full"}, default="quick"
+    output : str or path-like, default="results"
+    data : mapping of str to path, optional
+        Real data sets by name; each name must be declared by some registered experiment
+        and each path must exist.
+    workers : int, default=1
+    force : bool, default=False
+        Recompute up-to-date results too.
+    ids : sequence of str, optional
+        Run only these experiments, in this order (default: all, sorted by id).
+    progress : bool, default=True
+
+    Returns
+    -------
+    list of dict
+        One record per experiment, in the order run.
+    """
+    if preset not in PRESETS:
+        raise ParameterError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}.")
+    experiments = [get(i) for i in dict.fromkeys(ids)] if ids else all_experiments()
+    if not experiments:
+        raise ExperimentError("no experiments are registered; nothing to reproduce.")
+    checked = check_data(data, all_experiments())
+    records = []
+    for exp in experiments:
+        records.append(
+            run_experiment(
+                exp,
+                preset=preset,
+                output=output,
+                data=checked,
+                workers=workers,
+                force=force,
+                progress=progress,
+                raise_errors=False,
+            )
+        )
+    counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "failed", "skipped")}
+    logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
+    return records

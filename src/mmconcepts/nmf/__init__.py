@@ -1,0 +1,50 @@
+"""Beta-divergence nonnegative matrix factorization (thesis section 2.1).
+
+Orientation, used everywhere in mmconcepts
+------------------------------------------
+X is (n_samples, n_features), one example per row, and is approximated as
+
+    X ~ W @ H,   W: (n_samples, n_components) coefficients,
+                 H: (n_components, n_features) the dictionary, one atom per row.
+
+``NMF.components_`` is H; ``NMF.transform`` returns W. This is scikit-learn's
+orientation. The thesis writes V ~ W H with examples as *columns*: its V is our ``X.T``,
+its W (the dictionary, atoms as columns) is our ``H.T = components_.T``, and its H
+(coefficients) is our ``W.T``. Docstrings citing a thesis equation say which is which.
+
+Contents
+--------
+beta_nmf
+    The function doing the work: multiplicative updates with the MM exponent of thesis
+    Table 2.2 or the heuristic update (eq. 2.17), projected gradient (eq. 2.9-2.13),
+    Hoyer sparseness (eq. 2.20), L1/L2 penalties, masks, dense or sparse X.
+NMF
+    The scikit-learn estimator over it, with ``transform(X, features=..., mask=...)``,
+    ``inverse_transform(W, features=...)`` and ``partial_fit``.
+beta_divergence
+    D_beta(X | WH) (eq. 2.2-2.3), never densifying a sparse X.
+match_components, dictionary_distance
+    Comparing dictionaries up to scaling and permutation (Hungarian algorithm).
+hoyer_sparseness, project_hoyer
+    Hoyer's sparseness measure and projection.
+"""
+
+from ._beta import beta_divergence, elementwise_beta_divergence, mm_exponent
+from ._estimator import NMF
+from ._solver import NMFResult, beta_nmf
+from .compare import ComponentMatching, dictionary_distance, match_components
+from .sparseness import hoyer_sparseness, project_hoyer
+
+__all__ = [
+    "NMF",
+    "NMFResult",
+    "beta_nmf",
+    "beta_divergence",
+    "elementwise_beta_divergence",
+    "mm_exponent",
+    "match_components",
+    "dictionary_distance",
+    "ComponentMatching",
+    "hoyer_sparseness",
+    "project_hoyer",
+]

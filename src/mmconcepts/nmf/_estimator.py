@@ -1,0 +1,386 @@
+"""The :class:`NMF` estimator: scikit-learn's contract over :func:`beta_nmf`."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+import scipy.sparse as sp
+from sklearn.base import BaseEstimator, ClassNamePrefixFeaturesOutMixin, TransformerMixin
+from sklearn.utils.validation import check_is_fitted
+
+from .._validation import check_positive_int, check_random_state, check_scalar
+from ..errors import DataError, ParameterError
+from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
+from ._init import initialize
+from ._problem import Problem
+from ._solver import (
+    SOLVERS,
+    UPDATE_RULES,
+    _Penalty,
+    _resolve_penalties,
+    beta_nmf,
+    constant_coefficients,
+    mu_update,
+    validate_data,
+)
+
+__all__ = ["NMF", "resolve_features"]
+
+
+def resolve_features(features: Any, n_features: int, name: str = "features") -> np.ndarray:
+    """Turn indices, a slice or a boolean mask over ``n_features`` columns into sorted-as-given indices."""
+    if features is None:
+        return np.arange(n_features)
+    if isinstance(features, slice):
+        idx = np.arange(n_features)[features]
+    else:
+        arr = np.asarray(features)
+        if arr.dtype == bool:
+            if arr.ndim != 1 or arr.shape[0] != n_features:
+                raise ParameterError(
+                    f"{name} as a boolean mask must have length n_features={n_features}; got shape {arr.shape}."
+                )
+            idx = np.flatnonzero(arr)
+        elif arr.ndim == 1 and (arr.size == 0 or np.issubdtype(arr.dtype, np.integer)):
+            idx = arr.astype(np.intp)
+            if idx.size and (idx.min() < -n_features or idx.max() >= n_features):
+                raise ParameterError(
+                    f"{name} holds indices out of range for {n_features} features: "
+                    f"min {idx.min()}, max {idx.max()}."
+                )
+            idx = np.where(idx < 0, idx + n_features, idx)
+            if np.unique(idx).size != idx.size:
+                raise ParameterError(f"{name} holds repeated indices; give each feature once.")
+        else:
+            raise ParameterError(
+                f"{name} must be None, a slice, integer indices or a boolean mask; got {arr.dtype} of shape {arr.shape}."
+            )
+    if idx.size == 0:
+        raise ParameterError(f"{name} selects no feature; select at least one.")
+    return idx
+
+
+class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
+    """Beta-divergence nonnegative matrix factorization, X ~ W @ H (thesis section 2.1).
+
+    X is (n_samples, n_features); the dictionary ``components_`` (H) is
+    (n_components, n_features), one atom per row; :meth:`transform` returns the
+    coefficients W (n_samples, n_components). The thesis writes V ~ W H with examples
+    as columns: its W is our ``components_.T``.
+
+    .. math:: \\min_{W, H \\ge 0} D_\\beta(X | WH) + \\text{penalties}
+              \\quad \\text{(thesis eq. 2.2-2.3)}
+
+    Beyond scikit-learn's NMF: any real beta with the maximization-minimization exponent
+    of thesis Table 2.2 (or the heuristic update, eq. 2.17), a projected-gradient solver
+    (eq. 2.9-2.13), Hoyer sparseness constraints (eq. 2.20), masks of observed cells in
+    :meth:`fit` and :meth:`transform`, and transforms and reconstructions restricted to a
+    subset of features (e.g. from motion features only, to reconstruct labels).
+
+    Parameters
+    ----------
+    n_components : int, optional
+        Number of atoms. Default: min(n_samples, n_features).
+    beta_loss : float or {'frobenius', 'kullback-leibler', 'itakura-saito'}, default='frobenius'
+    solver : {'mu', 'pg'}, default='mu'
+    update_rule : {'mm', 'heuristic'}, default='mm'
+    init : {'random', 'nndsvd', 'nndsvda', 'nndsvdar', 'custom'}, optional
+        See :func:`~mmconcepts.nmf.beta_nmf`; 'custom' takes ``W`` and ``H`` given to ``fit``.
+    max_iter : int, default=200
+    tol : float, default=1e-4
+    alpha_W, alpha_H, l1_ratio : float
+        L1/L2 penalties as scikit-learn (scaled by n_features and n_samples).
+    sparseness_W, sparseness_H : float in [0, 1], optional
+        Hoyer's sparseness of each column of W and each atom.
+    forget_factor : float in [0, 1], default=0.7
+        :meth:`partial_fit`: weight of the statistics of earlier batches (1 keeps them all).
+    transform_max_iter : int, optional
+        Iterations of :meth:`transform` (default: ``max_iter``).
+    loss_every : int, default=10
+        The objective is evaluated (and recorded) every this many iterations.
+    random_state : int, numpy.random.Generator or None
+
+    Attributes
+    ----------
+    components_ : ndarray of shape (n_components, n_features)
+        The dictionary H.
+    n_components_ : int
+    n_iter_ : int
+        Iterations of the last fit (or partial_fit call).
+    reconstruction_err_ : float
+        sqrt(2 * D_beta(X | WH)) at the end of the fit, as scikit-learn.
+    loss_history_ : ndarray
+        Objective at the iterations in ``loss_iterations_``.
+    loss_iterations_ : ndarray of int
+    n_features_in_ : int
+    n_steps_ : int
+        Number of :meth:`partial_fit` calls since the last :meth:`fit`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mmconcepts.nmf import NMF
+    >>> X = np.random.default_rng(0).random((20, 8))
+    >>> model = NMF(3, beta_loss="kullback-leibler", random_state=0).fit(X)
+    >>> model.components_.shape
+    (3, 8)
+    >>> W = model.transform(X[:, :5], features=slice(0, 5))   # from the first 5 features
+    >>> model.inverse_transform(W, features=[5, 6, 7]).shape   # reconstruct the others
+    (20, 3)
+    """
+
+    def __init__(
+        self,
+        n_components: int | None = None,
+        *,
+        beta_loss: float | str = "frobenius",
+        solver: Literal["mu", "pg"] = "mu",
+        update_rule: Literal["mm", "heuristic"] = "mm",
+        init: str | None = None,
+        max_iter: int = 200,
+        tol: float = 1e-4,
+        alpha_W: float = 0.0,
+        alpha_H: float | str = "same",
+        l1_ratio: float = 0.0,
+        sparseness_W: float | None = None,
+        sparseness_H: float | None = None,
+        forget_factor: float = 0.7,
+        transform_max_iter: int | None = None,
+        loss_every: int = 10,
+        random_state: Any = None,
+    ):
+        self.n_components = n_components
+        self.beta_loss = beta_loss
+        self.solver = solver
+        self.update_rule = update_rule
+        self.init = init
+        self.max_iter = max_iter
+        self.tol = tol
+        self.alpha_W = alpha_W
+        self.alpha_H = alpha_H
+        self.l1_ratio = l1_ratio
+        self.sparseness_W = sparseness_W
+        self.sparseness_H = sparseness_H
+        self.forget_factor = forget_factor
+        self.transform_max_iter = transform_max_iter
+        self.loss_every = loss_every
+        self.random_state = random_state
+
+    # ------------------------------------------------------------------ scikit-learn
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.positive_only = True
+        tags.input_tags.sparse = True
+        tags.transformer_tags.preserves_dtype = ["float64", "float32"]
+        return tags
+
+    @property
+    def _n_features_out(self) -> int:
+        return self.components_.shape[0]
+
+    def _solver_kwargs(self) -> dict:
+        return dict(
+            beta_loss=self.beta_loss,
+            solver=self.solver,
+            update_rule=self.update_rule,
+            tol=self.tol,
+            alpha_W=self.alpha_W,
+            alpha_H=self.alpha_H,
+            l1_ratio=self.l1_ratio,
+            sparseness_W=self.sparseness_W,
+            loss_every=self.loss_every,
+        )
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> NMF:
+        """Learn the dictionary from X.
+
+        Parameters
+        ----------
+        X : {array-like, sparse matrix} of shape (n_samples, n_features)
+        y : ignored
+        mask : array-like of bool of shape (n_samples, n_features), optional
+            True where X is observed; unobserved cells have no influence.
+        W, H : ndarray, optional
+            Starting factors for ``init='custom'``.
+
+        Returns
+        -------
+        self
+        """
+        self.fit_transform(X, mask=mask, W=W, H=H)
+        return self
+
+    def fit_transform(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> np.ndarray:
+        """Learn the dictionary and return the coefficients W of X, shape (n_samples, n_components)."""
+        res = beta_nmf(
+            X,
+            self.n_components,
+            init=self.init,
+            W=W,
+            H=H,
+            mask=mask,
+            max_iter=self.max_iter,
+            sparseness_H=self.sparseness_H,
+            random_state=self.random_state,
+            **self._solver_kwargs(),
+        )
+        self._set_fitted(res.H, X)
+        self.n_iter_ = res.n_iter
+        self.loss_history_ = res.loss_history
+        self.loss_iterations_ = res.loss_iterations
+        self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
+        self.n_steps_ = 0
+        self._stats = None
+        return res.W
+
+    def _set_fitted(self, H: np.ndarray, X: Any) -> None:
+        self.components_ = H
+        self.n_components_ = H.shape[0]
+        self.n_features_in_ = H.shape[1]
+        names = getattr(X, "columns", None)
+        if names is not None:
+            self.feature_names_in_ = np.asarray(names, dtype=object)
+
+    def _reconstruction_err(self, X, W, H, mask) -> float:
+        from ._beta import beta_divergence
+
+        Xv, maskv = validate_data(X, mask)
+        d = beta_divergence(Xv, W, H, resolve_beta(self.beta_loss), mask=maskv)
+        return float(np.sqrt(2.0 * max(d, 0.0)))
+
+    def partial_fit(self, X: Any, y: Any = None, *, mask: Any = None) -> NMF:
+        """Update the dictionary with one mini-batch (online multiplicative updates).
+
+        Each call fits the batch's coefficients and the dictionary by ``max_iter``
+        alternating multiplicative updates in which the dictionary update pools the
+        batch's statistics with those kept from earlier batches, weighted by
+        ``forget_factor`` (Lefevre, Bach & Fevotte, 2011):
+
+        .. math:: H \\leftarrow \\left(\\frac{\\rho A + H^{1/\\gamma} \\odot N_t}{\\rho B + D_t}\\right)^{\\gamma}
+
+        with N_t, D_t the numerator and denominator of thesis eq. (2.16) on the batch.
+        The first call starts from ``init``; with no earlier statistics it performs exactly
+        the iterations of :meth:`fit`, so one call on all the data equals :meth:`fit`
+        with ``solver='mu'``. partial_fit always uses multiplicative updates, whatever
+        ``solver`` says; ``tol`` is not used (each call runs ``max_iter`` iterations).
+        """
+        if self.sparseness_W is not None or self.sparseness_H is not None:
+            raise ParameterError("partial_fit does not support Hoyer sparseness constraints; use fit.")
+        beta = resolve_beta(self.beta_loss)
+        if self.update_rule not in UPDATE_RULES:
+            raise ParameterError(f"update_rule must be one of {UPDATE_RULES}; got {self.update_rule!r}.")
+        rho = check_scalar(self.forget_factor, "forget_factor", low=0.0, high=1.0)
+        max_iter = check_positive_int(self.max_iter, "max_iter", minimum=0)
+        Xv, maskv = validate_data(X, mask)
+        check_beta_zeros(Xv, beta, maskv)
+        n, m = Xv.shape
+        if not hasattr(self, "components_"):
+            k = check_positive_int(self.n_components if self.n_components is not None else min(n, m), "n_components")
+            init = self.init or ("nndsvda" if k <= min(n, m) else "random")
+            W, H = initialize(Xv, k, init, check_random_state(self.random_state), mask=maskv)
+            self.n_steps_ = 0
+            self._stats = None
+        else:
+            self._check_n_features(m)
+            H = self.components_.astype(Xv.dtype, copy=True)
+            W = constant_coefficients(Xv, H, maskv)
+        gamma = mm_exponent(beta) if self.update_rule == "mm" else 1.0
+        pen_W, pen_H = _resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, n, m)
+        problem = Problem(Xv, maskv)
+        W = np.ascontiguousarray(W)
+        Ht = np.ascontiguousarray(H.T)
+        A0, B0 = (None, None) if getattr(self, "_stats", None) is None else self._stats
+        A = B = None
+        for _ in range(max_iter):
+            W = mu_update(problem.sides[0], W, Ht, beta, gamma, pen_W)
+            num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
+            den = pen_H.add_to(den, Ht)
+            den = np.where(den == 0, Ht.dtype.type(EPSILON), den)
+            A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
+            B = np.array(den, copy=True)
+            if A0 is not None:
+                A += rho * A0
+                B += rho * B0
+            Ht = A / B
+            if gamma != 1.0:
+                Ht **= gamma
+        if A is not None:
+            self._stats = (A, B)
+        self._set_fitted(np.ascontiguousarray(Ht.T), X)
+        self.n_iter_ = max_iter
+        self.n_steps_ = getattr(self, "n_steps_", 0) + 1
+        loss = problem.divergence(W, Ht, beta)
+        self.loss_history_ = np.array([loss])
+        self.loss_iterations_ = np.array([max_iter])
+        self.reconstruction_err_ = float(np.sqrt(2.0 * max(loss, 0.0)))
+        return self
+
+    # ------------------------------------------------------------------ using the dictionary
+    def _check_n_features(self, n: int) -> None:
+        if n != self.n_features_in_:
+            raise DataError(
+                f"X has {n} features, but {type(self).__name__} is expecting {self.n_features_in_} features as input."
+            )
+
+    def transform(self, X: Any, *, features: Any = None, mask: Any = None) -> np.ndarray:
+        """Coefficients W of X with the dictionary fixed.
+
+        Parameters
+        ----------
+        X : {array-like, sparse matrix} of shape (n_samples, n_features) or (n_samples, n_selected)
+            With ``features``, X holds only the selected columns, in that order.
+        features : slice, array of int or array of bool, optional
+            Which columns of ``components_`` X corresponds to. The coefficients are fit on
+            that sub-dictionary with the full multiplicative update, whose denominator
+            uses the sub-dictionary's own sums (no bias when its atoms do not sum to one).
+        mask : array-like of bool, optional
+            True where X is observed.
+
+        Returns
+        -------
+        W : ndarray of shape (n_samples, n_components)
+        """
+        check_is_fitted(self)
+        idx = resolve_features(features, self.n_features_in_)
+        Xv, maskv = validate_data(X, mask)
+        if features is None:
+            self._check_n_features(Xv.shape[1])
+        elif Xv.shape[1] != idx.size:
+            raise DataError(
+                f"X has {Xv.shape[1]} columns but features selects {idx.size}; give X only the selected columns."
+            )
+        H = self.components_[:, idx].astype(Xv.dtype, copy=False)
+        max_iter = self.transform_max_iter if self.transform_max_iter is not None else self.max_iter
+        res = beta_nmf(
+            Xv,
+            self.components_.shape[0],
+            H=H,
+            update_H=False,
+            mask=maskv,
+            max_iter=max_iter,
+            **self._solver_kwargs(),
+        )
+        return res.W
+
+    def inverse_transform(self, W: Any, *, features: Any = None) -> np.ndarray:
+        """Reconstruction W @ H, restricted to the selected features when given.
+
+        Parameters
+        ----------
+        W : array-like of shape (n_samples, n_components)
+        features : slice, array of int or array of bool, optional
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_selected)
+        """
+        check_is_fitted(self)
+        W = np.asarray(W.toarray() if sp.issparse(W) else W)
+        if W.ndim != 2 or W.shape[1] != self.components_.shape[0]:
+            raise DataError(
+                f"W must have shape (n_samples, {self.components_.shape[0]}); got {W.shape}."
+            )
+        idx = resolve_features(features, self.n_features_in_)
+        return W @ self.components_[:, idx]

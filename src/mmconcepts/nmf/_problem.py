@@ -1,0 +1,164 @@
+"""One side of a (masked, dense or sparse) beta-NMF problem (internal).
+
+The factorization X ~ W @ H is stored as X ~ W @ Ht.T with W (n, k) and Ht = H.T (m, k),
+both C-contiguous. Every update is written once, for the *left* factor L of
+X_side ~ L @ R.T: side 0 is (X, L=W, R=Ht) and side 1 is (X.T, L=Ht, R=W). For a dense X
+the two sides share X in its stored layout; for a sparse X each side keeps
+its own CSR copy so that the numba kernels run row-parallel with no write conflicts.
+
+In the thesis' notation (V ~ W_thesis H_thesis, examples as columns), V = X.T,
+W_thesis = Ht and H_thesis = W.T, so thesis eq. (2.16)'s H-update is our side 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import _kernels
+from ._beta import EPSILON, _dense_blocks, _gather, _mask_block, _sum_power_lowrank, elementwise_beta_divergence
+
+__all__ = ["Side", "Problem"]
+
+
+@dataclass
+class Side:
+    """Data for updating the left factor of X_side ~ L @ R.T."""
+
+    X: np.ndarray | sp.csr_matrix  # sparse: CSR of X (side 0) or of X.T (side 1); dense: X itself
+    mask: np.ndarray | sp.csr_matrix | None  # same layout as X, float; None = all observed
+    weights: np.ndarray | None  # sparse X only: mask values at X's stored entries
+    transposed: bool  # dense only: this side updates the right factor (X ~ R @ L.T)
+
+    @property
+    def sparse(self) -> bool:
+        return sp.issparse(self.X)
+
+    # --- the two halves of the multiplicative update (thesis eq. 2.16) -------------
+    def numerator_denominator(self, L: np.ndarray, R: np.ndarray, beta: float):
+        """Return (N, D) with the update L <- L * (N / D) ** gamma.
+
+        .. math::
+            N = (M \\odot X \\odot Y^{\\beta-2}) R, \\qquad D = (M \\odot Y^{\\beta-1}) R,
+            \\qquad Y = L R^T
+        """
+        if self.sparse:
+            return self._sparse_nd(L, R, beta)
+        return self._dense_nd(L, R, beta)
+
+    def _dense_nd(self, L, R, beta):
+        # Dense data stays in its stored (C) orientation: side 1 computes Y = R @ L.T, the
+        # product in the original orientation, and lets BLAS read the transposes for free.
+        X, M, t = self.X, self.mask, self.transposed
+
+        def rdot(E):  # E (in the stored orientation) times R, for this side
+            return E.T @ R if t else E @ R
+
+        if beta == 2.0 and M is None:
+            return rdot(X), L @ (R.T @ R)
+        Y = R @ L.T if t else L @ R.T
+        if beta == 2.0:
+            Y *= M
+            return rdot(M * X), rdot(Y)
+        if beta == 1.0:
+            _kernels.divide_clipped(X, Y, Y.dtype.type(EPSILON))
+            if M is not None:
+                Y *= M
+                return rdot(Y), rdot(M)
+            return rdot(Y), np.broadcast_to(R.sum(axis=0), L.shape)
+        np.maximum(Y, EPSILON if beta < 2.0 else 0.0, out=Y)
+        Yb1 = Y ** (beta - 1.0)  # Y^(beta-1)
+        if beta == 0.0:
+            Y = Yb1 * Yb1  # Y^-2
+        else:
+            Y **= beta - 2.0
+        Y *= X
+        if M is not None:
+            Y *= M
+            Yb1 *= M
+        return rdot(Y), rdot(Yb1)
+
+    def _sparse_nd(self, L, R, beta):
+        X, M = self.X, self.mask
+        w = self.weights if self.weights is not None else np.empty(0, dtype=L.dtype)
+        if beta == 2.0 and M is None:
+            num = np.asarray(X @ R)
+        else:
+            num = _kernels.mu_numerator(
+                X.indptr, X.indices, X.data, w, L, R, beta, L.dtype.type(EPSILON), np.empty_like(L)
+            )
+        if beta == 1.0:
+            den = np.broadcast_to(R.sum(axis=0), L.shape) if M is None else np.asarray(M @ R)
+        elif beta == 2.0 and M is None:
+            den = L @ (R.T @ R)
+        else:
+            den = np.empty_like(L)
+            for rows in _dense_blocks(L.shape[0], R.shape[0]):
+                Y = L[rows] @ R.T
+                np.maximum(Y, EPSILON if beta < 2.0 else 0.0, out=Y)
+                if beta != 2.0:
+                    Y **= beta - 1.0
+                if M is not None:
+                    Y *= _mask_block(M, rows)
+                den[rows] = Y @ R
+        return num, den
+
+    def divergence(self, L: np.ndarray, R: np.ndarray, beta: float) -> float:
+        """D_beta(X_side | L R^T) over observed cells (same value on both sides)."""
+        X, M = self.X, self.mask
+        if self.sparse:
+            Y = _kernels.lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz, dtype=L.dtype))
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                on_nnz = elementwise_beta_divergence(X.data, Y, beta)
+                zero_term = None
+                if beta > 0:
+                    zero_term = Y if beta == 1.0 else np.maximum(Y, 0.0) ** beta / beta
+            if self.weights is not None:
+                on_nnz = on_nnz * self.weights
+                if zero_term is not None:
+                    zero_term = zero_term * self.weights
+            total = float(np.sum(on_nnz, dtype=np.float64))
+            if zero_term is not None:
+                total -= float(np.sum(zero_term, dtype=np.float64))
+                total += (1.0 if beta == 1.0 else 1.0 / beta) * _sum_power_lowrank(L, R, beta, M)
+            return total
+        Y = R @ L.T if self.transposed else L @ R.T
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            D = elementwise_beta_divergence(X, Y, beta)
+        if M is not None:  # an infinite term in an unobserved cell does not count
+            D = np.where(M > 0, D * M, 0.0)
+        return float(np.sum(D, dtype=np.float64))
+
+
+class Problem:
+    """Both sides of X ~ W @ Ht.T, built once per fit."""
+
+    def __init__(self, X, mask=None):
+        self.shape = X.shape
+        self.dtype = X.dtype
+        if mask is not None:
+            mask = mask.astype(X.dtype) if sp.issparse(mask) else np.asarray(mask, dtype=X.dtype)
+            if sp.issparse(mask):
+                mask = sp.csr_matrix(mask)
+        if sp.issparse(X):
+            XT = sp.csr_matrix(X.T)  # CSC of X reinterpreted: rows are features
+            XT.sort_indices()
+            w0 = w1 = None
+            MT = None
+            if mask is not None:
+                rows0 = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
+                w0 = np.ascontiguousarray(_gather(mask, rows0, X.indices), dtype=X.dtype)
+                MT = sp.csr_matrix(mask.T) if sp.issparse(mask) else np.ascontiguousarray(mask.T)
+                rows1 = np.repeat(np.arange(XT.shape[0]), np.diff(XT.indptr))
+                w1 = np.ascontiguousarray(_gather(MT, rows1, XT.indices), dtype=X.dtype)
+            self.sides = (Side(X, mask, w0, False), Side(XT, MT, w1, False))
+        else:
+            if sp.issparse(mask):
+                mask = mask.toarray()
+            self.sides = (Side(X, mask, None, False), Side(X, mask, None, True))
+        self.mask = mask
+
+    def divergence(self, W: np.ndarray, Ht: np.ndarray, beta: float) -> float:
+        return self.sides[0].divergence(W, Ht, beta)

@@ -1,0 +1,467 @@
+"""The beta-NMF solvers and the :func:`beta_nmf` function (thesis section 2.1.2-2.1.3)."""
+
+from __future__ import annotations
+
+import numbers
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._validation import check_nonnegative_matrix, check_positive_int, check_random_state, check_scalar
+from ..errors import ConvergenceWarning, DataError, ParameterError
+from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
+from ._init import INITS, initialize
+from ._problem import Problem, Side
+from .sparseness import l1_for_sparseness, project_hoyer
+
+__all__ = ["beta_nmf", "NMFResult", "SOLVERS"]
+
+SOLVERS = ("mu", "pg")
+UPDATE_RULES = ("mm", "heuristic")
+
+
+@dataclass
+class NMFResult:
+    """What :func:`beta_nmf` returns.
+
+    Attributes
+    ----------
+    W : ndarray of shape (n_samples, n_components)
+        Coefficients (the thesis' H, transposed).
+    H : ndarray of shape (n_components, n_features)
+        Dictionary, one atom per row (the thesis' W, transposed).
+    n_iter : int
+        Iterations done.
+    loss_history : ndarray
+        The objective (divergence + penalties) at ``loss_iterations``.
+    loss_iterations : ndarray of int
+        Iteration number of each entry of ``loss_history`` (0 is the initialisation).
+    converged : bool
+        Whether the tolerance was met before ``max_iter`` (always False with tol=0).
+    """
+
+    W: np.ndarray
+    H: np.ndarray
+    n_iter: int
+    loss_history: np.ndarray
+    loss_iterations: np.ndarray
+    converged: bool
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Penalty:
+    l1: float = 0.0
+    l2: float = 0.0
+
+    def value(self, L: np.ndarray) -> float:
+        out = 0.0
+        if self.l1:
+            out += self.l1 * float(L.sum(dtype=np.float64))
+        if self.l2:
+            out += 0.5 * self.l2 * float(np.sum(L * L, dtype=np.float64))
+        return out
+
+    def add_to(self, den: np.ndarray, L: np.ndarray) -> np.ndarray:
+        if self.l1 or self.l2:
+            den = den + self.l1 if self.l1 else np.array(den)
+            if self.l2:
+                den = den + self.l2 * L
+        return den
+
+
+@dataclass
+class _Hoyer:
+    """Hoyer's constraint on the columns of one stored factor (W or Ht)."""
+
+    sparseness: float
+    keep_norm: bool  # True: coefficients keep their L2 norms; False: atoms have unit L2 norm
+
+    def project(self, L: np.ndarray) -> np.ndarray:
+        out = np.empty_like(L)
+        n = L.shape[0]
+        for c in range(L.shape[1]):
+            col = L[:, c].astype(np.float64)
+            l2 = float(np.linalg.norm(col)) if self.keep_norm else 1.0
+            if l2 == 0.0 or n < 2:
+                out[:, c] = col
+                continue
+            out[:, c] = project_hoyer(col, l1_for_sparseness(self.sparseness, n, l2), l2)
+        return out
+
+
+class _Solver:
+    """Alternating updates of the two stored factors W (side 0) and Ht (side 1)."""
+
+    def __init__(self, problem: Problem, beta: float, solver: str, update_rule: str,
+                 penalties: tuple[_Penalty, _Penalty], hoyer: tuple[_Hoyer | None, _Hoyer | None]):
+        self.problem = problem
+        self.beta = beta
+        self.solver = solver
+        self.gamma = mm_exponent(beta) if update_rule == "mm" else 1.0
+        self.penalties = penalties
+        self.hoyer = hoyer
+        self.step = [1.0, 1.0]  # per-side step sizes of the gradient solvers, carried across iterations
+
+    # -- objective -------------------------------------------------------------------
+    def objective(self, W: np.ndarray, Ht: np.ndarray) -> float:
+        return (self.problem.divergence(W, Ht, self.beta)
+                + self.penalties[0].value(W) + self.penalties[1].value(Ht))
+
+    def _side_objective(self, s: int, L: np.ndarray, R: np.ndarray) -> float:
+        side = self.problem.sides[s]
+        return side.divergence(L, R, self.beta) + self.penalties[s].value(L)
+
+    # -- one update of the left factor of side s -------------------------------------
+    def update(self, s: int, L: np.ndarray, R: np.ndarray) -> np.ndarray:
+        side = self.problem.sides[s]
+        if self.hoyer[s] is not None:
+            return self._hoyer_step(s, side, L, R)
+        if self.solver == "pg":
+            return self._pg_step(s, side, L, R)
+        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s])
+
+    def _gradient(self, s: int, side: Side, L: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """Gradient of the side objective in L (thesis eq. 2.11-2.13): D - N + penalties."""
+        num, den = side.numerator_denominator(L, R, self.beta)
+        return self.penalties[s].add_to(den, L) - num
+
+    def _pg_step(self, s: int, side: Side, L: np.ndarray, R: np.ndarray,
+                 n_inner: int = 5, sigma: float = 0.01, shrink: float = 0.1) -> np.ndarray:
+        """Projected gradient (thesis eq. 2.9-2.10) with Lin's (2007) Armijo rule along the projection arc."""
+        for _ in range(n_inner):
+            grad = self._gradient(s, side, L, R)
+            f0 = self._side_objective(s, L, R)
+            alpha = self.step[s]
+
+            def trial(a: float):
+                Ln = np.maximum(L - a * grad, 0.0).astype(L.dtype, copy=False)
+                fn = self._side_objective(s, Ln, R)
+                ok = np.isfinite(fn) and fn - f0 <= sigma * float(np.sum(grad * (Ln - L), dtype=np.float64))
+                return ok, Ln
+
+            ok, Ln = trial(alpha)
+            if ok:  # grow the step while the Armijo condition holds
+                for _ in range(20):
+                    a2 = alpha / shrink
+                    ok2, Ln2 = trial(a2)
+                    if not ok2 or np.array_equal(Ln2, Ln):
+                        break
+                    alpha, Ln = a2, Ln2
+            else:  # shrink until it holds
+                for _ in range(40):
+                    alpha *= shrink
+                    ok, Ln = trial(alpha)
+                    if ok:
+                        break
+                if not ok:
+                    return L  # no decrease along the gradient: L is (numerically) stationary
+            self.step[s] = alpha
+            L = Ln
+        return L
+
+    def _hoyer_step(self, s: int, side: Side, L: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """Hoyer's (2004) gradient step followed by the sparseness projection of each vector."""
+        grad = self._gradient(s, side, L, R)
+        f0 = self._side_objective(s, L, R)
+        mu = self.step[s]
+        for _ in range(50):
+            Ln = self.hoyer[s].project(np.maximum(L - mu * grad, 0.0)).astype(L.dtype, copy=False)
+            fn = self._side_objective(s, Ln, R)
+            if np.isfinite(fn) and fn <= f0:
+                self.step[s] = mu * 1.2
+                return Ln
+            mu /= 2.0
+        self.step[s] = mu
+        return L
+
+
+def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: _Penalty) -> np.ndarray:
+    """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1)."""
+    num, den = side.numerator_denominator(L, R, beta)
+    den = penalty.add_to(den, L)
+    if np.any(den == 0):
+        den = np.where(den == 0, L.dtype.type(EPSILON), den)
+    ratio = np.divide(num, den, out=num if num.flags.writeable else None)
+    if gamma != 1.0:
+        ratio **= gamma
+    L *= ratio
+    return L
+
+
+def _resolve_penalties(alpha_W, alpha_H, l1_ratio, n_samples, n_features):
+    alpha_W = check_scalar(alpha_W, "alpha_W", low=0.0)
+    alpha_H = alpha_W if isinstance(alpha_H, str) and alpha_H == "same" else check_scalar(alpha_H, "alpha_H", low=0.0)
+    l1_ratio = check_scalar(l1_ratio, "l1_ratio", low=0.0, high=1.0)
+    # Scaled as scikit-learn: the penalty on W grows with n_features, the one on H with n_samples.
+    pen_W = _Penalty(l1=n_features * alpha_W * l1_ratio, l2=n_features * alpha_W * (1 - l1_ratio))
+    pen_H = _Penalty(l1=n_samples * alpha_H * l1_ratio, l2=n_samples * alpha_H * (1 - l1_ratio))
+    return pen_W, pen_H
+
+
+def _check_sparseness(value, name):
+    if value is None:
+        return None
+    return check_scalar(value, name, low=0.0, high=1.0)
+
+
+def check_mask(mask: Any, shape: tuple[int, int], name: str = "mask"):
+    """Validate a mask of observed cells: a boolean (or 0/1) array or sparse matrix of X's shape."""
+    if mask is None:
+        return None
+    if sp.issparse(mask):
+        mask = sp.csr_matrix(mask)
+        values = mask.data
+    else:
+        mask = np.asarray(mask)
+        values = mask
+    if mask.ndim != 2 or mask.shape != tuple(shape):
+        raise DataError(f"{name} must have the shape of X, {tuple(shape)}; got {mask.shape}.")
+    if values.dtype != bool:
+        if not np.issubdtype(values.dtype, np.number) or not np.isin(values, (0, 1)).all():
+            raise DataError(f"{name} must be boolean (True where X is observed) or hold only 0 and 1.")
+    if sp.issparse(mask):
+        mask = mask.astype(bool)
+        mask.eliminate_zeros()
+        if mask.nnz == 0:
+            raise DataError(f"{name} observes no cell of X; at least one cell must be True.")
+        return mask
+    mask = mask.astype(bool)
+    if not mask.any():
+        raise DataError(f"{name} observes no cell of X; at least one cell must be True.")
+    return mask
+
+
+def validate_data(X: Any, mask: Any = None, name: str = "X"):
+    """Validate X (and its mask). With a mask, unobserved cells may hold anything (NaN too); they are zeroed."""
+    if mask is None:
+        return check_nonnegative_matrix(X, name), None
+    if sp.issparse(X):
+        X = sp.csr_matrix(X, dtype=X.dtype if X.dtype in (np.float32, np.float64) else np.float64, copy=True)
+        X.sum_duplicates()
+    else:
+        X = np.array(X, dtype=None, copy=True)
+        if X.dtype not in (np.float32, np.float64):
+            try:
+                X = X.astype(np.float64)
+            except (TypeError, ValueError) as exc:
+                raise DataError(f"{name} must hold numbers; got dtype {X.dtype}.") from exc
+    if X.ndim != 2:
+        raise DataError(f"{name} must be 2-D (n_samples, n_features); got an array of shape {X.shape}.")
+    mask = check_mask(mask, X.shape)
+    if sp.issparse(X):
+        rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
+        observed = np.asarray(mask[rows, X.indices]).ravel() if sp.issparse(mask) else mask[rows, X.indices]
+        X.data[~observed.astype(bool)] = 0.0
+        X.eliminate_zeros()
+    else:
+        dense_mask = mask.toarray() if sp.issparse(mask) else mask
+        X[~dense_mask] = 0.0
+    return check_nonnegative_matrix(X, name), mask
+
+
+def _check_factor(A: Any, shape: tuple[int, int], name: str, dtype) -> np.ndarray:
+    A = check_nonnegative_matrix(A, name, accept_sparse=False)
+    if A.shape != shape:
+        raise DataError(f"{name} must have shape {shape}; got {A.shape}.")
+    return np.array(A, dtype=dtype, copy=True)
+
+
+def beta_nmf(
+    X: Any,
+    n_components: int | None = None,
+    *,
+    beta_loss: float | str = 2.0,
+    solver: Literal["mu", "pg"] = "mu",
+    update_rule: Literal["mm", "heuristic"] = "mm",
+    init: str | None = None,
+    W: np.ndarray | None = None,
+    H: np.ndarray | None = None,
+    update_H: bool = True,
+    mask: Any = None,
+    max_iter: int = 200,
+    tol: float = 1e-4,
+    alpha_W: float = 0.0,
+    alpha_H: float | str = "same",
+    l1_ratio: float = 0.0,
+    sparseness_W: float | None = None,
+    sparseness_H: float | None = None,
+    loss_every: int = 10,
+    random_state: Any = None,
+) -> NMFResult:
+    """Factorize a nonnegative matrix: X ~ W @ H, minimizing a beta-divergence.
+
+    X is (n_samples, n_features); ``H`` (n_components, n_features) is the dictionary,
+    one atom per row, and ``W`` (n_samples, n_components) the coefficients. The thesis
+    writes V ~ W H with examples as columns: its V, W, H are our X.T, H.T, W.T.
+
+    .. math::
+        \\min_{W, H \\ge 0}\\ D_\\beta(X | WH) + \\lambda^{(1)}_W \\|W\\|_1
+        + \\tfrac{1}{2}\\lambda^{(2)}_W \\|W\\|_F^2 + \\lambda^{(1)}_H \\|H\\|_1
+        + \\tfrac{1}{2}\\lambda^{(2)}_H \\|H\\|_F^2
+
+    with :math:`D_\\beta` of thesis eq. (2.2)-(2.3), optionally restricted to observed
+    cells, and optionally under Hoyer's sparseness constraints (eq. 2.20).
+
+    Parameters
+    ----------
+    X : {array-like, sparse matrix} of shape (n_samples, n_features)
+        Nonnegative data. A sparse X is never densified: the product WH is evaluated
+        at its nonzeros only (numba kernels).
+    n_components : int, optional
+        Number of atoms k. Default: min(n_samples, n_features), or H's when given.
+    beta_loss : float or {'frobenius', 'kullback-leibler', 'itakura-saito'}, default=2
+        Any real beta. beta <= 0 requires X > 0 on observed cells.
+    solver : {'mu', 'pg'}, default='mu'
+        ``'mu'``: multiplicative updates (thesis eq. 2.15-2.19), W then H at each
+        iteration as scikit-learn. ``'pg'``: alternating projected gradient (eq. 2.9-2.13)
+        with Armijo step sizes along the projection arc (Lin 2007).
+    update_rule : {'mm', 'heuristic'}, default='mm'
+        ``'mm'`` raises the multiplicative factor to gamma(beta) of Table 2.2, which
+        guarantees that the objective never increases; ``'heuristic'`` uses exponent 1
+        (eq. 2.17), the same for 1 <= beta <= 2.
+    init : {'random', 'nndsvd', 'nndsvda', 'nndsvdar', 'custom'}, optional
+        Default: 'nndsvda' if n_components <= min(X.shape), else 'random'; 'custom'
+        (or giving W and H) starts from W and H.
+    W, H : ndarray, optional
+        Starting factors (copied). With ``update_H=False``, H is required and kept fixed.
+    update_H : bool, default=True
+        False fits only W with the dictionary H fixed.
+    mask : {array-like of bool, sparse matrix} of shape (n_samples, n_features), optional
+        True where X is observed. Unobserved cells have no influence at all: the
+        updates and the loss are weighted by the mask, and their values (NaN included)
+        are ignored.
+    max_iter : int, default=200
+    tol : float, default=1e-4
+        Stop when the error sqrt(2 * objective), evaluated every ``loss_every``
+        iterations, has decreased by less than ``tol`` times its initial value since the
+        last check (scikit-learn's rule). 0 runs exactly ``max_iter`` iterations.
+    alpha_W, alpha_H, l1_ratio : float
+        L1/L2 penalties, with scikit-learn's meaning and scaling (alpha_W is multiplied by
+        n_features, alpha_H by n_samples; ``alpha_H='same'`` takes alpha_W).
+    sparseness_W, sparseness_H : float in [0, 1], optional
+        Hoyer's constraints (eq. 2.20): every atom (row of H) is projected to unit L2
+        norm and this sparseness; every column of W (one component's activations across
+        samples, a row of the thesis' H) keeps its L2 norm at this sparseness. A
+        constrained factor is updated by projected gradient steps (Hoyer 2004).
+    loss_every : int, default=10
+        Evaluate (and record) the objective every this many iterations.
+    random_state : int, numpy.random.Generator or None
+        Seeds the random and NNDSVD initialisations.
+
+    Returns
+    -------
+    NMFResult
+        W, H, n_iter, loss_history, loss_iterations, converged.
+
+    Raises
+    ------
+    DataError
+        Negative, NaN or infinite values in observed cells, empty input, a mask or
+        factor of the wrong shape, zeros with beta <= 0.
+    ParameterError
+        An unknown solver, init or update rule, or a value out of range.
+    """
+    beta = resolve_beta(beta_loss)
+    if solver not in SOLVERS:
+        raise ParameterError(f"solver must be one of {SOLVERS}; got {solver!r}.")
+    if update_rule not in UPDATE_RULES:
+        raise ParameterError(f"update_rule must be one of {UPDATE_RULES}; got {update_rule!r}.")
+    max_iter = check_positive_int(max_iter, "max_iter", minimum=0)
+    tol = check_scalar(tol, "tol", low=0.0)
+    loss_every = check_positive_int(loss_every, "loss_every")
+    sparseness_W = _check_sparseness(sparseness_W, "sparseness_W")
+    sparseness_H = _check_sparseness(sparseness_H, "sparseness_H")
+
+    X, mask = validate_data(X, mask)
+    check_beta_zeros(X, beta, mask)
+    n, m = X.shape
+    dtype = X.dtype
+
+    if n_components is None:
+        n_components = H.shape[0] if H is not None else (W.shape[1] if W is not None else min(n, m))
+    k = check_positive_int(n_components, "n_components")
+
+    if not update_H:
+        if H is None:
+            raise ParameterError("update_H=False needs the fixed dictionary H.")
+        H = _check_factor(H, (k, m), "H", dtype)
+        if W is None:
+            W = constant_coefficients(X, H, mask)
+        else:
+            W = _check_factor(W, (n, k), "W", dtype)
+    elif init == "custom" or (init is None and W is not None and H is not None):
+        if W is None or H is None:
+            raise ParameterError("init='custom' needs both W and H.")
+        W = _check_factor(W, (n, k), "W", dtype)
+        H = _check_factor(H, (k, m), "H", dtype)
+    else:
+        if init is None:
+            init = "nndsvda" if k <= min(n, m) else "random"
+        if init not in INITS:
+            raise ParameterError(f"init must be one of {INITS} or None; got {init!r}.")
+        W, H = initialize(X, k, init, check_random_state(random_state), mask=mask)
+
+    pen_W, pen_H = _resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
+    hoyer = (
+        None if sparseness_W is None else _Hoyer(sparseness_W, keep_norm=True),
+        None if sparseness_H is None else _Hoyer(sparseness_H, keep_norm=False),
+    )
+    problem = Problem(X, mask)
+    sol = _Solver(problem, beta, solver, update_rule, (pen_W, pen_H), hoyer)
+    W = np.ascontiguousarray(W)
+    Ht = np.ascontiguousarray(H.T)
+    if hoyer[0] is not None:
+        W = hoyer[0].project(W)
+    if hoyer[1] is not None and update_H:
+        Ht = hoyer[1].project(Ht)
+    W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every)
+    if tol > 0 and not converged and max_iter > 0:
+        warnings.warn(
+            f"beta_nmf stopped at max_iter={max_iter} before the objective settled (tol={tol:g}); "
+            "increase max_iter or tol.",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
+    return NMFResult(W, np.ascontiguousarray(Ht.T), n_iter, hist, its, converged)
+
+
+def constant_coefficients(X, H: np.ndarray, mask=None) -> np.ndarray:
+    """A flat start for W given a fixed H: every entry equal, so that mean(W H) = mean(X)."""
+    n, k = X.shape[0], H.shape[0]
+    if mask is None:
+        x_mean = float(X.mean())
+    else:
+        m = mask.toarray() if sp.issparse(mask) else mask
+        x_mean = float((X.multiply(m) if sp.issparse(X) else X * m).sum()) / max(float(m.sum()), 1.0)
+    h_mean = float(H.mean())
+    value = x_mean / (k * h_mean) if h_mean > 0 else 0.0
+    return np.full((n, k), max(value, np.sqrt(np.finfo(X.dtype).eps)), dtype=X.dtype)
+
+
+def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, loss_every: int):
+    """Alternate W and H updates; record the objective every ``loss_every`` iterations."""
+    f0 = sol.objective(W, Ht)
+    hist, its = [f0], [0]
+    # Stopping rule of scikit-learn, on the error sqrt(2 * objective).
+    err0 = np.sqrt(2.0 * max(f0, 0.0))
+    prev = err0
+    converged = False
+    n_iter = 0
+    for n_iter in range(1, max_iter + 1):
+        W = sol.update(0, W, Ht)
+        if update_H:
+            Ht = sol.update(1, Ht, W)
+        if n_iter % loss_every == 0 or n_iter == max_iter:
+            f = sol.objective(W, Ht)
+            hist.append(f)
+            its.append(n_iter)
+            err = np.sqrt(2.0 * max(f, 0.0))
+            if tol > 0 and err0 > 0 and (prev - err) / err0 < tol:
+                converged = True
+                break
+            prev = err
+    return W, Ht, n_iter, np.asarray(hist), np.asarray(its, dtype=int), converged

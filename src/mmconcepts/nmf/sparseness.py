@@ -1,0 +1,105 @@
+"""Hoyer's sparseness measure and projection (thesis eq. 2.20).
+
+Hoyer, P. O. (2004). Non-negative matrix factorization with sparseness constraints.
+JMLR 5, 1457-1469. The projection is written by hand: no maintained library ships it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DataError, ParameterError
+
+__all__ = ["hoyer_sparseness", "project_hoyer", "l1_for_sparseness"]
+
+
+def hoyer_sparseness(x: np.ndarray, axis: int | None = None) -> np.ndarray | float:
+    """Hoyer's sparseness of a nonzero vector (thesis eq. 2.20).
+
+    .. math:: \\mathrm{sparseness}(x) = \\frac{\\sqrt{n} - \\|x\\|_1 / \\|x\\|_2}{\\sqrt{n} - 1}
+
+    It is 0 for a constant vector and 1 for a vector with a single nonzero entry.
+
+    Parameters
+    ----------
+    x : ndarray
+        A vector, or a matrix with ``axis`` giving the direction of the vectors.
+    axis : int, optional
+        Axis along which the vectors lie (``None``: ``x`` is flattened).
+
+    Returns
+    -------
+    float or ndarray
+        NaN for an all-zero vector (the measure is undefined there).
+    """
+    x = np.asarray(x, dtype=float)
+    if axis is None:
+        x = x.ravel()
+        axis = 0
+    n = x.shape[axis]
+    if n < 2:
+        raise DataError(f"sparseness needs vectors of length >= 2; got length {n}.")
+    l1 = np.abs(x).sum(axis=axis)
+    l2 = np.sqrt((x * x).sum(axis=axis))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (np.sqrt(n) - l1 / l2) / (np.sqrt(n) - 1.0)
+    return float(s) if np.ndim(s) == 0 else s
+
+
+def l1_for_sparseness(sparseness: float, n: int, l2: float = 1.0) -> float:
+    """The L1 norm a length-``n`` vector of L2 norm ``l2`` has at the given sparseness."""
+    return l2 * (np.sqrt(n) - (np.sqrt(n) - 1.0) * sparseness)
+
+
+def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
+    """Closest nonnegative vector with the given L1 and L2 norms (Hoyer 2004, Fig. 1).
+
+    Parameters
+    ----------
+    x : ndarray of shape (n,)
+        The vector to project.
+    l1 : float
+        Target L1 norm, with ``l2 <= l1 <= sqrt(n) * l2``.
+    l2 : float
+        Target L2 norm (not squared), > 0.
+
+    Returns
+    -------
+    ndarray of shape (n,)
+        Nonnegative, with ``sum(s) == l1`` and ``norm(s) == l2`` up to rounding.
+    """
+    x = np.asarray(x, dtype=float).ravel()
+    n = x.size
+    if l2 <= 0 or not np.isfinite(l1) or not np.isfinite(l2):
+        raise ParameterError(f"project_hoyer needs finite l1 and l2 > 0; got l1={l1}, l2={l2}.")
+    if l1 < l2 * (1 - 1e-12) or l1 > np.sqrt(n) * l2 * (1 + 1e-12):
+        raise ParameterError(
+            f"no vector of length {n} has L1={l1:g} and L2={l2:g}: need l2 <= l1 <= sqrt(n) * l2."
+        )
+    l2sq = l2 * l2
+    v = x + (l1 - x.sum()) / n
+    zero = np.zeros(n, dtype=bool)
+    for _ in range(n + 1):
+        n_free = n - int(zero.sum())
+        midpoint = np.where(zero, 0.0, l1 / n_free)
+        w = v - midpoint
+        a = float(w @ w)
+        b = 2.0 * float(w @ v)
+        c = float(v @ v) - l2sq
+        if a <= 1e-300:  # v is the midpoint: move along any zero-sum direction of the free entries
+            free = np.flatnonzero(~zero)
+            w = np.zeros(n)
+            w[free] = -1.0 / n_free
+            w[free[0]] += 1.0
+            a = float(w @ w)
+            b = 2.0 * float(w @ v)
+        disc = max(b * b - 4.0 * a * c, 0.0)
+        alpha = (-b + np.sqrt(disc)) / (2.0 * a)
+        v = v + alpha * w
+        if (v >= 0).all():
+            return v
+        zero |= v <= 0
+        v[zero] = 0.0
+        n_free = n - int(zero.sum())
+        v = v + np.where(zero, 0.0, (l1 - v.sum()) / n_free)
+    return np.maximum(v, 0.0)

@@ -1,0 +1,63 @@
+"""The HTML and Markdown report of experiment results.
+
+:func:`write_report` reads every result record (``*.json``) of a results folder written by
+:func:`mmconcepts.experiments.run_experiment` and writes ``report.html`` (one
+self-contained file; figures are linked as the relative PNGs next to it) and
+``report.md``. For each experiment it shows the status, our metrics beside the thesis'
+values, the result tables and figures, each claim with its verdict (re-evaluated from the
+stored metrics), the config and run details, and notes.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+from ..errors import ExperimentError
+from ..experiments.runner import _atomic_write
+from ._model import collect
+from .html import render_html
+from .markdown import render_markdown
+
+__all__ = ["write_report"]
+
+logger = logging.getLogger("mmconcepts.report")
+
+
+def write_report(
+    results_dir: str | os.PathLike[str], *, title: str = "mmconcepts: reproduced results"
+) -> tuple[Path, Path]:
+    """Write ``report.html`` and ``report.md`` for the result records in ``results_dir``.
+
+    Parameters
+    ----------
+    results_dir : str or path-like
+        A folder of ``<id>.json`` result records (and their ``<id>/*.png`` figures).
+        JSON files that are not result records are ignored (and logged).
+    title : str, optional
+        The report's title.
+
+    Returns
+    -------
+    html_path, md_path : Path
+        The two files written (atomically) in ``results_dir``.
+
+    Raises
+    ------
+    ExperimentError
+        If ``results_dir`` is not an existing folder.
+    """
+    results_dir = Path(results_dir)
+    if not results_dir.is_dir():
+        raise ExperimentError(
+            f"results folder {str(results_dir)!r} does not exist; run `mmconcepts run ID` or "
+            "`mmconcepts reproduce` first, or pass the folder they wrote to."
+        )
+    views = collect(results_dir)
+    html_path = results_dir / "report.html"
+    md_path = results_dir / "report.md"
+    _atomic_write(html_path, render_html(views, title=title).encode("utf-8"))
+    _atomic_write(md_path, render_markdown(views, title=title).encode("utf-8"))
+    logger.info("wrote %s and %s (%d experiment(s))", html_path, md_path, len(views))
+    return html_path, md_path

@@ -1,0 +1,142 @@
+"""The command line, through ``main([...])`` and ``python -m mmconcepts``."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from mmconcepts.cli import main
+from mmconcepts.experiments import register
+
+
+@pytest.fixture
+def in_tmp(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def test_list(toy, capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert lines[0].split() == ["id", "title", "thesis", "data"]
+    assert any(line.startswith("toy-mean") and "Section 0.0 (test fixture)" in line for line in lines)
+    assert any(line.startswith("toy-data") and line.rstrip().endswith("toyfile") for line in lines)
+
+
+def test_run_prints_summary_and_writes_result(toy, in_tmp, capsys):
+    assert main(["run", "toy-mean"]) == 0
+    out = capsys.readouterr().out
+    record = json.loads((in_tmp / "results" / "toy-mean.json").read_text())
+    assert record["status"] == "ok" and record["preset"] == "quick"
+    assert "results/toy-mean.json" in out
+    assert "claims: 1/2 hold" in out
+    assert "[holds] The sample mean is close to one half." in out
+    assert "[does not hold] The sample mean exceeds one" in out
+    mean_line = next(line for line in out.splitlines() if line.split()[:1] == ["mean"])
+    assert mean_line.split() == ["mean", f"{record['metrics']['mean']:.4g}", "0.5"]
+
+
+def test_run_options_and_rerun_skip(toy, in_tmp, capsys):
+    assert main(["run", "toy-mean", "--full", "--seed", "4", "-o", "out", "--workers", "1"]) == 0
+    record = json.loads((in_tmp / "out" / "toy-mean.json").read_text())
+    assert record["preset"] == "full" and record["seed"] == 4 and record["config"]["n"] == 4000
+    assert main(["-q", "run", "toy-mean", "--full", "--seed", "4", "-o", "out"]) == 0
+    assert toy.CALLS == [4]  # second run was up to date
+    assert main(["run", "toy-mean", "--full", "--seed", "4", "-o", "out", "--force"]) == 0
+    assert toy.CALLS == [4, 4]
+    err = capsys.readouterr().err
+    assert "skipped: up to date" not in err  # -q hides info logs ...
+    main(["run", "toy-mean", "--full", "--seed", "4", "-o", "out"])
+    assert "skipped: up to date" in capsys.readouterr().err  # ... the default shows them
+
+
+def test_usage_errors_exit_2_with_one_line(toy, in_tmp, capsys):
+    assert main(["run", "toy-maen"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: unknown experiment 'toy-maen'") and "Did you mean 'toy-mean'" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+    missing = in_tmp / "no" / "such" / "dir"
+    assert main(["run", "toy-data", "--data", f"toyfile={missing}"]) == 2
+    err = capsys.readouterr().err
+    assert str(missing) in err and "does not exist" in err and "Traceback" not in err
+    assert not (in_tmp / "results" / "toy-data.json").exists()
+
+    assert main(["run", "toy-mean", "--data", "nonsense"]) == 2
+    assert "NAME=PATH" in capsys.readouterr().err
+    assert main(["reproduce", "--data", f"choreo9={in_tmp}"]) == 2
+    assert "no experiment uses a data set named 'choreo9'" in capsys.readouterr().err
+    assert main(["run", "toy-mean", "--quick", "--full"]) == 2  # argparse: not allowed together
+    assert "not allowed with argument" in capsys.readouterr().err
+    assert main(["frobnicate"]) == 2
+    assert "invalid choice: 'frobnicate'" in capsys.readouterr().err
+    assert main(["run", "toy-mean", "--workers", "0"]) == 2
+    assert "--workers/-j: expected an int >= 1 or -1" in capsys.readouterr().err
+    assert toy.CALLS == []
+
+
+def test_run_with_data(toy, in_tmp, capsys):
+    (in_tmp / "v.txt").write_text("2.5")
+    assert main(["run", "toy-data", "--data", "toyfile=v.txt"]) == 0
+    record = json.loads((in_tmp / "results" / "toy-data.json").read_text())
+    assert record["metrics"] == {"value": 2.5}
+    assert record["data"] == {"toyfile": str((in_tmp / "v.txt").resolve())}
+    assert main(["run", "toy-data", "-o", "other"]) == 0  # without data: skipped, not failed
+    assert "skipped: needs the real data set 'toyfile'" in capsys.readouterr().out
+
+
+def test_failed_experiment_exits_1(toy, in_tmp, capsys):
+    register(toy.FAIL)
+    assert main(["run", "toy-fail"]) == 1
+    captured = capsys.readouterr()
+    assert "failed: RuntimeError: the toy experiment broke on purpose" in captured.out
+    assert "Traceback" not in captured.err
+    assert main(["-v", "run", "toy-fail"]) == 1
+    assert "Traceback" in capsys.readouterr().err  # -v shows it
+
+
+def test_reproduce_then_report(toy, in_tmp, capsys):
+    register(toy.FAIL)
+    assert main(["reproduce", "--only", "toy-mean", "toy-data"]) == 0
+    out = capsys.readouterr().out
+    assert "report: results/report.html" in out
+    assert (in_tmp / "results" / "report.md").exists()
+    assert not (in_tmp / "results" / "toy-fail.json").exists()
+    assert main(["reproduce", "-o", "all"]) == 1  # toy-fail failed, the rest ran
+    out = capsys.readouterr().out
+    assert "toy-fail  failed" in out and "toy-mean  ok" in out
+    md = (in_tmp / "all" / "report.md").read_text()
+    assert "1/2 claims hold" in md and "FAILED" in md
+
+    (in_tmp / "all" / "report.md").unlink()
+    assert main(["report", "all"]) == 0
+    assert "report: all/report.html" in capsys.readouterr().out
+    assert "toy-mean" in (in_tmp / "all" / "report.md").read_text()
+    assert main(["report", "missing-dir"]) == 1
+    assert "error: results folder 'missing-dir' does not exist" in capsys.readouterr().err
+
+
+def test_help_exits_0(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for command in ("list", "run", "reproduce", "report"):
+        assert command in out
+    assert main(["run", "--help"]) == 0
+    assert "--data NAME=PATH" in capsys.readouterr().out
+
+
+def test_python_dash_m_help():
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "mmconcepts", "--help"], capture_output=True, text=True, env=env, timeout=60
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("usage: mmconcepts")
+    assert "reproduce" in proc.stdout
+    proc = subprocess.run([sys.executable, "-m", "mmconcepts", "run"], capture_output=True, text=True, env=env, timeout=60)
+    assert proc.returncode == 2 and "ID" in proc.stderr

@@ -1,0 +1,365 @@
+"""The experiment framework: definitions, registry, runner, records, data arguments."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import dataclass
+
+import pytest
+
+from mmconcepts import __version__
+from mmconcepts.errors import ExperimentError, ParameterError
+from mmconcepts.experiments import (
+    RECORD_KEYS,
+    Claim,
+    Experiment,
+    ExperimentSkipped,
+    Result,
+    RunContext,
+    Table,
+    all_experiments,
+    get,
+    load_record,
+    parse_data_args,
+    register,
+    reproduce,
+    run_experiment,
+)
+
+
+def _strict_json(path):
+    """Parse JSON refusing NaN/Infinity tokens, as a strict reader would."""
+
+    def refuse(token):
+        raise ValueError(f"invalid JSON constant {token}")
+
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+# --------------------------------------------------------------------------- definitions
+
+
+@dataclass(frozen=True)
+class _Cfg:
+    seed: int = 0
+
+    @classmethod
+    def quick(cls):
+        return cls()
+
+    @classmethod
+    def full(cls):
+        return cls(seed=1)
+
+
+@dataclass
+class _MutableCfg:
+    seed: int = 0
+
+    @classmethod
+    def quick(cls):
+        return cls()
+
+    @classmethod
+    def full(cls):
+        return cls()
+
+
+@dataclass(frozen=True)
+class _NoPresets:
+    seed: int = 0
+
+
+def _noop(config, ctx):
+    return Result()
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"id": "Bad_Id"}, "lowercase"),
+        ({"config_cls": _MutableCfg}, "frozen"),
+        ({"config_cls": _NoPresets}, "quick()"),
+        ({"config_cls": dict}, "dataclass"),
+        ({"run": 3}, "callable"),
+        ({"reference": {"a b": 1.0}}, "metric name"),
+        ({"reference": {"a": "high"}}, "number"),
+        ({"datasets": "choreo1"}, "tuple"),
+        ({"claims": ["a > b"]}, "Claim"),
+    ],
+)
+def test_experiment_definition_errors(kwargs, fragment):
+    base = dict(id="x-1", title="t", thesis_ref="r", config_cls=_Cfg, run=_noop)
+    with pytest.raises(ExperimentError) as info:
+        Experiment(**{**base, **kwargs})
+    assert fragment in str(info.value)
+
+
+def test_claim_rule_syntax_checked_at_definition():
+    with pytest.raises(ExperimentError, match="claim rule"):
+        Claim("broken", "a > > b")
+    assert Claim("fine", "16.x.y >= 0.5").rule == "16.x.y >= 0.5"
+
+
+def test_make_config_presets_and_seed():
+    exp = Experiment(id="x-1", title="t", thesis_ref="r", config_cls=_Cfg, run=_noop)
+    assert exp.make_config("quick") == _Cfg(seed=0)
+    assert exp.make_config("full") == _Cfg(seed=1)
+    assert exp.make_config("full", seed=7) == _Cfg(seed=7)
+    with pytest.raises(ParameterError, match="preset"):
+        exp.make_config("medium")
+    with pytest.raises(ParameterError, match="seed"):
+        exp.make_config("quick", seed=-1)
+
+
+def test_table_rows_must_match_columns():
+    with pytest.raises(ExperimentError, match="row 1 has 1 cells"):
+        Table("t", ["a", "b"], [[1, 2], [3]])
+
+
+# --------------------------------------------------------------------------- registry
+
+
+def test_registry_lazy_load_sorted_and_lookup(registry):
+    assert registry._REGISTRY == {}  # nothing imported until asked
+    ids = [e.id for e in all_experiments()]
+    assert ids == ["toy-data", "toy-mean"]
+    assert get("toy-mean").title.startswith("Toy")
+    with pytest.raises(ExperimentError) as info:
+        get("toy-maen")
+    assert "Did you mean 'toy-mean'" in str(info.value)
+    assert "toy-data" in str(info.value)
+
+
+def test_register_rejects_duplicate_ids(toy):
+    register(toy.TOY)  # the same object again is a no-op
+    clone = toy.make_experiment("toy-mean", toy._fail)
+    with pytest.raises(ExperimentError, match="already registered"):
+        register(clone)
+    assert get("toy-mean") is toy.TOY
+
+
+def test_broken_experiment_module_is_an_error_not_skipped(registry, monkeypatch):
+    import mmconcepts.experiments as experiments
+
+    monkeypatch.setattr(experiments, "EXPERIMENT_MODULES", ("_toy_experiment", "_no_such_module_xyz"))
+    with pytest.raises(ExperimentError, match="_no_such_module_xyz"):
+        all_experiments()
+
+
+# --------------------------------------------------------------------------- runner
+
+
+def test_run_writes_complete_record_and_figures(toy, tmp_path):
+    out = tmp_path / "results"
+    record = run_experiment("toy-mean", output=out, progress=False)
+    path = out / "toy-mean.json"
+    stored = _strict_json(path)
+    assert set(RECORD_KEYS) <= stored.keys()
+    assert stored["schema_version"] == 1
+    assert stored["status"] == "ok" and record["status"] == "ok"
+    assert stored["experiment"] == "toy-mean"
+    assert stored["preset"] == "quick"
+    assert stored["config"] == {"n": 400, "n_chunks": 4, "sizes": [1, 2, 3], "seed": 0}
+    assert stored["seed"] == 0
+    assert stored["version"] == __version__
+    assert stored["reference"] == {"mean": 0.5, "std": 0.2887}
+    assert [c["holds"] for c in stored["claims"]] == [True, False]
+    assert 0.4 < stored["metrics"]["mean"] < 0.6
+    assert stored["metrics"]["n"] == 400
+    assert "1.chunk_mean" in stored["metrics"]
+    assert stored["tables"]["quantiles"]["columns"] == ["q", "value"]
+    assert len(stored["tables"]["quantiles"]["rows"]) == 3
+    assert stored["figures"] == {"hist": "toy-mean/hist.png"}
+    assert (out / "toy-mean" / "hist.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert len(stored["extra"]["chunk_means"]) == 4
+    assert stored["started_at"].endswith("+00:00")
+    assert stored["elapsed_s"] >= 0
+    # atomic writes leave no temporary files behind
+    leftovers = [p.name for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert leftovers == []
+    assert record["metrics"]["mean"] == stored["metrics"]["mean"]
+
+
+def test_same_seed_same_numbers(toy, tmp_path):
+    a = run_experiment("toy-mean", output=tmp_path / "a", progress=False, seed=5)
+    b = run_experiment("toy-mean", output=tmp_path / "b", progress=False, seed=5)
+    c = run_experiment("toy-mean", output=tmp_path / "c", progress=False, seed=6)
+    assert a["metrics"] == b["metrics"]
+    assert a["metrics"] != c["metrics"]
+
+
+def test_rerun_is_skipped_unless_config_changes_or_forced(toy, tmp_path, caplog):
+    out = tmp_path / "r"
+    first = run_experiment("toy-mean", output=out, progress=False)
+    assert toy.CALLS == [0]
+    with caplog.at_level("INFO", logger="mmconcepts"):
+        again = run_experiment("toy-mean", output=out, progress=False)
+    assert toy.CALLS == [0]  # not recomputed
+    assert again["started_at"] == first["started_at"]
+    assert "skipped: up to date" in caplog.text
+    run_experiment("toy-mean", output=out, progress=False, seed=1)
+    assert toy.CALLS == [0, 1]  # different seed: recomputed
+    assert _strict_json(out / "toy-mean.json")["seed"] == 1
+    run_experiment("toy-mean", output=out, progress=False, seed=1, force=True)
+    assert toy.CALLS == [0, 1, 1]  # forced
+    run_experiment("toy-mean", output=out, progress=False, seed=1, preset="full")
+    assert toy.CALLS == [0, 1, 1, 1]  # another preset, another config
+    (out / "toy-mean" / "hist.png").unlink()
+    run_experiment("toy-mean", output=out, progress=False, seed=1, preset="full")
+    assert toy.CALLS == [0, 1, 1, 1, 1]  # a missing figure is not up to date
+    assert (out / "toy-mean" / "hist.png").exists()
+
+
+def test_rerun_after_version_change_recomputes(toy, tmp_path):
+    out = tmp_path / "v"
+    run_experiment("toy-mean", output=out, progress=False)
+    stored = _strict_json(out / "toy-mean.json")
+    stored["version"] = "0.0.0-old"
+    (out / "toy-mean.json").write_text(json.dumps(stored))
+    run_experiment("toy-mean", output=out, progress=False)
+    assert toy.CALLS == [0, 0]
+
+
+def test_nan_metrics_are_null_in_json_and_nan_when_read(registry, tmp_path):
+    import _toy_experiment as toy_mod  # noqa: F401 - imported by the fixture path
+
+    def run(config, ctx):
+        return Result(metrics={"good": 1.0, "missing": float("nan"), "huge": float("inf")})
+
+    exp = toy_mod.make_experiment(
+        "toy-nan", run, claims=[Claim("uses NaN", "missing > 0"), Claim("fine", "good > 0")]
+    )
+    record = run_experiment(exp, output=tmp_path, progress=False)
+    stored = _strict_json(tmp_path / "toy-nan.json")  # valid strict JSON
+    assert stored["metrics"] == {"good": 1.0, "missing": None, "huge": None}
+    assert [c["holds"] for c in stored["claims"]] == [None, True]
+    assert math.isnan(record["metrics"]["missing"])
+    assert math.isnan(load_record(tmp_path / "toy-nan.json")["metrics"]["missing"])
+
+
+def test_failure_is_recorded_and_raised(toy, tmp_path):
+    with pytest.raises(RuntimeError, match="broke on purpose"):
+        run_experiment(toy.FAIL, output=tmp_path, progress=False)
+    stored = _strict_json(tmp_path / "toy-fail.json")
+    assert stored["status"] == "failed"
+    assert "broke on purpose" in stored["message"]
+    assert "Traceback" in stored["traceback"] and "_fail" in stored["traceback"]
+    assert stored["metrics"] == {} and stored["claims"][0]["holds"] is None
+    # a failed record is never taken as up to date
+    with pytest.raises(RuntimeError):
+        run_experiment(toy.FAIL, output=tmp_path, progress=False)
+
+
+def test_unknown_metric_in_claim_fails_the_run(toy, tmp_path):
+    exp = toy.make_experiment("toy-typo", lambda c, x: Result(metrics={"score": 1.0}),
+                              claims=[Claim("typo", "scroe > 0")])
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert record["status"] == "failed"
+    assert "unknown metric 'scroe'" in record["message"] and "score" in record["message"]
+
+
+def test_bad_result_types_fail_clearly(toy, tmp_path):
+    exp = toy.make_experiment("toy-bad", lambda c, x: Result(metrics={"16": 1.0}))
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert record["status"] == "failed" and "metric name '16'" in record["message"]
+    exp = toy.make_experiment("toy-bad2", lambda c, x: {"score": 1.0})
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert "must return a Result" in record["message"]
+    exp = toy.make_experiment("toy-bad3", lambda c, x: Result(metrics={"a": 1.0}, extra={"f": object()}))
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert "extra['f']: a object value" in record["message"]
+    assert "cannot be stored in a JSON result" in record["message"]
+    assert not (tmp_path / "toy-bad3").exists()
+
+
+def test_reproduce_records_failures_and_skips_and_keeps_going(toy, tmp_path):
+    register(toy.FAIL)
+    register(toy.SKIP)
+    records = reproduce(output=tmp_path, progress=False)
+    status = {r["experiment"]: r["status"] for r in records}
+    assert status == {"toy-data": "skipped", "toy-fail": "failed", "toy-mean": "ok", "toy-skip": "skipped"}
+    assert [r["experiment"] for r in records] == sorted(status)
+    assert toy.CALLS == [0]  # toy-mean ran after toy-fail failed
+    assert _strict_json(tmp_path / "toy-fail.json")["status"] == "failed"
+    skipped = _strict_json(tmp_path / "toy-skip.json")
+    assert skipped["status"] == "skipped" and skipped["message"] == "no real data here"
+    assert skipped["traceback"] is None
+    assert "--data toyfile=PATH" in _strict_json(tmp_path / "toy-data.json")["message"]
+    assert _strict_json(tmp_path / "toy-mean.json")["status"] == "ok"
+    # only the requested ones, in the given order
+    records = reproduce(output=tmp_path, progress=False, ids=["toy-skip", "toy-mean"])
+    assert [r["experiment"] for r in records] == ["toy-skip", "toy-mean"]
+
+
+def test_skipped_experiment_returns_record_without_raising(toy, tmp_path):
+    record = run_experiment(toy.SKIP, output=tmp_path, progress=False)
+    assert record["status"] == "skipped"
+    assert isinstance(ExperimentSkipped("x"), ExperimentError)
+
+
+# --------------------------------------------------------------------------- data
+
+
+def test_parse_data_args():
+    assert parse_data_args(["a=/x", "b.c=rel/p=q"]) == {"a": __import__("pathlib").Path("/x"),
+                                                       "b.c": __import__("pathlib").Path("rel/p=q")}
+    for bad, fragment in [(["nope"], "NAME=PATH"), (["=p"], "NAME=PATH"), (["a="], "NAME=PATH"),
+                          (["a b=p"], "must be a word"), (["a=1", "a=2"], "twice")]:
+        with pytest.raises(ExperimentError, match=fragment):
+            parse_data_args(bad)
+
+
+def test_data_paths_are_checked_and_passed(toy, tmp_path):
+    value = tmp_path / "value.txt"
+    value.write_text("4.25")
+    missing = tmp_path / "absent"
+    with pytest.raises(ExperimentError) as info:
+        run_experiment("toy-data", output=tmp_path / "o", data={"toyfile": missing})
+    assert str(missing) in str(info.value) and "does not exist" in str(info.value)
+    with pytest.raises(ExperimentError, match="no experiment uses a data set named 'choreo9'"):
+        run_experiment("toy-data", output=tmp_path / "o", data={"choreo9": value})
+    record = run_experiment("toy-data", output=tmp_path / "o", data={"toyfile": value}, progress=False)
+    assert record["status"] == "ok" and record["metrics"]["value"] == 4.25
+    assert record["data"] == {"toyfile": str(value.resolve())}
+    # a name declared by another experiment is ignored by toy-mean, not an error
+    record = run_experiment("toy-mean", output=tmp_path / "o", data={"toyfile": value}, progress=False)
+    assert record["status"] == "ok" and record["data"] == {}
+    # changing the data path makes toy-data's result out of date
+    other = tmp_path / "other.txt"
+    other.write_text("1.5")
+    record = run_experiment("toy-data", output=tmp_path / "o", data={"toyfile": other}, progress=False)
+    assert record["metrics"]["value"] == 1.5
+
+
+# --------------------------------------------------------------------------- context
+
+
+def _square(x):
+    return x * x
+
+
+def test_context_parallel_keeps_order(tmp_path):
+    items = list(range(7))
+    serial = RunContext(workers=1, cache_dir=tmp_path, show_progress=False).parallel(_square, items)
+    pooled = RunContext(workers=2, cache_dir=tmp_path, show_progress=False).parallel(abs, [-3, 2, -1, 5])
+    assert serial == [x * x for x in items]
+    assert pooled == [3, 2, 1, 5]
+
+
+def test_context_validates_workers_and_requires_data(tmp_path):
+    with pytest.raises(ParameterError, match="workers"):
+        RunContext(workers=0, cache_dir=tmp_path)
+    assert RunContext(workers=-1, cache_dir=tmp_path).workers >= 1
+    ctx = RunContext(cache_dir=tmp_path, data={"choreo1": str(tmp_path)})
+    assert ctx.require_data("choreo1") == tmp_path
+    with pytest.raises(ExperimentSkipped, match="--data choreo2=PATH"):
+        ctx.require_data("choreo2")
+    assert list(ctx.progress(iter([1, 2]), total=2, desc="x")) == [1, 2]
+
+
+def test_toy_module_not_leaked(registry):
+    # the fixture gives a fresh import each time; nothing stays registered afterwards
+    assert "_toy_experiment" not in sys.modules

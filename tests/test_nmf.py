@@ -1,0 +1,393 @@
+"""Tests of the beta-NMF core (thesis section 2.1)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from sklearn.decomposition import NMF as SkNMF
+from sklearn.decomposition._nmf import _beta_divergence
+from sklearn.utils.estimator_checks import check_estimator
+
+from mmconcepts.errors import ConvergenceWarning, DataError, ParameterError
+from mmconcepts.nmf import (
+    NMF,
+    beta_divergence,
+    beta_nmf,
+    dictionary_distance,
+    hoyer_sparseness,
+    match_components,
+    mm_exponent,
+    project_hoyer,
+)
+
+BETAS = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5]
+
+
+def _positive(rng, n=40, m=30):
+    return rng.random((n, m)) + 0.05
+
+
+def _lowrank(rng, n=50, m=30, k=4):
+    W = rng.gamma(1.0, 1.0, (n, k))
+    H = rng.gamma(1.0, 1.0, (k, m))
+    return W, H, W @ H
+
+
+# --------------------------------------------------------------------------- losses
+@pytest.mark.parametrize("beta", BETAS + [3.0, -0.5])
+def test_loss_equals_sklearn(rng, beta):
+    X = _positive(rng)
+    W, H = rng.random((40, 5)), rng.random((5, 30))
+    assert beta_divergence(X, W, H, beta) == pytest.approx(_beta_divergence(X, W, H, beta), rel=1e-10)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 1.5, 2.0, 2.5])
+def test_sparse_loss_equals_dense(rng, beta):
+    X = sp.random(60, 40, density=0.1, random_state=3, format="csr") * 5
+    W, H = rng.random((60, 4)), rng.random((4, 40))
+    assert beta_divergence(X, W, H, beta) == pytest.approx(beta_divergence(X.toarray(), W, H, beta), rel=1e-9)
+
+
+def test_loss_named_betas_and_values(rng):
+    X = _positive(rng, 5, 4)
+    W, H = rng.random((5, 2)), rng.random((2, 4))
+    Y = W @ H
+    assert beta_divergence(X, W, H, "frobenius") == pytest.approx(0.5 * np.sum((X - Y) ** 2))
+    assert beta_divergence(X, W, H, "kullback-leibler") == pytest.approx(np.sum(X * np.log(X / Y) - X + Y))
+    assert beta_divergence(X, W, H, "itakura-saito") == pytest.approx(np.sum(X / Y - np.log(X / Y) - 1))
+    assert beta_divergence(X, W, H, 1.0) == pytest.approx(beta_divergence(X, W, H, 1.0 + 1e-7), rel=1e-5)
+
+
+def test_mm_exponent_table_2_2():
+    assert mm_exponent(0.0) == 0.5
+    assert mm_exponent(0.5) == pytest.approx(1 / 1.5)
+    assert mm_exponent(1.0) == mm_exponent(2.0) == 1.0
+    assert mm_exponent(3.0) == 0.5
+
+
+# --------------------------------------------------------------------------- monotonicity
+@pytest.mark.parametrize(
+    "kind, beta",
+    # beta <= 0 is undefined on the zeros of a sparse matrix (refused, tested below)
+    [(kind, beta) for kind in ("dense", "sparse", "masked") for beta in BETAS if kind != "sparse" or beta > 0],
+)
+def test_mu_never_increases_loss(rng, beta, kind):
+    X = _positive(rng)
+    mask = None
+    if kind == "sparse":
+        X = sp.csr_matrix(X * (rng.random(X.shape) < 0.3))
+    elif kind == "masked":
+        mask = rng.random(X.shape) < 0.7
+    res = beta_nmf(X, 5, beta_loss=beta, init="random", random_state=1, max_iter=60, tol=0, loss_every=1, mask=mask)
+    steps = np.diff(res.loss_history)
+    assert steps.max() <= 1e-9 * res.loss_history[0]
+    assert res.loss_history[-1] < 0.9 * res.loss_history[0]
+
+
+def test_heuristic_update_is_an_option(rng):
+    X = _positive(rng)
+    mm = beta_nmf(X, 4, beta_loss=0.5, init="random", random_state=0, max_iter=30, tol=0)
+    heur = beta_nmf(X, 4, beta_loss=0.5, update_rule="heuristic", init="random", random_state=0, max_iter=30, tol=0)
+    assert not np.allclose(mm.W, heur.W)
+    assert heur.loss_history[-1] < heur.loss_history[0]
+    # identical for 1 <= beta <= 2 where gamma = 1
+    a = beta_nmf(X, 4, beta_loss=1.5, init="random", random_state=0, max_iter=10, tol=0)
+    b = beta_nmf(X, 4, beta_loss=1.5, update_rule="heuristic", init="random", random_state=0, max_iter=10, tol=0)
+    np.testing.assert_array_equal(a.W, b.W)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0, 2.5])
+def test_mu_matches_sklearn_iterates(rng, beta):
+    X = _positive(rng, 50, 20)
+    W0, H0 = rng.random((50, 4)), rng.random((4, 20))
+    sk = SkNMF(4, init="custom", solver="mu", beta_loss=beta, max_iter=80, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H0, beta_loss=beta, max_iter=80, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+def test_projected_gradient_decreases_loss(rng, beta):
+    W, H, X = _lowrank(rng)
+    res = beta_nmf(X, 4, beta_loss=beta, solver="pg", init="random", random_state=0, max_iter=40, tol=0, loss_every=1)
+    assert np.diff(res.loss_history).max() <= 1e-9 * res.loss_history[0]
+    assert res.loss_history[-1] < 0.05 * res.loss_history[0]
+    assert (res.W >= 0).all() and (res.H >= 0).all()
+
+
+# --------------------------------------------------------------------------- sparse, dtype, masks
+@pytest.mark.parametrize("beta", [0.5, 1.0, 1.5, 2.0, 2.5])
+def test_sparse_fit_equals_dense_fit(rng, beta):
+    X = sp.random(80, 50, density=0.1, random_state=2, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    a = beta_nmf(X, 5, beta_loss=beta, init="random", random_state=0, max_iter=40, tol=0)
+    b = beta_nmf(X.toarray(), 5, beta_loss=beta, init="random", random_state=0, max_iter=40, tol=0)
+    np.testing.assert_allclose(a.W, b.W, rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(a.H, b.H, rtol=1e-7, atol=1e-10)
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_float32_kept_and_agrees_with_float64(rng, sparse):
+    _, _, X = _lowrank(rng)
+    X32 = X.astype(np.float32)
+    if sparse:
+        X, X32 = sp.csr_matrix(X), sp.csr_matrix(X32)
+    m64 = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=50, tol=0).fit(X)
+    m32 = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=50, tol=0).fit(X32)
+    assert m32.components_.dtype == np.float32
+    assert m32.transform(X32).dtype == np.float32
+    np.testing.assert_allclose(m32.components_, m64.components_, rtol=2e-3, atol=1e-4)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("sparse", [False, True])
+def test_garbage_in_masked_cells_changes_nothing(rng, beta, sparse):
+    X = _positive(rng)
+    mask = rng.random(X.shape) < 0.75
+    garbage = X.copy()
+    garbage[~mask] = rng.choice([1e6, -5.0, np.nan, np.inf, 0.0], size=int((~mask).sum()))
+    clean = X.copy()
+    clean[~mask] = 0.0
+    if sparse:
+        clean = sp.csr_matrix(clean)
+        g2 = garbage.copy()
+        g2[~np.isfinite(g2)] = 7.0  # sparse matrices hold finite junk here
+        garbage = sp.csr_matrix(g2)
+    a = NMF(5, beta_loss=beta, init="random", random_state=0, max_iter=30, tol=0).fit(clean, mask=mask)
+    b = NMF(5, beta_loss=beta, init="random", random_state=0, max_iter=30, tol=0).fit(garbage, mask=mask)
+    np.testing.assert_allclose(a.components_, b.components_, rtol=1e-10)
+    np.testing.assert_allclose(a.transform(clean, mask=mask), b.transform(garbage, mask=mask), rtol=1e-10)
+
+
+def test_mask_recovers_missing_cells(rng):
+    W, H, X = _lowrank(rng, 60, 40, 3)
+    mask = rng.random(X.shape) < 0.8
+    model = NMF(3, beta_loss=1, init="random", random_state=0, max_iter=1500, tol=0)
+    Wf = model.fit_transform(np.where(mask, X, np.nan), mask=mask)
+    Xhat = model.inverse_transform(Wf)
+    err_missing = np.abs(Xhat - X)[~mask].mean() / X[~mask].mean()
+    assert err_missing < 0.05
+
+
+# --------------------------------------------------------------------------- transform on features
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+@pytest.mark.parametrize("features", [slice(0, 20), np.arange(10, 30), "bool"])
+def test_transform_on_feature_subset_recovers_coefficients(rng, beta, features):
+    k, m = 3, 30
+    H = rng.gamma(0.5, 1.0, (k, m))
+    H /= H.sum(axis=0, keepdims=True) * 0.4 + H.sum(axis=1, keepdims=True)  # rows do not sum to one
+    W = rng.gamma(2.0, 1.0, (25, k))
+    X = W @ H
+    if isinstance(features, str):
+        features = np.zeros(m, bool)
+        features[::2] = True
+    model = NMF(k, beta_loss=beta, init="custom", max_iter=1, tol=0, transform_max_iter=3000)
+    model.fit(X, W=W, H=H)
+    model.components_ = H  # the exact dictionary
+    idx = np.arange(m)[features]
+    W_hat = model.transform(X[:, idx], features=features)
+    np.testing.assert_allclose(W_hat, W, rtol=2e-3)
+    np.testing.assert_allclose(model.inverse_transform(W_hat, features=features), X[:, idx], rtol=2e-3)
+
+
+def test_subset_update_without_denominator_is_biased(rng):
+    """The thesis author's update dropped the denominator: biased when atoms do not sum to one."""
+    H = rng.gamma(0.5, 1.0, (3, 30))
+    W = rng.gamma(2.0, 1.0, (10, 3))
+    X = W @ H
+    sub = slice(0, 12)
+    Hs = H[:, sub]
+    Wb = np.full_like(W, 1.0)
+    for _ in range(3000):  # I-divergence update without the denominator Hs.sum(axis=1)
+        Wb *= ((X[:, sub] / (Wb @ Hs)) @ Hs.T) / H.sum(axis=1)
+    model = NMF(3, beta_loss=1, init="custom", max_iter=1, tol=0, transform_max_iter=3000).fit(X, W=W, H=H)
+    model.components_ = H
+    good = model.transform(X[:, sub], features=sub)
+    assert np.abs(good - W).max() / W.max() < 1e-2
+    assert np.abs(Wb - W).max() / W.max() > 0.1
+
+
+def test_features_validation(rng):
+    X = _positive(rng, 10, 6)
+    model = NMF(2, init="random", random_state=0, max_iter=5, tol=0).fit(X)
+    with pytest.raises(ParameterError, match="out of range"):
+        model.transform(X[:, :2], features=[0, 9])
+    with pytest.raises(ParameterError, match="boolean mask"):
+        model.transform(X[:, :2], features=np.array([True, False]))
+    with pytest.raises(DataError, match="features selects 3"):
+        model.transform(X[:, :2], features=[0, 1, 2])
+    with pytest.raises(DataError, match="X has 5 features, but NMF is expecting 6"):
+        model.transform(X[:, :5])
+    with pytest.raises(ParameterError, match="selects no feature"):
+        model.inverse_transform(np.ones((1, 2)), features=slice(3, 3))
+
+
+# --------------------------------------------------------------------------- online
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+def test_partial_fit_single_batch_equals_fit(rng, beta):
+    X = _positive(rng)
+    kw = dict(beta_loss=beta, init="random", random_state=0, max_iter=30, tol=0, forget_factor=1.0)
+    full = NMF(4, **kw).fit(X)
+    online = NMF(4, **kw).partial_fit(X)
+    np.testing.assert_allclose(online.components_, full.components_, rtol=1e-9)
+
+
+def _separable(rng, n=200, k=4, width=6):
+    H = np.zeros((k, k * width))
+    for i in range(k):  # separable atoms: each has features of its own, so the dictionary is identifiable
+        H[i, i * width:(i + 1) * width] = rng.uniform(0.5, 1.5, width)
+    W = rng.gamma(1.0, 1.0, (n, k))
+    return W, H, W @ H
+
+
+def test_partial_fit_streams_batches(rng):
+    W, H, X = _separable(rng, 400, 3, 10)
+    model = NMF(3, beta_loss=1, init="random", random_state=0, max_iter=20, forget_factor=0.9)
+    for _ in range(3):
+        for batch in np.array_split(X, 8):
+            model.partial_fit(batch)
+    assert model.n_steps_ == 24
+    assert dictionary_distance(model.components_, H) < 0.05
+    with pytest.raises(DataError, match="expecting 30"):
+        model.partial_fit(X[:, :10])
+
+
+# --------------------------------------------------------------------------- constraints and penalties
+def test_hoyer_projection_properties(rng):
+    for _ in range(20):
+        x = rng.normal(size=25)
+        s = project_hoyer(x, 3.0, 1.0)
+        assert (s >= 0).all()
+        assert s.sum() == pytest.approx(3.0, rel=1e-9)
+        assert np.linalg.norm(s) == pytest.approx(1.0, rel=1e-9)
+    assert hoyer_sparseness(np.ones(9)) == pytest.approx(0.0)
+    assert hoyer_sparseness(np.eye(9)[0]) == pytest.approx(1.0)
+    with pytest.raises(ParameterError, match="no vector"):
+        project_hoyer(np.ones(4), 5.0, 1.0)
+
+
+def test_hoyer_constraints_hold_after_fit(rng):
+    _, _, X = _lowrank(rng, 60, 40, 4)
+    res = beta_nmf(X, 4, sparseness_H=0.6, sparseness_W=0.3, init="random", random_state=0, max_iter=40, tol=0,
+                   loss_every=1)
+    np.testing.assert_allclose(hoyer_sparseness(res.H, axis=1), 0.6, atol=1e-6)
+    np.testing.assert_allclose(hoyer_sparseness(res.W, axis=0), 0.3, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(res.H, axis=1), 1.0, rtol=1e-6)
+    assert res.loss_history[-1] < res.loss_history[1]
+
+
+def test_l1_penalty_sparsifies(rng):
+    _, _, X = _lowrank(rng)
+    kw = dict(beta_loss=1, init="random", random_state=0, max_iter=300, tol=0)
+    plain = NMF(6, **kw).fit_transform(X)
+    l1 = NMF(6, alpha_W=0.05, l1_ratio=1.0, **kw).fit_transform(X)  # alpha_H='same': both factors
+    assert np.nanmean(hoyer_sparseness(l1, axis=1)) > np.nanmean(hoyer_sparseness(plain, axis=1)) + 0.2
+    assert (l1 < 1e-3 * l1.max()).mean() > (plain < 1e-3 * plain.max()).mean() + 0.2
+
+
+# --------------------------------------------------------------------------- inits
+@pytest.mark.parametrize("init", ["random", "nndsvd", "nndsvda", "nndsvdar"])
+def test_inits(rng, init):
+    _, _, X = _lowrank(rng)
+    model = NMF(4, beta_loss=2, init=init, random_state=0, max_iter=300)
+    model.fit(X)
+    # plain NNDSVD keeps exact zeros, which multiplicative updates cannot leave
+    assert model.reconstruction_err_ / np.linalg.norm(X) < (0.5 if init == "nndsvd" else 0.05)
+    assert model.loss_history_[-1] < model.loss_history_[0]
+    again = NMF(4, beta_loss=2, init=init, random_state=0, max_iter=300).fit(X)
+    np.testing.assert_array_equal(model.components_, again.components_)
+
+
+def test_convergence_warning_and_tol(rng):
+    X = _positive(rng)
+    with pytest.warns(ConvergenceWarning):
+        NMF(5, init="random", random_state=0, max_iter=3, tol=1e-12).fit(X)
+    model = NMF(3, init="random", random_state=0, max_iter=5000, tol=1e-3).fit(X)
+    assert model.n_iter_ < 5000
+    assert model.loss_iterations_[-1] == model.n_iter_
+
+
+# --------------------------------------------------------------------------- comparison
+def test_matching_distance_zero_for_scaled_permuted_copy(rng):
+    A = rng.random((6, 20))
+    perm = rng.permutation(6)
+    B = A[perm] * rng.uniform(0.1, 10, (6, 1))
+    for metric in ["cosine", "euclidean", "l1"]:
+        match = match_components(A, B, metric=metric)
+        assert match.distance == pytest.approx(0.0, abs=1e-12)
+        np.testing.assert_array_equal(perm[match.cols], match.rows)
+    assert dictionary_distance(A, rng.random((6, 20))) > 0.05
+
+
+def test_recovery_of_identifiable_dictionary(rng):
+    W, H, X = _separable(rng)
+    model = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=2000, tol=1e-7).fit(X)
+    assert dictionary_distance(model.components_, H) < 1e-3
+
+
+# --------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "X, match",
+    [
+        (np.array([[1.0, -1.0], [0.5, 2.0]]), "Negative values"),
+        (np.array([[1.0, np.nan], [0.5, 2.0]]), "NaN"),
+        (np.array([[1.0, np.inf], [0.5, 2.0]]), "NaN or infinite"),
+        (np.zeros((0, 3)), "0 sample"),
+        (np.ones(3), "2-D"),
+    ],
+)
+def test_bad_data(X, match):
+    with pytest.raises(DataError, match=match):
+        NMF(1).fit(X)
+
+
+def test_bad_parameters(rng):
+    X = _positive(rng, 6, 5)
+    with pytest.raises(ParameterError, match="n_components"):
+        NMF(0).fit(X)
+    with pytest.raises(ParameterError, match="solver"):
+        NMF(2, solver="als").fit(X)
+    with pytest.raises(ParameterError, match="beta_loss"):
+        NMF(2, beta_loss="hellinger").fit(X)
+    with pytest.raises(ParameterError, match="init"):
+        NMF(2, init="svd").fit(X)
+    with pytest.raises(ParameterError, match="sparseness_H"):
+        NMF(2, sparseness_H=1.5).fit(X)
+    X0 = X.copy()
+    X0[0, 0] = 0
+    with pytest.raises(DataError, match="beta_loss=0 is undefined"):
+        NMF(2, beta_loss=0).fit(X0)
+    mask = np.ones_like(X0, bool)
+    mask[0, 0] = False
+    NMF(2, beta_loss=0, init="random", random_state=0, max_iter=5).fit(X0, mask=mask)  # masked zero is fine
+    with pytest.raises(DataError, match="shape of X"):
+        NMF(2).fit(X, mask=np.ones((2, 2), bool))
+    with pytest.raises(DataError, match="observes no cell"):
+        NMF(2).fit(X, mask=np.zeros_like(X, bool))
+    with pytest.raises(DataError, match="W must have shape"):
+        NMF(2, init="custom").fit(X, W=np.ones((3, 2)), H=np.ones((2, 5)))
+    for err in (DataError, ParameterError):
+        assert issubclass(err, ValueError)
+
+
+# --------------------------------------------------------------------------- scikit-learn contract
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "estimator",
+    [NMF(2, max_iter=1000, tol=1e-6), NMF(2, beta_loss=1, max_iter=1000, tol=1e-6),
+     NMF(2, solver="pg", beta_loss=1, max_iter=500, tol=1e-6)],
+    ids=["mu-frobenius", "mu-kl", "pg-kl"],
+)
+def test_sklearn_estimator_checks(estimator):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = check_estimator(estimator, on_fail=None)
+    failed = [(r["check_name"], str(r["exception"])[:200]) for r in results if r["status"] == "failed"]
+    assert failed == []
+    assert sum(r["status"] == "passed" for r in results) > 40

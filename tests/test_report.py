@@ -1,0 +1,145 @@
+"""The HTML/Markdown report built from result records."""
+
+from __future__ import annotations
+
+import json
+import re
+from html.parser import HTMLParser
+
+import pytest
+
+from mmconcepts.errors import ExperimentError
+from mmconcepts.experiments import Claim, Result, register, reproduce, run_experiment
+from mmconcepts.report import write_report
+
+
+class _Collector(HTMLParser):
+    """Collects text, <img> sources and checks tags are balanced."""
+
+    VOID = {"meta", "img", "br", "hr", "link", "input"}
+
+    def __init__(self):
+        super().__init__()
+        self.stack, self.text, self.imgs, self.errors = [], [], [], []
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "img":
+            self.imgs.append(dict(attrs)["src"])
+        if tag not in self.VOID:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag):
+        if not self.stack or self.stack.pop() != tag:
+            self.errors.append(tag)
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+def _parse(html_text):
+    parser = _Collector()
+    parser.feed(html_text)
+    parser.close()
+    return parser
+
+
+@pytest.fixture
+def results(toy, tmp_path):
+    """A results folder with an ok, a failed and a skipped record, and a stray JSON file."""
+    register(toy.FAIL)
+    register(toy.SKIP)
+    out = tmp_path / "results"
+    reproduce(output=out, progress=False)
+    (out / "settings.json").write_text(json.dumps({"not": "a record"}))
+    (out / "broken.json").write_text("{ not json")
+    return out
+
+
+def test_report_shows_metrics_thesis_values_and_verdicts(results):
+    html_path, md_path = write_report(results)
+    assert html_path == results / "report.html" and md_path == results / "report.md"
+    stored = json.loads((results / "toy-mean.json").read_text())
+    mean = stored["metrics"]["mean"]
+    ours = f"{mean:.4g}"
+    html_text = html_path.read_text()
+    md = md_path.read_text()
+
+    # metrics table: metric | ours | thesis, thesis blank when absent
+    assert f"| mean | {ours} | 0.5 |" in md
+    assert f"| std | {stored['metrics']['std']:.4g} | 0.2887 |" in md
+    assert re.search(r"\| 1\.chunk_mean \| [0-9.]+ \| +\|", md)
+    assert f'<td>mean</td><td class="num">{ours}</td><td class="num">0.5</td>' in html_text
+
+    # claims with verdicts
+    assert "**holds**: The sample mean is close to one half." in md
+    assert "**does not hold**: The sample mean exceeds one (false on purpose)." in md
+    assert "verdict-holds" in html_text and "verdict-does-not-hold" in html_text
+
+    # summary lines
+    assert "| toy-mean | Toy: the mean of uniform numbers | ok | 1/2 claims hold |" in md
+    assert re.search(r"\| toy-fail \| [^|]+ \| FAILED \|", md)
+    assert re.search(r"\| toy-skip \| [^|]+ \| skipped \|", md)
+    assert "broke on purpose" in md and "no real data here" in md
+
+    # result table, config, run info, figures
+    assert "Quantiles of the sample" in md and "| 0.25 |" in md
+    assert "| n_chunks | 4 |" in md and "| sizes | [1, 2, 3] |" in md
+    assert "![hist](toy-mean/hist.png)" in md
+    parsed = _parse(html_text)
+    assert parsed.errors == [] and parsed.stack == []
+    assert parsed.imgs == ["toy-mean/hist.png"]
+    assert (results / parsed.imgs[0]).is_file()
+    assert "<style>" in html_text and "<link" not in html_text  # self-contained
+
+
+def test_report_escapes_html(results):
+    html_text = write_report(results)[0].read_text()
+    assert "A &lt;toy&gt; experiment &amp; nothing more." in html_text
+    assert "<toy>" not in html_text
+    assert "abs(mean - 0.5) &lt; 0.1" in html_text
+
+
+def test_report_ignores_non_records_and_logs_it(results, caplog):
+    with caplog.at_level("INFO", logger="mmconcepts"):
+        _, md_path = write_report(results)
+    assert "settings.json: not a result record" in caplog.text
+    assert "broken.json: not a result record" in caplog.text
+    md = md_path.read_text()
+    assert "settings" not in md and "4 experiment(s)" in md
+
+
+def test_report_reevaluates_claims_from_stored_metrics(results):
+    path = results / "toy-mean.json"
+    record = json.loads(path.read_text())
+    record["claims"][1]["holds"] = True  # tampered: the stored verdict disagrees with the numbers
+    record["metrics"]["mean"] = None  # and a metric is now unknown (NaN)
+    path.write_text(json.dumps(record))
+    md = write_report(results)[1].read_text()
+    assert "**not evaluated**: The sample mean is close to one half." in md
+    assert "**not evaluated**: The sample mean exceeds one" in md
+    assert "| mean | n/a | 0.5 |" in md
+    assert "0/2 claims hold (2 not evaluated)" in md
+
+
+def test_report_of_missing_folder_is_a_clear_error(tmp_path):
+    with pytest.raises(ExperimentError, match="does not exist"):
+        write_report(tmp_path / "nowhere")
+
+
+def test_empty_folder_gives_an_empty_report(tmp_path):
+    html_path, md_path = write_report(tmp_path)
+    assert "No result records found." in md_path.read_text()
+    assert "No result records found." in html_path.read_text()
+
+
+def test_nan_claim_shown_as_not_evaluated(toy, tmp_path):
+    exp = toy.make_experiment(
+        "toy-nan",
+        lambda c, x: Result(metrics={"acc": float("nan"), "base": 0.5}),
+        claims=[Claim("acc beats base", "acc > base")],
+        reference={"acc": 0.9},
+    )
+    run_experiment(exp, output=tmp_path, progress=False)
+    md = write_report(tmp_path)[1].read_text()
+    assert "**not evaluated**: acc beats base" in md
+    assert "| acc | n/a | 0.9 |" in md

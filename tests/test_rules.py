@@ -1,0 +1,174 @@
+"""The claim-rule language: parsing, precedence, NaN handling and error messages."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from mmconcepts.errors import ExperimentError
+from mmconcepts.experiments.rules import evaluate_rule, is_valid_metric_name, parse_rule
+
+M = {
+    "16.nmf_kl.l_full": 0.9,
+    "bins_20.l_single": 0.5,
+    "nmf_frobenius.l_full": 0.8,
+    "svm.l_full": 0.7,
+    "a": 2.0,
+    "b": 3.0,
+    "neg": -4.0,
+    "zero": 0.0,
+}
+
+
+@pytest.mark.parametrize(
+    "rule, expected",
+    [
+        ("16.nmf_kl.l_full > bins_20.l_single", True),
+        ("16.nmf_kl.l_full < bins_20.l_single", False),
+        ("nmf_frobenius.l_full > svm.l_full", True),
+        ("16.nmf_kl.l_full - 0.4 == bins_20.l_single", True),
+        ("bins_20.l_single*2 >= 1", True),
+    ],
+)
+def test_digit_led_and_dotted_metric_names(rule, expected):
+    assert evaluate_rule(rule, M) is expected
+
+
+def test_known_metric_wins_over_number_and_numbers_parse():
+    # "16" is a number unless it is a metric name.
+    assert evaluate_rule("16 > 3", {"a": 1.0}) is True
+    assert evaluate_rule("16 > 3", {"16": 1.0}) is False
+    assert evaluate_rule("a < 1e-3", {"a": 1e-4}) is True
+    assert evaluate_rule("a > 1.5e+3", {"a": 1501.0}) is True
+    assert evaluate_rule("a == .5", {"a": 0.5}) is True
+    assert evaluate_rule("a == 2.", {"a": 2.0}) is True
+
+
+@pytest.mark.parametrize(
+    "rule, expected",
+    [
+        ("0 < a < 3", True),
+        ("0 < a < 1", False),  # would be True if read as (0 < a) < 1
+        ("1 < a < b < 4", True),
+        ("1 < a > b", False),
+        ("a < b > 1", True),
+        ("a == 2 != b", True),
+        ("3 > a > neg", True),
+    ],
+)
+def test_chained_comparisons_follow_python(rule, expected):
+    assert evaluate_rule(rule, M) is expected
+    # Cross-check against Python itself on the same expression.
+    py = rule
+    for name, value in M.items():
+        py = py.replace(name, repr(value)) if name.isidentifier() else py
+    assert eval(py) is expected  # noqa: S307 - test oracle on a fixed string
+
+
+@pytest.mark.parametrize(
+    "rule, expected",
+    [
+        ("a + b * 2 == 8", True),
+        ("(a + b) * 2 == 10", True),
+        ("a - b - 1 == -2", True),  # left associative
+        ("b / a / 2 == 0.75", True),
+        ("-a * -b == 6", True),
+        ("- -a == 2", True),
+        ("not a > b", True),
+        ("not a > b and b > a", True),
+        ("a > b or b > a and neg > 0", False),  # and binds tighter than or
+        ("(a > b or b > a) and neg < 0", True),
+        ("not not a < b", True),
+        ("a > b or not (neg > 0)", True),
+    ],
+)
+def test_arithmetic_and_boolean_precedence(rule, expected):
+    assert evaluate_rule(rule, M) is expected
+
+
+@pytest.mark.parametrize(
+    "rule, expected",
+    [
+        ("abs(neg) == 4", True),
+        ("abs(a - b) < 1.5", True),
+        ("min(a, b, neg) == neg", True),
+        ("max(a, b) == b", True),
+        ("max(a) == a", True),
+        ("abs(min(neg, a)) > max(a, b)", True),
+    ],
+)
+def test_functions(rule, expected):
+    assert evaluate_rule(rule, M) is expected
+
+
+def test_nan_metric_means_not_evaluated():
+    metrics = {"a": math.nan, "b": 1.0}
+    assert evaluate_rule("a > b", metrics) is None
+    assert evaluate_rule("a > b or b > 0", metrics) is None  # any NaN metric used
+    assert evaluate_rule("b > 0", metrics) is True  # an unused NaN does not matter
+    assert evaluate_rule("a > b", {"a": None, "b": 1.0}) is None
+
+
+def test_division_follows_ieee():
+    assert evaluate_rule("a / zero > 1e300", M) is True
+    assert evaluate_rule("neg / zero < 0", M) is True
+    assert evaluate_rule("zero / zero > 1", M) is None  # NaN computed by the rule
+
+
+def test_unknown_metric_lists_close_matches():
+    with pytest.raises(ExperimentError) as info:
+        evaluate_rule("nmf_frobenius.l_ful > svm.l_full", M)
+    msg = str(info.value)
+    assert "unknown metric 'nmf_frobenius.l_ful'" in msg
+    assert "nmf_frobenius.l_full" in msg
+    with pytest.raises(ExperimentError, match="unknown metric '17.nmf_kl.l_full'"):
+        evaluate_rule("17.nmf_kl.l_full > 0", M)
+
+
+@pytest.mark.parametrize(
+    "rule, fragment",
+    [
+        ("", "empty"),
+        ("a >", "end of rule"),
+        ("(a > b", "expected ')'"),
+        ("a > > b", "'>'"),
+        ("a $ b", "unexpected character '$'"),
+        ("a + b", "must be true or false"),
+        ("abs(a > b)", "position"),
+        ("min()", "at least one argument"),
+        ("abs(a, b) > 0", "exactly 1"),
+        ("a > b c", "unexpected"),
+        ("abs a > 1", "followed by '('"),
+        ("(a > b) + 1 > 0", "expected a number"),
+        ("a and b", "true/false"),
+        ("not a", "true/false"),
+        ("a = b", "unexpected character '='"),
+    ],
+)
+def test_syntax_and_type_errors_are_clear(rule, fragment):
+    with pytest.raises(ExperimentError) as info:
+        parse_rule(rule, {"a", "b"} if rule != "a > b c" else None)
+    assert fragment in str(info.value)
+    assert "claim rule" in str(info.value)
+
+
+def test_syntax_check_without_names_and_used_metrics():
+    rule = parse_rule("0 < 16.nmf_kl.l_full - svm.l_full < 2e-1 and abs(x) > 0")
+    assert rule.metrics == {"16.nmf_kl.l_full", "svm.l_full", "x"}
+    assert rule.evaluate({"16.nmf_kl.l_full": 0.9, "svm.l_full": 0.8, "x": -1.0}) is True
+    with pytest.raises(ExperimentError, match="unknown metric 'x'"):
+        rule.evaluate({"16.nmf_kl.l_full": 0.9, "svm.l_full": 0.8})
+
+
+def test_result_is_a_python_bool():
+    assert type(evaluate_rule("a < b", M)) is bool
+
+
+@pytest.mark.parametrize(
+    "name, ok",
+    [("16.nmf_kl.l_full", True), ("bins_20.l_single", True), ("a", True), ("16", False),
+     ("1e5", False), ("and", False), ("max", False), ("a-b", False), ("", False)],
+)
+def test_valid_metric_names(name, ok):
+    assert is_valid_metric_name(name) is ok
