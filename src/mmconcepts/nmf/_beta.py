@@ -13,7 +13,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import DataError, ParameterError
-from . import _kernels
 
 __all__ = ["beta_divergence", "elementwise_beta_divergence", "mm_exponent", "resolve_beta"]
 
@@ -183,44 +182,15 @@ def beta_divergence(
     float
         The divergence (``inf`` if WH is zero where X is not, for beta <= 1).
     """
+    from ._problem import Problem  # the problem module builds on this one
+
     beta = resolve_beta(beta)
-    W = np.asarray(W)
-    H = np.asarray(H)
-    Ht = np.ascontiguousarray(H.T)
-    if mask is not None and not sp.issparse(mask):
-        mask = np.asarray(mask, dtype=W.dtype)
-    return _divergence(X, W, Ht, beta, mask)
-
-
-def _divergence(X, W: np.ndarray, Ht: np.ndarray, beta: float, mask=None, weights=None) -> float:
-    """Divergence with H given transposed (Ht = H.T); ``weights`` = mask values at X's nonzeros."""
+    W = np.ascontiguousarray(W)
+    Ht = np.ascontiguousarray(np.asarray(H).T)
     if sp.issparse(X):
-        Y = _kernels.lowrank_at_nonzeros(X.indptr, X.indices, W, Ht, np.empty(X.nnz, dtype=W.dtype))
-        x = X.data
-        if mask is not None and weights is None:
-            rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
-            weights = _gather(mask, rows, X.indices).astype(W.dtype)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            on_nnz = elementwise_beta_divergence(x, Y, beta)
-            if beta > 0:  # d(0|y) = y**beta / beta for beta > 0
-                zero_term = Y if beta == 1.0 else np.maximum(Y, 0.0) ** beta / beta
-            else:  # beta <= 0 with zeros is refused upstream; X has no implicit zeros here
-                zero_term = np.zeros_like(Y)
-        if weights is not None:
-            on_nnz = on_nnz * weights
-            zero_term = zero_term * weights
-        total = float(np.sum(on_nnz, dtype=np.float64)) - float(np.sum(zero_term, dtype=np.float64))
-        if beta > 0:
-            scale = 1.0 if beta == 1.0 else 1.0 / beta
-            total += scale * _sum_power_lowrank(W, Ht, beta, mask)
-        return total
-    Y = W @ Ht.T
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        D = elementwise_beta_divergence(X, Y, beta)
-    if mask is not None:
-        D = np.where(_dense_mask(mask) > 0, D, 0.0)
-    return float(np.sum(D, dtype=np.float64))
-
-
-def _dense_mask(mask) -> np.ndarray:
-    return mask.toarray() if sp.issparse(mask) else mask
+        X = sp.csr_matrix(X)
+        if X.dtype != W.dtype:
+            X = X.astype(W.dtype)
+    else:
+        X = np.asarray(X, dtype=W.dtype)
+    return Problem(X, mask).divergence(W, Ht, beta)
