@@ -71,14 +71,55 @@ def mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out):  # pragm
     return out
 
 
-@nb.njit(parallel=True, **_OPTS)
+# Serial on purpose: OpenMP threads left spinning after a parallel region slow down the BLAS
+# products that come next in the dense update (measured on 2 cores against scikit-learn: x0.83
+# with prange, x1.46 serial). The pass is memory-bound: splitting it over plain threads gained
+# nothing measurable either.
+@nb.njit(parallel=False, **_OPTS)
 def divide_clipped(X, Y, eps):  # pragma: no cover - compiled
-    """Y <- X / max(Y, eps) in place, in one parallel pass (the I-divergence update's ratio)."""
+    """Y <- X / max(Y, eps) in place, in one pass (the I-divergence update's ratio)."""
     n, m = Y.shape
-    for i in nb.prange(n):
+    for i in range(n):
         for j in range(m):
             y = Y[i, j]
             if y < eps:
                 y = eps
             Y[i, j] = X[i, j] / y
     return Y
+
+
+@nb.njit(parallel=False, **_OPTS)
+def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
+    """sum_ij m_ij d_beta(X_ij | Y_ij) in one pass, accumulated in float64 (thesis eq. 2.2-2.3).
+
+    ``M`` is an empty array when every cell is observed. 0 log 0 = 0, and a term whose cell is
+    unobserved counts 0 even when it is infinite.
+    """
+    n, m = X.shape
+    has_m = M.shape[0] > 0
+    total = 0.0
+    for i in range(n):
+        for j in range(m):
+            w = 1.0
+            if has_m:
+                w = M[i, j]
+                if w == 0.0:
+                    continue
+            x = np.float64(X[i, j])
+            y = np.float64(Y[i, j])
+            if beta == 2.0:
+                d = 0.5 * (x - y) * (x - y)
+            elif beta == 1.0:
+                d = y - x
+                if x > 0.0:
+                    d += x * np.log(x / y)
+            elif beta == 0.0:
+                r = x / y
+                d = r - np.log(r) - 1.0
+            else:
+                d = x**beta + (beta - 1.0) * y**beta
+                if x > 0.0:
+                    d -= beta * x * y ** (beta - 1.0)
+                d /= beta * (beta - 1.0)
+            total += w * d
+    return total

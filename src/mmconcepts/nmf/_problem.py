@@ -31,6 +31,7 @@ class Side:
     mask: np.ndarray | sp.csr_matrix | None  # same layout as X, float; None = all observed
     weights: np.ndarray | None  # sparse X only: mask values at X's stored entries
     transposed: bool  # dense only: this side updates the right factor (X ~ R @ L.T)
+    buffer: np.ndarray | None = None  # dense only: scratch space for the product, reused
 
     @property
     def sparse(self) -> bool:
@@ -58,7 +59,7 @@ class Side:
 
         if beta == 2.0 and M is None:
             return rdot(X), L @ (R.T @ R)
-        Y = R @ L.T if t else L @ R.T
+        Y = self._product(L, R)
         if beta == 2.0:
             Y *= M
             return rdot(M * X), rdot(Y)
@@ -79,6 +80,13 @@ class Side:
             Y *= M
             Yb1 *= M
         return rdot(Y), rdot(Yb1)
+
+    def _product(self, L, R) -> np.ndarray:
+        """The dense product in the stored orientation, in a buffer reused across iterations."""
+        buf = self.buffer
+        if buf is None or buf.dtype != L.dtype:
+            buf = self.buffer = np.empty(self.X.shape, dtype=L.dtype)
+        return np.matmul(R, L.T, out=buf) if self.transposed else np.matmul(L, R.T, out=buf)
 
     def _sparse_nd(self, L, R, beta):
         X, M = self.X, self.mask
@@ -124,12 +132,9 @@ class Side:
                 total -= float(np.sum(zero_term, dtype=np.float64))
                 total += (1.0 if beta == 1.0 else 1.0 / beta) * _sum_power_lowrank(L, R, beta, M)
             return total
-        Y = R @ L.T if self.transposed else L @ R.T
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            D = elementwise_beta_divergence(X, Y, beta)
-        if M is not None:  # an infinite term in an unobserved cell does not count
-            D = np.where(M > 0, D * M, 0.0)
-        return float(np.sum(D, dtype=np.float64))
+        Y = self._product(L, R)
+        empty = np.empty((0, 0), dtype=X.dtype)
+        return float(_kernels.dense_divergence(X, Y, empty if M is None else M, beta))
 
 
 class Problem:
