@@ -167,10 +167,10 @@ def run(config: Config, ctx: RunContext) -> Result:
     first = [r for r in runs if r["kind"] == "identifiable" and r["repeat"] == 0]
     for r in first:
         its, h = r["history"]
-        ax.plot(np.maximum(its, 1), h, label=r["name"], lw=1.2, ls="-" if r["solver"] == "mu" else "--")
+        ax.plot(np.asarray(its) + 1, h, label=r["name"], lw=1.2, ls="-" if r["solver"] == "mu" else "--")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("iteration")
+    ax.set_xlabel("iteration + 1 (1 = initialisation)")
     ax.set_ylabel("objective / initial objective")
     ax.set_title("Loss curves on identifiable data (first repeat)")
     ax.legend(fontsize=7, ncol=2)
