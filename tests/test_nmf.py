@@ -215,7 +215,7 @@ def test_subset_update_without_denominator_is_biased(rng):
 
 def test_features_validation(rng):
     X = _positive(rng, 10, 6)
-    model = NMF(2, init="random", random_state=0, max_iter=5, tol=0).fit(X)
+    model = NMF(2, init="random", random_state=0, max_iter=5, tol=0, transform_max_iter=5).fit(X)
     with pytest.raises(ParameterError, match="out of range"):
         model.transform(X[:, :2], features=[0, 9])
     with pytest.raises(ParameterError, match="boolean mask"):
@@ -292,6 +292,7 @@ def test_l1_penalty_sparsifies(rng):
 
 
 # --------------------------------------------------------------------------- inits
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
 @pytest.mark.parametrize("init", ["random", "nndsvd", "nndsvda", "nndsvdar"])
 def test_inits(rng, init):
     _, _, X = _lowrank(rng)
@@ -325,6 +326,7 @@ def test_matching_distance_zero_for_scaled_permuted_copy(rng):
     assert dictionary_distance(A, rng.random((6, 20))) > 0.05
 
 
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
 def test_recovery_of_identifiable_dictionary(rng):
     W, H, X = _separable(rng)
     model = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=2000, tol=1e-7).fit(X)
@@ -347,6 +349,7 @@ def test_bad_data(X, match):
         NMF(1).fit(X)
 
 
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
 def test_bad_parameters(rng):
     X = _positive(rng, 6, 5)
     with pytest.raises(ParameterError, match="n_components"):

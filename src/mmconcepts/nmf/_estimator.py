@@ -15,9 +15,7 @@ from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
 from ._init import initialize
 from ._problem import Problem
 from ._solver import (
-    SOLVERS,
     UPDATE_RULES,
-    _Penalty,
     _resolve_penalties,
     beta_nmf,
     constant_coefficients,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numbers
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -137,7 +136,7 @@ class _Solver:
             f0 = self._side_objective(s, L, R)
             alpha = self.step[s]
 
-            def trial(a: float):
+            def trial(a: float, L=L, grad=grad, f0=f0):
                 Ln = np.maximum(L - a * grad, 0.0).astype(L.dtype, copy=False)
                 fn = self._side_objective(s, Ln, R)
                 ok = np.isfinite(fn) and fn - f0 <= sigma * float(np.sum(grad * (Ln - L), dtype=np.float64))
