@@ -32,7 +32,11 @@ from .runner import (
 
 #: Modules that register experiments when imported, in no particular order
 #: (experiments are listed and run sorted by id).
-EXPERIMENT_MODULES: tuple[str, ...] = ("mmconcepts.experiments.ch2_nmf_recovery",)
+EXPERIMENT_MODULES: tuple[str, ...] = (
+    "mmconcepts.experiments.ch2_nmf_recovery",
+    "mmconcepts.experiments.ch4_factorial_irl",
+    "mmconcepts.experiments.ch4_inverse_control",
+)
 
 __all__ = [
     "EXPERIMENT_MODULES",

@@ -1,0 +1,45 @@
+"""Tasks: MDPs, planning, gradient IRL, factorial IRL and factorial inverse feedback control.
+
+Thesis chapter 4 (sections 4.2 and 4.3) and the background of section 2.2.
+"""
+
+from .factorial import FactorialIRL, component_features, factorial_objective
+from .irl import (
+    GradIRL,
+    MaxEntIRL,
+    adjoint_gradient,
+    armijo_descent,
+    empirical_policy,
+    gradirl_objective,
+    maxent_objective,
+    q_gradient,
+)
+from .mdp import (
+    MDP,
+    boltzmann_policy,
+    greedy_policy,
+    grid_world,
+    policy_evaluation,
+    policy_transitions,
+    q_values,
+    sample_trajectories,
+    soft_value_iteration,
+    uniform_policy,
+    value_iteration,
+)
+from .inverse_control import (
+    FactorialInverseControl,
+    RBFFeatures,
+    brillinger_regression,
+    control_trajectories,
+    relative_l2_error,
+)
+
+__all__ = [
+    "MDP", "grid_world", "value_iteration", "soft_value_iteration", "policy_evaluation", "q_values",
+    "greedy_policy", "boltzmann_policy", "uniform_policy", "policy_transitions", "sample_trajectories",
+    "empirical_policy", "gradirl_objective", "q_gradient", "adjoint_gradient", "maxent_objective",
+    "armijo_descent", "GradIRL", "MaxEntIRL", "FactorialIRL", "factorial_objective", "component_features",
+    "RBFFeatures", "control_trajectories", "brillinger_regression", "FactorialInverseControl",
+    "relative_l2_error",
+]

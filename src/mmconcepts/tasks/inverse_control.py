@@ -1,0 +1,260 @@
+"""Factorial inverse feedback control (thesis section 4.2, eq. 4.1-4.7).
+
+An agent in Q = [0, 1]^2 descends a cost ``f(q) = beta . phi(q)`` on Gaussian radial
+basis features ``phi`` (a 5 x 5 grid: F = 25):
+
+.. math:: q_{t+1} = q_t - \\lambda\\, \\delta t\\, J(q_t)^T \\beta        \\qquad (4.1)
+
+with J the Jacobian of phi (F x 2). Brillinger's regression (4.2)-(4.3) recovers beta
+from one trajectory: ``Y = Phi beta`` with ``Y`` the stacked velocities and ``Phi`` the
+stacked ``-lambda J(q_t)^T``. The dictionary learner (4.4)-(4.7) writes
+``beta_i = D a_i`` and alternates regressions on the coefficients with gradient steps on D.
+
+Orientation: the thesis' D is F x K with tasks as columns; here ``components_`` is
+(K, F) = D^T and coefficients are rows (n_tasks, K), so ``beta = coefficients @ components_``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+from scipy.optimize import nnls
+
+from .._validation import check_positive_int, check_random_state, check_scalar
+from ..errors import DataError, ParameterError
+
+__all__ = ["RBFFeatures", "control_trajectories", "brillinger_regression", "FactorialInverseControl",
+           "relative_l2_error"]
+
+
+class RBFFeatures:
+    """Gaussian radial basis features on a regular grid of [0, 1]^2 (section 4.2.2).
+
+    ``phi_f(q) = exp(-|q - mu_f|^2 / (2 sigma^2)) / (2 pi sigma)``.
+
+    Parameters
+    ----------
+    grid_size : int, default=5
+        Centres on a grid_size x grid_size grid (F = grid_size^2).
+    sigma : float, optional
+        Width; default the grid spacing ``1 / (grid_size - 1)`` (the thesis does not give it).
+    """
+
+    def __init__(self, grid_size: int = 5, sigma: float | None = None) -> None:
+        g = check_positive_int(grid_size, "grid_size", minimum=2)
+        self.grid_size = g
+        self.sigma = 1.0 / (g - 1) if sigma is None else check_scalar(sigma, "sigma", low=0.0, low_inclusive=False)
+        u = np.linspace(0.0, 1.0, g)
+        self.centres = np.array([(x, y) for y in u for x in u])
+
+    @property
+    def n_features(self) -> int:
+        return self.centres.shape[0]
+
+    def value(self, q: Any) -> np.ndarray:
+        """phi(q): (..., 2) -> (..., F)."""
+        d = np.asarray(q, dtype=float)[..., None, :] - self.centres
+        return np.exp(-(d**2).sum(-1) / (2 * self.sigma**2)) / (2 * np.pi * self.sigma)
+
+    def jacobian(self, q: Any) -> np.ndarray:
+        """J(q): (..., 2) -> (..., F, 2), rows are gradients of the features."""
+        d = np.asarray(q, dtype=float)[..., None, :] - self.centres
+        return -(d / self.sigma**2) * self.value(q)[..., None]
+
+    def cost(self, beta: Any, q: Any) -> np.ndarray:
+        """f(q) = beta . phi(q)."""
+        return self.value(q) @ np.asarray(beta, dtype=float)
+
+
+def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_steps: int = 100, lam: float = 1.0,
+                         dt: float = 0.01, settle_tol: float = 0.0) -> np.ndarray:
+    """Trajectories of eq. (4.1), batched: ``beta`` (n, F) and ``start`` (n, 2) -> (n, n_steps + 1, 2).
+
+    With ``settle_tol > 0``, a trajectory whose step is shorter than ``settle_tol`` stays put
+    from then on (it has settled); arrays keep the full length so that trajectories compare.
+    """
+    B = np.atleast_2d(np.asarray(beta, dtype=float))
+    q = np.atleast_2d(np.asarray(start, dtype=float)).copy()
+    if B.shape[1] != features.n_features or q.shape != (B.shape[0], 2):
+        raise ParameterError(f"beta must be (n, {features.n_features}) and start (n, 2); got {B.shape} and {q.shape}.")
+    T = check_positive_int(n_steps, "n_steps")
+    out = np.empty((q.shape[0], T + 1, 2))
+    out[:, 0] = q
+    moving = np.ones(q.shape[0], dtype=bool)
+    for t in range(T):
+        step = -lam * dt * np.einsum("nfk,nf->nk", features.jacobian(q), B)
+        if settle_tol > 0:
+            moving &= np.linalg.norm(step, axis=1) >= settle_tol
+            step[~moving] = 0.0
+        q = q + step
+        out[:, t + 1] = q
+    return out
+
+
+def _design(features: RBFFeatures, traj: np.ndarray, lam: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Y (2(T-1),) and Phi (2(T-1), F) of eq. (4.2) for one trajectory (T, 2)."""
+    traj = np.asarray(traj, dtype=float)
+    if traj.ndim != 2 or traj.shape[1] != 2 or traj.shape[0] < 2:
+        raise DataError(f"a trajectory must be an array of shape (n_points >= 2, 2); got {traj.shape}.")
+    if not np.all(np.isfinite(traj)):
+        raise DataError("a trajectory contains NaN or infinite values.")
+    Y = (np.diff(traj, axis=0) / dt).reshape(-1)
+    Phi = (-lam * features.jacobian(traj[:-1])).transpose(0, 2, 1).reshape(-1, features.n_features)
+    return Y, Phi
+
+
+def _regress(Phi: np.ndarray, Y: np.ndarray, regression: str, alpha: float) -> np.ndarray:
+    if regression == "lstsq":  # eq. (4.3); minimum-norm solution when Phi^T Phi is singular
+        return np.linalg.lstsq(Phi, Y, rcond=None)[0]
+    if regression == "ridge":
+        return np.linalg.solve(Phi.T @ Phi + alpha * np.eye(Phi.shape[1]), Phi.T @ Y)
+    if regression == "nnls":
+        return nnls(Phi, Y)[0]
+    raise ParameterError(f"regression must be 'lstsq', 'ridge' or 'nnls'; got {regression!r}.")
+
+
+def brillinger_regression(features: RBFFeatures, trajectories: Any, *, lam: float = 1.0, dt: float = 0.01,
+                          regression: str = "lstsq", alpha: float = 1e-6) -> np.ndarray:
+    """The flat imitator: beta from one demonstration by eq. (4.2)-(4.3).
+
+    Parameters
+    ----------
+    features : RBFFeatures
+    trajectories : ndarray of shape (T, 2) or list of them (same task)
+    regression : {'lstsq', 'ridge', 'nnls'}
+    alpha : float
+        Ridge penalty.
+
+    Returns
+    -------
+    beta : ndarray of shape (F,)
+    """
+    trajs = [trajectories] if np.ndim(trajectories) == 2 else list(trajectories)
+    parts = [_design(features, t, lam, dt) for t in trajs]
+    return _regress(np.concatenate([p[1] for p in parts]), np.concatenate([p[0] for p in parts]), regression, alpha)
+
+
+def relative_l2_error(reference: Any, other: Any) -> np.ndarray:
+    """``|q_ref - q|_2 / |q_ref|_2`` per trajectory, for arrays (n, T, 2) or (T, 2)."""
+    a, b = np.asarray(reference, dtype=float), np.asarray(other, dtype=float)
+    axes = tuple(range(a.ndim - 2, a.ndim))
+    return np.sqrt(((a - b) ** 2).sum(axes) / (a**2).sum(axes))
+
+
+class FactorialInverseControl:
+    """Dictionary of primitive costs from mixed demonstrations (eq. 4.4-4.7).
+
+    Parameters
+    ----------
+    n_components : int, default=6
+    features : RBFFeatures, optional
+        Default: the 5 x 5 grid.
+    lam, dt : float
+        The agent's gain and time step of eq. (4.1).
+    regression : {'lstsq', 'ridge', 'nnls'}, default='lstsq'
+        Regression of the coefficients (eq. 4.6 is 'lstsq').
+    alpha : float, default=1e-6
+        Ridge penalty.
+    max_iter : int, default=100
+        Alternations (unsupervised) or gradient steps on D (supervised).
+    d_steps : int, default=5
+        Gradient steps on D per alternation (exact line search: the loss is quadratic in D).
+    tol : float, default=1e-8
+    random_state : int, Generator or None
+        Random initial dictionary (unsupervised).
+
+    Attributes
+    ----------
+    components_ : ndarray of shape (K, F)
+        The dictionary D^T.
+    coefficients_ : ndarray of shape (n_demos, K)
+    loss_history_ : list of float
+        Loss (4.5) after each alternation.
+    """
+
+    def __init__(self, n_components: int = 6, *, features: RBFFeatures | None = None, lam: float = 1.0,
+                 dt: float = 0.01, regression: str = "lstsq", alpha: float = 1e-6, max_iter: int = 100,
+                 d_steps: int = 5, tol: float = 1e-8, random_state: Any = None) -> None:
+        self.n_components = n_components
+        self.features = features
+        self.lam = lam
+        self.dt = dt
+        self.regression = regression
+        self.alpha = alpha
+        self.max_iter = max_iter
+        self.d_steps = d_steps
+        self.tol = tol
+        self.random_state = random_state
+
+    def _feats(self) -> RBFFeatures:
+        return self.features if self.features is not None else RBFFeatures()
+
+    def _designs(self, trajectories):
+        if isinstance(trajectories, np.ndarray) and trajectories.ndim == 2:
+            raise DataError("trajectories must be a list (or (n, T, 2) array) of demonstrations, one per task.")
+        f = self._feats()
+        return [_design(f, t, self.lam, self.dt) for t in trajectories]
+
+    @staticmethod
+    def _loss(designs, D, A):
+        return float(sum(((Y - Phi @ (D.T @ a)) ** 2).sum() for (Y, Phi), a in zip(designs, A)))
+
+    def _d_steps(self, designs, D, A, n_steps):
+        for _ in range(n_steps):
+            # eq. (4.7) in row orientation: grad wrt D^T = -2 sum_i a_i (Phi_i^T r_i)^T
+            G = np.zeros_like(D)
+            for (Y, Phi), a in zip(designs, A):
+                G -= 2.0 * np.outer(a, Phi.T @ (Y - Phi @ (D.T @ a)))
+            denom = 2.0 * sum(((Phi @ (G.T @ a)) ** 2).sum() for (Y, Phi), a in zip(designs, A))
+            if denom <= 0 or not np.any(G):
+                break
+            D = D - ((G**2).sum() / denom) * G  # exact line search on the quadratic loss
+        return D
+
+    def _coefs(self, designs, D):
+        return np.array([_regress(Phi @ D.T, Y, self.regression, self.alpha) for Y, Phi in designs])
+
+    def fit(self, trajectories: Sequence[Any], coefficients: Any = None) -> "FactorialInverseControl":
+        """Learn the dictionary from one demonstration per task.
+
+        Parameters
+        ----------
+        trajectories : list of ndarray of shape (T_i, 2)
+        coefficients : array-like of shape (n_demos, K), optional
+            Known mixing coefficients (the supervised "dictionary from coefficients"
+            learner): then only D is learnt, by gradient steps (4.7).
+        """
+        K = check_positive_int(self.n_components, "n_components")
+        designs = self._designs(trajectories)
+        F = self._feats().n_features
+        rng = check_random_state(self.random_state)
+        D = rng.standard_normal((K, F))
+        history = []
+        if coefficients is not None:
+            A = np.asarray(coefficients, dtype=float)
+            if A.shape != (len(designs), K):
+                raise ParameterError(f"coefficients must have shape (n_demos, n_components) = ({len(designs)}, {K}); "
+                                     f"got {A.shape}.")
+            for _ in range(check_positive_int(self.max_iter, "max_iter")):
+                D = self._d_steps(designs, D, A, 1)
+                history.append(self._loss(designs, D, A))
+                if len(history) > 1 and history[-2] - history[-1] <= self.tol * history[-2]:
+                    break
+        else:
+            A = self._coefs(designs, D)
+            for _ in range(check_positive_int(self.max_iter, "max_iter")):
+                D = self._d_steps(designs, D, A, self.d_steps)
+                A = self._coefs(designs, D)
+                history.append(self._loss(designs, D, A))
+                if len(history) > 1 and history[-2] - history[-1] <= self.tol * history[-2]:
+                    break
+        self.components_, self.coefficients_, self.loss_history_ = D, A, history
+        self.n_iter_ = len(history)
+        return self
+
+    def transform(self, trajectories: Sequence[Any]) -> np.ndarray:
+        """Coefficients (n, K) of demonstrations on the learnt dictionary (eq. 4.6)."""
+        if not hasattr(self, "components_"):
+            raise ParameterError("this FactorialInverseControl is not fitted yet; call fit first.")
+        return self._coefs(self._designs(trajectories), self.components_)

@@ -1,0 +1,434 @@
+"""Tabular Markov decision processes, the grid world of section 4.3.2, and planning.
+
+Thesis section 2.2.1 (MDPs, Bellman equations 2.25-2.28, value iteration) and the
+Boltzmann policy of eq. (2.32).
+
+Shapes
+------
+* transitions ``P`` : (n_actions, n_states, n_states), ``P[a, s, s'] = P(s' | s, a)``;
+* rewards ``r`` : (n_states, n_actions), or (n_tasks, n_states, n_actions) for many tasks
+  on the same world at once (every planning function is vectorised over the leading
+  task axis: one array operation per sweep for all tasks);
+* values ``V`` : (..., n_states); action values ``Q`` : (..., n_states, n_actions);
+* policies ``pi`` : (..., n_states, n_actions), rows summing to one.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from .._validation import check_positive_int, check_random_state, check_scalar
+from ..errors import ConvergenceWarning, DataError, ParameterError
+
+__all__ = [
+    "MDP",
+    "grid_world",
+    "value_iteration",
+    "soft_value_iteration",
+    "policy_evaluation",
+    "q_values",
+    "greedy_policy",
+    "boltzmann_policy",
+    "uniform_policy",
+    "policy_transitions",
+    "sample_trajectories",
+    "check_trajectories",
+]
+
+GRID_MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])  # up, down, left, right (row, col)
+GRID_ACTION_NAMES = ("up", "down", "left", "right")
+
+
+class MDP:
+    """A finite MDP without reward: states, actions, transitions and a discount factor.
+
+    The reward is kept apart (an argument of the planning functions) because inverse
+    reinforcement learning compares many rewards on one world (thesis section 2.2.2).
+
+    Parameters
+    ----------
+    transitions : array-like of shape (n_actions, n_states, n_states)
+        ``transitions[a, s, s'] = P(s' | s, a)``; every row ``transitions[a, s]`` must be a
+        probability distribution (nonnegative, sums to one within 1e-8).
+    discount : float, default=0.9
+        Discount factor gamma in [0, 1).
+    rewards : array-like of shape (n_states, n_actions), optional
+        A default reward, used when a planning function is called without one.
+
+    Attributes
+    ----------
+    transitions : ndarray of shape (n_actions, n_states, n_states)
+    discount : float
+    rewards : ndarray of shape (n_states, n_actions) or None
+    n_states, n_actions : int
+    """
+
+    def __init__(self, transitions: Any, *, discount: float = 0.9, rewards: Any = None) -> None:
+        P = np.asarray(transitions, dtype=float)
+        if P.ndim != 3 or P.shape[1] != P.shape[2] or P.shape[0] < 1 or P.shape[1] < 1:
+            raise ParameterError(
+                "transitions must have shape (n_actions, n_states, n_states) with "
+                f"transitions[a, s, s'] = P(s'|s, a); got shape {P.shape}."
+            )
+        if not np.all(np.isfinite(P)):
+            raise ParameterError("transitions contain NaN or infinite values; give probabilities in [0, 1].")
+        if (P < 0).any():
+            a, s, t = np.argwhere(P < 0)[0]
+            raise ParameterError(f"transitions must be nonnegative; P[{a}, {s}, {t}] = {P[a, s, t]:g}.")
+        sums = P.sum(axis=2)
+        bad = np.abs(sums - 1.0) > 1e-8
+        if bad.any():
+            a, s = np.argwhere(bad)[0]
+            raise ParameterError(
+                f"every row transitions[a, s, :] must sum to one; {int(bad.sum())} rows do not, e.g. "
+                f"transitions[{a}, {s}, :].sum() = {sums[a, s]:.6g}. Normalise the rows "
+                "(P / P.sum(axis=2, keepdims=True)) or check the axis order (action, state, next state)."
+            )
+        self.transitions = P
+        self.discount = check_scalar(discount, "discount", low=0.0, high=1.0, high_inclusive=False)
+        self.rewards = None if rewards is None else check_rewards(self, rewards, allow_batch=False)
+
+    @property
+    def n_states(self) -> int:
+        return int(self.transitions.shape[1])
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.transitions.shape[0])
+
+    def __repr__(self) -> str:
+        return f"MDP(n_states={self.n_states}, n_actions={self.n_actions}, discount={self.discount})"
+
+
+def check_rewards(mdp: MDP, rewards: Any, *, allow_batch: bool = True) -> np.ndarray:
+    """Return ``rewards`` as a float array of shape (S, A) or (n_tasks, S, A), or raise."""
+    if rewards is None:
+        if mdp.rewards is None:
+            raise ParameterError("no rewards given and the MDP has no default reward; pass rewards=(n_states, n_actions).")
+        return mdp.rewards
+    r = np.asarray(rewards, dtype=float)
+    ok_shapes = r.shape[-2:] == (mdp.n_states, mdp.n_actions) and (r.ndim == 2 or (allow_batch and r.ndim == 3))
+    if not ok_shapes:
+        want = "(n_states, n_actions)" + (" or (n_tasks, n_states, n_actions)" if allow_batch else "")
+        raise ParameterError(f"rewards must have shape {want} = ({mdp.n_states}, {mdp.n_actions}); got {r.shape}.")
+    if not np.all(np.isfinite(r)):
+        raise DataError("rewards contain NaN or infinite values.")
+    return r
+
+
+def grid_world(size: int = 10, *, success_prob: float = 0.7, discount: float = 0.9,
+               random_includes_intended: bool = True) -> MDP:
+    """The grid world of thesis section 4.3.2.
+
+    States are the cells of a ``size`` x ``size`` grid, numbered row-major
+    (``s = row * size + col``); the 4 actions are up, down, left, right. With probability
+    ``success_prob`` the intended move happens; otherwise the agent makes a move drawn
+    uniformly among the *feasible* moves (those that stay on the grid). When the intended
+    move is not feasible (e.g. up on the top border) the move is drawn uniformly among the
+    feasible ones.
+
+    Parameters
+    ----------
+    size : int, default=10
+    success_prob : float, default=0.7
+    discount : float, default=0.9
+    random_includes_intended : bool, default=True
+        Whether the intended move is among the random ones (then it happens with
+        probability ``success_prob + (1 - success_prob) / n_feasible``). The thesis does
+        not say; ``False`` draws the random move among the other feasible moves.
+
+    Returns
+    -------
+    MDP
+        With ``size**2`` states, 4 actions and no default reward.
+    """
+    n = check_positive_int(size, "size", minimum=2)
+    p = check_scalar(success_prob, "success_prob", low=0.0, high=1.0)
+    S = n * n
+    P = np.zeros((4, S, S))
+    for r in range(n):
+        for c in range(n):
+            s = r * n + c
+            feasible = [k for k, (dr, dc) in enumerate(GRID_MOVES) if 0 <= r + dr < n and 0 <= c + dc < n]
+            dest = {k: (r + GRID_MOVES[k, 0]) * n + (c + GRID_MOVES[k, 1]) for k in feasible}
+            for a in range(4):
+                if a not in feasible:
+                    for k in feasible:
+                        P[a, s, dest[k]] += 1.0 / len(feasible)
+                    continue
+                pool = feasible if random_includes_intended else [k for k in feasible if k != a]
+                P[a, s, dest[a]] += p
+                for k in pool:
+                    P[a, s, dest[k]] += (1.0 - p) / len(pool)
+    return MDP(P, discount=discount)
+
+
+def _flat(mdp: MDP) -> np.ndarray:
+    """Transitions as a (A * S, S) matrix, row ``a * S + s``."""
+    A, S = mdp.n_actions, mdp.n_states
+    return mdp.transitions.reshape(A * S, S)
+
+
+def q_values(mdp: MDP, values: Any, rewards: Any = None) -> np.ndarray:
+    """Action values ``Q(s, a) = r(s, a) + gamma sum_s' P(s'|s, a) V(s')`` (thesis eq. 2.26-2.28).
+
+    Parameters
+    ----------
+    mdp : MDP
+    values : array-like of shape (S,) or (n_tasks, S)
+    rewards : array-like of shape (S, A) or (n_tasks, S, A), optional
+
+    Returns
+    -------
+    Q : ndarray of shape (..., S, A)
+    """
+    r = check_rewards(mdp, rewards)
+    V = np.asarray(values, dtype=float)
+    A, S = mdp.n_actions, mdp.n_states
+    if V.shape[-1] != S:
+        raise ParameterError(f"values must have {S} states on the last axis; got shape {V.shape}.")
+    EV = (_flat(mdp) @ V.reshape(-1, S).T).T.reshape(V.shape[:-1] + (A, S))  # (..., A, S)
+    return r + mdp.discount * np.swapaxes(EV, -1, -2)
+
+
+def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_iter: int = 10_000,
+                    init: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Optimal values by value iteration (Picard iteration of eq. 2.27), batched over tasks.
+
+    .. math:: V_{k+1}(s) = \\max_a \\left[ r(s, a) + \\gamma \\sum_{s'} P(s'|s, a) V_k(s') \\right]
+
+    Each sweep is one matrix product ``(A S, S) @ (S, n_tasks)`` for all tasks together.
+    The loop stops when the sup-norm change of every task is below ``tol``; the error
+    of V is then below ``tol * gamma / (1 - gamma)``.
+
+    Parameters
+    ----------
+    mdp : MDP
+    rewards : array-like of shape (S, A) or (n_tasks, S, A), optional
+        Default: ``mdp.rewards``.
+    tol : float, default=1e-10
+    max_iter : int, default=10000
+    init : array-like of shape (S,) or (n_tasks, S), optional
+        Starting values (warm start); default zeros.
+
+    Returns
+    -------
+    V : ndarray of shape (..., S)
+        Optimal values V*.
+    Q : ndarray of shape (..., S, A)
+        Optimal action values Q*, consistent with V (``V = Q.max(-1)``).
+    """
+    r = check_rewards(mdp, rewards)
+    A, S = mdp.n_actions, mdp.n_states
+    batch = r.shape[:-2]
+    R = r.reshape(-1, S, A)
+    T = R.shape[0]
+    V = np.zeros((T, S)) if init is None else np.broadcast_to(np.asarray(init, dtype=float), batch + (S,)).reshape(T, S).copy()
+    Pf = _flat(mdp)
+    gamma = mdp.discount
+    RT = np.ascontiguousarray(R.transpose(0, 2, 1).reshape(T, A * S))  # r[t, a*S+s]
+    for _ in range(max_iter):
+        Qf = RT + gamma * (V @ Pf.T)  # (T, A*S)
+        V_new = Qf.reshape(T, A, S).max(axis=1)
+        delta = np.abs(V_new - V).max() if T else 0.0
+        V = V_new
+        if delta < tol:
+            break
+    else:
+        warnings.warn(f"value iteration stopped after max_iter={max_iter} sweeps with change {delta:.3g} > tol={tol:g}; "
+                      "raise max_iter or tol.", ConvergenceWarning, stacklevel=2)
+    Qf = RT + gamma * (V @ Pf.T)
+    Q = Qf.reshape(T, A, S).transpose(0, 2, 1)
+    V = Q.max(axis=2)
+    return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
+
+
+def _logsumexp(Q: np.ndarray, axis: int) -> np.ndarray:
+    m = Q.max(axis=axis, keepdims=True)
+    return (m + np.log(np.exp(Q - m).sum(axis=axis, keepdims=True))).squeeze(axis)
+
+
+def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_iter: int = 10_000,
+                         init: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Soft (maximum causal entropy) values: ``V(s) = log sum_a exp Q(s, a)``, batched.
+
+    Used by the maximum-entropy IRL baseline (Ziebart et al. 2010; not in the thesis).
+    Returns ``(V, Q)`` with the shapes of :func:`value_iteration`.
+    """
+    r = check_rewards(mdp, rewards)
+    A, S = mdp.n_actions, mdp.n_states
+    batch = r.shape[:-2]
+    R = r.reshape(-1, S, A)
+    T = R.shape[0]
+    V = np.zeros((T, S)) if init is None else np.broadcast_to(np.asarray(init, dtype=float), batch + (S,)).reshape(T, S).copy()
+    Pf = _flat(mdp)
+    RT = np.ascontiguousarray(R.transpose(0, 2, 1).reshape(T, A * S))
+    for _ in range(max_iter):
+        Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S)
+        V_new = _logsumexp(Q, axis=1)
+        delta = np.abs(V_new - V).max() if T else 0.0
+        V = V_new
+        if delta < tol:
+            break
+    else:
+        warnings.warn(f"soft value iteration stopped after max_iter={max_iter} sweeps with change {delta:.3g}.",
+                      ConvergenceWarning, stacklevel=2)
+    Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S).transpose(0, 2, 1)
+    V = _logsumexp(Q, axis=2)
+    return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
+
+
+def greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
+    """Greedy policy on ``Q``: uniform over the actions within ``tie_tol`` of the best.
+
+    Parameters
+    ----------
+    Q : array-like of shape (..., S, A)
+    tie_tol : float, default=1e-8
+        Actions whose value is within ``tie_tol * (1 + |max Q|)`` of the maximum are tied
+        and share the probability (so a constant reward gives the uniform policy).
+
+    Returns
+    -------
+    pi : ndarray of shape (..., S, A)
+    """
+    Q = np.asarray(Q, dtype=float)
+    best = Q.max(axis=-1, keepdims=True)
+    mask = Q >= best - tie_tol * (1.0 + np.abs(best))
+    return mask / mask.sum(axis=-1, keepdims=True)
+
+
+def boltzmann_policy(Q: Any, beta: float = 1.0) -> np.ndarray:
+    """Boltzmann policy of thesis eq. (2.32): ``pi(a|s) = exp(beta Q(s,a)) / sum_a' exp(beta Q(s,a'))``.
+
+    Parameters
+    ----------
+    Q : array-like of shape (..., S, A)
+    beta : float, default=1.0
+        Inverse temperature (nonnegative); beta -> inf gives the greedy policy.
+    """
+    beta = check_scalar(beta, "beta", low=0.0)
+    Z = beta * np.asarray(Q, dtype=float)
+    Z = Z - Z.max(axis=-1, keepdims=True)
+    E = np.exp(Z)
+    return E / E.sum(axis=-1, keepdims=True)
+
+
+def uniform_policy(mdp: MDP) -> np.ndarray:
+    """The uniformly random policy, shape (S, A)."""
+    return np.full((mdp.n_states, mdp.n_actions), 1.0 / mdp.n_actions)
+
+
+def policy_transitions(mdp: MDP, policy: Any) -> np.ndarray:
+    """State-to-state transitions under ``policy``: ``P_pi[s, s'] = sum_a pi(a|s) P(s'|s, a)``.
+
+    ``policy`` (..., S, A) gives P_pi of shape (..., S, S).
+    """
+    pi = _check_policy(mdp, policy)
+    return np.einsum("...sa,ast->...st", pi, mdp.transitions)
+
+
+def _check_policy(mdp: MDP, policy: Any) -> np.ndarray:
+    pi = np.asarray(policy, dtype=float)
+    if pi.ndim < 2 or pi.shape[-2:] != (mdp.n_states, mdp.n_actions):
+        raise ParameterError(f"policy must have shape (..., n_states, n_actions) = (..., {mdp.n_states}, "
+                             f"{mdp.n_actions}); got {pi.shape}.")
+    if (pi < -1e-12).any() or np.abs(pi.sum(axis=-1) - 1.0).max() > 1e-8:
+        raise ParameterError("policy rows must be probability distributions over actions (nonnegative, summing to one).")
+    return pi
+
+
+def policy_evaluation(mdp: MDP, policy: Any, rewards: Any = None) -> np.ndarray:
+    """Exact value of a policy: solve the Bellman equation (2.25), batched over tasks.
+
+    .. math:: V^\\pi = (I - \\gamma P_\\pi)^{-1} r_\\pi, \\quad r_\\pi(s) = \\sum_a \\pi(a|s) r(s, a)
+
+    Parameters
+    ----------
+    mdp : MDP
+    policy : array-like of shape (S, A) or (n_tasks, S, A)
+    rewards : array-like of shape (S, A) or (n_tasks, S, A), optional
+
+    Returns
+    -------
+    V : ndarray of shape (..., S)
+        Broadcast over the task axes of ``policy`` and ``rewards``.
+    """
+    r = check_rewards(mdp, rewards)
+    pi = _check_policy(mdp, policy)
+    Ppi = np.einsum("...sa,ast->...st", pi, mdp.transitions)
+    rpi = (pi * r).sum(axis=-1)
+    Ppi, rpi = np.broadcast_arrays(Ppi, rpi[..., None])
+    M = np.eye(mdp.n_states) - mdp.discount * Ppi
+    return np.linalg.solve(M, rpi[..., :1])[..., 0]
+
+
+def check_trajectories(mdp: MDP, trajectories: Any, *, name: str = "trajectory") -> list[np.ndarray]:
+    """Validate a list of trajectories, each an int array of (state, action) rows.
+
+    Raises :class:`DataError` naming the trajectory and step with an unknown state or
+    action, a wrong shape, or no step at all.
+    """
+    if isinstance(trajectories, np.ndarray) and trajectories.ndim == 2:
+        trajectories = [trajectories]
+    out = []
+    for i, xi in enumerate(trajectories):
+        arr = np.asarray(xi)
+        if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] == 0:
+            raise DataError(f"{name} {i} must be an array of shape (n_steps >= 1, 2) of (state, action) pairs; "
+                            f"got shape {arr.shape}.")
+        if not np.issubdtype(arr.dtype, np.integer):
+            if not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
+                raise DataError(f"{name} {i} must hold integer state and action indices; got dtype {arr.dtype}.")
+            arr = arr.astype(int)
+        s, a = arr[:, 0], arr[:, 1]
+        if (s < 0).any() or (s >= mdp.n_states).any():
+            t = int(np.argmax((s < 0) | (s >= mdp.n_states)))
+            raise DataError(f"{name} {i}, step {t}: unknown state {s[t]}; states are 0..{mdp.n_states - 1}. "
+                            "Number states as the MDP does (grid cells row-major).")
+        if (a < 0).any() or (a >= mdp.n_actions).any():
+            t = int(np.argmax((a < 0) | (a >= mdp.n_actions)))
+            raise DataError(f"{name} {i}, step {t}: unknown action {a[t]}; actions are 0..{mdp.n_actions - 1}.")
+        out.append(arr.astype(np.int64))
+    if not out:
+        raise DataError(f"no {name} given; pass at least one array of (state, action) pairs.")
+    return out
+
+
+def sample_trajectories(mdp: MDP, policy: Any, n_trajectories: int, length: int, *, start: Any = None,
+                        random_state: Any = None) -> list[np.ndarray]:
+    """Sample trajectories ``[(s_t, a_t)]_{t < length}`` following ``policy`` (vectorised over trajectories).
+
+    Parameters
+    ----------
+    mdp : MDP
+    policy : array-like of shape (S, A)
+    n_trajectories, length : int
+    start : array-like of int of shape (n_trajectories,), optional
+        Start states; default uniform over states.
+    random_state : int, Generator or None
+
+    Returns
+    -------
+    list of ndarray of shape (length, 2)
+    """
+    rng = check_random_state(random_state)
+    pi = _check_policy(mdp, policy)
+    if pi.ndim != 2:
+        raise ParameterError(f"policy must have shape (n_states, n_actions) here; got {pi.shape}.")
+    n = check_positive_int(n_trajectories, "n_trajectories")
+    L = check_positive_int(length, "length")
+    s = rng.integers(mdp.n_states, size=n) if start is None else np.asarray(start, dtype=int).copy()
+    if s.shape != (n,):
+        raise ParameterError(f"start must have shape ({n},); got {s.shape}.")
+    cpi = np.cumsum(pi, axis=1)
+    cP = np.cumsum(mdp.transitions, axis=2)
+    out = np.empty((n, L, 2), dtype=np.int64)
+    for t in range(L):
+        a = np.minimum((rng.random(n)[:, None] > cpi[s]).sum(axis=1), mdp.n_actions - 1)
+        out[:, t, 0], out[:, t, 1] = s, a
+        s = np.minimum((rng.random(n)[:, None] > cP[a, s]).sum(axis=1), mdp.n_states - 1)
+    return list(out)
