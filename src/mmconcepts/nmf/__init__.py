@@ -27,12 +27,19 @@ match_components, dictionary_distance
     Comparing dictionaries up to scaling and permutation (Hungarian algorithm).
 hoyer_sparseness, project_hoyer
     Hoyer's sparseness measure and projection.
+LabelNMF, make_svm_baseline
+    Weak supervision by label sets (thesis sections 3.3.2 and 5.4): NMF on stacked
+    [features, labels], labels reconstructed from the features alone; the linear SVM baseline.
+l_single, l_given_number, l_full, l_full_curve
+    The scores of thesis section 3.3.3.
 """
 
 from ._beta import beta_divergence, elementwise_beta_divergence, mm_exponent
 from ._estimator import NMF
 from ._solver import NMFResult, beta_nmf
 from .compare import ComponentMatching, dictionary_distance, match_components
+from .labels import DEFAULT_THRESHOLD_GRID, LabelNMF, make_svm_baseline
+from .scores import l_full, l_full_curve, l_given_number, l_single, threshold_scores
 from .sparseness import hoyer_sparseness, project_hoyer
 
 __all__ = [
@@ -47,4 +54,12 @@ __all__ = [
     "ComponentMatching",
     "hoyer_sparseness",
     "project_hoyer",
+    "LabelNMF",
+    "DEFAULT_THRESHOLD_GRID",
+    "make_svm_baseline",
+    "l_single",
+    "l_given_number",
+    "l_full",
+    "l_full_curve",
+    "threshold_scores",
 ]
