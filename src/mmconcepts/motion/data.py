@@ -1,0 +1,801 @@
+"""Motion recordings, data sets and their loaders (thesis section 3.3.1, Appendix B.2-B.3).
+
+Formats (``/work/shared/reference/formats.md`` in the project docs):
+
+Choreo1
+    ``<subset>.json`` ``{"marker-names": [...], "data-file": "<subset>.npz", "records":
+    [{"data-id": 0, "labels": [3, 27]}, ...]}`` (hyphenated keys) and an NPZ holding one
+    ``(T, n_markers, 3)`` array per record under ``str(data-id)``. Labels are gesture ids
+    of Thesis Table B.2 (1..48). The text layout holds one frame per line, ``3 *
+    n_markers`` floats.
+Choreo2
+    ``choreo2.json`` ``{"name": ..., "marker_names": [...], "label_descriptions": [...],
+    "data_file": "choreo2.npz", "records": [{"data_id": 0, "labels": [g]}, ...]}``
+    (underscored keys); NPZ arrays ``(T, 15, 7)``: x, y, z, then the marker frame's unit
+    quaternion in ROS tf order (qx, qy, qz, qw), relative to the camera.
+MSR Action3D
+    ``aAA_sSS_eEE_skeleton3D.txt``, one joint per line ``x y z confidence``, 20 lines per
+    frame (Li, Zhang and Liu, CVPR workshops 2010).
+
+Marker names are matched without regard to case, with spaces, hyphens and underscores
+treated alike (:func:`normalize_marker_name`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import tempfile
+import warnings
+import zipfile
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError, DataFormatError, ParameterError
+
+__all__ = [
+    "CHOREO1_GESTURES",
+    "CHOREO1_LIMBS",
+    "CHOREO1_MARKERS",
+    "CHOREO1_SMALL_GESTURES",
+    "CHOREO2_GESTURES",
+    "CHOREO2_MARKERS",
+    "CHOREO2_TO_CHOREO1",
+    "MSR_ACTIONS",
+    "MSR_JOINTS",
+    "MotionDataset",
+    "MotionRecording",
+    "SkippedRecord",
+    "load_choreo1",
+    "load_choreo1_text",
+    "load_choreo2",
+    "load_msr_action3d",
+    "normalize_marker_name",
+    "save_choreo1",
+    "save_choreo1_text",
+    "save_choreo2",
+]
+
+# --------------------------------------------------------------------------- constants
+
+#: The 24 Kinect/OpenNI markers of Choreo1 (Thesis Appendix B.2.1), snake_case as the
+#: generators write them. The thesis' list names "right hand" twice and omits one of
+#: OpenNI's 24 skeleton joints, the torso; here the list is OpenNI's (``torso`` added).
+CHOREO1_MARKERS: tuple[str, ...] = (
+    "head", "neck", "waist",
+    "left_hip", "left_shoulder", "left_elbow", "left_hand", "left_knee", "left_foot",
+    "left_collar", "left_wrist", "left_fingertip", "left_ankle",
+    "right_hip", "right_shoulder", "right_elbow", "right_hand", "right_knee", "right_foot",
+    "right_collar", "right_wrist", "right_fingertip", "right_ankle",
+    "torso",
+)
+
+#: The 15 OpenNI tracker frames of Choreo2 (Thesis Appendix B.3.1, formats.md).
+CHOREO2_MARKERS: tuple[str, ...] = (
+    "head", "neck", "torso",
+    "left_shoulder", "left_elbow", "left_hand",
+    "right_shoulder", "right_elbow", "right_hand",
+    "left_hip", "left_knee", "left_foot",
+    "right_hip", "right_knee", "right_foot",
+)
+
+_ARM_DESCRIPTIONS = (
+    "hold horizontal",
+    "hold vertical (down)",
+    "hold vertical (up)",
+    "from horizontal on side, bend over the head",
+    "raise from horizontal to vertical",
+    "lower from horizontal to vertical",
+    "from horizontal side, bend in front of the torso",
+    "from horizontal side, bent elbow to get vertical forearm toward up",
+    "mimic punching",
+    "hold horizontal and bring from side to front",
+    "from horizontal side, bend elbow to get vertical forearm toward down",
+    "from horizontal side, bring hand to shoulder (elbow moving vertically)",
+    "hold horizontal and bring from {side} side to {other} side",
+    "swing forearm downside with horizontal upper arm",
+    "draw circles with arm extended on the {side}",
+    "wave motion of the arm held, horizontal on the side",
+    "wave hand (shoulder level)",
+    "wave hand (over the head)",
+)
+
+
+def _table_b2() -> tuple[dict[int, str], dict[int, str]]:
+    names: dict[int, str] = {}
+    limbs: dict[int, str] = {}
+    for i, d in enumerate(_ARM_DESCRIPTIONS):
+        names[1 + i] = "right arm: " + d.format(side="right", other="left")
+        limbs[1 + i] = "right_arm"
+        names[30 + i] = "left arm: " + d.format(side="left", other="right")
+        limbs[30 + i] = "left_arm"
+    both = ("clap hands (at varying positions)", "mimic paddling on the left",
+            "mimic paddling on the right", "mimic pushing on ski sticks")
+    for i, d in enumerate(both):
+        names[19 + i] = "both arms: " + d
+        limbs[19 + i] = "both_arms"
+    legs = ("un-squat", "mimic walking", "stay still", "step on the right", "step on the left",
+            "right leg: raise and bend leg to form a flag (or 'P') shape",
+            "left leg: raise and bend leg to form a flag (or 'P') shape")
+    for i, d in enumerate(legs):
+        names[23 + i] = ("legs: " + d) if i < 5 else d
+        limbs[23 + i] = "legs"
+    return dict(sorted(names.items())), dict(sorted(limbs.items()))
+
+
+#: Gesture id -> description, Thesis Table B.2 (47 gestures; id 48 is unused).
+#: Limb group of each gesture of Table B.2: ``legs``, ``right_arm``, ``left_arm`` or
+#: ``both_arms`` (gestures 28 and 29, one leg, belong to the ``legs`` group).
+CHOREO1_GESTURES, CHOREO1_LIMBS = _table_b2()
+
+#: The 16 gestures of the small mixed set, Thesis Table 3.1.
+CHOREO1_SMALL_GESTURES: tuple[int, ...] = (1, 5, 6, 10, 19, 20, 21, 22, 23, 24, 25, 28, 30, 38, 40, 43)
+
+#: The 10 gestures of Choreo2, Thesis Table B.3 (label id 0..9).
+CHOREO2_GESTURES: tuple[str, ...] = (
+    "both legs: squat",
+    "both legs: walk",
+    "right leg: make a flag/P on right leg",
+    "both arms: clap",
+    "both arms: mimic paddling left",
+    "right arm: mimic punching with right arm",
+    "right arm: right arm horizontal goes from side to front",
+    "left arm: horizontal left arm, forearm goes down to form a square angle",
+    "left arm: make waves on left arm",
+    "left arm: say hello with left arm",
+)
+
+#: The Table B.2 gesture each Choreo2 gesture (Table B.3) corresponds to; used by the
+#: synthetic generator to reuse the same gesture model.
+CHOREO2_TO_CHOREO1: tuple[int, ...] = (23, 24, 28, 19, 20, 9, 10, 40, 45, 46)
+
+#: MSR Action3D joint order, checked on the data (``/work/shared/data/msr-action3d``):
+#: joint 20 is the highest (head); joints 17-20 lowest (ankles/feet); the arm that moves
+#: in "high arm wave" (subjects used their right arm) is 9/11/13 and the leg that moves in
+#: "forward kick" is 15/17/19, which fixes which of each pair is the right one.
+MSR_JOINTS: tuple[str, ...] = (
+    "left_shoulder", "right_shoulder", "neck", "spine", "left_hip", "right_hip", "hip_center",
+    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hand", "right_hand",
+    "left_knee", "right_knee", "left_ankle", "right_ankle", "left_foot", "right_foot", "head",
+)
+
+#: The 20 MSR Action3D action names (ids 1..20).
+MSR_ACTIONS: dict[int, str] = dict(enumerate((
+    "high arm wave", "horizontal arm wave", "hammer", "hand catch", "forward punch",
+    "high throw", "draw x", "draw tick", "draw circle", "hand clap", "two hand wave",
+    "side boxing", "bend", "forward kick", "side kick", "jogging", "tennis swing",
+    "tennis serve", "golf swing", "pick up and throw"), start=1))
+
+
+def normalize_marker_name(name: str) -> str:
+    """Canonical form of a marker name: lower case, runs of spaces/hyphens/underscores -> ``_``.
+
+    ``"Left Shoulder"``, ``"left-shoulder"`` and ``"left_shoulder"`` all give
+    ``"left_shoulder"`` (formats.md).
+    """
+    if not isinstance(name, str):
+        raise DataFormatError(f"A marker name must be a string; got {name!r}.")
+    return re.sub(r"[\s\-_]+", "_", name.strip().lower())
+
+
+# --------------------------------------------------------------------------- types
+
+
+@dataclass(eq=False)
+class MotionRecording:
+    """One recorded demonstration: marker positions over time and its labels.
+
+    Parameters
+    ----------
+    positions : ndarray of shape (n_frames, n_markers, 3)
+        Marker positions (metres, camera frame for Kinect data).
+    marker_names : sequence of str, length n_markers
+        Names as found in the file; look-ups use :func:`normalize_marker_name`.
+    labels : tuple of int
+        Label ids (gesture ids of Table B.2 for Choreo1, 0..9 for Choreo2, action id for MSR).
+    orientations : ndarray of shape (n_frames, n_markers, 4), optional
+        Unit quaternions (qx, qy, qz, qw) of each marker's frame (Choreo2).
+    frame_rate : float
+        Frames per second.
+    source : str
+        File the record came from (used in error messages).
+    record_id : str
+        Record key inside that file.
+    """
+
+    positions: np.ndarray
+    marker_names: tuple[str, ...]
+    labels: tuple[int, ...] = ()
+    orientations: np.ndarray | None = None
+    frame_rate: float = 30.0
+    source: str = ""
+    record_id: str = ""
+    _index: dict[str, int] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.positions = np.asarray(self.positions, dtype=float)
+        self.marker_names = tuple(self.marker_names)
+        self.labels = tuple(int(x) for x in self.labels)
+        where = self._where()
+        if self.positions.ndim != 3 or self.positions.shape[2] != 3:
+            raise DataError(f"positions must have shape (n_frames, n_markers, 3); got {self.positions.shape}{where}.")
+        if self.positions.shape[1] != len(self.marker_names):
+            raise DataError(
+                f"{len(self.marker_names)} marker names for {self.positions.shape[1]} markers in the "
+                f"positions array{where}."
+            )
+        if self.orientations is not None:
+            self.orientations = np.asarray(self.orientations, dtype=float)
+            if self.orientations.shape != self.positions.shape[:2] + (4,):
+                raise DataError(
+                    f"orientations must have shape {self.positions.shape[:2] + (4,)}; got "
+                    f"{self.orientations.shape}{where}."
+                )
+        self._index = {}
+        for i, n in enumerate(self.marker_names):
+            self._index.setdefault(normalize_marker_name(n), i)
+
+    def _where(self) -> str:
+        parts = []
+        if self.source:
+            parts.append(f"file {self.source}")
+        if self.record_id != "":
+            parts.append(f"record {self.record_id}")
+        return (" (" + ", ".join(parts) + ")") if parts else ""
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames."""
+        return int(self.positions.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds."""
+        return self.n_frames / self.frame_rate
+
+    def has_marker(self, name: str) -> bool:
+        """Whether a marker is present (names matched as in :func:`normalize_marker_name`)."""
+        return normalize_marker_name(name) in self._index
+
+    def marker_index(self, name: str) -> int:
+        """Column of a marker; :class:`DataError` naming the marker and the file if absent."""
+        key = normalize_marker_name(name)
+        if key not in self._index:
+            raise DataError(
+                f"Marker {name!r} is needed but missing{self._where()}; the recording has markers "
+                f"{list(self.marker_names)}."
+            )
+        return self._index[key]
+
+    def marker(self, name: str) -> np.ndarray:
+        """Positions of one marker, shape (n_frames, 3)."""
+        return self.positions[:, self.marker_index(name), :]
+
+    def orientation(self, name: str) -> np.ndarray:
+        """Quaternions (qx, qy, qz, qw) of one marker, shape (n_frames, 4)."""
+        if self.orientations is None:
+            raise DataError(f"The recording has no orientations{self._where()}; only Choreo2-style data has them.")
+        return self.orientations[:, self.marker_index(name), :]
+
+
+@dataclass(frozen=True)
+class SkippedRecord:
+    """A record that ``on_error="skip"`` left out, and why."""
+
+    source: str
+    record_id: str
+    reason: str
+
+
+@dataclass(eq=False)
+class MotionDataset:
+    """A list of :class:`MotionRecording` with the names of their labels.
+
+    Parameters
+    ----------
+    recordings : list of MotionRecording
+    label_names : mapping int -> str
+        Description of every label id that may occur.
+    name : str
+    skipped : list of SkippedRecord
+        Records that could not be read with ``on_error="skip"`` (empty otherwise).
+    """
+
+    recordings: list[MotionRecording]
+    label_names: dict[int, str]
+    name: str = ""
+    skipped: list[SkippedRecord] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.recordings)
+
+    def __getitem__(self, i: int) -> MotionRecording:
+        return self.recordings[i]
+
+    def __iter__(self):
+        return iter(self.recordings)
+
+    @property
+    def labels(self) -> list[tuple[int, ...]]:
+        """Label ids of each recording."""
+        return [r.labels for r in self.recordings]
+
+    @property
+    def label_ids(self) -> list[int]:
+        """Sorted label ids of ``label_names``."""
+        return sorted(self.label_names)
+
+    def label_matrix(self, label_ids: Sequence[int] | None = None) -> np.ndarray:
+        """Binary label matrix, shape (n_recordings, n_labels) (Thesis section 3.3.1, y_i).
+
+        Column j is ``label_ids[j]`` (default :attr:`label_ids`).
+        """
+        ids = list(self.label_ids if label_ids is None else label_ids)
+        col = {l: j for j, l in enumerate(ids)}
+        Y = np.zeros((len(self.recordings), len(ids)))
+        for i, r in enumerate(self.recordings):
+            for l in r.labels:
+                if l not in col:
+                    raise DataError(f"Label {l} of recording {i} is not among label_ids {ids}.")
+                Y[i, col[l]] = 1.0
+        return Y
+
+    def subset(self, indices: Iterable[int]) -> MotionDataset:
+        """A dataset holding the recordings at ``indices`` (same labels)."""
+        return MotionDataset([self.recordings[i] for i in indices], dict(self.label_names), self.name)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _check_on_error(on_error: str) -> None:
+    if on_error not in ("raise", "skip"):
+        raise ParameterError(f"on_error must be 'raise' or 'skip'; got {on_error!r}.")
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        with open(path, encoding="utf-8") as f:
+            meta = json.load(f)
+    except FileNotFoundError:
+        raise
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataFormatError(f"Cannot read {path}: not valid JSON ({exc}).") from exc
+    if not isinstance(meta, dict):
+        raise DataFormatError(f"{path} must hold a JSON object; got {type(meta).__name__}.")
+    return meta
+
+
+def _require(meta: Mapping, key: str, path: Path, hint: str = "") -> object:
+    if key not in meta:
+        alt = key.replace("-", "_") if "-" in key else key.replace("_", "-")
+        extra = f" (found {alt!r}: is this the other Choreo format?)" if alt in meta else ""
+        raise DataFormatError(f"{path} has no {key!r} entry{extra}{hint}; keys present: {sorted(meta)}.")
+    return meta[key]
+
+
+def _open_npz(path: Path):
+    try:
+        return np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise DataFormatError(f"Cannot read {path}: not a valid NPZ archive ({exc}).") from exc
+
+
+def _atomic_write_bytes(path: Path, writer) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.name, suffix=".tmp")
+    os.close(fd)
+    try:
+        writer(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
+    def w(tmp):
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+    _atomic_write_bytes(path, w)
+
+
+def _write_json(path: Path, obj: object) -> None:
+    def w(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(obj, f, indent=1)
+    _atomic_write_bytes(path, w)
+
+
+def _load_records(
+    json_path: Path,
+    records: list,
+    npz,
+    npz_path: Path,
+    *,
+    id_key: str,
+    n_values: int,
+    marker_names: tuple[str, ...],
+    frame_rate: float,
+    on_error: str,
+    skipped: list[SkippedRecord],
+) -> list[MotionRecording]:
+    out = []
+    if not isinstance(records, list):
+        raise DataFormatError(f"{json_path}: 'records' must be a list; got {type(records).__name__}.")
+    for k, rec in enumerate(records):
+        rid = str(rec.get(id_key, f"#{k}")) if isinstance(rec, dict) else f"#{k}"
+        try:
+            if not isinstance(rec, dict) or id_key not in rec or "labels" not in rec:
+                raise DataFormatError(
+                    f"{json_path}: record #{k} must be an object with {id_key!r} and 'labels'; got {rec!r}."
+                )
+            labels = rec["labels"]
+            if not isinstance(labels, list) or not all(isinstance(x, int) and not isinstance(x, bool) for x in labels):
+                raise DataFormatError(f"{json_path}: record {rid} has labels {labels!r}; expected a list of ints.")
+            try:
+                arr = npz[rid]
+            except KeyError:
+                raise DataFormatError(f"{npz_path}: no array for record {rid} (key {rid!r}) listed in {json_path}.")
+            except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib_error) as exc:
+                raise DataFormatError(f"{npz_path}: record {rid} is corrupt ({type(exc).__name__}: {exc}).") from exc
+            if arr.ndim != 3 or arr.shape[1:] != (len(marker_names), n_values):
+                raise DataFormatError(
+                    f"{npz_path}: record {rid} has shape {arr.shape}; expected (T, {len(marker_names)}, {n_values})."
+                )
+            if arr.shape[0] == 0 or not np.issubdtype(arr.dtype, np.number) or not np.isfinite(arr).all():
+                raise DataFormatError(f"{npz_path}: record {rid} is empty or holds non-finite values.")
+            arr = arr.astype(float)
+            out.append(MotionRecording(
+                positions=arr[..., :3], marker_names=marker_names, labels=tuple(labels),
+                orientations=arr[..., 3:7] if n_values == 7 else None, frame_rate=frame_rate,
+                source=str(npz_path), record_id=rid,
+            ))
+        except DataFormatError as exc:
+            if on_error == "raise":
+                raise
+            skipped.append(SkippedRecord(str(npz_path), rid, str(exc)))
+    return out
+
+
+try:  # zlib errors from compressed NPZ members
+    from zlib import error as zlib_error
+except ImportError:  # pragma: no cover
+    zlib_error = OSError  # type: ignore[misc, assignment]
+
+
+def _warn_skipped(skipped: list[SkippedRecord], what: str) -> None:
+    if skipped:
+        warnings.warn(
+            f"{len(skipped)} record(s) of {what} could not be read and were skipped "
+            f"(see dataset.skipped): first: {skipped[0].reason}",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
+# --------------------------------------------------------------------------- Choreo1
+
+
+def load_choreo1(
+    path: str | os.PathLike[str],
+    *,
+    on_error: str = "raise",
+    frame_rate: float = 30.0,
+) -> MotionDataset:
+    """Load a Choreo1 subset (``<subset>.json`` + NPZ), Thesis Appendix B.2.
+
+    Parameters
+    ----------
+    path : path-like
+        The subset's JSON file (``primitive.json``, ``mixed_partial.json``, ...), or a
+        folder holding exactly one such JSON file.
+    on_error : {"raise", "skip"}
+        ``"raise"``: a corrupt or unreadable record raises :class:`DataFormatError` naming
+        the file and record. ``"skip"``: such records are left out, listed in
+        ``dataset.skipped``, and a :class:`RuntimeWarning` says how many.
+    frame_rate : float, default=30
+        Frame rate to attach (not stored in the files; OpenNI streams at 30 Hz).
+
+    Returns
+    -------
+    MotionDataset
+        Positions (T, n_markers, 3); labels are Table B.2 gesture ids.
+    """
+    _check_on_error(on_error)
+    json_path = _resolve_json(Path(path), "Choreo1")
+    meta = _read_json(json_path)
+    names = _require(meta, "marker-names", json_path)
+    data_file = _require(meta, "data-file", json_path)
+    records = _require(meta, "records", json_path)
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise DataFormatError(f"{json_path}: 'marker-names' must be a list of strings.")
+    npz_path = json_path.parent / str(data_file)
+    npz = _open_npz(npz_path)
+    skipped: list[SkippedRecord] = []
+    with npz:
+        recs = _load_records(json_path, records, npz, npz_path, id_key="data-id", n_values=3,
+                             marker_names=tuple(names), frame_rate=frame_rate, on_error=on_error,
+                             skipped=skipped)
+    _warn_skipped(skipped, str(json_path))
+    return MotionDataset(recs, dict(CHOREO1_GESTURES), name=json_path.stem, skipped=skipped)
+
+
+def _resolve_json(path: Path, what: str) -> Path:
+    if path.is_dir():
+        cands = sorted(p for p in path.glob("*.json") if not p.name.startswith("_"))
+        if len(cands) != 1:
+            raise DataFormatError(
+                f"{path} is a folder with {len(cands)} JSON files ({[c.name for c in cands]}); give the "
+                f"{what} JSON file itself."
+            )
+        return cands[0]
+    if not path.exists():
+        raise FileNotFoundError(f"{what} file not found: {path}")
+    return path
+
+
+def save_choreo1(dataset: MotionDataset | Sequence[MotionRecording], folder: str | os.PathLike[str],
+                 subset: str) -> Path:
+    """Write recordings in the Choreo1 layout: ``<folder>/<subset>.json`` + ``<subset>.npz``.
+
+    All recordings must share the same marker names (the first one's are written).
+    The NPZ is written before the JSON, each atomically. Returns the JSON path.
+    """
+    recs = list(dataset)
+    if not recs:
+        raise DataError("Nothing to write: the dataset is empty.")
+    names = recs[0].marker_names
+    folder = Path(folder)
+    arrays = {}
+    records = []
+    for i, r in enumerate(recs):
+        if r.marker_names != names:
+            raise DataError(f"Recording {i} has markers {r.marker_names}, the first one {names}.")
+        arrays[str(i)] = r.positions.astype(np.float64)
+        records.append({"data-id": i, "labels": [int(x) for x in r.labels]})
+    _write_npz(folder / f"{subset}.npz", arrays)
+    meta = {"marker-names": list(names), "data-file": f"{subset}.npz", "records": records}
+    _write_json(folder / f"{subset}.json", meta)
+    return folder / f"{subset}.json"
+
+
+def load_choreo1_text(
+    path: str | os.PathLike[str],
+    *,
+    marker_names: Sequence[str] = CHOREO1_MARKERS,
+    labels: Sequence[int] = (),
+    frame_rate: float = 30.0,
+) -> MotionRecording:
+    """Load one record in the Choreo1 text layout: one frame per line, ``3 * n_markers`` floats.
+
+    Parameters
+    ----------
+    path : path-like
+    marker_names : sequence of str, default=CHOREO1_MARKERS
+        Marker order of the columns (x, y, z of marker 0, then marker 1, ...).
+    labels : sequence of int
+    frame_rate : float
+
+    Raises
+    ------
+    DataFormatError
+        If a line does not hold ``3 * len(marker_names)`` numbers (file and line named).
+    """
+    path = Path(path)
+    n = 3 * len(marker_names)
+    rows = []
+    try:
+        with open(path, encoding="utf-8") as f:
+            for lineno, line in enumerate(f, 1):
+                if not line.strip():
+                    continue
+                try:
+                    vals = [float(v) for v in line.split()]
+                except ValueError as exc:
+                    raise DataFormatError(f"{path}, line {lineno}: not a number ({exc}).") from exc
+                if len(vals) != n:
+                    raise DataFormatError(
+                        f"{path}, line {lineno}: {len(vals)} values, expected {n} (= 3 x {len(marker_names)} markers)."
+                    )
+                rows.append(vals)
+    except UnicodeDecodeError as exc:
+        raise DataFormatError(f"{path}: not a text file ({exc}).") from exc
+    if not rows:
+        raise DataFormatError(f"{path}: no frames.")
+    arr = np.asarray(rows).reshape(len(rows), len(marker_names), 3)
+    if not np.isfinite(arr).all():
+        raise DataFormatError(f"{path}: non-finite values.")
+    return MotionRecording(arr, tuple(marker_names), tuple(labels), frame_rate=frame_rate, source=str(path))
+
+
+def save_choreo1_text(recording: MotionRecording, path: str | os.PathLike[str]) -> None:
+    """Write one recording in the Choreo1 text layout (``%.18e``, one frame per line)."""
+    flat = recording.positions.reshape(recording.n_frames, -1)
+    _atomic_write_bytes(Path(path), lambda tmp: np.savetxt(tmp, flat, fmt="%.18e"))
+
+
+# --------------------------------------------------------------------------- Choreo2
+
+
+def load_choreo2(
+    path: str | os.PathLike[str],
+    *,
+    on_error: str = "raise",
+    frame_rate: float = 30.0,
+) -> MotionDataset:
+    """Load Choreo2 (``choreo2.json`` + NPZ of (T, 15, 7) arrays), Thesis Appendix B.3.
+
+    Parameters
+    ----------
+    path : path-like
+        ``choreo2.json`` or the folder holding it.
+    on_error : {"raise", "skip"}
+        As in :func:`load_choreo1`.
+    frame_rate : float, default=30
+
+    Returns
+    -------
+    MotionDataset
+        Positions and orientations (qx, qy, qz, qw); label ids 0..9 named by
+        ``label_descriptions``.
+    """
+    _check_on_error(on_error)
+    json_path = _resolve_json(Path(path), "Choreo2")
+    meta = _read_json(json_path)
+    names = _require(meta, "marker_names", json_path)
+    data_file = _require(meta, "data_file", json_path)
+    records = _require(meta, "records", json_path)
+    descr = meta.get("label_descriptions")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise DataFormatError(f"{json_path}: 'marker_names' must be a list of strings.")
+    if descr is None:
+        descr = list(CHOREO2_GESTURES)
+    if not isinstance(descr, list) or not all(isinstance(d, str) for d in descr):
+        raise DataFormatError(f"{json_path}: 'label_descriptions' must be a list of strings.")
+    npz_path = json_path.parent / str(data_file)
+    npz = _open_npz(npz_path)
+    skipped: list[SkippedRecord] = []
+    with npz:
+        recs = _load_records(json_path, records, npz, npz_path, id_key="data_id", n_values=7,
+                             marker_names=tuple(names), frame_rate=frame_rate, on_error=on_error,
+                             skipped=skipped)
+    _warn_skipped(skipped, str(json_path))
+    return MotionDataset(recs, dict(enumerate(descr)), name=str(meta.get("name", json_path.stem)), skipped=skipped)
+
+
+def save_choreo2(dataset: MotionDataset | Sequence[MotionRecording], folder: str | os.PathLike[str], *,
+                 name: str = "choreo2", label_descriptions: Sequence[str] = CHOREO2_GESTURES,
+                 dtype: type = np.float64) -> Path:
+    """Write recordings with orientations in the Choreo2 layout (``choreo2.json`` + ``choreo2.npz``).
+
+    ``dtype`` of the stored arrays (float32 halves the file; the loader returns float64).
+    """
+    recs = list(dataset)
+    if not recs:
+        raise DataError("Nothing to write: the dataset is empty.")
+    names = recs[0].marker_names
+    folder = Path(folder)
+    arrays, records = {}, []
+    for i, r in enumerate(recs):
+        if r.orientations is None:
+            raise DataError(f"Recording {i} has no orientations; Choreo2 stores 7 values per marker.")
+        if r.marker_names != names:
+            raise DataError(f"Recording {i} has markers {r.marker_names}, the first one {names}.")
+        arrays[str(i)] = np.concatenate([r.positions, r.orientations], axis=2).astype(dtype)
+        records.append({"data_id": i, "labels": [int(x) for x in r.labels]})
+    _write_npz(folder / "choreo2.npz", arrays)
+    meta = {"name": name, "marker_names": list(names), "label_descriptions": list(label_descriptions),
+            "data_file": "choreo2.npz", "records": records}
+    _write_json(folder / "choreo2.json", meta)
+    return folder / "choreo2.json"
+
+
+# --------------------------------------------------------------------------- MSR Action3D
+
+_MSR_RE = re.compile(r"a(\d\d)_s(\d\d)_e(\d\d)_skeleton3D\.txt$")
+
+
+def _fill_lost_frames(P: np.ndarray, lost: np.ndarray, mode: str) -> np.ndarray:
+    """Drop leading/trailing lost frames; interpolate (or drop) interior ones."""
+    good = np.flatnonzero(~lost)
+    P = P[good[0]: good[-1] + 1]
+    lost = lost[good[0]: good[-1] + 1]
+    if not lost.any():
+        return P
+    if mode == "drop":
+        return P[~lost]
+    t = np.arange(len(P))
+    g = ~lost
+    flat = P.reshape(len(P), -1).copy()
+    for j in range(flat.shape[1]):
+        flat[lost, j] = np.interp(t[lost], t[g], flat[g, j])
+    return flat.reshape(P.shape)
+
+
+def load_msr_action3d(
+    folder: str | os.PathLike[str],
+    *,
+    actions: Iterable[int] | None = None,
+    subjects: Iterable[int] | None = None,
+    lost_frames: str = "interpolate",
+    on_error: str = "raise",
+    frame_rate: float = 15.0,
+) -> MotionDataset:
+    """Load MSR Action3D skeletons (real-world coordinates, 20 Kinect v1 joints).
+
+    Parameters
+    ----------
+    folder : path-like
+        Folder of ``aAA_sSS_eEE_skeleton3D.txt`` files.
+    actions, subjects : iterable of int, optional
+        Keep only these action ids (1..20) / subject ids (1..10).
+    lost_frames : {"interpolate", "drop"}
+        Frames where tracking was lost (every joint exactly zero; 373 frames in 19 of the
+        567 files) are removed at the start and end of a sequence; inside a sequence
+        they are linearly interpolated between the neighbouring tracked frames
+        (``"interpolate"``, keeps the time axis regular for delayed velocities) or removed
+        (``"drop"``). A file with no tracked frame at all (``a13_s09_e02``) holds no
+        motion: it is left out and listed in ``dataset.skipped`` whatever ``on_error``.
+    on_error : {"raise", "skip"}
+        As in :func:`load_choreo1`.
+    frame_rate : float, default=15
+        The dataset was recorded at 15 frames per second.
+
+    Returns
+    -------
+    MotionDataset
+        Marker names :data:`MSR_JOINTS`; one label per recording, the action id; each
+        recording's ``record_id`` is the file stem (``a01_s01_e01``).
+    """
+    _check_on_error(on_error)
+    if lost_frames not in ("interpolate", "drop"):
+        raise ParameterError(f"lost_frames must be 'interpolate' or 'drop'; got {lost_frames!r}.")
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"MSR Action3D folder not found: {folder}")
+    acts = None if actions is None else {int(a) for a in actions}
+    subs = None if subjects is None else {int(s) for s in subjects}
+    recs: list[MotionRecording] = []
+    skipped: list[SkippedRecord] = []
+    files = sorted(p for p in folder.iterdir() if _MSR_RE.search(p.name))
+    if not files:
+        raise DataFormatError(f"{folder} holds no aAA_sSS_eEE_skeleton3D.txt file.")
+    for p in files:
+        a, s, _e = (int(x) for x in _MSR_RE.search(p.name).groups())
+        if (acts is not None and a not in acts) or (subs is not None and s not in subs):
+            continue
+        rid = p.name.split("_skeleton3D")[0]
+        try:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    arr = np.loadtxt(p, ndmin=2)
+            except ValueError as exc:
+                raise DataFormatError(f"{p}: not a table of numbers ({exc}).") from exc
+            if arr.shape[1] != 4 or arr.shape[0] == 0 or arr.shape[0] % 20:
+                raise DataFormatError(
+                    f"{p}: {arr.shape[0]} lines of {arr.shape[1]} values; expected 20 lines of "
+                    "'x y z confidence' per frame."
+                )
+            P = arr.reshape(-1, 20, 4)[..., :3]
+            if not np.isfinite(P).all():
+                raise DataFormatError(f"{p}: non-finite values.")
+            lost = np.all(P == 0, axis=(1, 2))
+            if lost.all():  # no motion at all (a13_s09_e02): left out, listed in skipped
+                skipped.append(SkippedRecord(str(p), rid, f"{p}: tracking lost in every frame (all joints zero)."))
+                continue
+            P = _fill_lost_frames(P, lost, lost_frames)
+            recs.append(MotionRecording(P, MSR_JOINTS, (a,), frame_rate=frame_rate, source=str(p), record_id=rid))
+        except DataFormatError as exc:
+            if on_error == "raise":
+                raise
+            skipped.append(SkippedRecord(str(p), rid, str(exc)))
+    _warn_skipped([k for k in skipped if "tracking lost in every frame" not in k.reason], str(folder))
+    return MotionDataset(recs, dict(MSR_ACTIONS), name="msr-action3d", skipped=skipped)

@@ -1,0 +1,98 @@
+"""Histogram invariants (Thesis 3.2): nonnegative, each dof sums to one, fit on train only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mmconcepts.errors import DataError, ParameterError
+from mmconcepts.motion import MotionHistograms
+
+CONFIGS = [
+    dict(data="angles"), dict(data="velocities"), dict(data="separate"), dict(data="joint"),
+    dict(data="joint", n_bins=(4, 5)), dict(data="joint", smoothing=0.0),
+    dict(data="joint", method="vq", n_bins=8), dict(data="angles", method="vq", n_bins=6, assignment="soft"),
+    dict(data="separate", method="vq", n_bins=5),
+]
+
+
+def _data(rng, n=6, d=3):
+    return [np.cumsum(rng.normal(size=(rng.integers(20, 40), d)), axis=0) for _ in range(n)]
+
+
+@pytest.mark.parametrize("cfg", CONFIGS, ids=lambda c: "-".join(map(str, c.values())))
+def test_nonnegative_and_each_dof_sums_to_one(rng, cfg):
+    X = _data(rng)
+    m = MotionHistograms(random_state=0, delay=2, **cfg).fit(X)
+    H = m.transform(_data(rng, 4))  # new data, possibly outside the training range
+    n_ch = 6 if cfg["data"] == "separate" else 3
+    assert H.shape == (4, n_ch * m.bins_per_channel_) == (4, m.n_features_out_)
+    assert (H >= 0).all()
+    np.testing.assert_allclose(H.reshape(4, n_ch, -1).sum(axis=2), 1.0, atol=1e-12)
+    assert len(m.get_feature_names_out()) == H.shape[1]
+
+
+def test_kde_counts_are_proportions(rng):
+    X = [np.array([[0.0], [0.0], [1.0], [3.0]]), np.array([[3.0], [3.0]])]
+    m = MotionHistograms(data="angles", n_bins=3, smoothing=0.0).fit(X)
+    # grid [0, 1), [1, 2), [2, 3]: 0, 0 -> bin 0; 1 -> bin 1; 3 -> bin 2
+    np.testing.assert_allclose(m.transform(X), [[0.5, 0.25, 0.25], [0, 0, 1.0]])
+
+
+def test_transform_uses_train_grid_and_codebook(rng):
+    train = _data(rng)
+    for cfg in (dict(method="kde"), dict(method="vq", n_bins=6)):
+        m = MotionHistograms(random_state=0, **cfg).fit(train)
+        edges = [tuple(e.copy() for e in t) for t in m.edges_]
+        cbs = [c.copy() for c in m.codebooks_]
+        new = [10 * x + 100 for x in _data(rng, 3)]  # far from the training range
+        h1 = m.transform(new)
+        for a, b in zip(edges, m.edges_):
+            for ea, eb in zip(a, b):
+                np.testing.assert_array_equal(ea, eb)
+        for a, b in zip(cbs, m.codebooks_):
+            np.testing.assert_array_equal(a, b)
+        # transform of a batch does not depend on the other recordings in it
+        np.testing.assert_allclose(m.transform(new[:1]), h1[:1])
+        # and differs from a model fitted on the new data
+        assert not np.allclose(MotionHistograms(random_state=0, **cfg).fit(new).transform(new), h1)
+
+
+def test_velocity_delay_matters(rng):
+    X = _data(rng)
+    a = MotionHistograms(data="velocities", delay=1, smoothing=0).fit_transform(X)
+    b = MotionHistograms(data="velocities", delay=5, smoothing=0).fit_transform(X)
+    assert not np.allclose(a, b)
+    # a constant-velocity ramp: all velocity samples in one bin whatever the delay
+    ramp = [np.arange(30.0)[:, None], 2 * np.arange(30.0)[:, None]]
+    h = MotionHistograms(data="velocities", delay=4, smoothing=0, n_bins=4).fit_transform(ramp)
+    assert np.allclose(np.sort(h, axis=1)[:, -1], 1.0)
+
+
+def test_soft_assignment_is_smoother_than_hard(rng):
+    X = _data(rng, 8)
+    hard = MotionHistograms(method="vq", n_bins=8, random_state=0).fit_transform(X)
+    soft = MotionHistograms(method="vq", n_bins=8, assignment="soft", random_state=0).fit_transform(X)
+    assert (soft > 0).mean() > (hard > 0).mean()
+
+
+def test_deterministic_for_seed(rng):
+    X = _data(rng)
+    a = MotionHistograms(method="vq", n_bins=6, random_state=3).fit_transform(X)
+    b = MotionHistograms(method="vq", n_bins=6, random_state=3).fit_transform(X)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_errors(rng):
+    X = _data(rng)
+    with pytest.raises(ParameterError):
+        MotionHistograms(data="both").fit(X)
+    with pytest.raises(ParameterError):
+        MotionHistograms(n_bins=1).fit(X)
+    with pytest.raises(DataError, match="list of"):
+        MotionHistograms().fit(X[0])
+    with pytest.raises(DataError, match="frame"):
+        MotionHistograms(delay=5).fit([np.zeros((3, 2))])
+    m = MotionHistograms().fit(X)
+    with pytest.raises(DataError, match="degrees of freedom"):
+        m.transform([np.zeros((10, 5))])
