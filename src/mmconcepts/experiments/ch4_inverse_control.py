@@ -8,6 +8,22 @@ a random start point. Learners: the flat imitator (Brillinger's regression, eq. 
 demonstration), the dictionary learnt from demonstrations and given coefficients
 (supervised), and the fully unsupervised dictionary learner (eq. 4.5-4.7). Score: the
 relative L2 error between demonstrator and imitator trajectories.
+
+Data path. The demonstrator and the imitator are the same continuous-time agent
+(eq. 4.1, "identical bodies"): every trajectory, demonstrated or imitated, is eq. (4.1)
+integrated with an adaptive high-order solver (DOP853, rtol 1e-10) and sampled every
+``dt``. The learners only see the sampled demonstrations, plus a sensor noise, and regress
+on the thesis' discrete approximation ``(q_{t+1} - q_t) / dt = -lambda J(q_t)^T beta``,
+which is no longer exact: the error left comes from that approximation and the noise, and
+the imitators' trajectories are compared with the noise-free demonstrator's.
+
+Sensor noise. The thesis gives none. Its agent models kinesthetic demonstrations read on
+the imitator's own body (section 4.2.1), i.e. from joint encoders; a 12-bit encoder
+resolves 1/4096 of its range, a quantisation noise of standard deviation
+``1 / (4096 sqrt(12)) ~ 7e-5`` of the range. We take ``sensor_noise = 1e-4`` of the
+workspace side (Q = [0, 1]^2), i.i.d. Gaussian on each observed coordinate; it was fixed
+from that argument, not fitted to the thesis' numbers. Finite differences amplify it by
+``1 / dt``: with ``dt = 0.01`` the velocity noise is ~0.014 against speeds of order 1.
 """
 
 from __future__ import annotations
@@ -16,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.figure import Figure
+from scipy.optimize import linear_sum_assignment
 
 from ..tasks import FactorialInverseControl, RBFFeatures, brillinger_regression, control_trajectories, relative_l2_error
 from .base import Claim, Experiment, Result, RunContext, Table
@@ -28,7 +45,11 @@ LEARNERS = ("flat", "supervised", "unsupervised")
 
 @dataclass(frozen=True)
 class Config:
-    """Sizes of the factorial inverse control experiment (defaults: the thesis' settings)."""
+    """Sizes of the factorial inverse control experiment (defaults: the thesis' settings).
+
+    ``sensor_noise`` is the standard deviation of the Gaussian noise on observed positions,
+    as a fraction of the workspace side (see the module docstring for the default).
+    """
 
     grid_size: int = 5
     n_primitives: int = 6
@@ -38,6 +59,7 @@ class Config:
     dt: float = 0.01
     lam: float = 1.0
     max_iter: int = 200
+    sensor_noise: float = 1e-4
     seed: int = 0
 
     @classmethod
@@ -57,30 +79,50 @@ def _mix(rng, n, k):
     return A
 
 
+def _matched_error(learnt: np.ndarray, true: np.ndarray) -> float:
+    """Relative error of ``learnt`` atoms against ``true`` ones after the best one-to-one matching and scaling.
+
+    Each true atom is paired with one learnt atom (Hungarian assignment on the residual) and
+    compared with its least-squares rescaling, so that order and scale (the ambiguities of
+    section 4.2.3) do not count.
+    """
+    L = learnt / np.linalg.norm(learnt, axis=1, keepdims=True)
+    proj = true @ L.T  # scale of learnt atom j that best fits true atom i
+    cost = (true**2).sum(1)[:, None] - proj**2  # residual |t_i - c L_j|^2 at the best c
+    rows, cols = linear_sum_assignment(cost)
+    return float(np.sqrt(np.maximum(cost[rows, cols], 0.0).sum() / (true**2).sum()))
+
+
 def run(config: Config, ctx: RunContext) -> Result:
     rng = np.random.default_rng(config.seed)
     feats = RBFFeatures(config.grid_size)
     K, F = config.n_primitives, feats.n_features
     D = rng.standard_normal((K, F))
-    kw = dict(n_steps=config.n_steps, lam=config.lam, dt=config.dt)
+    kw = dict(n_steps=config.n_steps, lam=config.lam, dt=config.dt, method="ode")  # the continuous-time agent
     A_tr, A_te = _mix(rng, config.n_train, K), _mix(rng, config.n_test, K)
     s_tr, s_te, s_new = rng.random((config.n_train, 2)), rng.random((config.n_test, 2)), rng.random((config.n_test, 2))
     demo_tr = control_trajectories(feats, A_tr @ D, s_tr, **kw)
     demo_te = control_trajectories(feats, A_te @ D, s_te, **kw)
     demo_new = control_trajectories(feats, A_te @ D, s_new, **kw)  # the demonstrator from new start points
+    # what the learners observe: the sampled demonstrations through a noisy sensor
+    obs_tr = demo_tr + config.sensor_noise * rng.standard_normal(demo_tr.shape)
+    obs_te = demo_te + config.sensor_noise * rng.standard_normal(demo_te.shape)
 
-    sup = FactorialInverseControl(K, features=feats, lam=config.lam, dt=config.dt, max_iter=config.max_iter,
-                                  random_state=config.seed).fit(list(demo_tr), A_tr)
-    uns = FactorialInverseControl(K, features=feats, lam=config.lam, dt=config.dt, max_iter=config.max_iter,
-                                  random_state=config.seed).fit(list(demo_tr))
-    flat_b = lambda demos: np.array([brillinger_regression(feats, d, lam=config.lam, dt=config.dt) for d in demos])
+    learner_kw = dict(features=feats, lam=config.lam, dt=config.dt, max_iter=config.max_iter,
+                      random_state=config.seed)
+    sup = FactorialInverseControl(K, **learner_kw).fit(list(obs_tr), A_tr)
+    uns = FactorialInverseControl(K, **learner_kw).fit(list(obs_tr))
+    sup_clean = FactorialInverseControl(K, **learner_kw).fit(list(demo_tr), A_tr)  # diagnostic: no sensor noise
+
+    def flat_b(demos):
+        return np.array([brillinger_regression(feats, d, lam=config.lam, dt=config.dt) for d in demos])
 
     betas = {
-        "flat": (flat_b(demo_tr), flat_b(demo_te)),
+        "flat": (flat_b(obs_tr), flat_b(obs_te)),
         "supervised": (A_tr @ sup.components_, A_te @ sup.components_),  # given coefficients
-        "unsupervised": (uns.coefficients_ @ uns.components_, uns.transform(list(demo_te)) @ uns.components_),
+        "unsupervised": (uns.coefficients_ @ uns.components_, uns.transform(list(obs_te)) @ uns.components_),
     }
-    sup_inferred = sup.transform(list(demo_te)) @ sup.components_
+    sup_inferred = sup.transform(list(obs_te)) @ sup.components_
     metrics, rows, imit = {}, [], {}
     for name, (b_tr, b_te) in betas.items():
         im_tr = control_trajectories(feats, b_tr, s_tr, **kw)
@@ -96,6 +138,13 @@ def run(config: Config, ctx: RunContext) -> Result:
         rows.append([name, metrics[f"{name}.train.rel_l2"], metrics[f"{name}.test.rel_l2"],
                      metrics[f"{name}.new_start.rel_l2"]])
     metrics["supervised.dictionary_rel_error"] = float(np.linalg.norm(sup.components_ - D) / np.linalg.norm(D))
+    metrics["unsupervised.dictionary_matched_rel_error"] = _matched_error(uns.components_, D)
+    metrics["supervised_noise_free.train.rel_l2"] = float(np.mean(relative_l2_error(
+        demo_tr, control_trajectories(feats, A_tr @ sup_clean.components_, s_tr, **kw))))
+    metrics["supervised_noise_free.test.rel_l2"] = float(np.mean(relative_l2_error(
+        demo_te, control_trajectories(feats, A_te @ sup_clean.components_, s_te, **kw))))
+    metrics["supervised_noise_free.dictionary_rel_error"] = float(
+        np.linalg.norm(sup_clean.components_ - D) / np.linalg.norm(D))
 
     grid = np.linspace(0, 1, 60)
     Qg = np.stack(np.meshgrid(grid, grid), -1)
@@ -135,14 +184,19 @@ def run(config: Config, ctx: RunContext) -> Result:
                                      "inferred from the demonstration (eq. 4.6).")},
         figures={"fig4_1_dictionaries": fig1, "fig4_3_trajectories": fig3},
         notes=[f"RBF width sigma = {feats.sigma:g} (grid spacing), lambda = {config.lam}, dt = {config.dt}, "
-               f"{config.n_steps} steps per trajectory; no noise; trajectories are not clipped to [0, 1]^2.",
+               f"{config.n_steps} steps per trajectory; trajectories are not clipped to [0, 1]^2.",
+               "Every trajectory (demonstrator and imitators) is the continuous-time agent of eq. (4.1) integrated "
+               "with DOP853 (rtol 1e-10) and sampled every dt; the learners regress on the discrete approximation "
+               f"of section 4.2.1 from demonstrations observed with Gaussian sensor noise of std "
+               f"{config.sensor_noise:g} (fraction of the workspace side; see the module docstring).",
+               "supervised_noise_free.* is a diagnostic beyond the thesis: the supervised learner on the same "
+               "demonstrations without sensor noise, so that only the discrete approximation of eq. (4.1) limits it.",
                "The unsupervised dictionary starts from random Gaussian atoms and alternates least squares on the "
                f"coefficients (eq. 4.6) with 5 exact-line-search gradient steps on D (eq. 4.7), {uns.n_iter_} "
-               "alternations.",
-               "With noise-free trajectories generated by the same discrete dynamics the learners invert, the "
-               "regressions are exact and errors are at machine precision, far below the thesis' 0.001127 / 0.002675; "
-               "the thesis does not say what produced its residual error (noise, a different integrator). "
-               "Observation noise is not modelled here."],
+               f"alternations (max_iter = {config.max_iter}).",
+               "The thesis gives numbers only for the supervised learner (train 0.001127, test 0.002675); flat and "
+               "unsupervised errors have no thesis reference, and the thesis states that its evaluation did not "
+               "validate the unsupervised learner quantitatively (section 4.2.3)."],
     )
 
 
@@ -156,13 +210,22 @@ register(
         reference={"supervised.train.rel_l2": 0.001127, "supervised.test.rel_l2": 0.002675},
         claims=[
             Claim("The supervised learner (dictionary from coefficients) reproduces demonstrated trajectories "
-                  "accurately, on train and on new tasks (0.001127 and 0.002675 in the thesis).",
+                  "accurately, on train and on new tasks (0.001127 and 0.002675 in the thesis; 'accurately' "
+                  "checked as below 1%).",
                   "supervised.train.rel_l2 < 0.01 and supervised.test.rel_l2 < 0.01"),
-            Claim("The flat imitator does worse than the supervised dictionary from new start points (it only sees "
-                  "the task locally).", "flat.new_start.rel_l2 > supervised.new_start.rel_l2"),
-            Claim("The thesis could not show quantitatively that the unsupervised dictionary beats the flat "
-                  "imitator (section 4.2.3); checked here: it does from new start points.",
+            Claim("The supervised learner achieves an accurate reconstruction of the original dictionary of "
+                  "primitive tasks (Fig 4.1; checked as a relative error below 10%).",
+                  "supervised.dictionary_rel_error < 0.1"),
+            Claim("A single demonstration shows the task only locally, so the flat imitator does worse than the "
+                  "supervised dictionary (coefficients inferred from the same demonstration) from new start points "
+                  "(section 4.2.1).", "flat.new_start.rel_l2 > supervised.new_start.rel_l2"),
+            Claim("The unsupervised factorial representation enables imitation of a new task from a single "
+                  "demonstration, better than the flat imitator from new start points. The thesis states this but "
+                  "says its own evaluation did not validate it quantitatively (section 4.2.3).",
                   "unsupervised.new_start.rel_l2 < flat.new_start.rel_l2"),
+            Claim("The unsupervised learner's dictionary is very different from the demonstrator's, even up to the "
+                  "order and scale of the atoms (Fig 4.1, section 4.2.3; checked as a matched relative error above "
+                  "50%).", "unsupervised.dictionary_matched_rel_error > 0.5"),
         ],
         description=__doc__.split("\n\n")[0],
     )

@@ -442,7 +442,9 @@ def _load_records(
             try:
                 arr = npz[rid]
             except KeyError:
-                raise DataFormatError(f"{npz_path}: no array for record {rid} (key {rid!r}) listed in {json_path}.")
+                raise DataFormatError(
+                    f"{npz_path}: no array for record {rid} (key {rid!r}) listed in {json_path}."
+                ) from None
             except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib_error) as exc:
                 raise DataFormatError(f"{npz_path}: record {rid} is corrupt ({type(exc).__name__}: {exc}).") from exc
             if arr.ndim != 3 or arr.shape[1:] != (len(marker_names), n_values):

@@ -3,11 +3,12 @@
 An agent in Q = [0, 1]^2 descends a cost ``f(q) = beta . phi(q)`` on Gaussian radial
 basis features ``phi`` (a 5 x 5 grid: F = 25):
 
-.. math:: q_{t+1} = q_t - \\lambda\\, \\delta t\\, J(q_t)^T \\beta        \\qquad (4.1)
+.. math:: \\frac{\\partial q}{\\partial t} = -\\lambda J(q)^T \\beta        \\qquad (4.1)
 
-with J the Jacobian of phi (F x 2). Brillinger's regression (4.2)-(4.3) recovers beta
-from one trajectory: ``Y = Phi beta`` with ``Y`` the stacked velocities and ``Phi`` the
-stacked ``-lambda J(q_t)^T``. The dictionary learner (4.4)-(4.7) writes
+with J the Jacobian of phi (F x 2). On trajectories sampled every ``delta t`` the thesis
+approximates (4.1) by ``(q_{t+1} - q_t) / delta t = -lambda J(q_t)^T beta``; Brillinger's
+regression (4.2)-(4.3) then estimates beta from one trajectory: ``Y = Phi beta`` with
+``Y`` the stacked finite-difference velocities and ``Phi`` the stacked ``-lambda J(q_t)^T``. The dictionary learner (4.4)-(4.7) writes
 ``beta_i = D a_i`` and alternates regressions on the coefficients with gradient steps on D.
 
 Orientation: the thesis' D is F x K with tasks as columns; here ``components_`` is
@@ -19,6 +20,7 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
+from scipy.integrate import solve_ivp
 from scipy.optimize import nnls
 
 from .._validation import check_positive_int, check_random_state, check_scalar
@@ -68,17 +70,58 @@ class RBFFeatures:
 
 
 def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_steps: int = 100, lam: float = 1.0,
-                         dt: float = 0.01, settle_tol: float = 0.0) -> np.ndarray:
-    """Trajectories of eq. (4.1), batched: ``beta`` (n, F) and ``start`` (n, 2) -> (n, n_steps + 1, 2).
+                         dt: float = 0.01, settle_tol: float = 0.0, method: str = "euler",
+                         rtol: float = 1e-10, atol: float = 1e-12) -> np.ndarray:
+    """Trajectories of eq. (4.1) observed every ``dt``, batched: ``beta`` (n, F), ``start`` (n, 2) -> (n, n_steps + 1, 2).
 
-    With ``settle_tol > 0``, a trajectory whose step is shorter than ``settle_tol`` stays put
-    from then on (it has settled); arrays keep the full length so that trajectories compare.
+    .. math:: \\frac{\\partial q}{\\partial t} = -\\lambda J(q)^T \\beta        \\qquad (4.1)
+
+    Parameters
+    ----------
+    features : RBFFeatures
+    beta : array-like of shape (n, F) or (F,)
+    start : array-like of shape (n, 2) or (2,)
+    n_steps : int
+        Observations after the start point, at times ``dt, 2 dt, ..., n_steps dt``.
+    lam, dt : float
+        Gain and sampling interval.
+    settle_tol : float, default=0.0
+        ``method='euler'`` only: with ``settle_tol > 0``, a trajectory whose step is shorter
+        than ``settle_tol`` stays put from then on (it has settled); arrays keep the full
+        length so that trajectories compare.
+    method : {'euler', 'ode'}, default='euler'
+        'euler': the discrete approximation of section 4.2.1,
+        ``q_{t+1} = q_t - lambda dt J(q_t)^T beta`` (the model the regression (4.2) inverts
+        exactly). 'ode': the continuous-time agent of eq. (4.1), integrated by
+        :func:`scipy.integrate.solve_ivp` (DOP853, tolerances ``rtol``/``atol``) and sampled
+        every ``dt``; the regression (4.2) is then an approximation, as in the thesis.
+    rtol, atol : float
+        Integration tolerances of ``method='ode'``.
+
+    Returns
+    -------
+    trajectories : ndarray of shape (n, n_steps + 1, 2)
     """
     B = np.atleast_2d(np.asarray(beta, dtype=float))
     q = np.atleast_2d(np.asarray(start, dtype=float)).copy()
     if B.shape[1] != features.n_features or q.shape != (B.shape[0], 2):
         raise ParameterError(f"beta must be (n, {features.n_features}) and start (n, 2); got {B.shape} and {q.shape}.")
     T = check_positive_int(n_steps, "n_steps")
+    if method == "ode":
+        if settle_tol > 0:
+            raise ParameterError("settle_tol applies to method='euler' only; pass settle_tol=0 with method='ode'.")
+        n = q.shape[0]
+
+        def rhs(_t, y):
+            return (-lam * np.einsum("nfk,nf->nk", features.jacobian(y.reshape(n, 2)), B)).reshape(-1)
+
+        times = dt * np.arange(T + 1)
+        sol = solve_ivp(rhs, (0.0, times[-1]), q.reshape(-1), method="DOP853", t_eval=times, rtol=rtol, atol=atol)
+        if not sol.success:  # pragma: no cover - smooth RBF dynamics do not fail
+            raise ParameterError(f"integrating eq. (4.1) failed: {sol.message}")
+        return sol.y.T.reshape(T + 1, n, 2).transpose(1, 0, 2)
+    if method != "euler":
+        raise ParameterError(f"method must be 'euler' or 'ode'; got {method!r}.")
     out = np.empty((q.shape[0], T + 1, 2))
     out[:, 0] = q
     moving = np.ones(q.shape[0], dtype=bool)
