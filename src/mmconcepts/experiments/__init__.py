@@ -34,6 +34,12 @@ from .runner import (
 #: (experiments are listed and run sorted by id).
 EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch2_nmf_recovery",
+    "mmconcepts.experiments.ch3_choreography",
+    "mmconcepts.experiments.ch3_unseen",
+    "mmconcepts.experiments.ch3_representations",
+    "mmconcepts.experiments.ch3_threshold",
+    "mmconcepts.experiments.ch3_combinations",
+    "mmconcepts.experiments.ch3_msr_action3d",
     "mmconcepts.experiments.ch4_factorial_irl",
     "mmconcepts.experiments.ch4_inverse_control",
 )

@@ -1,0 +1,91 @@
+"""Shared evaluation code of the chapter-3 experiments: splits never leak test examples."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mmconcepts.experiments import RunContext
+from mmconcepts.experiments import _ch3_common as common
+
+
+def _label_sets(rng, n=80, L=10):
+    Y = np.zeros((n, L))
+    for row in Y:
+        row[rng.choice(L, rng.integers(2, 4), replace=False)] = 1
+    # repeat a few combinations so that some occur several times
+    Y[n // 2:n // 2 + 10] = Y[:10]
+    return Y
+
+
+@pytest.mark.parametrize("n_folds", [None, 3, 10])
+def test_kfold_splits_partition_without_leak(n_folds):
+    n = 37
+    splits = common.kfold_splits(n, n_folds, seed=0)
+    tested = np.concatenate([te for _, te in splits])
+    assert np.array_equal(np.sort(tested), np.arange(n))  # every example tested exactly once
+    for tr, te in splits:
+        assert not set(tr) & set(te)
+        assert len(tr) + len(te) == n
+    if n_folds is None:
+        assert len(splits) == n
+
+
+def test_stratified_single_label_splits(rng):
+    y = np.repeat(np.arange(6), 5)
+    for _tr, te in common.kfold_splits(len(y), 5, seed=1, y=y):
+        assert np.array_equal(np.bincount(y[te], minlength=6), np.ones(6))
+
+
+@pytest.mark.parametrize("n_folds", [None, 4])
+def test_unseen_combination_splits_hold_only_unseen_combinations(rng, n_folds):
+    Y = _label_sets(rng)
+    groups = common.combination_ids(Y)
+    assert len(np.unique(groups)) < len(Y)  # some combinations repeat: the test is not vacuous
+    splits = common.unseen_combination_splits(Y, n_folds, seed=0)
+    tested = np.concatenate([te for _, te in splits])
+    assert np.array_equal(np.sort(tested), np.arange(len(Y)))
+    for tr, te in splits:
+        train_sets = {tuple(np.flatnonzero(r)) for r in Y[tr]}
+        assert all(tuple(np.flatnonzero(r)) not in train_sets for r in Y[te])
+        assert not set(tr) & set(te)
+
+
+def test_combination_ids_ignore_label_order():
+    Y = np.array([[1, 1, 0], [1, 1, 0], [0, 1, 1]])
+    g = common.combination_ids(Y)
+    assert g[0] == g[1] != g[2]
+
+
+def test_fold_fits_features_on_training_only(rng, tmp_path):
+    """Outlying test recordings must not change the fitted grid: their features are the same
+    whether the test part holds sane or wild values."""
+    angles = [rng.normal(size=(40, 4)) for _ in range(12)]
+    Y = np.eye(3)[np.arange(12) % 3]
+    train, test = np.arange(9), np.arange(9, 12)
+    wild = [a.copy() for a in angles]
+    for i in test:
+        wild[i] = wild[i] * 50.0
+    task = {"Y": Y, "train": train, "test": test, "features": {"data": "angles", "method": "kde", "n_bins": 5},
+                "learners": ("chance",), "params": {}, "seed": 0, "single": True}
+    a = common._fold(dict(task, angles=angles))
+    b = common._fold(dict(task, angles=wild))
+    np.testing.assert_array_equal(a["test"], test)
+    np.testing.assert_allclose(a["chance"]["scores"], b["chance"]["scores"])
+
+
+def test_evaluate_folds_caches_and_pools(rng, tmp_path):
+    angles = [rng.normal(size=(30, 3)) + (i % 2) for i in range(16)]
+    Y = np.eye(2)[np.arange(16) % 2]
+    ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
+    splits = common.kfold_splits(16, 4, seed=0)
+    params = {"n_components": 4, "max_iter": 30, "inner_cv": 2}
+    feats = {"data": "joint", "method": "kde", "n_bins": 9, "delay": 1}
+    f1 = common.evaluate_folds(ctx, angles, Y, splits, features=feats, learners=("nmf_frobenius",), params=params,
+                               seed=0, single=True)
+    assert len(list((tmp_path / "ch3-folds").glob("*.pkl"))) == 4
+    f2 = common.evaluate_folds(ctx, angles, Y, splits, features=feats, learners=("nmf_frobenius",), params=params,
+                               seed=0, single=True)
+    np.testing.assert_array_equal(f1[0]["nmf_frobenius"]["scores"], f2[0]["nmf_frobenius"]["scores"])
+    score = common.pooled_scores(f1, Y, "nmf_frobenius", single=True)["l_single"]
+    assert score > 0.75  # two well separated classes
