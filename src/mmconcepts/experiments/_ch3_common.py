@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..motion import MotionHistograms, joint_angles, load_choreo1
+from .. import __version__
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
 from .base import RunContext
 
@@ -249,7 +250,7 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
         for i, (tr, te) in enumerate(splits):
             fold_seed = int(np.random.SeedSequence([seed, i]).generate_state(1)[0] % (2**31 - 1))
             h = hashlib.sha1(pickle.dumps((fp, sorted(feats.items()), tuple(learners), sorted(params.items()), single,
-                                           np.asarray(tr).tobytes(), np.asarray(te).tobytes(), fold_seed, 1)))
+                                           np.asarray(tr).tobytes(), np.asarray(te).tobytes(), fold_seed, __version__, 2)))
             key = cache / f"{h.hexdigest()}.pkl"
             if key.exists():
                 try:

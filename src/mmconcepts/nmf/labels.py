@@ -535,11 +535,14 @@ def _fold_curve(inner: LabelNMF, X, Y: np.ndarray, train, val, seed: int, grid: 
     return l_full_curve(Y[val], model.decision_function(X[val]), grid)
 
 
-def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, random_state: Any = None):
+def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, scale: bool = True, random_state: Any = None):
     """The thesis' baseline: one linear SVM per label (thesis section 3.3.4, Tables 3.2, 3.3).
 
-    ``OneVsRestClassifier(LinearSVC(C))`` from scikit-learn (the thesis used
-    scikit-learn's SVMs). Fitted on a binary indicator Y, :meth:`predict` gives the label
+    ``OneVsRestClassifier(make_pipeline(StandardScaler(), LinearSVC(C)))`` from
+    scikit-learn (the thesis used scikit-learn's SVMs). Features are standardised first,
+    as usual for SVMs: on raw histograms (values summing to one per degree of freedom) an
+    SVM with C = 1 is so strongly regularised that it predicts almost no label (measured
+    on the synthetic 47-label choreographies: l_full 0.004 raw, 0.33 standardised). Fitted on a binary indicator Y, :meth:`predict` gives the label
     set directly, each label's own SVM deciding (decision value > 0), "with no need for
     thresholding" as in the thesis, so it serves l_full; :meth:`decision_function`
     gives the per-label decision values for :func:`~mmconcepts.nmf.scores.l_given_number`
@@ -551,6 +554,9 @@ def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, random_state: An
     C : float, default=1.0
         Regularisation of each SVM (scikit-learn's default; the thesis does not say).
     max_iter : int, default=10000
+    scale : bool, default=True
+        Standardise each feature on the training data (``StandardScaler``, which needs
+        dense input) before the SVM.
     random_state : int, numpy.random.Generator or None
 
     Returns
@@ -563,4 +569,10 @@ def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, random_state: An
     C = check_scalar(C, "C", low=0.0, low_inclusive=False)
     max_iter = check_positive_int(max_iter, "max_iter")
     seed = int(check_random_state(random_state).integers(0, 2**31 - 1))
-    return OneVsRestClassifier(LinearSVC(C=C, max_iter=max_iter, random_state=seed))
+    svm = LinearSVC(C=C, max_iter=max_iter, random_state=seed)
+    if scale:
+        from sklearn.pipeline import make_pipeline
+        from sklearn.preprocessing import StandardScaler
+
+        svm = make_pipeline(StandardScaler(), svm)
+    return OneVsRestClassifier(svm)
