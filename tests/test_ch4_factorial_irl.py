@@ -7,7 +7,7 @@ import pytest
 
 from mmconcepts.experiments import RunContext
 from mmconcepts.experiments.ch4_factorial_irl import Config, run, score_rewards
-from mmconcepts.tasks import grid_world, value_iteration
+from mmconcepts.tasks import grid_world
 
 
 def test_score_is_zero_for_the_true_reward(rng):

@@ -43,6 +43,29 @@ def test_brillinger_recovers_beta_exactly(rng):
     np.testing.assert_allclose(b_ridge, beta, atol=1e-5)
 
 
+def test_ode_trajectories_are_the_limit_of_small_euler_steps(rng):
+    f = RBFFeatures(5)
+    beta = rng.standard_normal((4, 25))
+    start = rng.random((4, 2))
+    ode = control_trajectories(f, beta, start, n_steps=20, dt=0.01, method="ode")
+    fine = control_trajectories(f, beta, start, n_steps=2000, dt=1e-4)[:, ::100]
+    coarse = control_trajectories(f, beta, start, n_steps=20, dt=0.01)
+    err_fine, err_coarse = np.abs(ode - fine).max(), np.abs(ode - coarse).max()
+    assert err_fine < 0.03 * err_coarse  # Euler is first order: 100x finer steps, ~100x closer to the flow
+    np.testing.assert_allclose(ode[:, 0], start)
+    costs = np.array([f.cost(beta[i], ode[i]) for i in range(4)])
+    assert (np.diff(costs, axis=1) <= 1e-9).all()  # gradient flow never increases the cost
+
+
+def test_brillinger_on_continuous_data_is_an_approximation(rng):
+    f = RBFFeatures(3, sigma=0.5)
+    beta = rng.standard_normal(9)
+    trajs = control_trajectories(f, np.tile(beta, (6, 1)), rng.random((6, 2)), n_steps=40, method="ode")
+    b = brillinger_regression(f, list(trajs))
+    err = np.linalg.norm(b - beta) / np.linalg.norm(beta)
+    assert 1e-6 < err < 0.2  # not exact any more (eq. 4.2 is a finite-difference approximation), but close
+
+
 def test_supervised_dictionary_is_recovered_and_loss_decreases(rng):
     f = RBFFeatures(5)
     D = rng.standard_normal((4, 25))
@@ -68,5 +91,9 @@ def test_bad_input():
         brillinger_regression(f, np.array([[0.1, 0.2], [np.nan, 0.3]]))
     with pytest.raises(ParameterError, match="regression"):
         brillinger_regression(f, np.random.default_rng(0).random((5, 2)), regression="lasso")
+    with pytest.raises(ParameterError, match="method"):
+        control_trajectories(f, np.zeros(25), [0.5, 0.5], method="rk4")
+    with pytest.raises(ParameterError, match="settle_tol"):
+        control_trajectories(f, np.zeros(25), [0.5, 0.5], method="ode", settle_tol=1e-3)
     with pytest.raises(ParameterError, match="coefficients"):
         FactorialInverseControl(2, features=f).fit([np.zeros((3, 2)) + 0.5], np.ones((2, 2)))

@@ -208,6 +208,7 @@ def test_factorial_irl_does_not_increase_loss(rng, world):
         fa = FactorialIRL(3, max_iter=5, inner_steps=3, flat_max_iter=20).fit(world, demos)
     h = np.array(fa.loss_history_)
     assert (np.diff(h) <= 1e-12).all()
+    assert len(h) == fa.n_iter_ + 1 and 1 <= fa.n_iter_ <= 5  # the initial loss, then one per alternation
     assert fa.components_.shape == (3, 100) and fa.coefficients_.shape == (8, 3)
     np.testing.assert_allclose(fa.theta_, fa.coefficients_ @ fa.components_)
     assert fa.reward_features(world).shape == (25, 4, 3)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.figure import Figure
+from threadpoolctl import threadpool_limits
 
 from ..tasks import (
     FactorialIRL,
@@ -120,6 +121,14 @@ def _pca(theta: np.ndarray, k: int) -> np.ndarray:
 
 def _point(job):
     """Fit the learners with m demos on the first N tasks; score on them and on the test tasks."""
+    # The batched products here are small (S = 100): multi-threaded BLAS only oversubscribes the
+    # cores that the parallel workers already share (measured: a GradIRL objective on 30 tasks
+    # took 8.5 s with OpenBLAS threads on a busy 2-core machine, 0.15 s with one thread).
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _point_body(job)
+
+
+def _point_body(job):
     config, m, N, default = job
     t0 = time.perf_counter()
     mdp, D_true, (H, R, demos), (H_te, R_te, demos_te), rng_ex = _world(config)
@@ -135,6 +144,8 @@ def _point(job):
         fact.fit(mdp, demos, flat_theta=flat.theta_)
     out["factorial_converged"] = not caught
     out["factorial_iterations"] = fact.n_iter_
+    h = fact.loss_history_
+    out["factorial_last_rel_decrease"] = (h[-2] - h[-1]) / max(abs(h[-2]), 1e-12) if len(h) > 1 else float("nan")
     pca_feats = component_features(mdp, _pca(flat.theta_, k))
     pca = GradIRL(pca_feats, beta=beta, max_iter=config.flat_max_iter).fit(mdp, demos)
     learnt = {"flat": flat.rewards_, "factorial": fact.rewards_, "flat_pca": pca.rewards_}
@@ -204,6 +215,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     metrics["tasks_curve.min_tasks.advantage"] = adv[0]
     metrics["tasks_curve.max_tasks.advantage"] = adv[-1]
     metrics["factorial.converged"] = float(default["factorial_converged"])
+    metrics["factorial.last_rel_decrease"] = float(default["factorial_last_rel_decrease"])
     metrics["seconds.default_point"] = default["seconds"]
 
     def curve_table(title, pts, split, learners, var):
@@ -238,21 +250,20 @@ def run(config: Config, ctx: RunContext) -> Result:
 
     figures = {}
     flat_tr = metrics["transfer.flat.deviation"]
-    for fname, pts, var, xlabel in (("fig4_5_train_curves", None, None, None),):
-        fig = Figure(figsize=(10, 4))
-        ax1, ax2 = fig.subplots(1, 2)
-        for name in ("flat", "factorial", "flat_pca"):
-            ax1.plot([k[0] for k in demo_pts], [_mean(results[k], "train", name) for k in demo_pts], "o-", label=name)
-            ax2.plot([k[1] for k in tasks_pts], [_mean(results[k], "train", name) for k in tasks_pts], "o-", label=name)
-        ax1.axhline(metrics["train.flat_gt.deviation"], color="k", ls=":", label="flat_gt (default point)")
-        ax1.set_xlabel("demonstrations per task")
-        ax2.set_xlabel("number of training tasks")
-        for ax in (ax1, ax2):
-            ax.set_ylabel("deviation from optimal (lower is better)")
-            ax.legend(fontsize=7)
-        fig.suptitle("Fig 4.5: performance on training tasks")
-        fig.tight_layout()
-        figures[fname] = fig
+    fig = Figure(figsize=(10, 4))
+    ax1, ax2 = fig.subplots(1, 2)
+    for name in ("flat", "factorial", "flat_pca"):
+        ax1.plot([k[0] for k in demo_pts], [_mean(results[k], "train", name) for k in demo_pts], "o-", label=name)
+        ax2.plot([k[1] for k in tasks_pts], [_mean(results[k], "train", name) for k in tasks_pts], "o-", label=name)
+    ax1.axhline(metrics["train.flat_gt.deviation"], color="k", ls=":", label="flat_gt (default point)")
+    ax1.set_xlabel("demonstrations per task")
+    ax2.set_xlabel("number of training tasks")
+    for ax in (ax1, ax2):
+        ax.set_ylabel("deviation from optimal (lower is better)")
+        ax.legend(fontsize=7)
+    fig.suptitle("Fig 4.5: performance on training tasks")
+    fig.tight_layout()
+    figures["fig4_5_train_curves"] = fig
     fig = Figure(figsize=(10, 4))
     ax1, ax2 = fig.subplots(1, 2)
     for name in ("factorial", "flat_pca"):
@@ -309,7 +320,12 @@ def run(config: Config, ctx: RunContext) -> Result:
         "and on D for the factorial learner (PCA initialisation, uncentred). The maximum-entropy baseline (L2 = 0.01) "
         "is not in the thesis.",
         f"Factorial learner at the default point: {default['factorial_iterations']} alternations, "
-        f"{'converged' if default['factorial_converged'] else 'stopped at max_iter before the tolerance'}.",
+        f"{'converged' if default['factorial_converged'] else 'stopped at max_iter before the tolerance'} "
+        f"(relative loss decrease in the last alternation: {default['factorial_last_rel_decrease']:.3g}; "
+        "tol = 1e-4). Not a stopping-rule artefact: the cumulated loss (4.8) is still falling by several percent "
+        "per alternation after 15 alternations on 30 tasks, and reaches the tolerance only after a few dozen. "
+        "Each alternation costs about 3 s there, so the quick preset keeps 15 alternations to stay near 90 s; "
+        "its factorial numbers are those of an early-stopped learner.",
         "Seconds per fitted point: " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
                                                  for r in results.values()),
     ]

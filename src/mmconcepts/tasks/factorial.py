@@ -194,8 +194,7 @@ class FactorialIRL:
         h_steps = np.ones(n)
         d_step = np.ones(1)
         converged = False
-        it = 0
-        for it in range(1, max_iter + 1):
+        for _ in range(max_iter):
             Hc, _, _, h_steps = armijo_descent(fun_h, Hc, max_iter=inner, tol=0.0, steps=h_steps)
             h_steps = np.maximum(h_steps, 1e-8)
             Dflat, _, _, d_step = armijo_descent(fun_d, D.reshape(1, -1), max_iter=inner, tol=0.0, steps=d_step)
@@ -213,7 +212,7 @@ class FactorialIRL:
         self.theta_ = Hc @ D
         self.rewards_ = features_to_rewards(mdp, self.theta_, F)
         self.loss_history_ = history
-        self.n_iter_ = it
+        self.n_iter_ = len(history) - 1  # alternations run (history also holds the initial loss)
         self._mdp_shape = (mdp.n_states, mdp.n_actions)
         return self
 
