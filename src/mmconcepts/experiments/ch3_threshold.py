@@ -32,14 +32,7 @@ GRID = np.round(np.arange(0.0, 1.0001, 0.025), 4)
 @dataclass(frozen=True)
 class Config(_BaseConfig):
     """The ``ch3-choreography`` protocol (its quick/full presets)."""
-
-    @classmethod
-    def quick(cls) -> Config:
-        return cls(n_folds=10, max_iter=100, inner_cv=3)
-
-    @classmethod
-    def full(cls) -> Config:
-        return cls()
+    # quick() and full() are inherited: the same presets as ch3-choreography.
 
 
 def run(config: Config, ctx: RunContext) -> Result:

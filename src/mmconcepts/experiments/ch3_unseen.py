@@ -31,14 +31,7 @@ LEARNERS = ("nmf_frobenius", "svm", "chance")
 @dataclass(frozen=True)
 class Config(_BaseConfig):
     """As ``ch3-choreography``; ``n_folds=None`` leaves one label combination out at a time."""
-
-    @classmethod
-    def quick(cls) -> Config:
-        return cls(n_folds=10, max_iter=100, inner_cv=3)
-
-    @classmethod
-    def full(cls) -> Config:
-        return cls()
+    # quick() and full() are inherited: the same presets as ch3-choreography.
 
 
 REFERENCE = {
