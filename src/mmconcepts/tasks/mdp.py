@@ -194,6 +194,22 @@ def q_values(mdp: MDP, values: Any, rewards: Any = None) -> np.ndarray:
     return r + mdp.discount * np.swapaxes(EV, -1, -2)
 
 
+def _batched_setup(mdp: MDP, rewards: Any, init: Any):
+    """Shared start of the batched value iterations.
+
+    Returns ``(batch, V, Pf, RT)``: the batch shape of the rewards, the starting values
+    (T, S), the flattened transitions and the rewards laid out as r[t, a*S + s].
+    """
+    r = check_rewards(mdp, rewards)
+    A, S = mdp.n_actions, mdp.n_states
+    batch = r.shape[:-2]
+    R = r.reshape(-1, S, A)
+    T = R.shape[0]
+    V = np.zeros((T, S)) if init is None else np.broadcast_to(np.asarray(init, dtype=float), batch + (S,)).reshape(T, S).copy()
+    RT = np.ascontiguousarray(R.transpose(0, 2, 1).reshape(T, A * S))
+    return batch, V, _flat(mdp), RT
+
+
 def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_iter: int = 10_000,
                     init: Any = None) -> tuple[np.ndarray, np.ndarray]:
     """Optimal values by value iteration (Picard iteration of eq. 2.27), batched over tasks.
@@ -221,15 +237,9 @@ def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_it
     Q : ndarray of shape (..., S, A)
         Optimal action values Q*, consistent with V (``V = Q.max(-1)``).
     """
-    r = check_rewards(mdp, rewards)
-    A, S = mdp.n_actions, mdp.n_states
-    batch = r.shape[:-2]
-    R = r.reshape(-1, S, A)
-    T = R.shape[0]
-    V = np.zeros((T, S)) if init is None else np.broadcast_to(np.asarray(init, dtype=float), batch + (S,)).reshape(T, S).copy()
-    Pf = _flat(mdp)
+    batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
+    T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     gamma = mdp.discount
-    RT = np.ascontiguousarray(R.transpose(0, 2, 1).reshape(T, A * S))  # r[t, a*S+s]
     for _ in range(max_iter):
         Qf = RT + gamma * (V @ Pf.T)  # (T, A*S)
         V_new = Qf.reshape(T, A, S).max(axis=1)
@@ -258,14 +268,8 @@ def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, m
     Used by the maximum-entropy IRL baseline (Ziebart et al. 2010; not in the thesis).
     Returns ``(V, Q)`` with the shapes of :func:`value_iteration`.
     """
-    r = check_rewards(mdp, rewards)
-    A, S = mdp.n_actions, mdp.n_states
-    batch = r.shape[:-2]
-    R = r.reshape(-1, S, A)
-    T = R.shape[0]
-    V = np.zeros((T, S)) if init is None else np.broadcast_to(np.asarray(init, dtype=float), batch + (S,)).reshape(T, S).copy()
-    Pf = _flat(mdp)
-    RT = np.ascontiguousarray(R.transpose(0, 2, 1).reshape(T, A * S))
+    batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
+    T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     for _ in range(max_iter):
         Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S)
         V_new = _logsumexp(Q, axis=1)
