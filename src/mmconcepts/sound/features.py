@@ -1,0 +1,265 @@
+"""MFCC sequences, the thesis' delta operator and fixed-length MFCC windows.
+
+Thesis sections 5.2.3 (MFCC, windows of 80 or 150 ms sliding by a third of their length)
+and 5.3 (delta operator, 22 coefficients for HAC).
+
+Every MFCC parameter is explicit in :class:`MFCCConfig`; the defaults are the usual
+speech front end: 16 kHz audio, 25 ms Hamming windows every 10 ms, 40 mel bands between
+0 Hz and the Nyquist frequency, log (dB) mel energies, DCT-II with orthonormal scaling.
+The computation itself is librosa's (:func:`librosa.feature.mfcc`).
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..errors import DataError, ParameterError
+
+__all__ = [
+    "MFCCConfig",
+    "mfcc",
+    "delta",
+    "add_deltas",
+    "window_frames",
+    "sliding_windows",
+    "mfcc_windows",
+]
+
+
+@dataclass(frozen=True)
+class MFCCConfig:
+    """Parameters of the MFCC front end (Thesis section 5.2.3).
+
+    Parameters
+    ----------
+    sr : int, default=16000
+        Sample rate (Hz) the audio is at.
+    n_mfcc : int, default=13
+        Number of cepstral coefficients kept (coefficient 0, the log energy, included).
+        The HAC of the thesis keeps 22 (section 5.3).
+    win_ms : float, default=25.0
+        Analysis window length in milliseconds (the FFT size is the next power of two).
+    hop_ms : float, default=10.0
+        Hop between frames in milliseconds.
+    n_mels : int, default=40
+        Number of triangular mel filters (HTK mel scale, ``mel(f) = 2595 log10(1 + f/700)``
+        as in the thesis).
+    fmin, fmax : float, default=0, None
+        Band of the mel filters (Hz); None means the Nyquist frequency.
+    window : str, default="hamming"
+        Analysis window (any :func:`scipy.signal.get_window` name).
+    top_db : float, default=80.0
+        Dynamic range of the log mel energies (librosa's ``power_to_db`` clipping).
+    lifter : int, default=0
+        Cepstral liftering (0: none).
+    """
+
+    sr: int = 16000
+    n_mfcc: int = 13
+    win_ms: float = 25.0
+    hop_ms: float = 10.0
+    n_mels: int = 40
+    fmin: float = 0.0
+    fmax: float | None = None
+    window: str = "hamming"
+    top_db: float = 80.0
+    lifter: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("sr", "n_mfcc", "n_mels"):
+            v = getattr(self, name)
+            if not isinstance(v, numbers.Integral) or v < 1:
+                raise ParameterError(f"MFCCConfig.{name} must be a positive int; got {v!r}.")
+        if self.n_mfcc > self.n_mels:
+            raise ParameterError(
+                f"MFCCConfig.n_mfcc ({self.n_mfcc}) cannot exceed n_mels ({self.n_mels})."
+            )
+        if not (self.win_ms > 0 and self.hop_ms > 0):
+            raise ParameterError(
+                f"MFCCConfig.win_ms and hop_ms must be > 0; got {self.win_ms}, {self.hop_ms}."
+            )
+        fmax = self.sr / 2 if self.fmax is None else self.fmax
+        if not 0 <= self.fmin < fmax <= self.sr / 2:
+            raise ParameterError(
+                f"MFCCConfig needs 0 <= fmin < fmax <= sr/2; got fmin={self.fmin}, fmax={self.fmax}, sr={self.sr}."
+            )
+
+    @property
+    def win_length(self) -> int:
+        """Window length in samples."""
+        return int(round(self.win_ms * self.sr / 1000))
+
+    @property
+    def hop_length(self) -> int:
+        """Hop in samples."""
+        return max(1, int(round(self.hop_ms * self.sr / 1000)))
+
+    @property
+    def n_fft(self) -> int:
+        """FFT size: the smallest power of two >= the window length."""
+        return 1 << max(0, int(np.ceil(np.log2(self.win_length))))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _check_audio(y: np.ndarray, config: MFCCConfig) -> np.ndarray:
+    y = np.asarray(y)
+    if y.ndim != 1:
+        raise DataError(f"audio must be a 1-D array of samples (mono); got shape {y.shape}.")
+    if not np.issubdtype(y.dtype, np.floating):
+        y = y.astype(np.float32)
+    if y.size < config.n_fft:
+        raise DataError(
+            f"audio has {y.size} samples, fewer than one analysis frame "
+            f"({config.n_fft} samples at {config.sr} Hz)."
+        )
+    if not np.all(np.isfinite(y)):
+        raise DataError("audio contains NaN or infinite samples.")
+    return y
+
+
+def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
+    """MFCC sequence of a mono signal (Thesis section 5.2.3).
+
+    Power spectrum of Hamming-windowed frames, triangular mel filters, log (dB), DCT-II:
+    ``MFCC = DCT[log MFSC]``. Frames are not centred (the first frame starts at sample 0):
+    frame ``t`` is the FFT block ``[t * hop, t * hop + n_fft)`` with the ``win_length``
+    window in its middle, so there are ``1 + (n_samples - n_fft) // hop`` frames.
+
+    Parameters
+    ----------
+    y : ndarray of shape (n_samples,)
+        Mono audio at ``config.sr``.
+    config : MFCCConfig, optional
+        Front-end parameters (defaults of :class:`MFCCConfig` when None).
+
+    Returns
+    -------
+    ndarray of shape (n_frames, n_mfcc), float32
+    """
+    import librosa  # optional dependency (extra "audio")
+
+    config = MFCCConfig() if config is None else config
+    y = _check_audio(y, config)
+    mel = librosa.feature.melspectrogram(
+        y=y.astype(np.float32, copy=False),
+        sr=config.sr,
+        n_fft=config.n_fft,
+        hop_length=config.hop_length,
+        win_length=config.win_length,
+        window=config.window,
+        center=False,
+        power=2.0,
+        n_mels=config.n_mels,
+        fmin=config.fmin,
+        fmax=config.fmax,
+        htk=True,
+    )
+    log_mel = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=config.top_db)
+    m = librosa.feature.mfcc(
+        S=log_mel, sr=config.sr, n_mfcc=config.n_mfcc, dct_type=2, norm="ortho", lifter=config.lifter
+    )
+    return np.ascontiguousarray(m.T, dtype=np.float32)
+
+
+def delta(x: np.ndarray) -> np.ndarray:
+    """The thesis' time-difference operator along axis 0 (Thesis section 5.3).
+
+    .. math:: \\Delta x_t = 2 x_{t+2} + x_{t+1} - x_{t-1} - 2 x_{t-2}
+
+    with edge replication (``x_i = x_1`` for ``i <= 0`` and ``x_i = x_T`` for ``i > T``).
+    Unlike librosa's ``delta`` there is no division by 10: this is the operator as written.
+
+    Parameters
+    ----------
+    x : ndarray of shape (n_frames, ...)
+
+    Returns
+    -------
+    ndarray of the same shape and dtype
+    """
+    x = np.asarray(x)
+    if x.ndim == 0 or x.shape[0] == 0:
+        raise DataError(f"delta needs at least one frame along axis 0; got shape {x.shape}.")
+    pad = [(2, 2)] + [(0, 0)] * (x.ndim - 1)
+    p = np.pad(x, pad, mode="edge")
+    n = x.shape[0]
+    return 2 * p[4 : n + 4] + p[3 : n + 3] - p[1 : n + 1] - 2 * p[0:n]
+
+
+def add_deltas(x: np.ndarray) -> np.ndarray:
+    """Stack a sequence with its delta and delta-delta: (n, d) -> (n, 3 d) (Thesis 5.3)."""
+    d1 = delta(x)
+    return np.concatenate([x, d1, delta(d1)], axis=1)
+
+
+def window_frames(duration_ms: float, hop_ms: float = 10.0) -> int:
+    """Number of MFCC frames in a window of ``duration_ms`` (at least 1)."""
+    if duration_ms <= 0 or hop_ms <= 0:
+        raise ParameterError(f"durations must be > 0; got {duration_ms} ms window, {hop_ms} ms hop.")
+    return max(1, int(round(duration_ms / hop_ms)))
+
+
+def sliding_windows(seq: np.ndarray, width: int, shift: int | None = None) -> np.ndarray:
+    """Cut a frame sequence into fixed-length windows (Thesis section 5.2.3).
+
+    Parameters
+    ----------
+    seq : ndarray of shape (n_frames, d)
+    width : int
+        Frames per window.
+    shift : int, optional
+        Frames between window starts; default ``max(1, round(width / 3))`` (the thesis'
+        slide of one third of the window).
+
+    Returns
+    -------
+    ndarray of shape (n_windows, width, d)
+        A copy (contiguous). A sequence shorter than ``width`` gives zero windows.
+    """
+    seq = np.asarray(seq)
+    if seq.ndim != 2:
+        raise DataError(f"seq must be (n_frames, d); got shape {seq.shape}.")
+    if not isinstance(width, numbers.Integral) or width < 1:
+        raise ParameterError(f"width must be a positive int; got {width!r}.")
+    shift = max(1, int(round(width / 3))) if shift is None else shift
+    if not isinstance(shift, numbers.Integral) or shift < 1:
+        raise ParameterError(f"shift must be a positive int; got {shift!r}.")
+    n, d = seq.shape
+    if n < width:
+        return np.empty((0, width, d), dtype=seq.dtype)
+    view = np.lib.stride_tricks.sliding_window_view(seq, width, axis=0)[::shift]
+    return np.ascontiguousarray(view.transpose(0, 2, 1))
+
+
+def mfcc_windows(
+    y: np.ndarray,
+    config: MFCCConfig | None = None,
+    *,
+    window_ms: float = 80.0,
+    shift: float = 1 / 3,
+) -> np.ndarray:
+    """MFCC windows of one utterance: the local descriptors of Thesis section 5.2.3.
+
+    Parameters
+    ----------
+    y : ndarray of shape (n_samples,)
+    config : MFCCConfig, optional
+    window_ms : float, default=80
+        Window length (the thesis uses 80 or 150 ms).
+    shift : float, default=1/3
+        Slide as a fraction of the window length.
+
+    Returns
+    -------
+    ndarray of shape (n_windows, width, n_mfcc)
+    """
+    config = MFCCConfig() if config is None else config
+    if not 0 < shift <= 1:
+        raise ParameterError(f"shift is a fraction of the window in (0, 1]; got {shift}.")
+    width = window_frames(window_ms, config.hop_ms)
+    return sliding_windows(mfcc(y, config), width, max(1, int(round(width * shift))))

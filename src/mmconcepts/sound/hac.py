@@ -1,0 +1,230 @@
+"""Histograms of acoustic co-occurrences (HAC), Thesis section 5.3.
+
+MFCC sequences (22 coefficients in the thesis) are extended with the thesis' delta and
+delta-delta (:func:`mmconcepts.sound.features.delta`); each of the three streams is vector
+quantised by its own k-means codebook (150, 150 and 100 centroids), which turns every
+frame into three discrete acoustic events; for each stream and each lag ``delta`` in
+(2, 5), the pairs ``(e_t, e_{t+delta})`` are counted in a ``k x k`` histogram. The HAC
+vector is the concatenation of these histograms: ``2 x (150^2 + 150^2 + 100^2) = 110 000``
+dimensions with the defaults, returned as a sparse CSR matrix of counts.
+
+Counts are additive (the thesis' "additive property"): the HAC of two concatenated
+words is the sum of their HACs up to the few pairs that straddle the boundary.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.cluster import KMeans
+from sklearn.utils.validation import check_is_fitted
+
+from .._validation import check_random_state
+from ..errors import DataError, ParameterError
+from .features import delta
+
+__all__ = ["HAC", "cooccurrence_counts"]
+
+
+def cooccurrence_counts(
+    events: Sequence[np.ndarray], n_events: int, lag: int
+) -> sp.csr_matrix:
+    """Co-occurrence histograms of discrete event streams at one lag (Thesis 5.3.2).
+
+    Parameters
+    ----------
+    events : sequence of int arrays, each of shape (n_frames_i,)
+        Event ids in ``[0, n_events)``.
+    n_events : int
+        Size of the event alphabet ``k``.
+    lag : int
+        The delay ``delta``: pairs ``(e_t, e_{t+delta})``.
+
+    Returns
+    -------
+    csr_matrix of shape (len(events), n_events ** 2), int64 counts
+        Column ``a * n_events + b`` counts the pairs ``(a, b)``.
+    """
+    if lag < 1:
+        raise ParameterError(f"lag must be >= 1; got {lag}.")
+    rows, cols = [], []
+    for i, e in enumerate(events):
+        e = np.asarray(e, dtype=np.int64)
+        if e.size > lag:
+            c = e[:-lag] * n_events + e[lag:]
+            rows.append(np.full(c.size, i, dtype=np.int64))
+            cols.append(c)
+    n = len(events)
+    width = n_events * n_events
+    if not rows:
+        return sp.csr_matrix((n, width), dtype=np.int64)
+    key = np.concatenate(rows) * width + np.concatenate(cols)
+    uniq, counts = np.unique(key, return_counts=True)
+    return sp.csr_matrix((counts, (uniq // width, uniq % width)), shape=(n, width), dtype=np.int64)
+
+
+class HAC(TransformerMixin, BaseEstimator):
+    """Histograms of acoustic co-occurrences as a scikit-learn transformer (Thesis 5.3).
+
+    Input is a list of MFCC sequences (one (n_frames, n_mfcc) array per utterance, see
+    :func:`mmconcepts.sound.features.mfcc`; the thesis uses 22 coefficients). The
+    codebooks are learnt in :meth:`fit` on training utterances only.
+
+    Parameters
+    ----------
+    n_clusters : tuple of 3 ints, default=(150, 150, 100)
+        Codebook sizes for the static, delta and delta-delta streams (Thesis 5.3.1).
+    lags : tuple of ints, default=(2, 5)
+        Co-occurrence delays in frames (Thesis 5.3.2).
+    standardize : bool, default=True
+        Scale each coefficient of each stream by its training standard deviation before
+        k-means, so the codebook is not dominated by the energy coefficient. (The thesis
+        does not say how its codebooks were scaled; this is our choice.)
+    max_fit_frames : int, default=100000
+        At most this many training frames (drawn at random without replacement) are used
+        to fit each codebook; assignment always uses every frame.
+    max_iter : int, default=100
+        Lloyd iterations of k-means (scikit-learn's :class:`~sklearn.cluster.KMeans`,
+        k-means++ seeding, one initialisation).
+    random_state : int, Generator or None
+        Seeds the frame subsample and k-means.
+
+    Attributes
+    ----------
+    codebooks_ : list of 3 ndarrays, shapes (k_s, n_mfcc)
+        Centroids in standardised units.
+    scales_ : list of 3 ndarrays of shape (n_mfcc,)
+        Per-coefficient scale of each stream.
+    n_mfcc_ : int
+    n_features_out_ : int
+        ``len(lags) * sum(k_s ** 2)``.
+    """
+
+    _STREAMS = ("static", "delta", "delta2")
+
+    def __init__(
+        self,
+        n_clusters: tuple[int, int, int] = (150, 150, 100),
+        lags: tuple[int, ...] = (2, 5),
+        *,
+        standardize: bool = True,
+        max_fit_frames: int = 100_000,
+        max_iter: int = 100,
+        random_state=None,
+    ) -> None:
+        self.n_clusters = n_clusters
+        self.lags = lags
+        self.standardize = standardize
+        self.max_fit_frames = max_fit_frames
+        self.max_iter = max_iter
+        self.random_state = random_state
+
+    # -- validation ---------------------------------------------------------------------
+    def _check_params(self) -> None:
+        nc = tuple(self.n_clusters)
+        if len(nc) != 3 or not all(isinstance(k, numbers.Integral) and k >= 1 for k in nc):
+            raise ParameterError(
+                f"n_clusters must be three positive ints (static, delta, delta-delta); got {self.n_clusters!r}."
+            )
+        lags = tuple(self.lags)
+        if not lags or not all(isinstance(l, numbers.Integral) and l >= 1 for l in lags):
+            raise ParameterError(f"lags must be a non-empty tuple of ints >= 1; got {self.lags!r}.")
+        if not isinstance(self.max_fit_frames, numbers.Integral) or self.max_fit_frames < 1:
+            raise ParameterError(f"max_fit_frames must be a positive int; got {self.max_fit_frames!r}.")
+
+    def _check_X(self, X, *, fitted: bool) -> list[np.ndarray]:
+        if isinstance(X, np.ndarray) and X.ndim == 2:
+            raise DataError(
+                "HAC takes a list of MFCC sequences (one (n_frames, n_mfcc) array per utterance), "
+                "not a single 2-D array."
+            )
+        seqs = [np.asarray(x, dtype=np.float64) for x in X]
+        if not seqs:
+            raise DataError("HAC needs at least one utterance; got an empty list.")
+        d = self.n_mfcc_ if fitted else seqs[0].shape[-1] if seqs[0].ndim == 2 else None
+        for i, x in enumerate(seqs):
+            if x.ndim != 2 or x.shape[0] == 0:
+                raise DataError(f"utterance {i}: expected a non-empty (n_frames, n_mfcc) array; got shape {x.shape}.")
+            if x.shape[1] != d:
+                raise DataError(f"utterance {i} has {x.shape[1]} coefficients; expected {d}.")
+            if not np.all(np.isfinite(x)):
+                raise DataError(f"utterance {i} contains NaN or infinite values.")
+        return seqs
+
+    @staticmethod
+    def _streams(x: np.ndarray) -> list[np.ndarray]:
+        d1 = delta(x)
+        return [x, d1, delta(d1)]
+
+    # -- fit / transform ----------------------------------------------------------------
+    def fit(self, X: Sequence[np.ndarray], y=None) -> HAC:
+        """Learn the three codebooks on training MFCC sequences."""
+        self._check_params()
+        seqs = self._check_X(X, fitted=False)
+        rng = check_random_state(self.random_state)
+        self.n_mfcc_ = seqs[0].shape[1]
+        streams = [np.concatenate(s) for s in zip(*(self._streams(x) for x in seqs))]
+        n_frames = streams[0].shape[0]
+        take = (
+            np.sort(rng.choice(n_frames, self.max_fit_frames, replace=False))
+            if n_frames > self.max_fit_frames
+            else slice(None)
+        )
+        self.codebooks_, self.scales_, self._kmeans = [], [], []
+        for s, k in zip(streams, self.n_clusters):
+            sample = s[take]
+            if sample.shape[0] < k:
+                raise DataError(
+                    f"HAC needs at least {k} training frames for a {k}-word codebook; got {sample.shape[0]}."
+                )
+            scale = sample.std(axis=0) if self.standardize else np.ones(s.shape[1])
+            scale = np.where(scale > 0, scale, 1.0)
+            km = KMeans(
+                n_clusters=int(k),
+                n_init=1,
+                max_iter=self.max_iter,
+                random_state=int(rng.integers(2**31 - 1)),
+            ).fit(sample / scale)
+            self.scales_.append(scale)
+            self.codebooks_.append(km.cluster_centers_)
+            self._kmeans.append(km)
+        self.n_features_out_ = len(tuple(self.lags)) * sum(int(k) ** 2 for k in self.n_clusters)
+        return self
+
+    def events(self, X: Sequence[np.ndarray]) -> list[list[np.ndarray]]:
+        """The three event streams of each utterance: ``[[static, delta, delta2], ...]``."""
+        check_is_fitted(self, "codebooks_")
+        seqs = self._check_X(X, fitted=True)
+        lengths = [x.shape[0] for x in seqs]
+        streams = [np.concatenate(s) for s in zip(*(self._streams(x) for x in seqs))]
+        codes = [km.predict(s / sc) for km, s, sc in zip(self._kmeans, streams, self.scales_)]
+        bounds = np.cumsum([0] + lengths)
+        return [[c[a:b] for c in codes] for a, b in zip(bounds[:-1], bounds[1:])]
+
+    def transform(self, X: Sequence[np.ndarray]) -> sp.csr_matrix:
+        """HAC vectors (counts) of MFCC sequences.
+
+        Returns
+        -------
+        csr_matrix of shape (n_utterances, n_features_out_), float64
+            Blocks ordered by lag, then stream (static, delta, delta-delta); in each block
+            column ``a * k + b`` counts the pairs ``(a, b)``.
+        """
+        ev = self.events(X)
+        blocks = []
+        for lag in self.lags:
+            for s, k in enumerate(self.n_clusters):
+                blocks.append(cooccurrence_counts([e[s] for e in ev], int(k), int(lag)))
+        return sp.hstack(blocks, format="csr", dtype=np.float64)
+
+    def get_feature_names_out(self, input_features=None) -> np.ndarray:
+        check_is_fitted(self, "codebooks_")
+        names = []
+        for lag in self.lags:
+            for s, k in zip(self._STREAMS, self.n_clusters):
+                names.extend(f"lag{lag}_{s}_{a}_{b}" for a in range(k) for b in range(k))
+        return np.asarray(names, dtype=object)
