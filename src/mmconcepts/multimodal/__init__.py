@@ -1,0 +1,24 @@
+"""Multimodal concepts: the multimodal NMF learner and cross-modal matching (thesis chapter 6).
+
+MultimodalNMF
+    I-divergence NMF over stacked, L1-normalised modalities; internal representations
+    from any subset of modalities (eq. 6.3); reconstruction of any modality; save/load
+    without pickle.
+crossmodal_distances, matching_success_rate, pairwise_divergence
+    The cross-modal matching protocol of section 6.6.1 (Fig. 6.3): comparison in the
+    internal, test or reference space with KL, reversed or symmetric KL, Euclidean or
+    cosine dissimilarities.
+"""
+
+from .learner import FORMAT_VERSION, MultimodalNMF
+from .matching import METRICS, SPACES, crossmodal_distances, matching_success_rate, pairwise_divergence
+
+__all__ = [
+    "FORMAT_VERSION",
+    "METRICS",
+    "SPACES",
+    "MultimodalNMF",
+    "crossmodal_distances",
+    "matching_success_rate",
+    "pairwise_divergence",
+]
