@@ -42,6 +42,9 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch3_msr_action3d",
     "mmconcepts.experiments.ch4_factorial_irl",
     "mmconcepts.experiments.ch4_inverse_control",
+    "mmconcepts.experiments.ch5_incremental",
+    "mmconcepts.experiments.ch5_nmf_keywords",
+    "mmconcepts.experiments.ch5_tree",
 )
 
 __all__ = [

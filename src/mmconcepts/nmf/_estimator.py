@@ -350,6 +350,14 @@ class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
                 f"X has {Xv.shape[1]} columns but features selects {idx.size}; give X only the selected columns."
             )
         H = self.components_[:, idx].astype(Xv.dtype, copy=False)
+        # Columns where every atom is zero carry no information on the coefficients: their
+        # loss D(x | 0) does not depend on them (and is infinite for beta <= 1 when x > 0,
+        # which would void the stopping rule). Dropping them leaves the minimiser unchanged.
+        live = H.sum(axis=0) > 0
+        if not live.all() and live.any():
+            H = H[:, live]
+            Xv = Xv[:, live] if sp.issparse(Xv) else Xv[:, live]
+            maskv = None if maskv is None else maskv[:, live]
         max_iter = self.transform_max_iter if self.transform_max_iter is not None else self.max_iter
         res = beta_nmf(
             Xv,

@@ -1,0 +1,180 @@
+"""Shared machinery of the chapter-5 experiments: the speech corpus and cached MFCCs.
+
+- :func:`load_corpus` reads real speech from ``--data acorns=DIR`` (ACORNS Caregiver
+  layout) or ``--data audio=DIR`` (generic layout), else generates (once, cached) the
+  synthetic Caregiver-like corpus of :func:`mmconcepts.sound.synthetic.fetch_caregiver`.
+  The corpus' seed is fixed (``CORPUS_SEED``) so every experiment, and chapter 6, share
+  one cached corpus; the experiment's own seed drives splits and learners.
+- :func:`corpus_mfcc` computes the MFCC sequence of every utterance once per MFCC
+  configuration and caches it under ``ctx.cache_dir/ch5-mfcc``.
+- :func:`keyword_targets` gives the keyword of each utterance (the thesis' tasks have one
+  keyword per utterance).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import DataError
+from ..sound.features import MFCCConfig, mfcc
+from .base import RunContext
+
+__all__ = ["CORPUS_SEED", "load_corpus", "data_source_note", "corpus_mfcc", "keyword_targets", "speaker_ids"]
+
+#: Seed of the generated corpus, shared by all experiments (chapters 5 and 6).
+CORPUS_SEED = 0
+
+
+def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
+    """The speech corpus: real (``acorns=DIR`` / ``audio=DIR``) or synthetic (generated once, cached)."""
+    from ..sound.data import load_acorns, load_generic_audio
+
+    if "acorns" in ctx.data:
+        return load_acorns(ctx.data["acorns"], on_error="skip")
+    if "audio" in ctx.data:
+        return load_generic_audio(ctx.data["audio"], on_error="skip")
+    from ..sound.synthetic import fetch_caregiver
+
+    return fetch_caregiver(
+        ctx.cache_dir,
+        n_utterances_per_speaker=n_per_speaker,
+        n_speakers=n_speakers,
+        random_state=CORPUS_SEED,
+        n_jobs=ctx.workers,
+    )
+
+
+def data_source_note(ctx: RunContext) -> str:
+    if "acorns" in ctx.data:
+        return f"Data: ACORNS Caregiver recordings from {ctx.data['acorns']}."
+    if "audio" in ctx.data:
+        return f"Data: recordings in the generic audio layout from {ctx.data['audio']}."
+    return (
+        "Data: the synthetic Caregiver-like corpus (mmconcepts.sound.synthetic: offline text-to-speech with "
+        "piper and eSpeak NG voices, keyword sentences in the style of Table 5.1, speaker-level rate, pitch, "
+        "noise and room filtering); pass --data acorns=DIR or --data audio=DIR for recorded speech."
+    )
+
+
+def speaker_ids(corpus) -> np.ndarray:
+    """Speaker of each utterance, as an array of strings."""
+    return np.asarray([str(s) for s in corpus.speaker_ids])
+
+
+def keyword_targets(corpus) -> np.ndarray:
+    """The keyword of each utterance (array of str).
+
+    Raises
+    ------
+    DataError
+        If an utterance has no keyword or several (these experiments classify utterances
+        into exactly one of the keywords, as in thesis Fig. 5.3).
+    """
+    out = []
+    for i, labels in enumerate(corpus.labels):
+        labels = tuple(labels)
+        if len(labels) != 1:
+            raise DataError(
+                f"utterance {i} ({corpus.paths[i]}) has {len(labels)} keywords {labels}; the chapter 5 "
+                "experiments need exactly one keyword per utterance."
+            )
+        out.append(str(labels[0]))
+    return np.asarray(out)
+
+
+def _mfcc_one(task: tuple[str, dict]) -> np.ndarray:
+    path, cfg = task
+    from ..sound.audio import load_audio
+
+    config = MFCCConfig(**cfg)
+    return mfcc(load_audio(path, sr=config.sr), config)
+
+
+def corpus_mfcc(ctx: RunContext, corpus, config: MFCCConfig) -> list[np.ndarray]:
+    """MFCC sequence of every utterance of ``corpus`` (cached on disk, computed in parallel)."""
+    files = [str(Path(f).resolve()) for f in corpus.paths]
+    h = hashlib.sha1()
+    for f in files:
+        st = os.stat(f)
+        h.update(f"{f}:{st.st_size}:{int(st.st_mtime)}\n".encode())
+    h.update(json.dumps(config.to_dict(), sort_keys=True).encode())
+    h.update(__version__.encode())
+    cache = Path(ctx.cache_dir) / "ch5-mfcc"
+    cache.mkdir(parents=True, exist_ok=True)
+    key = cache / f"{h.hexdigest()}.npz"
+    if key.exists():
+        try:
+            with np.load(key) as z:
+                lengths = z["lengths"]
+                flat = z["mfcc"]
+            bounds = np.cumsum(np.r_[0, lengths])
+            return [flat[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        except (OSError, KeyError, ValueError):  # torn cache file: recompute
+            key.unlink(missing_ok=True)
+    cfg = config.to_dict()
+    seqs = ctx.parallel(_mfcc_one, [(f, cfg) for f in files], desc="MFCC")
+    tmp = key.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, mfcc=np.concatenate(seqs), lengths=np.array([len(s) for s in seqs]))
+    os.replace(tmp, key)
+    return seqs
+
+
+def corpus_windows(ctx: RunContext, corpus, config: MFCCConfig, *, window_ms: float = 80.0,
+                   shift: float = 1 / 3) -> list[np.ndarray]:
+    """MFCC windows (n_windows, width, n_mfcc) of every utterance (thesis section 5.2.3)."""
+    from ..sound.features import sliding_windows, window_frames
+
+    width = window_frames(window_ms, config.hop_ms)
+    step = max(1, int(round(width * shift)))
+    return [sliding_windows(s, width, step) for s in corpus_mfcc(ctx, corpus, config)]
+
+
+def voting_params(window_ms: float = 80.0, *, metric: str = "dtw", search: str = "restart",
+                  backtrack: int = 4, r_quantile: float = 0.5, events: str = "leaves") -> dict:
+    """Parameters of the section 5.2 recogniser used by the chapter 5 experiments."""
+    return {"window_ms": window_ms, "metric": metric, "search": search, "backtrack": backtrack,
+            "r_quantile": r_quantile, "events": events}
+
+
+def choose_r_max(windows: list[np.ndarray], *, metric: str, quantile: float, seed: int,
+                 n_sample: int = 600) -> float:
+    """Radius of the primitive clusters, set a priori from the training windows.
+
+    The thesis chooses r_max a priori and does not give its value. Here: ``n_sample``
+    windows are drawn from the training utterances, each one's distance to its nearest
+    neighbour *in another utterance* is computed (windows of one utterance overlap by two
+    thirds, so their mutual distances say nothing about the spread of the sounds), and
+    r_max is the ``quantile`` of those distances (the median by default): about half of
+    the windows then fall within r_max of some window of another utterance.
+    """
+    from ..sound.dtw import dtw_distance_matrix
+
+    rng = np.random.default_rng(seed)
+    owner = np.concatenate([np.full(len(w), i) for i, w in enumerate(windows)])
+    flat = np.concatenate([w for w in windows if len(w)])
+    take = rng.choice(len(flat), size=min(n_sample, len(flat)), replace=False)
+    sample, who = flat[take], owner[take]
+    if metric == "dtw":
+        D = dtw_distance_matrix(sample)
+    else:
+        f = sample.reshape(len(sample), -1)
+        sq = (f * f).sum(1)
+        D = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2 * f @ f.T, 0.0))
+    D[who[:, None] == who[None, :]] = np.inf
+    nn = D.min(axis=1)
+    return float(np.quantile(nn[np.isfinite(nn)], quantile))
+
+
+def make_voter(params: dict, train_windows: list[np.ndarray], *, seed: int):
+    """A :class:`~mmconcepts.sound.voting.TreeVotingClassifier` with r_max chosen from ``train_windows``."""
+    from ..sound.voting import TreeVotingClassifier
+
+    r_max = choose_r_max(train_windows, metric=params["metric"], quantile=params["r_quantile"], seed=seed)
+    return TreeVotingClassifier(r_max, metric=params["metric"], search=params["search"],
+                                backtrack=params["backtrack"], events=params["events"], random_state=seed)

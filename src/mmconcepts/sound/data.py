@@ -1,0 +1,673 @@
+"""Speech corpora and their loaders (thesis chapter 5, section 6.5.2, Appendix B.1).
+
+Layouts (``/work/shared/reference/formats.md`` in the project docs):
+
+Generic audio layout
+    A folder holding audio files (WAV or FLAC, in it or in sub-folders) and
+    ``labels.csv`` with the header ``file,speaker,labels,transcription``: ``file`` is
+    the path relative to the folder, ``labels`` the utterance's labels separated by
+    ``;`` (may be empty), ``transcription`` optional (the column may be missing or the
+    cell empty). Extra columns are ignored.
+
+    Word timings, optional, live in a sidecar file of this package,
+    ``word_timings.csv``, with the header ``file,word,start,end``: one row per word,
+    ``file`` as in ``labels.csv``, ``start`` and ``end`` in seconds from the start of
+    the file (``0 <= start <= end <= duration``), rows of one file in spoken order. A
+    file with no row has no timings (``Utterance.word_timings is None``). This is the
+    layout :func:`~mmconcepts.sound.synthetic.make_caregiver_corpus` writes; forced
+    aligners' word tables (Montreal Forced Aligner, WebMAUS) convert to it one row per
+    word.
+
+ACORNS Caregiver
+    ``<root>/XML/Speaker-NN/<utterance>.xml`` and ``<root>/WAV/Speaker-NN/<audio>.wav``.
+    Each XML file describes one utterance: ``<audio-file value="...">`` (file name,
+    usually without ``.wav``), the keyword tag(s) (``<vistag>`` in year 1, ``<vistags>``
+    in year 2), the transcription ``<trans>`` and the speaking style ``<style>``. The
+    exact spellings beyond these are not documented here, so the loader is lenient: tag
+    names are matched without regard to case, namespace, ``-`` or ``_`` (``audio-file``,
+    ``audio_file``, ``AudioFile``); a value is read from a ``value`` attribute (any case),
+    else from the element's only attribute, else from its text; a ``vistags`` value holding
+    several tags is split at commas, semicolons, ``|`` and white space. A file without an
+    audio-file or a tag element gets a :class:`~mmconcepts.errors.DataFormatError` that
+    names it and lists the elements it does have.
+
+Both loaders take ``on_error="raise"`` (the first bad file raises a
+:class:`~mmconcepts.errors.DataFormatError` naming it) or ``"skip"`` (bad files are left
+out, listed as ``(file, reason)`` in ``corpus.skipped``, and a :class:`RuntimeWarning`
+says how many).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import os
+import re
+import tempfile
+import warnings
+import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import DataError, DataFormatError, ParameterError
+from .audio import DEFAULT_SR, audio_info, load_audio
+
+__all__ = [
+    "LABELS_FILE",
+    "TIMINGS_FILE",
+    "SkippedFile",
+    "SpeechCorpus",
+    "Utterance",
+    "WordTiming",
+    "load_acorns",
+    "load_generic_audio",
+    "normalize_word",
+    "save_generic_audio",
+]
+
+_LOG = logging.getLogger(__name__)
+
+#: Name of the label table of the generic audio layout.
+LABELS_FILE = "labels.csv"
+
+#: Name of the word-timing sidecar of the generic audio layout (this package's own).
+TIMINGS_FILE = "word_timings.csv"
+
+_AUDIO_EXTENSIONS = (".wav", ".flac")
+_TIME_TOL = 0.02  # s: timings may overrun the file by this much (frame rounding of aligners)
+
+
+class WordTiming(NamedTuple):
+    """One word of an utterance and when it is spoken (seconds from the file's start)."""
+
+    word: str
+    start: float
+    end: float
+
+
+class SkippedFile(NamedTuple):
+    """A file that ``on_error="skip"`` left out, and why."""
+
+    file: str
+    reason: str
+
+
+def normalize_word(word: str) -> str:
+    """Lower-case a word and strip the punctuation around it (``"Mummy,"`` -> ``"mummy"``)."""
+    return re.sub(r"^[^\w']+|[^\w']+$", "", word.strip().lower()).strip("'")
+
+
+@dataclass(frozen=True)
+class Utterance:
+    """One recorded utterance.
+
+    Parameters
+    ----------
+    path : Path
+        Audio file.
+    speaker : str
+        Speaker id (``"01"`` for ACORNS ``Speaker-01``).
+    labels : tuple of str
+        Semantic tags (the keyword(s) for Caregiver).
+    transcription : str
+        What is said ("" when unknown).
+    word_timings : tuple of WordTiming, optional
+        ``(word, start_s, end_s)`` of each word, None when unknown.
+    duration : float, optional
+        Length in seconds, from the file header (None if not read).
+    source : str
+        File the record came from (``labels.csv`` row or XML file; used in messages).
+    meta : dict
+        Anything else the format holds (ACORNS ``style``, ...).
+    """
+
+    path: Path
+    speaker: str
+    labels: tuple[str, ...] = ()
+    transcription: str = ""
+    word_timings: tuple[WordTiming, ...] | None = None
+    duration: float | None = None
+    source: str = ""
+    meta: dict = field(default_factory=dict, compare=False, hash=False)
+
+    def keyword_span(self, keyword: str | None = None) -> tuple[float, float] | None:
+        """Start and end (s) of the first word equal to ``keyword`` (default: the first label).
+
+        Words and keywords are compared with :func:`normalize_word`. None if there are no
+        timings or the word is not found.
+        """
+        if keyword is None:
+            if not self.labels:
+                return None
+            keyword = self.labels[0]
+        if not self.word_timings:
+            return None
+        key = normalize_word(keyword)
+        for w in self.word_timings:
+            if normalize_word(w.word) == key:
+                return (w.start, w.end)
+        return None
+
+
+@dataclass(eq=False)
+class SpeechCorpus:
+    """A list of :class:`Utterance` (audio paths, speakers, labels, transcriptions, timings).
+
+    Parameters
+    ----------
+    utterances : list of Utterance
+    name : str
+    root : Path, optional
+        Folder the corpus was read from.
+    skipped : list of SkippedFile
+        Files ``on_error="skip"`` left out (empty otherwise).
+
+    Examples
+    --------
+    >>> corpus = load_generic_audio("my_corpus")                     # doctest: +SKIP
+    >>> y = corpus.load(0)                                           # doctest: +SKIP
+    >>> Y = corpus.label_matrix()           # (n_utterances, n_keywords), 0/1  # doctest: +SKIP
+    >>> first = corpus.subset(corpus.speaker_ids == corpus.speakers[0])  # doctest: +SKIP
+    """
+
+    utterances: list[Utterance]
+    name: str = ""
+    root: Path | None = None
+    skipped: list[SkippedFile] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.utterances)
+
+    def __getitem__(self, i: int) -> Utterance:
+        return self.utterances[i]
+
+    def __iter__(self) -> Iterator[Utterance]:
+        return iter(self.utterances)
+
+    def __repr__(self) -> str:
+        return (f"SpeechCorpus(name={self.name!r}, n_utterances={len(self)}, speakers={list(self.speakers)}, "
+                f"keywords={list(self.keywords)}, skipped={len(self.skipped)})")
+
+    # ----------------------------------------------------------------- views
+    @property
+    def keywords(self) -> tuple[str, ...]:
+        """Sorted set of all labels."""
+        return tuple(sorted({l for u in self.utterances for l in u.labels}))
+
+    @property
+    def speakers(self) -> tuple[str, ...]:
+        """Sorted set of speaker ids."""
+        return tuple(sorted({u.speaker for u in self.utterances}))
+
+    @property
+    def speaker_ids(self) -> np.ndarray:
+        """Speaker of each utterance, shape (n_utterances,), for masks (``ids == "01"``)."""
+        return np.array([u.speaker for u in self.utterances], dtype=object)
+
+    @property
+    def labels(self) -> list[tuple[str, ...]]:
+        """Labels of each utterance."""
+        return [u.labels for u in self.utterances]
+
+    @property
+    def transcriptions(self) -> list[str]:
+        """Transcription of each utterance."""
+        return [u.transcription for u in self.utterances]
+
+    @property
+    def paths(self) -> list[Path]:
+        """Audio file of each utterance."""
+        return [u.path for u in self.utterances]
+
+    def label_matrix(self, keywords: Sequence[str] | None = None) -> np.ndarray:
+        """Binary label matrix, shape (n_utterances, n_keywords).
+
+        Column j is ``keywords[j]`` (default :attr:`keywords`). Labels not among
+        ``keywords`` are ignored (so a subset of the keywords can be asked for).
+        """
+        kw = list(self.keywords if keywords is None else keywords)
+        if len(set(kw)) != len(kw):
+            raise ParameterError(f"keywords must not repeat; got {kw}.")
+        col = {k: j for j, k in enumerate(kw)}
+        Y = np.zeros((len(self.utterances), len(kw)))
+        for i, u in enumerate(self.utterances):
+            for l in u.labels:
+                j = col.get(l)
+                if j is not None:
+                    Y[i, j] = 1.0
+        return Y
+
+    def keyword_spans(self, keyword: str | None = None) -> np.ndarray:
+        """Start and end (s) of each utterance's keyword, shape (n_utterances, 2).
+
+        ``keyword=None`` takes each utterance's first label; NaN where the utterance has no
+        timings or does not contain the word (see :meth:`Utterance.keyword_span`). Chapter
+        6's sliding windows (Thesis section 6.6.2) use it to place the keyword in time.
+        """
+        out = np.full((len(self.utterances), 2), np.nan)
+        for i, u in enumerate(self.utterances):
+            span = u.keyword_span(keyword)
+            if span is not None:
+                out[i] = span
+        return out
+
+    # ----------------------------------------------------------------- access
+    def load(self, i: int, *, sr: int | None = DEFAULT_SR) -> np.ndarray:
+        """Samples of utterance ``i`` (float32, mono, resampled to ``sr``; see :func:`load_audio`)."""
+        u = self.utterances[i]
+        return load_audio(u.path, sr=sr, min_duration=0.0)
+
+    def subset(self, indices_or_mask: Iterable[int] | np.ndarray) -> SpeechCorpus:
+        """A corpus holding the utterances at the given indices, or where a boolean mask is True."""
+        idx = np.asarray(list(indices_or_mask) if not isinstance(indices_or_mask, np.ndarray) else indices_or_mask)
+        n = len(self.utterances)
+        if idx.dtype == bool:
+            if idx.shape != (n,):
+                raise ParameterError(f"A boolean mask must have shape ({n},); got {idx.shape}.")
+            idx = np.flatnonzero(idx)
+        elif idx.size == 0:
+            idx = idx.astype(int)
+        elif not np.issubdtype(idx.dtype, np.integer):
+            raise ParameterError(f"subset takes integer indices or a boolean mask; got dtype {idx.dtype}.")
+        if idx.size and (idx.min() < -n or idx.max() >= n):
+            raise ParameterError(f"Indices must be in [-{n}, {n}); got min {idx.min()}, max {idx.max()}.")
+        return SpeechCorpus([self.utterances[int(i)] for i in idx.ravel()], self.name, self.root, [])
+
+    def by_speaker(self, speaker: str) -> SpeechCorpus:
+        """The utterances of one speaker."""
+        if speaker not in self.speakers:
+            raise ParameterError(f"Unknown speaker {speaker!r}; the corpus has {list(self.speakers)}.")
+        return self.subset(self.speaker_ids == speaker)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _check_on_error(on_error: str) -> None:
+    if on_error not in ("raise", "skip"):
+        raise ParameterError(f"on_error must be 'raise' or 'skip'; got {on_error!r}.")
+
+
+def _report_skipped(skipped: list[SkippedFile], what: str) -> None:
+    if not skipped:
+        return
+    for s in skipped:
+        _LOG.info("skipped %s: %s", s.file, s.reason)
+    msg = (f"{len(skipped)} file(s) of {what} could not be read and were skipped (see corpus.skipped); "
+           f"first: {skipped[0].reason}")
+    _LOG.warning(msg)
+    warnings.warn(msg, RuntimeWarning, stacklevel=3)
+
+
+def _audio_duration(path: Path) -> float:
+    """Duration from the header; DataFormatError for missing/corrupt/empty files."""
+    try:
+        sr, n, _ = audio_info(path)
+    except FileNotFoundError as exc:
+        raise DataFormatError(f"Audio file {path} not found.") from exc
+    if n == 0:
+        raise DataFormatError(f"Audio file {path} is empty: it holds no samples.")
+    return n / sr
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as f:
+            reader = csv.DictReader(f)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            reader.fieldnames = header
+            rows = [(reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None})
+                    for row in reader]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
+    return header, rows
+
+
+# --------------------------------------------------------------------------- generic layout
+
+
+def load_generic_audio(
+    root: str | os.PathLike[str],
+    *,
+    on_error: str = "raise",
+    check_audio: bool = True,
+    name: str | None = None,
+) -> SpeechCorpus:
+    """Load a folder in the generic audio layout (``labels.csv`` + audio + optional timings).
+
+    See the module docstring for the layout, including the ``word_timings.csv`` sidecar.
+
+    Parameters
+    ----------
+    root : path-like
+        The folder holding ``labels.csv``.
+    on_error : {"raise", "skip"}
+        ``"raise"``: a bad row, a missing or unreadable audio file, or bad timings raise
+        :class:`DataFormatError` naming the file. ``"skip"``: those utterances are left
+        out and listed in ``corpus.skipped``; a :class:`RuntimeWarning` says how many.
+    check_audio : bool, default=True
+        Open each audio file's header (finds missing, empty and corrupt files at load
+        time, and gives ``Utterance.duration``). False only checks that the file exists.
+    name : str, optional
+        Corpus name (default: the folder's name).
+
+    Returns
+    -------
+    SpeechCorpus
+        Utterances in the order of ``labels.csv``.
+    """
+    _check_on_error(on_error)
+    root = Path(root)
+    labels_path = root / LABELS_FILE
+    if not root.is_dir():
+        raise FileNotFoundError(f"Corpus folder not found: {root}")
+    if not labels_path.exists():
+        raise DataFormatError(
+            f"{root} has no {LABELS_FILE}; the generic audio layout needs one with columns "
+            "file,speaker,labels,transcription."
+        )
+    header, rows = _read_csv(labels_path)
+    missing = [c for c in ("file", "speaker", "labels") if c not in header]
+    if missing:
+        raise DataFormatError(
+            f"{labels_path}: missing column(s) {missing}; the header must be file,speaker,labels,transcription "
+            f"(transcription optional); found {header}."
+        )
+    timings, timing_errors = _read_timings(root)
+    skipped: list[SkippedFile] = []
+    utts: list[Utterance] = []
+    seen: set[str] = set()
+    for line, row in rows:
+        where = f"{labels_path}, line {line}"
+        try:
+            rel = row.get("file", "")
+            if not rel:
+                raise DataFormatError(f"{where}: empty 'file' cell.")
+            path = root / rel
+            if path.suffix.lower() not in _AUDIO_EXTENSIONS:
+                raise DataFormatError(f"{where}: {rel!r} is not a .wav or .flac file.")
+            if check_audio:
+                duration = _audio_duration(path)
+            else:
+                if not path.is_file():
+                    raise DataFormatError(f"Audio file {path} not found ({where}).")
+                duration = None
+            labels = tuple(l.strip() for l in row.get("labels", "").split(";") if l.strip())
+            key = Path(rel).as_posix()
+            if key in timing_errors:
+                raise DataFormatError(timing_errors[key])
+            wt = timings.get(key)
+            if wt is not None and duration is not None and wt[-1].end > duration + _TIME_TOL:
+                raise DataFormatError(
+                    f"{root / TIMINGS_FILE}: timings of {rel!r} end at {wt[-1].end:.3f} s, after the end of the "
+                    f"audio ({duration:.3f} s)."
+                )
+            seen.add(key)
+            utts.append(Utterance(path=path, speaker=row.get("speaker", ""), labels=labels,
+                                  transcription=row.get("transcription", ""), word_timings=wt,
+                                  duration=duration, source=where))
+        except DataFormatError as exc:
+            if on_error == "raise":
+                raise
+            skipped.append(SkippedFile(str(root / row.get("file", "")), str(exc)))
+    listed = {Path(r.get("file", "")).as_posix() for _, r in rows}
+    orphans = sorted(set(timings) - listed)
+    if orphans:
+        msg = (f"{root / TIMINGS_FILE}: timings for {len(orphans)} file(s) not listed in {LABELS_FILE} "
+               f"(first: {orphans[0]!r}).")
+        if on_error == "raise":
+            raise DataFormatError(msg)
+        skipped.append(SkippedFile(str(root / TIMINGS_FILE), msg))
+    _report_skipped(skipped, str(root))
+    return SpeechCorpus(utts, name if name is not None else root.name, root, skipped)
+
+
+def _read_timings(root: Path) -> tuple[dict[str, tuple[WordTiming, ...]], dict[str, str]]:
+    """Parse ``word_timings.csv``: per-file timings, and per-file error messages."""
+    path = root / TIMINGS_FILE
+    if not path.exists():
+        return {}, {}
+    header, rows = _read_csv(path)
+    missing = [c for c in ("file", "word", "start", "end") if c not in header]
+    if missing:
+        raise DataFormatError(f"{path}: missing column(s) {missing}; the header must be file,word,start,end.")
+    out: dict[str, list[WordTiming]] = {}
+    errors: dict[str, str] = {}
+    for line, row in rows:
+        key = Path(row["file"]).as_posix()
+        try:
+            start, end = float(row["start"]), float(row["end"])
+        except ValueError:
+            errors.setdefault(key, f"{path}, line {line}: start/end must be numbers; got {row['start']!r}, "
+                                   f"{row['end']!r}.")
+            continue
+        if not (np.isfinite(start) and np.isfinite(end)) or start < 0 or end < start:
+            errors.setdefault(key, f"{path}, line {line}: need 0 <= start <= end; got start={start}, end={end}.")
+            continue
+        prev = out.get(key)
+        if prev and start < prev[-1].start:
+            errors.setdefault(key, f"{path}, line {line}: words of {row['file']!r} are not in time order.")
+            continue
+        out.setdefault(key, []).append(WordTiming(row["word"], start, end))
+    return {k: tuple(v) for k, v in out.items()}, errors
+
+
+def save_generic_audio(corpus: SpeechCorpus | Sequence[Utterance], root: str | os.PathLike[str]) -> Path:
+    """Write ``labels.csv`` (and ``word_timings.csv`` when any utterance has timings) for utterances
+    whose audio files already lie under ``root``.
+
+    File names are written relative to ``root``. Each table is written atomically.
+    Returns the path of ``labels.csv``.
+
+    Raises
+    ------
+    DataError
+        If an audio file is not inside ``root``, or a label holds ``;``.
+    """
+    root = Path(root)
+    utts = list(corpus)
+    rows, trows = [], []
+    for u in utts:
+        try:
+            rel = Path(u.path).resolve().relative_to(root.resolve()).as_posix()
+        except ValueError as exc:
+            raise DataError(f"Audio file {u.path} is not inside {root}; copy it there first.") from exc
+        if any(";" in l for l in u.labels):
+            raise DataError(f"Labels of {u.path} contain ';', the label separator: {u.labels}.")
+        rows.append([rel, u.speaker, ";".join(u.labels), u.transcription])
+        for w in u.word_timings or ():
+            trows.append([rel, w.word, f"{w.start:.4f}", f"{w.end:.4f}"])
+    _write_csv(root / LABELS_FILE, ["file", "speaker", "labels", "transcription"], rows)
+    if trows:
+        _write_csv(root / TIMINGS_FILE, ["file", "word", "start", "end"], trows)
+    return root / LABELS_FILE
+
+
+def _write_csv(path: Path, header: list[str], rows: list[list[str]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(header)
+            w.writerows(rows)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+# --------------------------------------------------------------------------- ACORNS
+
+
+def _local(tag: object) -> str:
+    """Canonical element name: no namespace, lower case, no '-'/'_'."""
+    if not isinstance(tag, str):  # comments, processing instructions
+        return ""
+    return re.sub(r"[-_\s]", "", tag.rsplit("}", 1)[-1].lower())
+
+
+def _value(el: ET.Element) -> str:
+    attrs = {_local(k): v for k, v in el.attrib.items()}
+    for k in ("value", "val", "name"):
+        if k in attrs:
+            return attrs[k].strip()
+    if len(el.attrib) == 1:
+        return next(iter(el.attrib.values())).strip()
+    return "".join(el.itertext()).strip()
+
+
+_SPEAKER_RE = re.compile(r"speaker[-_ ]?(\w+)$", re.IGNORECASE)
+
+
+def load_acorns(
+    root: str | os.PathLike[str],
+    *,
+    speakers: Iterable[str] | None = None,
+    on_error: str = "raise",
+    check_audio: bool = True,
+) -> SpeechCorpus:
+    """Load the ACORNS Caregiver corpus (Thesis Appendix B.1; years 1 and 2).
+
+    Parameters
+    ----------
+    root : path-like
+        The folder holding ``XML/`` and ``WAV/``.
+    speakers : iterable of str, optional
+        Keep only these speaker ids (``"01"`` is ``Speaker-01``; ``"1"`` matches it too).
+    on_error : {"raise", "skip"}
+        ``"raise"``: an unreadable or unknown XML file, or a missing/corrupt audio file,
+        raises :class:`DataFormatError` naming the file. ``"skip"``: such utterances are
+        left out and listed in ``corpus.skipped``; a :class:`RuntimeWarning` says how many.
+    check_audio : bool, default=True
+        Open each audio file's header (see :func:`load_generic_audio`).
+
+    Returns
+    -------
+    SpeechCorpus
+        One utterance per XML file (or per ``<utterance>`` element), in speaker then file
+        name order; labels are the ``vistag``/``vistags`` values, ``meta`` holds ``style``
+        and the XML file. ACORNS has no word timings.
+    """
+    _check_on_error(on_error)
+    root = Path(root)
+    xml_root, wav_root = _child_dir(root, "XML"), _child_dir(root, "WAV")
+    if xml_root is None:
+        raise DataFormatError(f"{root} has no XML/ folder; the ACORNS layout is <root>/XML/Speaker-NN/*.xml.")
+    if wav_root is None:
+        raise DataFormatError(f"{root} has no WAV/ folder; the ACORNS layout is <root>/WAV/Speaker-NN/*.wav.")
+    want = None if speakers is None else {str(s).lstrip("0") or "0" for s in speakers}
+    spk_dirs = []
+    for d in sorted(p for p in xml_root.iterdir() if p.is_dir()):
+        m = _SPEAKER_RE.search(d.name)
+        sid = m.group(1) if m else d.name
+        if want is not None and (sid.lstrip("0") or "0") not in want:
+            continue
+        spk_dirs.append((sid, d))
+    if not spk_dirs:
+        raise DataFormatError(f"{xml_root} holds no Speaker-NN folder" + ("" if want is None else f" for {sorted(want)}")
+                              + ".")
+    wav_index = _index_audio(wav_root)
+    utts: list[Utterance] = []
+    skipped: list[SkippedFile] = []
+    for sid, d in spk_dirs:
+        wav_dir = _child_dir(wav_root, d.name)
+        for xml_path in sorted(p for p in d.iterdir() if p.suffix.lower() == ".xml"):
+            try:
+                for rec in _parse_acorns_xml(xml_path):
+                    path = _find_wav(rec["audio"], wav_dir, wav_index, xml_path)
+                    duration = _audio_duration(path) if check_audio else None
+                    utts.append(Utterance(path=path, speaker=sid, labels=rec["labels"],
+                                          transcription=rec["trans"], duration=duration, source=str(xml_path),
+                                          meta={"style": rec["style"], "xml": str(xml_path)}))
+            except DataFormatError as exc:
+                if on_error == "raise":
+                    raise
+                skipped.append(SkippedFile(str(xml_path), str(exc)))
+    _report_skipped(skipped, str(root))
+    return SpeechCorpus(utts, "acorns-caregiver", root, skipped)
+
+
+def _child_dir(parent: Path, name: str) -> Path | None:
+    p = parent / name
+    if p.is_dir():
+        return p
+    if parent.is_dir():
+        for c in parent.iterdir():
+            if c.is_dir() and c.name.lower() == name.lower():
+                return c
+    return None
+
+
+def _index_audio(wav_root: Path) -> dict[str, list[Path]]:
+    index: dict[str, list[Path]] = {}
+    for p in sorted(wav_root.rglob("*")):
+        if p.suffix.lower() in _AUDIO_EXTENSIONS and p.is_file():
+            index.setdefault(p.stem.lower(), []).append(p)
+    return index
+
+
+def _find_wav(name: str, wav_dir: Path | None, index: dict[str, list[Path]], xml_path: Path) -> Path:
+    base = Path(name.replace("\\", "/")).name
+    stem = Path(base).stem if Path(base).suffix.lower() in _AUDIO_EXTENSIONS else base
+    if wav_dir is not None:
+        for cand in (wav_dir / base, wav_dir / f"{stem}.wav", wav_dir / f"{stem}.WAV"):
+            if cand.is_file():
+                return cand
+    hits = index.get(stem.lower(), [])
+    if wav_dir is not None:  # prefer the speaker's own folder
+        own = [h for h in hits if h.parent == wav_dir]
+        hits = own or hits
+    if len(hits) == 1:
+        return hits[0]
+    if len(hits) > 1:
+        raise DataFormatError(f"{xml_path}: audio file {name!r} is ambiguous: {[str(h) for h in hits]}.")
+    raise DataFormatError(
+        f"{xml_path}: audio file {name!r} not found (looked in {wav_dir or 'WAV/'} and below the WAV folder)."
+    )
+
+
+def _parse_acorns_xml(path: Path) -> list[dict]:
+    try:
+        tree = ET.parse(path)
+    except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
+        raise DataFormatError(f"Cannot parse {path}: not well-formed XML ({exc}).") from exc
+    doc = tree.getroot()
+    units = [e for e in doc.iter() if _local(e.tag) == "utterance"] or [doc]
+    records = []
+    for unit in units:
+        found: dict[str, list[ET.Element]] = {}
+        for e in unit.iter():
+            found.setdefault(_local(e.tag), []).append(e)
+        audio = found.get("audiofile") or found.get("audio") or found.get("wav") or found.get("wavfile")
+        tags = (found.get("vistag") or []) + (found.get("vistags") or [])
+        if not audio or not tags:
+            what = [w for w, ok in (("<audio-file>", bool(audio)), ("<vistag>/<vistags>", bool(tags))) if not ok]
+            elements = sorted({e.tag for e in unit.iter() if isinstance(e.tag, str)})
+            raise DataFormatError(
+                f"{path}: unknown ACORNS structure: no {' and no '.join(what)} element; the file has elements "
+                f"{elements}."
+            )
+        if len(audio) > 1:
+            raise DataFormatError(f"{path}: {len(audio)} <audio-file> elements in one utterance.")
+        audio_name = _value(audio[0])
+        if not audio_name:
+            raise DataFormatError(f"{path}: empty <audio-file> value.")
+        labels: list[str] = []
+        for t in tags:
+            for l in re.split(r"[,;|\s]+", _value(t)):
+                if l and l not in labels:
+                    labels.append(l)
+        if not labels:
+            raise DataFormatError(f"{path}: empty keyword tag (<vistag>/<vistags>).")
+        trans = " ".join(_value(t) for t in found.get("trans", []) + found.get("transcription", [])).strip()
+        style = " ".join(_value(t) for t in found.get("style", [])).strip()
+        records.append({"audio": audio_name, "labels": tuple(labels), "trans": trans, "style": style})
+    return records

@@ -1,0 +1,278 @@
+"""Bags of acoustic events and TF-IDF voting (Thesis section 5.2.3, eq. 5.1).
+
+Training counts ``n_{i,t}``, the number of training utterances tagged ``t`` whose bag
+contains the acoustic event ``i``, and ``n_t``, the number of utterances tagged ``t``.
+With ``f_i^t = n_{i,t} / n_t`` and the weights
+
+.. math:: w_i = \\log \\frac{N_{tags}}{N^{(i)}_{tags}}                    \\qquad (5.1)
+
+(``N^{(i)}_{tags}``: the number of tags whose examples contain ``i`` at least once), an
+event appearing ``q_i`` times in a query utterance votes ``V_i = q_i f_i^t w_i`` for tag
+``t``; the utterance gets the tag with the largest summed vote.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Sequence
+
+import numpy as np
+
+from ..errors import DataError, ParameterError
+
+__all__ = ["EventVoting"]
+
+_WEIGHTINGS = ("tfidf", "uniform")
+
+
+class EventVoting:
+    """Incremental tag voting over bags of discrete acoustic events (Thesis 5.2.3).
+
+    Parameters
+    ----------
+    weighting : {"tfidf", "uniform"}, default="tfidf"
+        ``"tfidf"``: the weights of eq. (5.1); ``"uniform"``: ``w_i = 1``.
+
+    Attributes
+    ----------
+    classes_ : list
+        Tags in order of first appearance.
+    counts_ : ndarray of shape (n_events, n_tags)
+        ``n_{i,t}`` (events seen in training, indexed by their id).
+    tag_counts_ : ndarray of shape (n_tags,)
+        ``n_t``.
+    """
+
+    def __init__(self, *, weighting: str = "tfidf") -> None:
+        self.weighting = weighting
+
+    def _init(self) -> None:
+        if self.weighting not in _WEIGHTINGS:
+            raise ParameterError(f"weighting must be one of {_WEIGHTINGS}; got {self.weighting!r}.")
+        self.classes_: list[Hashable] = []
+        self._index: dict[Hashable, int] = {}
+        self.counts_ = np.zeros((0, 0), dtype=np.int64)
+        self.tag_counts_ = np.zeros(0, dtype=np.int64)
+
+    @staticmethod
+    def _check_bag(bag, i: int) -> np.ndarray:
+        b = np.asarray(bag)
+        if b.ndim != 1 or (b.size and not np.issubdtype(b.dtype, np.integer)):
+            raise DataError(f"bag {i} must be a 1-D array of integer event ids; got {b.dtype} shape {b.shape}.")
+        b = b.astype(np.int64, copy=False)
+        if b.size and b.min() < 0:
+            raise DataError(f"bag {i} contains a negative event id ({b.min()}).")
+        return b
+
+    def _grow(self, n_events: int, n_tags: int) -> None:
+        r, c = self.counts_.shape
+        if n_events > r or n_tags > c:
+            new = np.zeros((max(n_events, 2 * r if n_events > r else r), max(n_tags, c)), dtype=np.int64)
+            new[:r, :c] = self.counts_
+            self.counts_ = new
+            t = np.zeros(new.shape[1], dtype=np.int64)
+            t[: self.tag_counts_.size] = self.tag_counts_
+            self.tag_counts_ = t
+
+    def partial_fit(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
+        """Add training utterances: ``bags[j]`` (event ids, repeats allowed) with ``tags[j]``.
+
+        A tag is any hashable; a tuple, list or set of tags marks an utterance with several.
+        """
+        if not hasattr(self, "classes_"):
+            self._init()
+        if len(bags) != len(tags):
+            raise DataError(f"got {len(bags)} bags but {len(tags)} tag entries.")
+        for j, (bag, tag) in enumerate(zip(bags, tags)):
+            b = self._check_bag(bag, j)
+            tag_set = tag if isinstance(tag, (tuple, list, set, frozenset)) else (tag,)
+            cols = []
+            for t in tag_set:
+                if t not in self._index:
+                    self._index[t] = len(self.classes_)
+                    self.classes_.append(t)
+                cols.append(self._index[t])
+            present = np.unique(b)
+            self._grow(int(present.max()) + 1 if present.size else 0, len(self.classes_))
+            for c in cols:
+                self.counts_[present, c] += 1
+                self.tag_counts_[c] += 1
+        return self
+
+    def fit(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
+        """Forget everything, then :meth:`partial_fit`."""
+        self._init()
+        return self.partial_fit(bags, tags)
+
+    def weights(self) -> np.ndarray:
+        """The event weights ``w_i`` (eq. 5.1), shape (n_events,)."""
+        self._check_fitted()
+        n_tags = len(self.classes_)
+        counts = self.counts_[:, :n_tags]
+        if self.weighting == "uniform":
+            return np.ones(counts.shape[0])
+        n_tags_with = (counts > 0).sum(axis=1)
+        with np.errstate(divide="ignore"):
+            return np.where(n_tags_with > 0, np.log(n_tags / np.maximum(n_tags_with, 1)), 0.0)
+
+    def _check_fitted(self) -> None:
+        if not getattr(self, "classes_", None):
+            raise DataError("EventVoting has not seen any training utterance yet; call partial_fit first.")
+
+    def decision_function(self, bags: Sequence[np.ndarray]) -> np.ndarray:
+        """Summed votes ``sum_i q_i f_i^t w_i``, shape (n_utterances, n_tags)."""
+        self._check_fitted()
+        n_tags = len(self.classes_)
+        freq = self.counts_[:, :n_tags] / np.maximum(self.tag_counts_[:n_tags], 1)
+        table = freq * self.weights()[:, None]
+        n_events = table.shape[0]
+        out = np.zeros((len(bags), n_tags))
+        for j, bag in enumerate(bags):
+            b = self._check_bag(bag, j)
+            b = b[b < n_events]  # events never seen in training have no votes
+            if b.size:
+                q = np.bincount(b, minlength=n_events)
+                nz = np.flatnonzero(q)
+                out[j] = q[nz] @ table[nz]
+        return out
+
+    def predict(self, bags: Sequence[np.ndarray]) -> list:
+        """The tag with the largest vote for each utterance (ties: first-seen tag)."""
+        scores = self.decision_function(bags)
+        return [self.classes_[k] for k in scores.argmax(axis=1)]
+
+    def score(self, bags: Sequence[np.ndarray], tags: Sequence) -> float:
+        """Accuracy: the predicted tag is (one of) the utterance's tag(s)."""
+        pred = self.predict(bags)
+        ok = [
+            p in t if isinstance(t, (tuple, list, set, frozenset)) else p == t
+            for p, t in zip(pred, tags)
+        ]
+        return float(np.mean(ok)) if ok else float("nan")
+
+
+class TreeVotingClassifier:
+    """The keyword recogniser of Thesis section 5.2.3: cluster tree + TF-IDF voting.
+
+    Each utterance is a set of fixed-length MFCC windows (the local descriptors,
+    :func:`~mmconcepts.sound.features.mfcc_windows`). Training inserts every window into
+    an incremental :class:`~mmconcepts.sound.tree.ClusterTree` (Algorithm 1: unsupervised,
+    the tags are not used) and counts, for the utterance's tag(s), the acoustic events
+    its windows fall in (:class:`EventVoting`). A new utterance's windows are retrieved in
+    the tree (no insertion) and the events vote (eq. 5.1). Training is incremental
+    (:meth:`partial_fit`), as in the protocol of Fig. 5.3 and 5.4.
+
+    Parameters
+    ----------
+    r_max : float
+        Radius of the primitive clusters (leaves), in the metric's units.
+    n_max : int, optional
+        Maximum number of children of a node (the tree's default when None).
+    k : int, optional
+        k-means parameter of node splits (the tree's default when None).
+    metric : {"dtw", "euclidean"} or callable, default="dtw"
+        Distance between windows (the thesis uses DTW).
+    search : str, default="restart"
+        Tree search used for insertion and retrieval (the thesis' second backtracking
+        search by default).
+    backtrack : int, optional
+        Backtracking parameter b of the search.
+    events : {"leaves", "nodes"}, default="leaves"
+        Acoustic events: the leaves only, or every node on the path from the root to the
+        leaf (hierarchical, multi-scale events).
+    weighting : {"tfidf", "uniform"}, default="tfidf"
+        Weights of eq. (5.1) or uniform weights.
+    random_state : int, Generator or None
+        Seeds the tree's k-means splits.
+
+    Attributes
+    ----------
+    tree_ : ClusterTree
+    voting_ : EventVoting
+    """
+
+    def __init__(self, r_max: float, *, n_max: int | None = None, k: int | None = None, metric="dtw",
+                 search: str = "restart", backtrack: int | None = None, events: str = "leaves",
+                 weighting: str = "tfidf", random_state=None) -> None:
+        self.r_max = r_max
+        self.n_max = n_max
+        self.k = k
+        self.metric = metric
+        self.search = search
+        self.backtrack = backtrack
+        self.events = events
+        self.weighting = weighting
+        self.random_state = random_state
+
+    def _init(self) -> None:
+        from .tree import ClusterTree
+
+        if self.events not in ("leaves", "nodes"):
+            raise ParameterError(f"events must be 'leaves' or 'nodes'; got {self.events!r}.")
+        kw = {name: getattr(self, name) for name in ("n_max", "k", "backtrack") if getattr(self, name) is not None}
+        self.tree_ = ClusterTree(self.r_max, metric=self.metric, search=self.search,
+                                 random_state=self.random_state, **kw)
+        self.voting_ = EventVoting(weighting=self.weighting)
+
+    def _bag(self, leaves: np.ndarray) -> np.ndarray:
+        leaves = np.asarray(leaves, dtype=np.int64)
+        if self.events == "leaves":
+            return leaves
+        # all nodes: the node ids on the path from the root to each leaf (leaf's node included)
+        if leaves.size == 0:
+            return leaves
+        return np.concatenate([np.asarray(self.tree_.ancestors(int(l)), dtype=np.int64) for l in leaves])
+
+    @staticmethod
+    def _check(utterances, tags=None) -> list[np.ndarray]:
+        utts = [np.asarray(u, dtype=np.float64) for u in utterances]
+        for i, u in enumerate(utts):
+            if u.ndim < 2:
+                raise DataError(f"utterance {i}: expected an array of windows (n_windows, ...); got shape {u.shape}.")
+        if tags is not None and len(tags) != len(utts):
+            raise DataError(f"got {len(utts)} utterances but {len(tags)} tags.")
+        return utts
+
+    def partial_fit(self, utterances, tags) -> TreeVotingClassifier:
+        """Insert the windows of each utterance into the tree, then count its events for its tag(s)."""
+        if not hasattr(self, "tree_"):
+            self._init()
+        utts = self._check(utterances, tags)
+        bags = []
+        for u in utts:
+            if len(u):
+                self.tree_.partial_fit(u)
+                bags.append(self._bag(self.tree_.labels_.copy()))
+            else:
+                bags.append(np.zeros(0, np.int64))
+        self.voting_.partial_fit(bags, list(tags))
+        return self
+
+    def fit(self, utterances, tags) -> TreeVotingClassifier:
+        self._init()
+        return self.partial_fit(utterances, tags)
+
+    def bags(self, utterances) -> list[np.ndarray]:
+        """The bag of acoustic events of each utterance (retrieval only)."""
+        if not hasattr(self, "tree_"):
+            raise DataError("TreeVotingClassifier is not fitted yet; call fit or partial_fit first.")
+        utts = self._check(utterances)
+        return [self._bag(self.tree_.predict(u)) if len(u) else np.zeros(0, np.int64) for u in utts]
+
+    def decision_function(self, utterances) -> np.ndarray:
+        """Summed votes per tag, shape (n_utterances, n_tags) (order of ``classes_``)."""
+        bags = self.bags(utterances)
+        return self.voting_.decision_function(bags)
+
+    @property
+    def classes_(self) -> list:
+        return self.voting_.classes_
+
+    def predict(self, utterances) -> list:
+        """The best-voted tag of each utterance."""
+        bags = self.bags(utterances)
+        return self.voting_.predict(bags)
+
+    def score(self, utterances, tags) -> float:
+        """Accuracy of :meth:`predict`."""
+        bags = self.bags(utterances)
+        return self.voting_.score(bags, tags)

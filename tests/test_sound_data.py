@@ -1,0 +1,220 @@
+"""Speech corpora: the generic audio layout and the ACORNS Caregiver loader (mmconcepts.sound.data)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("soundfile", reason="audio I/O needs the 'audio' extra (soundfile)")
+
+from mmconcepts.errors import DataFormatError, ParameterError
+from mmconcepts.sound.audio import write_audio
+from mmconcepts.sound.data import (
+    SpeechCorpus,
+    Utterance,
+    WordTiming,
+    load_acorns,
+    load_generic_audio,
+    save_generic_audio,
+)
+
+SR = 16000
+
+
+def _wav(path, rng, seconds=0.5, sr=SR):
+    return write_audio(path, 0.1 * rng.standard_normal(int(seconds * sr)).clip(-1, 1), sr)
+
+
+@pytest.fixture
+def generic(tmp_path, rng):
+    root = tmp_path / "corpus"
+    _wav(root / "a" / "u1.wav", rng, 0.5)
+    _wav(root / "a" / "u2.wav", rng, 0.8, sr=22050)
+    _wav(root / "b" / "u3.wav", rng, 0.6)
+    _wav(root / "b" / "u4.wav", rng, 0.4)
+    (root / "labels.csv").write_text(
+        "file,speaker,labels,transcription\n"
+        "a/u1.wav,s1,car,Where is the car\n"
+        "a/u2.wav,s1,mummy;bath,Mummy is in the bath\n"
+        "b/u3.wav,s2,book,\n"
+        "b/u4.wav,s2,,\n"
+    )
+    (root / "word_timings.csv").write_text(
+        "file,word,start,end\n"
+        "a/u1.wav,Where,0.00,0.10\na/u1.wav,is,0.10,0.15\na/u1.wav,the,0.15,0.20\na/u1.wav,car,0.20,0.45\n"
+        "a/u2.wav,Mummy,0.05,0.30\na/u2.wav,is,0.30,0.40\na/u2.wav,in,0.40,0.45\na/u2.wav,the,0.45,0.50\n"
+        "a/u2.wav,bath,0.50,0.75\n"
+    )
+    return root
+
+
+def test_generic_layout_loads_labels_timings_and_audio(generic):
+    c = load_generic_audio(generic)
+    assert len(c) == 4 and c.skipped == []
+    assert c.labels == [("car",), ("mummy", "bath"), ("book",), ()]
+    assert c.keywords == ("bath", "book", "car", "mummy")
+    assert c.speakers == ("s1", "s2")
+    assert c.transcriptions[1] == "Mummy is in the bath" and c.transcriptions[2] == ""
+    Y = c.label_matrix()
+    np.testing.assert_array_equal(Y, [[0, 0, 1, 0], [1, 0, 0, 1], [0, 1, 0, 0], [0, 0, 0, 0]])
+    np.testing.assert_array_equal(c.label_matrix(["mummy", "car"]), [[0, 1], [1, 0], [0, 0], [0, 0]])
+    assert c[0].word_timings[-1] == WordTiming("car", 0.20, 0.45)
+    assert c[2].word_timings is None
+    assert c[1].keyword_span() == (0.05, 0.30) and c[1].keyword_span("bath") == (0.50, 0.75)
+    spans = c.keyword_spans()
+    np.testing.assert_allclose(spans[:2], [[0.20, 0.45], [0.05, 0.30]])
+    assert np.isnan(spans[2:]).all()
+    assert c[1].duration == pytest.approx(0.8, abs=1e-3)
+    assert c.load(1).size == pytest.approx(0.8 * SR, abs=2)  # resampled from 22.05 kHz
+    assert c.load(1, sr=None).size == pytest.approx(0.8 * 22050, abs=1)
+
+
+def test_subset_by_mask_and_indices(generic):
+    c = load_generic_audio(generic)
+    s2 = c.subset(c.speaker_ids == "s2")
+    assert [u.path.name for u in s2] == ["u3.wav", "u4.wav"]
+    assert [u.path.name for u in c.subset([2, 0])] == ["u3.wav", "u1.wav"]
+    assert len(c.by_speaker("s1")) == 2
+    with pytest.raises(ParameterError, match="mask"):
+        c.subset(np.array([True, False]))
+    with pytest.raises(ParameterError, match="Unknown speaker"):
+        c.by_speaker("s9")
+
+
+def test_missing_column_raises_naming_labels_csv(tmp_path, rng):
+    _wav(tmp_path / "x.wav", rng)
+    (tmp_path / "labels.csv").write_text("file,labels\nx.wav,car\n")
+    with pytest.raises(DataFormatError, match=r"labels\.csv.*speaker"):
+        load_generic_audio(tmp_path)
+
+
+def test_transcription_column_is_optional(tmp_path, rng):
+    _wav(tmp_path / "x.wav", rng)
+    (tmp_path / "labels.csv").write_text("file,speaker,labels\nx.wav,s,car;shoe\n")
+    c = load_generic_audio(tmp_path)
+    assert c[0].labels == ("car", "shoe") and c[0].transcription == ""
+
+
+def test_skip_mode_reports_bad_files(generic):
+    (generic / "b" / "u3.wav").write_bytes(b"not audio at all")
+    with open(generic / "labels.csv", "a") as f:
+        f.write("b/missing.wav,s2,car,\n")
+    with pytest.raises(DataFormatError, match="u3.wav"):
+        load_generic_audio(generic)
+    with pytest.warns(RuntimeWarning, match="2 file"):
+        c = load_generic_audio(generic, on_error="skip")
+    assert [u.path.name for u in c] == ["u1.wav", "u2.wav", "u4.wav"]
+    skipped = {f.split("/")[-1]: reason for f, reason in c.skipped}
+    assert set(skipped) == {"u3.wav", "missing.wav"}
+    assert "not found" in skipped["missing.wav"]
+    with pytest.raises(ParameterError, match="on_error"):
+        load_generic_audio(generic, on_error="ignore")
+
+
+def test_bad_timings_are_errors(generic):
+    path = generic / "word_timings.csv"
+    path.write_text("file,word,start,end\na/u1.wav,car,0.2,3.0\n")  # beyond the 0.5 s file
+    with pytest.raises(DataFormatError, match="after the end"):
+        load_generic_audio(generic)
+    path.write_text("file,word,start,end\na/u1.wav,car,0.3,0.2\n")
+    with pytest.raises(DataFormatError, match="start <= end"):
+        load_generic_audio(generic)
+    path.write_text("file,word,start,end\nzz.wav,car,0.1,0.2\n")
+    with pytest.raises(DataFormatError, match="not listed"):
+        load_generic_audio(generic)
+    path.write_text("file,word,start,end\na/u1.wav,car,0.3,0.4\na/u1.wav,the,0.1,0.2\n")
+    with pytest.warns(RuntimeWarning):
+        c = load_generic_audio(generic, on_error="skip")
+    assert [u.path.name for u in c] == ["u2.wav", "u3.wav", "u4.wav"]
+
+
+def test_save_generic_audio_round_trip(generic, tmp_path):
+    c = load_generic_audio(generic)
+    (generic / "labels.csv").unlink()
+    (generic / "word_timings.csv").unlink()
+    save_generic_audio(c, generic)
+    d = load_generic_audio(generic)
+    assert d.labels == c.labels and d.transcriptions == c.transcriptions and d.speakers == c.speakers
+    assert d[1].word_timings == c[1].word_timings
+
+
+# --------------------------------------------------------------------------- ACORNS
+
+_Y1 = """<?xml version="1.0" encoding="UTF-8"?>
+<utterance>
+  <style value="ADS"/>
+  <audio-file value="{audio}"/>
+  <vistag value="{tag}"/>
+  <trans value="{trans}"/>
+</utterance>
+"""
+
+# year 2 spelling, with values as element text and other case/underscore spellings
+_Y2 = """<?xml version="1.0"?>
+<Utterance>
+  <Style>IDS</Style>
+  <audio_file>{audio}.wav</audio_file>
+  <vistags value="{tag}"/>
+  <trans>{trans}</trans>
+</Utterance>
+"""
+
+
+@pytest.fixture
+def acorns(tmp_path, rng):
+    root = tmp_path / "acorns"
+    rows = [
+        ("Speaker-01", "s01_001", _Y1, "Angus", "Angus is lazy today"),
+        ("Speaker-01", "s01_002", _Y1, "mummy", "Now mummy is losing her patience"),
+        ("Speaker-02", "s02_001", _Y2, "car", "Now everybody is in the car"),
+        ("Speaker-02", "s02_002", _Y2, "nappy shoe", "She puts the nappy in the shoe"),
+    ]
+    for spk, name, tpl, tag, trans in rows:
+        (root / "XML" / spk).mkdir(parents=True, exist_ok=True)
+        (root / "XML" / spk / f"{name}.xml").write_text(tpl.format(audio=name, tag=tag, trans=trans))
+        _wav(root / "WAV" / spk / f"{name}.wav", rng, 0.3)
+    return root
+
+
+def test_acorns_tree_loads_with_the_right_tags(acorns):
+    c = load_acorns(acorns)
+    assert len(c) == 4 and c.skipped == []
+    assert c.speakers == ("01", "02")
+    assert c.labels == [("Angus",), ("mummy",), ("car",), ("nappy", "shoe")]
+    assert c.transcriptions[1] == "Now mummy is losing her patience"
+    assert c[2].transcription == "Now everybody is in the car"
+    assert [u.meta["style"] for u in c] == ["ADS", "ADS", "IDS", "IDS"]
+    assert c[3].path.name == "s02_002.wav" and c[3].duration == pytest.approx(0.3, abs=1e-3)
+    assert c.label_matrix().shape == (4, 5)
+    assert len(load_acorns(acorns, speakers=["1"])) == 2
+
+
+def test_acorns_unknown_structure_names_the_file(acorns):
+    bad = acorns / "XML" / "Speaker-01" / "s01_003.xml"
+    bad.write_text("<utterance><speaker value='x'/><trans value='hello'/></utterance>")
+    with pytest.raises(DataFormatError, match=r"s01_003\.xml.*unknown ACORNS structure.*vistag"):
+        load_acorns(acorns)
+    broken = acorns / "XML" / "Speaker-02" / "s02_009.xml"
+    broken.write_text("<utterance><audio-file value='s02_009'/>")
+    missing_wav = acorns / "XML" / "Speaker-02" / "s02_010.xml"
+    missing_wav.write_text(_Y1.format(audio="s02_010", tag="car", trans="x"))
+    with pytest.warns(RuntimeWarning, match="3 file"):
+        c = load_acorns(acorns, on_error="skip")
+    assert len(c) == 4
+    reasons = dict(c.skipped)
+    assert "unknown ACORNS structure" in reasons[str(bad)]
+    assert "not well-formed" in reasons[str(broken)]
+    assert "not found" in reasons[str(missing_wav)]
+
+
+def test_acorns_layout_errors(tmp_path):
+    (tmp_path / "XML").mkdir()
+    with pytest.raises(DataFormatError, match="WAV"):
+        load_acorns(tmp_path)
+
+
+def test_corpus_from_utterances(tmp_path, rng):
+    p = _wav(tmp_path / "z.wav", rng)
+    c = SpeechCorpus([Utterance(p, "s", ("a",)), Utterance(p, "t", ("b", "a"))])
+    np.testing.assert_array_equal(c.label_matrix(), [[1, 0], [1, 1]])
+    assert c.speakers == ("s", "t") and len(c.subset(np.array([False, True]))) == 1
