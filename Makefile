@@ -25,6 +25,8 @@ test: $(STAMP)
 ## Speed comparisons against the peer libraries (see benchmarks/README.md)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/nmf.py
+	$(BIN)/python benchmarks/dtw.py
+	$(BIN)/python benchmarks/tree.py
 
 clean:
 	rm -rf $(VENV) $(RESULTS) .pytest_cache
