@@ -64,15 +64,9 @@ def test_choose_r_max_ignores_windows_of_the_same_utterance(rng):
 
 
 # -- the experiments ---------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def tiny_corpus(tmp_path_factory):
-    pytest.importorskip("piper")
-    pytest.importorskip("espeakng_loader")
-    from mmconcepts.sound.synthetic import make_caregiver_corpus
-
-    root = tmp_path_factory.mktemp("speech") / "caregiver"
-    make_caregiver_corpus(root, n_utterances_per_speaker=40, n_speakers=2, random_state=0)
-    return root
+@pytest.fixture
+def tiny_corpus(tiny_speech_corpus):
+    return tiny_speech_corpus
 
 
 def ctx_for(root, tmp_path):

@@ -45,6 +45,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch5_incremental",
     "mmconcepts.experiments.ch5_nmf_keywords",
     "mmconcepts.experiments.ch5_tree",
+    "mmconcepts.experiments.ch6_motion_sound",
 )
 
 __all__ = [

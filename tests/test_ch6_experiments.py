@@ -1,0 +1,37 @@
+"""The chapter 6 motion/sound/label experiments on tiny generated data."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mmconcepts.experiments import RunContext
+
+
+@pytest.mark.slow
+def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
+    from mmconcepts.experiments import _ch6_common as common
+    from mmconcepts.experiments.ch6_motion_sound import Config, run_labels, run_motion_sound, run_symbolic
+
+    ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(Config.quick(), n_motion=60, n_folds=2, k=12, n_iter=30)
+    data = common.load_pairs(ctx, n_per_speaker=40, n_motion=60, seed=0)
+    # pairing by concept: each utterance's motion has the gesture its keyword maps to
+    assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 40
+    assert sorted(data["mapping"].values()) == sorted(set(data["mapping"].values()))  # a bijection
+    res = run_motion_sound(cfg, ctx)
+    res.validate()
+    m = res.metrics
+    keys = [k for k in m if k.count(".") == 2 and not k.endswith("_std") and not k.startswith("shuffled")]
+    assert len(keys) == 18  # 2 directions x 3 spaces x 3 metrics, the keys of Table 6.2
+    assert all(0.0 <= m[k] <= 1.0 for k in keys)
+    assert m["sound2motion.internal.cosine"] > m["shuffled.sound2motion.internal.cosine"]
+    # the other two reuse the cached folds
+    sym = run_symbolic(cfg, ctx).metrics
+    assert sym["without_labels.sound2motion.internal.cosine"] == m["sound2motion.internal.cosine"]
+    lab = run_labels(cfg, ctx).metrics
+    for k in ("sound_labels.s2l", "motion_labels.m2l", "all.s2l", "all.m2l", "all.sm2l"):
+        assert 0.0 <= lab[k] <= 1.0 and np.isfinite(lab[f"{k}_std"])
+    assert lab["motion_labels.m2l"] > 2 * lab["chance"]
