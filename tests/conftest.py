@@ -51,11 +51,11 @@ def toy(registry):
 
 @pytest.fixture(scope="session")
 def tiny_speech_corpus(tmp_path_factory):
-    """A tiny synthetic caregiver corpus (2 speakers x 40 utterances) in the generic audio layout."""
+    """A tiny synthetic caregiver corpus (2 speakers x 50 utterances) in the generic audio layout."""
     pytest.importorskip("piper")
     pytest.importorskip("espeakng_loader")
     from mmconcepts.sound.synthetic import make_caregiver_corpus
 
     root = tmp_path_factory.mktemp("speech") / "caregiver"
-    make_caregiver_corpus(root, n_utterances_per_speaker=40, n_speakers=2, random_state=0)
+    make_caregiver_corpus(root, n_utterances_per_speaker=50, n_speakers=2, random_state=0)
     return root

@@ -96,7 +96,7 @@ def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
     res = run(cfg, ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
-    assert m["n_utterances"] == 40 and m["n_folds"] == 3
+    assert m["n_utterances"] == 50 and m["n_folds"] == 3
     assert m["nmf.accuracy"] > 2 * m["chance.accuracy"]
     assert m["voting.accuracy"] > 2 * m["chance.accuracy"]
 

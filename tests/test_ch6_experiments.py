@@ -17,9 +17,9 @@ def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_motion=60, n_folds=2, k=12, n_iter=30)
-    data = common.load_pairs(ctx, n_per_speaker=40, n_motion=60, seed=0)
+    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=60, seed=0)
     # pairing by concept: each utterance's motion has the gesture its keyword maps to
-    assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 40
+    assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 50
     assert sorted(data["mapping"].values()) == sorted(set(data["mapping"].values()))  # a bijection
     res = run_motion_sound(cfg, ctx)
     res.validate()
@@ -35,3 +35,19 @@ def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
     for k in ("sound_labels.s2l", "motion_labels.m2l", "all.s2l", "all.m2l", "all.sm2l"):
         assert 0.0 <= lab[k] <= 1.0 and np.isfinite(lab[f"{k}_std"])
     assert lab["motion_labels.m2l"] > 2 * lab["chance"]
+
+
+@pytest.mark.slow
+def test_ch6_image_features_small(tiny_speech_corpus, tmp_path):
+    from mmconcepts.experiments.ch6_image_features import SETS, Config, run
+
+    ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(Config.quick(), n_views=6, n_repeats=1, k=12, n_iter=30)
+    res = run(cfg, ctx)
+    res.validate()
+    m = res.metrics
+    for name in SETS:
+        for key in ("i2s", "s2i"):
+            assert 0.0 <= m[f"{name}.{key}"] <= 1.0
+    assert m["best_single.i2s"] == max(m[f"{s}.i2s"] for s in SETS if s != "all")
+    assert m["all.i2s"] > m["chance"]

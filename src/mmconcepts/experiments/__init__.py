@@ -46,6 +46,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch5_nmf_keywords",
     "mmconcepts.experiments.ch5_tree",
     "mmconcepts.experiments.ch6_motion_sound",
+    "mmconcepts.experiments.ch6_image_features",
 )
 
 __all__ = [
