@@ -51,3 +51,29 @@ def test_ch6_image_features_small(tiny_speech_corpus, tmp_path):
             assert 0.0 <= m[f"{name}.{key}"] <= 1.0
     assert m["best_single.i2s"] == max(m[f"{s}.i2s"] for s in SETS if s != "all")
     assert m["all.i2s"] > m["chance"]
+
+
+def test_mutual_information_matrix_by_construction(rng):
+    from mmconcepts.experiments.ch6_concepts import mutual_information_matrix
+
+    y = np.repeat(np.arange(4), 50)
+    W = rng.random((200, 3)) * 0.1
+    W[:, 0] += (y == 2) * 5.0  # coefficient 0 is on exactly for concept 2
+    mi = mutual_information_matrix(y, W, 10)
+    h = -(0.25 * np.log2(0.25) + 0.75 * np.log2(0.75))
+    assert mi[2, 0] == pytest.approx(h, rel=1e-9)  # all of the concept's entropy
+    assert mi[:, 1:].max() < 0.15  # noise coefficients: only estimator bias
+    assert mi.shape == (4, 3) and (mi >= 0).all()
+
+
+@pytest.mark.slow
+def test_ch6_concepts_small(tiny_speech_corpus, tmp_path):
+    from mmconcepts.experiments.ch6_concepts import Config, run
+
+    ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
+    res = run(dataclasses.replace(Config.quick(), n_motion=60, k=8, n_iter=30), ctx)
+    res.validate()
+    m = res.metrics
+    assert m["n_concepts"] == 10 and 0 <= m["n_specialised"] <= 8
+    assert m["matched.mean_mi"] >= m["others.mean_mi"]
+    assert len(res.tables["matching"].rows) == 8  # k = 8 coefficients matched to 8 of the 10 concepts

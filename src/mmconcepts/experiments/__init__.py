@@ -47,6 +47,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch5_tree",
     "mmconcepts.experiments.ch6_motion_sound",
     "mmconcepts.experiments.ch6_image_features",
+    "mmconcepts.experiments.ch6_concepts",
 )
 
 __all__ = [

@@ -1,0 +1,166 @@
+"""ch6-concepts: do internal coefficients specialise on concepts? Mutual information (Fig 6.10).
+
+Thesis section 6.6.3. A multimodal NMF with k = 15 atoms learns from pairs of a motion
+demonstration and an acoustic description (the pairs of ``ch6-motion-sound``, all of them
+used for training; the concepts are never shown to the learner). For each concept l and
+coefficient j of the internal representations w_i of the training pairs, the mutual
+information I(X_l; Y_j) between X_l (example i features concept l) and Y_j = w_ij,
+discretised into 10 equal-width bins, is estimated from the samples. Coefficients are
+aligned with concepts by the Kuhn-Munkres algorithm (maximum total mutual information) and
+plotted matched coefficients first (by decreasing mutual information), then the others.
+
+How specialised a matched coefficient is: the fraction ``I(X_l; Y_j) / H(X_l)`` of the
+concept's entropy it captures. A control repeats the analysis with the concepts shuffled
+across examples, which measures the estimator's bias.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.figure import Figure
+from scipy.optimize import linear_sum_assignment
+from sklearn.metrics import mutual_info_score
+
+from ..errors import ConvergenceWarning
+from ..motion import MotionHistograms
+from ..multimodal import MultimodalNMF
+from ..sound.hac import HAC
+from . import _ch6_common as common
+from .base import Claim, Experiment, Result, RunContext, Table
+from .registry import register
+
+__all__ = ["Config", "run", "mutual_information_matrix"]
+
+
+@dataclass(frozen=True)
+class Config:
+    """Sizes (``n_per_speaker``, ``n_motion`` select the generated data) and the thesis' k = 15, 10 bins."""
+
+    n_per_speaker: int = 1000
+    n_motion: int = 1100
+    k: int = 15
+    n_iter: int = 50
+    n_bins: int = 10
+    motion_bins: int = 25
+    seed: int = 0
+
+    @classmethod
+    def quick(cls) -> "Config":
+        return cls(n_per_speaker=250, n_motion=250)
+
+    @classmethod
+    def full(cls) -> "Config":
+        return cls()
+
+
+def mutual_information_matrix(y: np.ndarray, W: np.ndarray, n_bins: int = 10) -> np.ndarray:
+    """I(X_l; Y_j) in bits for every concept l (rows) and coefficient j (columns).
+
+    Parameters
+    ----------
+    y : ndarray of int, shape (n_samples,)
+        Concept of each example.
+    W : ndarray of shape (n_samples, k)
+        Internal coefficients.
+    n_bins : int
+        Equal-width bins over each coefficient's range.
+    """
+    concepts = np.unique(y)
+    out = np.zeros((concepts.size, W.shape[1]))
+    for j in range(W.shape[1]):
+        col = W[:, j]
+        edges = np.linspace(col.min(), col.max(), n_bins + 1)[1:-1]
+        binned = np.digitize(col, edges)
+        for i, c in enumerate(concepts):
+            out[i, j] = mutual_info_score(y == c, binned) / np.log(2)
+    return out
+
+
+def _entropy_bits(p: np.ndarray) -> np.ndarray:
+    p = np.clip(p, 1e-12, 1 - 1e-12)
+    return -(p * np.log2(p) + (1 - p) * np.log2(1 - p))
+
+
+def _analyse(y: np.ndarray, W: np.ndarray, n_bins: int) -> dict:
+    mi = mutual_information_matrix(y, W, n_bins)
+    rows, cols = linear_sum_assignment(-mi)
+    matched = mi[rows, cols]
+    frac = matched / _entropy_bits(np.bincount(y)[np.unique(y)] / len(y))[rows]
+    mask = np.ones_like(mi, dtype=bool)
+    mask[rows, cols] = False
+    order = list(cols[np.argsort(-matched)]) + [j for j in range(W.shape[1]) if j not in set(cols)]
+    return {"mi": mi, "matched": matched, "fraction": frac, "others": mi[mask], "order": order,
+            "rows": rows, "cols": cols}
+
+
+def run(config: Config, ctx: RunContext) -> Result:
+    data = common.load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, seed=config.seed)
+    y = data["y"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        S = HAC(random_state=config.seed).fit_transform(data["mfcc"])
+        M = MotionHistograms(data="joint", method="vq", n_bins=config.motion_bins, delay=3,
+                             random_state=config.seed).fit_transform(data["angles"])
+        model = MultimodalNMF(config.k, max_iter=config.n_iter, random_state=config.seed)
+        W = model.fit_transform({"sound": S, "motion": M})
+    res = _analyse(y, W, config.n_bins)
+    shuffled = _analyse(np.random.default_rng(config.seed).permutation(y), W, config.n_bins)
+    metrics = {
+        "matched.mean_mi": float(res["matched"].mean()),
+        "matched.max_mi": float(res["matched"].max()),
+        "others.mean_mi": float(res["others"].mean()),
+        "matched.mean_fraction": float(res["fraction"].mean()),
+        "n_specialised": float(np.sum(res["fraction"] > 0.5)),
+        "n_concepts": float(len(np.unique(y))),
+        "shuffled.matched.mean_mi": float(shuffled["matched"].mean()),
+        "concept_entropy_bits": float(_entropy_bits(np.array([1.0 / len(res["matched"])]))[0]),
+    }
+    keywords = data["keywords"]
+    mi_sorted = res["mi"][:, res["order"]]
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
+    im = ax.imshow(mi_sorted, aspect="auto", cmap="viridis")
+    ax.set_yticks(range(len(keywords)), keywords, fontsize=8)
+    ax.set_xticks(range(len(res["order"])), [str(j) for j in res["order"]], fontsize=7)
+    ax.set_xlabel("internal coefficient (matched ones first)")
+    ax.set_title(f"Fig. 6.10: mutual information (bits), k = {config.k}")
+    fig.colorbar(im, ax=ax)
+    fig.tight_layout()
+    rows = [[keywords[r], int(c), float(res["mi"][r, c]), float(f)]
+            for r, c, f in sorted(zip(res["rows"], res["cols"], res["fraction"]), key=lambda t: -t[2])]
+    return Result(
+        metrics=metrics,
+        tables={"matching": Table("Kuhn-Munkres matching of concepts and coefficients",
+                                  ["concept", "coefficient", "mutual information (bits)", "fraction of H(concept)"],
+                                  rows)},
+        figures={"fig6_10": fig},
+        notes=[common.data_source_note(ctx),
+               f"{len(y)} sound-motion pairs of speaker {data['speaker']} (all used for training); k = {config.k}, "
+               f"{config.n_iter} iterations; coefficients discretised into {config.n_bins} equal-width bins.",
+               f"Shuffled-concept control: matched mean {metrics['shuffled.matched.mean_mi']:.3f} bits (estimator "
+               "bias)."],
+    )
+
+
+register(Experiment(
+    id="ch6-concepts",
+    title="Specialisation of internal coefficients on concepts (mutual information)",
+    thesis_ref="Section 6.6.3, Fig. 6.10",
+    config_cls=Config,
+    run=run,
+    reference={},
+    claims=[
+        Claim("Some coefficients are highly specialised: at least one captures more than half of a concept's entropy.",
+              "n_specialised >= 1"),
+        Claim("The relationship is not a perfect one-to-one: not every concept has its own specialised coefficient.",
+              "n_specialised < n_concepts"),
+        Claim("The alignment reflects learnt structure, not estimator bias: matched coefficients carry far more "
+              "information than with shuffled concepts.",
+              "matched.mean_mi > 5 * shuffled.matched.mean_mi"),
+    ],
+    datasets=("acorns", "audio", "choreo2"),
+    description=__doc__.split("\n\n")[0],
+))
