@@ -77,3 +77,19 @@ def test_ch6_concepts_small(tiny_speech_corpus, tmp_path):
     assert m["n_concepts"] == 10 and 0 <= m["n_specialised"] <= 8
     assert m["matched.mean_mi"] >= m["others.mean_mi"]
     assert len(res.tables["matching"].rows) == 8  # k = 8 coefficients matched to 8 of the 10 concepts
+
+
+@pytest.mark.slow
+def test_ch6_modalities_small(tiny_speech_corpus, tmp_path):
+    from mmconcepts.experiments.ch6_modalities import Config, _setups, run
+
+    assert len(_setups()) == 18  # 6 one-to-one x (two, three) + 3 two-to-one + 3 one-to-two
+    ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(Config.quick(), n_motion=60, n_views=6, n_repeats=1, k=10, k_sweep=(5, 10), n_iter=20)
+    res = run(cfg, ctx)
+    res.validate()
+    m = res.metrics
+    for key in ("two.S2M", "three.S2M", "three.SM2I", "three.I2SM", "k_5.two", "k_10.three"):
+        assert 0.0 <= m[key] <= 1.0
+    assert m["k_10.two"] == pytest.approx(m["two.mean_1to1"])  # k = 10 is the main fit: same models
+    assert set(res.figures) == {"fig6_5_6_6", "fig6_7"}

@@ -48,6 +48,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch6_motion_sound",
     "mmconcepts.experiments.ch6_image_features",
     "mmconcepts.experiments.ch6_concepts",
+    "mmconcepts.experiments.ch6_modalities",
 )
 
 __all__ = [
