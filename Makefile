@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 
 ## Run every registered experiment in quick mode and write results/report.html and results/report.md
 reproduce: $(STAMP)
-	$(BIN)/mmconcepts reproduce --quick --output $(RESULTS)
+	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS)
 
 ## Run the test-suite (slow tests included)
 test: $(STAMP)
