@@ -32,7 +32,15 @@ from .data import (
     load_generic_audio,
     save_generic_audio,
 )
-from .features import MFCCConfig, add_deltas, delta, mfcc, mfcc_windows, sliding_windows, window_frames
+from .features import (
+    MFCCConfig,
+    add_deltas,
+    delta,
+    mfcc,
+    mfcc_windows,
+    sliding_windows,
+    window_frames,
+)
 from .hac import HAC, cooccurrence_counts
 from .voting import EventVoting, TreeVotingClassifier
 

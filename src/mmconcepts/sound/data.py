@@ -53,6 +53,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._io import read_csv_rows
 from ..errors import DataError, DataFormatError, ParameterError
 from .audio import DEFAULT_SR, audio_info, load_audio
 
@@ -314,17 +315,6 @@ def _audio_duration(path: Path) -> float:
     return n / sr
 
 
-def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as f:
-            reader = csv.DictReader(f)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            reader.fieldnames = header
-            rows = [(reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None})
-                    for row in reader]
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
-    return header, rows
 
 
 # --------------------------------------------------------------------------- generic layout
@@ -370,7 +360,7 @@ def load_generic_audio(
             f"{root} has no {LABELS_FILE}; the generic audio layout needs one with columns "
             "file,speaker,labels,transcription."
         )
-    header, rows = _read_csv(labels_path)
+    header, rows = read_csv_rows(labels_path)
     missing = [c for c in ("file", "speaker", "labels") if c not in header]
     if missing:
         raise DataFormatError(
@@ -431,7 +421,7 @@ def _read_timings(root: Path) -> tuple[dict[str, tuple[WordTiming, ...]], dict[s
     path = root / TIMINGS_FILE
     if not path.exists():
         return {}, {}
-    header, rows = _read_csv(path)
+    header, rows = read_csv_rows(path)
     missing = [c for c in ("file", "word", "start", "end") if c not in header]
     if missing:
         raise DataFormatError(f"{path}: missing column(s) {missing}; the header must be file,word,start,end.")

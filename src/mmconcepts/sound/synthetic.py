@@ -102,6 +102,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
+from .._io import replace_dir
 from .._paths import data_home as _data_home
 from .._validation import check_positive_int, check_random_state
 from ..errors import ParameterError
@@ -691,13 +692,7 @@ def make_caregiver_corpus(
             "versions": _versions(),
         }
         (tmp / "corpus.json").write_text(json.dumps(info, indent=1))
-        if root.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{root.name}.old-", dir=root.parent))
-            os.replace(root, trash / "old")
-            os.replace(tmp, root)
-            shutil.rmtree(trash, ignore_errors=True)
-        else:
-            os.replace(tmp, root)
+        replace_dir(tmp, root)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -34,7 +34,6 @@ left out, listed as ``(file, reason)`` in ``image_set.skipped``, and a
 
 from __future__ import annotations
 
-import csv
 import math
 import numbers
 import os
@@ -47,6 +46,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._io import read_csv_rows
 from ..errors import DataError, DataFormatError, ParameterError
 
 __all__ = [
@@ -348,17 +348,6 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
         raise DataFormatError(str(exc)) from exc
 
 
-def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as f:
-            reader = csv.DictReader(f)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            reader.fieldnames = header
-            rows = [(reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None})
-                    for row in reader]
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
-    return header, rows
 
 
 def load_image_folder(
@@ -396,7 +385,7 @@ def load_image_folder(
             f"{root} has no {LABELS_FILE}; the generic image layout needs one with columns file,label (and "
             "optionally view)."
         )
-    header, rows = _read_csv(labels_path)
+    header, rows = read_csv_rows(labels_path)
     missing = [c for c in ("file", "label") if c not in header]
     if missing:
         raise DataFormatError(

@@ -72,6 +72,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._io import replace_dir
 from .._validation import check_random_state
 from ..errors import DataError, ParameterError
 from .data import LABELS_FILE, ImageSet
@@ -510,13 +511,7 @@ def write_image_folder(
             w = csv.writer(f)
             w.writerow(header)
             w.writerows(rows)
-        if root.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{root.name}.old-", dir=root.parent))
-            os.replace(root, trash / "old")
-            os.replace(tmp, root)
-            shutil.rmtree(trash, ignore_errors=True)
-        else:
-            os.replace(tmp, root)
+        replace_dir(tmp, root)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
