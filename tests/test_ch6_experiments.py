@@ -93,3 +93,27 @@ def test_ch6_modalities_small(tiny_speech_corpus, tmp_path):
         assert 0.0 <= m[key] <= 1.0
     assert m["k_10.two"] == pytest.approx(m["two.mean_1to1"])  # k = 10 is the main fit: same models
     assert set(res.figures) == {"fig6_5_6_6", "fig6_7"}
+
+
+def test_stream_windows_cover_the_stream():
+    from mmconcepts.experiments.ch6_sliding import stream_windows
+
+    win = stream_windows(np.array([0.0, 1.5]), np.array([1.5, 1.0]), 0.5, 0.25)
+    assert win[0].tolist() == [0.0, 0.5] and win[-1, 1] <= 2.5 + 1e-9
+    np.testing.assert_allclose(np.diff(win[:, 0]), 0.25)
+
+
+@pytest.mark.slow
+def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
+    from mmconcepts.experiments.ch6_sliding import Config, run
+
+    ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(Config.quick(), n_views=6, widths=(0.2, 0.5), k=12, n_iter=30, probe_width=0.5)
+    res = run(cfg, ctx)
+    res.validate()
+    m = res.metrics
+    for key in ("width_0_2.s2i", "width_0_5.i2s", "localisation.peak_in_keyword", "localisation.chance"):
+        assert 0.0 <= m[key] <= 1.0
+    assert m["width_0_2.n_windows"] > m["width_0_5.n_windows"] > 0  # narrower windows, more of them
+    assert m["localisation.n_utterances"] > 0  # the corpus has keyword timings
+    assert set(res.figures) == {"fig6_8", "fig6_9"}

@@ -49,6 +49,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch6_image_features",
     "mmconcepts.experiments.ch6_concepts",
     "mmconcepts.experiments.ch6_modalities",
+    "mmconcepts.experiments.ch6_sliding",
 )
 
 __all__ = [
