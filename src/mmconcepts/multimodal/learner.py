@@ -59,8 +59,11 @@ class MultimodalNMF:
         "l1": each modality is divided by its average L1 norm over the training examples
         (the same factor is applied at transform and undone at reconstruction); None
         keeps the data as given.
-    init : str, optional
-        Initialization of the factorization (see :func:`mmconcepts.nmf.beta_nmf`).
+    init : str, default="random"
+        Initialization of the factorization (see :func:`mmconcepts.nmf.beta_nmf`). Random
+        (seeded) factors scaled to the data, as in the thesis' experiments; "nndsvda"
+        costs a truncated SVD of the stacked matrix (about 5 s for 900 x 110 000 HAC
+        vectors, a third of the whole fit).
     random_state : int, Generator or None
 
     Attributes
@@ -86,7 +89,7 @@ class MultimodalNMF:
         transform_max_iter: int | None = None,
         tol: float = 0.0,
         normalize: str | None = "l1",
-        init: str | None = None,
+        init: str | None = "random",
         random_state: Any = None,
     ) -> None:
         self.n_components = n_components
