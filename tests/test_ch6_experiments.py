@@ -117,3 +117,21 @@ def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
     assert m["width_0_2.n_windows"] > m["width_0_5.n_windows"] > 0  # narrower windows, more of them
     assert m["localisation.n_utterances"] > 0  # the corpus has keyword timings
     assert set(res.figures) == {"fig6_8", "fig6_9"}
+
+
+MSR = __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "data" / "msr-action3d"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not MSR.is_dir(), reason="needs ../shared/data/msr-action3d (real MSR Action3D skeletons)")
+def test_ch6_labels_on_real_msr_motion(tiny_speech_corpus, tmp_path):
+    from mmconcepts.experiments import _ch6_common as common
+    from mmconcepts.experiments.ch6_motion_sound import Config, run_labels
+
+    ctx = RunContext(data={"audio": tiny_speech_corpus, "msr": MSR}, cache_dir=tmp_path, show_progress=False)
+    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=0, seed=0)
+    assert set(data["mapping"].values()) <= set(common.MSR_ACTIONS)
+    assert all(a.shape[1] == 16 for a in data["angles"])  # joint angles of the limb model
+    res = run_labels(dataclasses.replace(Config.quick(), n_folds=2, k=12, n_iter=30), ctx)
+    assert "MSR Action3D" in res.notes[0]
+    assert res.metrics["motion_labels.m2l"] > 2 * res.metrics["chance"]

@@ -9,7 +9,9 @@ Thesis sections 6.5-6.6. Data:
 - motion: Choreo2 records (``--data choreo2=DIR`` or the synthetic Choreo2-like set), one
   gesture each; the relative rotations along the limbs as Euler angles
   (:func:`mmconcepts.motion.orientation_angles`) turned into joint angle-velocity
-  histograms (:class:`~mmconcepts.motion.MotionHistograms`) fitted per training fold;
+  histograms (:class:`~mmconcepts.motion.MotionHistograms`) fitted per training fold; or
+  real Kinect skeletons of ten MSR Action3D actions (``--data msr=DIR``, positions only, so
+  the 16 joint angles of :func:`mmconcepts.motion.joint_angles`);
 - labels: the concept of each example as a one-hot vector (the symbolic modality).
 
 Concepts: keyword k is associated with gesture ``mapping[k]`` by a random bijection drawn
@@ -35,7 +37,7 @@ from threadpoolctl import threadpool_limits
 
 from .. import __version__
 from ..errors import ConvergenceWarning, DataError
-from ..motion import MotionHistograms, load_choreo2, orientation_angles
+from ..motion import MotionHistograms, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
 from ..multimodal import MultimodalNMF, crossmodal_distances, matching_success_rate
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
@@ -55,19 +57,33 @@ def SPACE_NAMES(direction: str) -> dict[str, str]:
     return {"internal": "internal", "sound": "reference", "motion": "test"}
 
 
+#: The ten MSR Action3D actions used as gestures with ``--data msr=DIR`` (arms, both arms,
+#: legs, whole body: 1 high arm wave, 2 horizontal arm wave, 5 forward punch, 6 high throw,
+#: 10 hand clap, 12 side boxing, 13 bend, 14 forward kick, 15 side kick, 16 jogging).
+MSR_ACTIONS = (1, 2, 5, 6, 10, 12, 13, 14, 15, 16)
+
+
 def data_source_note(ctx: RunContext) -> str:
-    motion = (f"real Choreo2 records from {ctx.data['choreo2']}" if "choreo2" in ctx.data else
-              "the synthetic Choreo2-like set (mmconcepts.motion.synthetic.make_choreo2)")
+    if "choreo2" in ctx.data:
+        motion = f"real Choreo2 records from {ctx.data['choreo2']}"
+    elif "msr" in ctx.data:
+        motion = (f"real Kinect skeletons of MSR Action3D from {ctx.data['msr']} (actions {MSR_ACTIONS}, joint "
+                  "angles of the limb model)")
+    else:
+        motion = "the synthetic Choreo2-like set (mmconcepts.motion.synthetic.make_choreo2)"
     return f"Motion: {motion}. " + ch5.data_source_note(ctx)
 
 
 def _motion_dataset(ctx: RunContext, n_records: int):
+    """The motion records and the function giving their angle trajectories."""
     if "choreo2" in ctx.data:
         path = Path(ctx.data["choreo2"])
-        return load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip")
+        return load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip"), orientation_angles
+    if "msr" in ctx.data:
+        return load_msr_action3d(ctx.data["msr"], actions=MSR_ACTIONS, on_error="skip"), joint_angles
     from ..motion.synthetic import make_choreo2
 
-    return make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_records)
+    return make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_records), orientation_angles
 
 
 def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int) -> dict:
@@ -79,13 +95,13 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int)
     kw = ch5.keyword_targets(sub)
     keywords = sorted(set(kw))
     mfccs = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
-    ds = _motion_dataset(ctx, n_motion)
+    ds, angle_fn = _motion_dataset(ctx, n_motion)
     gestures, angles = [], []
     for rec in ds:
         if len(rec.labels) != 1:
             raise DataError(f"motion record {rec.record_id} has {len(rec.labels)} gestures; chapter 6 needs one each.")
         gestures.append(int(rec.labels[0]))
-        angles.append(np.ascontiguousarray(orientation_angles(rec), dtype=np.float64))
+        angles.append(np.ascontiguousarray(angle_fn(rec), dtype=np.float64))
     gestures = np.asarray(gestures)
     gesture_ids = sorted(set(gestures.tolist()))
     if len(gesture_ids) < len(keywords):

@@ -161,6 +161,6 @@ register(Experiment(
               "information than with shuffled concepts.",
               "matched.mean_mi > 5 * shuffled.matched.mean_mi"),
     ],
-    datasets=("acorns", "audio", "choreo2"),
+    datasets=("acorns", "audio", "choreo2", "msr"),
     description=__doc__.split("\n\n")[0],
 ))

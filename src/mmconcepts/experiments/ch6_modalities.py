@@ -217,6 +217,6 @@ register(Experiment(
         Claim("A third modality neither helps nor hurts much: the mean one-to-one success with three modalities is "
               "within 0.1 of that with the two modalities tested.", "abs(three.mean_1to1 - two.mean_1to1) < 0.1"),
     ],
-    datasets=("acorns", "audio", "choreo2", "images", "eth80"),
+    datasets=("acorns", "audio", "choreo2", "msr", "images", "eth80"),
     description=__doc__.split("\n\n")[0],
 ))

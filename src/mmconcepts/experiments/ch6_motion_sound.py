@@ -150,7 +150,7 @@ def run_labels(config: Config, ctx: RunContext) -> Result:
                   notes=_notes(ctx, data, folds, config))
 
 
-_DATASETS = ("acorns", "audio", "choreo2")
+_DATASETS = ("acorns", "audio", "choreo2", "msr")
 
 register(Experiment(
     id="ch6-motion-sound",
