@@ -54,6 +54,7 @@ not installed raises :class:`MissingEngineError` naming the extra to install.
 
 from __future__ import annotations
 
+import abc
 import atexit
 import ctypes
 import json
@@ -128,7 +129,7 @@ def _text_words(text: str) -> list[str]:
 
 
 @dataclass(frozen=True)
-class TTSEngine:
+class TTSEngine(abc.ABC):
     """Base class of the engines: ``synthesize(text, *, random_state=None) -> SynthesisResult``."""
 
     #: Engine name as :func:`get_engine` knows it.
@@ -144,8 +145,9 @@ class TTSEngine:
         """Whether word timings are returned (for texts the engine can align)."""
         return False
 
-    def synthesize(self, text: str, *, random_state=None) -> SynthesisResult:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def synthesize(self, text: str, *, random_state=None) -> SynthesisResult:
+        """Speak ``text``: audio, sample rate and word timings (None if the engine has none)."""
 
     def describe(self) -> dict:
         """The engine's name and parameters, for metadata files."""

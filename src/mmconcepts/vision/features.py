@@ -63,6 +63,7 @@ Decisions, and how they differ from the thesis:
 
 from __future__ import annotations
 
+import abc
 import math
 import numbers
 from collections.abc import Iterable, Sequence
@@ -491,13 +492,14 @@ def _mid(words_list, positions_list, k: int, order: int, n_neighbors: int, norma
 # --------------------------------------------------------------------------- bags of words
 
 
-class _WordBag(TransformerMixin, BaseEstimator):
+class _WordBag(TransformerMixin, BaseEstimator, abc.ABC):
     """Shared machinery: local features -> k-means codebook -> histogram of words."""
 
     _what = "local features"
 
-    def _n_codewords(self) -> int:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _n_codewords(self) -> int:
+        """Size of the codebook."""
 
     def _check_params(self) -> None:
         _check_normalize(self.normalize)
@@ -506,8 +508,9 @@ class _WordBag(TransformerMixin, BaseEstimator):
     def _min_size(self) -> int:
         return 2
 
-    def _local_function(self):  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _local_function(self):
+        """The function extracting the local features of one image."""
 
     def _extract(self, images: list[np.ndarray]) -> list[LocalFeatures]:
         func, kwargs = self._local_function()
