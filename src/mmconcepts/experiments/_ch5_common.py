@@ -178,3 +178,22 @@ def make_voter(params: dict, train_windows: list[np.ndarray], *, seed: int):
     r_max = choose_r_max(train_windows, metric=params["metric"], quantile=params["r_quantile"], seed=seed)
     return TreeVotingClassifier(r_max, metric=params["metric"], search=params["search"],
                                 backtrack=params["backtrack"], events=params["events"], random_state=seed)
+
+
+def first_speaker(ctx: RunContext, *, n_per_speaker: int):
+    """The utterances of the first speaker (the thesis' chapter 6 uses speaker 1).
+
+    Returns
+    -------
+    sub : SpeechCorpus
+    speaker : str
+    keywords : list of str (sorted)
+    y : ndarray of int, the index of each utterance's keyword in ``keywords``
+    """
+    corpus = load_corpus(ctx, n_per_speaker=n_per_speaker)
+    spk = speaker_ids(corpus)
+    speaker = sorted(set(spk))[0]
+    sub = corpus.subset(np.flatnonzero(spk == speaker))
+    kw = keyword_targets(sub)
+    keywords = sorted(set(kw))
+    return sub, speaker, keywords, np.searchsorted(keywords, kw)

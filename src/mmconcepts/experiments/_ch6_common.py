@@ -88,12 +88,8 @@ def _motion_dataset(ctx: RunContext, n_records: int):
 
 def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int) -> dict:
     """Paired examples: HAC-ready MFCC sequences, joint-angle trajectories and concept ids."""
-    corpus = ch5.load_corpus(ctx, n_per_speaker=n_per_speaker)
-    spk = ch5.speaker_ids(corpus)
-    first = sorted(set(spk))[0]
-    sub = corpus.subset(np.flatnonzero(spk == first))
-    kw = ch5.keyword_targets(sub)
-    keywords = sorted(set(kw))
+    sub, first, keywords, concept = ch5.first_speaker(ctx, n_per_speaker=n_per_speaker)
+    kw = np.asarray(keywords)[concept]
     mfccs = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
     ds, angle_fn = _motion_dataset(ctx, n_motion)
     gestures, angles = [], []
@@ -108,7 +104,6 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int)
         raise DataError(f"{len(keywords)} keywords but only {len(gesture_ids)} gestures: cannot map concepts one to one.")
     rng = np.random.default_rng(seed)
     mapping = dict(zip(keywords, rng.permutation(gesture_ids)[: len(keywords)].tolist()))
-    concept = np.searchsorted(keywords, kw)
     motion_idx = np.empty(len(kw), dtype=np.int64)
     for k in keywords:
         want = np.flatnonzero(kw == k)

@@ -113,13 +113,8 @@ def _repeat(task: dict) -> dict:
 def run(config: Config, ctx: RunContext) -> Result:
     from sklearn.model_selection import train_test_split
 
-    corpus = ch5.load_corpus(ctx, n_per_speaker=config.n_per_speaker)
-    spk = ch5.speaker_ids(corpus)
-    first = sorted(set(spk))[0]
-    sub = corpus.subset(np.flatnonzero(spk == first))
-    kw = ch5.keyword_targets(sub)
-    keywords = sorted(set(kw))
-    y = np.searchsorted(keywords, kw)
+    sub, first, keywords, y = ch5.first_speaker(ctx, n_per_speaker=config.n_per_speaker)
+    kw = np.asarray(keywords)[y]
     mfcc = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
     ims = load_images(ctx, len(keywords), config.n_views)
     objects = sorted(set(ims.labels))

@@ -151,13 +151,7 @@ def run(config: Config, ctx: RunContext) -> Result:
 
     from ..vision import ImageFeatures
 
-    corpus = ch5.load_corpus(ctx, n_per_speaker=config.n_per_speaker)
-    spk = ch5.speaker_ids(corpus)
-    first = sorted(set(spk))[0]
-    sub = corpus.subset(np.flatnonzero(spk == first))
-    kw = ch5.keyword_targets(sub)
-    keywords = sorted(set(kw))
-    y = np.searchsorted(keywords, kw)
+    sub, first, keywords, y = ch5.first_speaker(ctx, n_per_speaker=config.n_per_speaker)
     mcfg = MFCCConfig(n_mfcc=22)
     hop = mcfg.hop_ms / 1000
     mfcc = ch5.corpus_mfcc(ctx, sub, mcfg)
