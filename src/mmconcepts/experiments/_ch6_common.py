@@ -187,7 +187,7 @@ def evaluate(ctx: RunContext, config, *, desc: str = "folds") -> tuple[dict, lis
     for a in data["angles"]:
         h.update(np.ascontiguousarray(a).tobytes())
     h.update(pickle.dumps((y.tobytes(), sorted(features.items()), config.k, config.n_iter, n_folds, config.seed,
-                           __version__, 1)))
+                           __version__, 2)))  # 2: MultimodalNMF random init
     cache = Path(ctx.cache_dir) / "ch6-folds"
     cache.mkdir(parents=True, exist_ok=True)
     key = cache / f"{h.hexdigest()}.pkl"
