@@ -10,7 +10,7 @@ import scipy.sparse as sp
 
 from .errors import DataError, ParameterError
 
-__all__ = ["check_random_state", "check_nonnegative_matrix", "check_positive_int", "check_scalar"]
+__all__ = ["check_random_state", "check_nonnegative_matrix", "check_positive_int", "check_scalar", "check_subset_indices"]
 
 RandomLike = "int | np.random.Generator | np.random.RandomState | None"
 
@@ -137,3 +137,26 @@ def check_nonnegative_matrix(
                 "nonnegative. Shift, clip or rescale it."
             )
     return X
+
+
+def check_subset_indices(indices_or_mask: Any, n: int) -> np.ndarray:
+    """Integer indices from integer indices or a boolean mask over ``n`` items.
+
+    Raises
+    ------
+    ParameterError
+        If a mask has the wrong shape, the dtype is neither integer nor boolean, or an
+        index is out of ``[-n, n)``.
+    """
+    idx = np.asarray(list(indices_or_mask) if not isinstance(indices_or_mask, np.ndarray) else indices_or_mask)
+    if idx.dtype == bool:
+        if idx.shape != (n,):
+            raise ParameterError(f"A boolean mask must have shape ({n},); got {idx.shape}.")
+        idx = np.flatnonzero(idx)
+    elif idx.size == 0:
+        idx = idx.astype(int)
+    elif not np.issubdtype(idx.dtype, np.integer):
+        raise ParameterError(f"subset takes integer indices or a boolean mask; got dtype {idx.dtype}.")
+    if idx.size and (idx.min() < -n or idx.max() >= n):
+        raise ParameterError(f"Indices must be in [-{n}, {n}); got min {idx.min()}, max {idx.max()}.")
+    return idx.ravel()

@@ -54,6 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._io import read_csv_rows
+from .._validation import check_subset_indices
 from ..errors import DataError, DataFormatError, ParameterError
 from .audio import DEFAULT_SR, audio_info, load_audio
 
@@ -264,19 +265,8 @@ class SpeechCorpus:
 
     def subset(self, indices_or_mask: Iterable[int] | np.ndarray) -> SpeechCorpus:
         """A corpus holding the utterances at the given indices, or where a boolean mask is True."""
-        idx = np.asarray(list(indices_or_mask) if not isinstance(indices_or_mask, np.ndarray) else indices_or_mask)
-        n = len(self.utterances)
-        if idx.dtype == bool:
-            if idx.shape != (n,):
-                raise ParameterError(f"A boolean mask must have shape ({n},); got {idx.shape}.")
-            idx = np.flatnonzero(idx)
-        elif idx.size == 0:
-            idx = idx.astype(int)
-        elif not np.issubdtype(idx.dtype, np.integer):
-            raise ParameterError(f"subset takes integer indices or a boolean mask; got dtype {idx.dtype}.")
-        if idx.size and (idx.min() < -n or idx.max() >= n):
-            raise ParameterError(f"Indices must be in [-{n}, {n}); got min {idx.min()}, max {idx.max()}.")
-        return SpeechCorpus([self.utterances[int(i)] for i in idx.ravel()], self.name, self.root, [])
+        idx = check_subset_indices(indices_or_mask, len(self.utterances))
+        return SpeechCorpus([self.utterances[int(i)] for i in idx], self.name, self.root, [])
 
     def by_speaker(self, speaker: str) -> SpeechCorpus:
         """The utterances of one speaker."""

@@ -47,6 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._io import read_csv_rows
+from .._validation import check_subset_indices
 from ..errors import DataError, DataFormatError, ParameterError
 
 __all__ = [
@@ -281,19 +282,8 @@ class ImageSet:
 
     def subset(self, indices_or_mask: Iterable[int] | np.ndarray) -> ImageSet:
         """An image set holding the images at the given indices, or where a boolean mask is True."""
-        idx = np.asarray(list(indices_or_mask) if not isinstance(indices_or_mask, np.ndarray) else indices_or_mask)
-        n = len(self)
-        if idx.dtype == bool:
-            if idx.shape != (n,):
-                raise ParameterError(f"A boolean mask must have shape ({n},); got {idx.shape}.")
-            idx = np.flatnonzero(idx)
-        elif idx.size == 0:
-            idx = idx.astype(int)
-        elif not np.issubdtype(idx.dtype, np.integer):
-            raise ParameterError(f"subset takes integer indices or a boolean mask; got dtype {idx.dtype}.")
-        if idx.size and (idx.min() < -n or idx.max() >= n):
-            raise ParameterError(f"Indices must be in [-{n}, {n}); got min {idx.min()}, max {idx.max()}.")
-        sel = [int(i) for i in idx.ravel()]
+        idx = check_subset_indices(indices_or_mask, len(self))
+        sel = [int(i) for i in idx]
 
         def pick(xs):
             return None if xs is None else [xs[i] for i in sel]
