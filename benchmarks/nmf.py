@@ -5,15 +5,28 @@ tol=0 (no early stop), both libraries on the same BLAS threads. For each case th
 checks that the two final losses agree to 1e-6 (relative), times each library `--repeats`
 times in alternation, and reports the median time per iteration and the ratio.
 
+The C allocator matters for scikit-learn, which allocates new n x m temporaries at every
+iteration: with glibc's fixed default (blocks over 128 kB are fresh memory-mapped pages, so every
+temporary page-faults) it runs much slower than when freed memory is kept and reused. glibc's
+dynamic threshold makes which of the two a process gets depend on its allocation history, so
+by default the script measures both, each in its own child process (`--allocator both`):
+`mmap` sets MALLOC_MMAP_THRESHOLD_=131072; `heap` sets MALLOC_MMAP_THRESHOLD_ and
+MALLOC_TRIM_THRESHOLD_ to 1 GB; `inherit` runs in this process with the environment as given.
+
 Run:  .venv/bin/python benchmarks/nmf.py [--repeats 5] [--cases sparse_kl dense_kl dense_fro]
+                                         [--allocator both|mmap|heap|inherit]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 import warnings
 
@@ -70,7 +83,11 @@ def main(argv=None):
     ap.add_argument("--iterations", type=int, default=100)
     ap.add_argument("--cases", nargs="+", default=["sparse_kl", "dense_kl", "dense_fro"])
     ap.add_argument("--json", help="also write the results to this file")
+    ap.add_argument("--allocator", choices=["both", "mmap", "heap", "inherit"], default="both",
+                    help="glibc allocator setting(s) to measure under (see above); default both")
     args = ap.parse_args(argv)
+    if args.allocator != "inherit":
+        return _run_children(args)
     rng = np.random.default_rng(0)
     rows = []
     for case in args.cases:
@@ -97,6 +114,33 @@ def main(argv=None):
             print(f"  WARNING: final losses differ by {rel:.2e} > 1e-6")
     meta = dict(mmconcepts=mmconcepts.__version__, sklearn=sklearn.__version__, numpy=np.__version__,
                 python=platform.python_version(), machine=platform.machine())
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(dict(meta=meta, results=rows), fh, indent=2)
+    return rows
+
+
+ALLOCATOR_ENV = {
+    "mmap": {"MALLOC_MMAP_THRESHOLD_": "131072"},
+    "heap": {"MALLOC_MMAP_THRESHOLD_": "1073741824", "MALLOC_TRIM_THRESHOLD_": "1073741824"},
+}
+
+
+def _run_children(args):
+    """Rerun this script once per allocator setting, each in a fresh process, and gather the rows."""
+    settings = ["mmap", "heap"] if args.allocator == "both" else [args.allocator]
+    rows, meta = [], {}
+    for name in settings:
+        print(f"--- allocator: {name} ({' '.join(f'{k}={v}' for k, v in ALLOCATOR_ENV[name].items())})", flush=True)
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "rows.json")
+            cmd = [sys.executable, os.path.abspath(__file__), "--allocator", "inherit", "--repeats", str(args.repeats),
+                   "--iterations", str(args.iterations), "--json", out, "--cases", *args.cases]
+            subprocess.run(cmd, check=True, env={**os.environ, **ALLOCATOR_ENV[name]})
+            with open(out) as fh:
+                data = json.load(fh)
+        meta = data["meta"]
+        rows += [dict(row, allocator=name) for row in data["results"]]
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(dict(meta=meta, results=rows), fh, indent=2)
