@@ -112,6 +112,20 @@ def test_mu_matches_sklearn_iterates(rng, beta):
     np.testing.assert_allclose(res.H, sk.components_, rtol=1e-8, atol=1e-12)
 
 
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_blocked_kl_update_matches_sklearn_over_several_blocks(rng, order):
+    # 300 features give blocks of 1747 rows: 4000 rows make three blocks, the last partial.
+    X = np.asarray(_positive(rng, 4000, 300), order=order)
+    W0, H0 = rng.random((4000, 3)), rng.random((3, 300))
+    sk = SkNMF(3, init="custom", solver="mu", beta_loss=1.0, max_iter=5, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    res = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=5, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-10)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10)
+
+
 @pytest.mark.parametrize("beta", [1.0, 2.0])
 def test_projected_gradient_decreases_loss(rng, beta):
     W, H, X = _lowrank(rng)
