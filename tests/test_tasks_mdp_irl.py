@@ -21,6 +21,7 @@ from mmconcepts.tasks import (
     grid_world,
     maxent_objective,
     policy_evaluation,
+    policy_iteration,
     q_gradient,
     q_values,
     sample_trajectories,
@@ -62,6 +63,23 @@ def test_value_iteration_is_the_bellman_fixed_point(rng, world):
     np.testing.assert_allclose(Q, q_values(world, V, r), atol=1e-9)
     # the greedy policy is optimal: its exact value equals V*
     np.testing.assert_allclose(policy_evaluation(world, greedy_policy(Q), r), V, atol=1e-8)
+
+
+def test_policy_iteration_equals_value_iteration(rng, world):
+    R = rng.standard_normal((7, world.n_states, world.n_actions))
+    V_vi, Q_vi = value_iteration(world, R)
+    V_pi, Q_pi = policy_iteration(world, R)
+    assert V_pi.shape == V_vi.shape and Q_pi.shape == Q_vi.shape
+    np.testing.assert_allclose(V_pi, V_vi, atol=1e-8)
+    np.testing.assert_allclose(Q_pi, Q_vi, atol=1e-8)
+    # exact: V is the optimality equation's fixed point to round-off
+    np.testing.assert_allclose(V_pi, q_values(world, V_pi, R).max(axis=-1), atol=1e-12)
+    # warm start from values of other rewards, single task and batch shapes
+    V_w, _ = policy_iteration(world, R[0], init=V_vi[1])
+    np.testing.assert_allclose(V_w, V_vi[0], atol=1e-8)
+    # ties (all-equal rewards) do not make the loop cycle
+    V_t, _ = policy_iteration(world, np.ones((world.n_states, world.n_actions)))
+    np.testing.assert_allclose(V_t, 1.0 / (1.0 - world.discount))
 
 
 def test_policy_evaluation_solves_bellman_equation(rng, world):

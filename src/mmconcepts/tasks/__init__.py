@@ -20,6 +20,7 @@ from .mdp import (
     greedy_policy,
     grid_world,
     policy_evaluation,
+    policy_iteration,
     policy_transitions,
     q_values,
     sample_trajectories,
@@ -36,7 +37,7 @@ from .inverse_control import (
 )
 
 __all__ = [
-    "MDP", "grid_world", "value_iteration", "soft_value_iteration", "policy_evaluation", "q_values",
+    "MDP", "grid_world", "value_iteration", "policy_iteration", "soft_value_iteration", "policy_evaluation", "q_values",
     "greedy_policy", "boltzmann_policy", "uniform_policy", "policy_transitions", "sample_trajectories",
     "empirical_policy", "gradirl_objective", "q_gradient", "adjoint_gradient", "maxent_objective",
     "armijo_descent", "GradIRL", "MaxEntIRL", "FactorialIRL", "factorial_objective", "component_features",

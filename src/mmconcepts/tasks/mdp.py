@@ -27,6 +27,7 @@ __all__ = [
     "MDP",
     "grid_world",
     "value_iteration",
+    "policy_iteration",
     "soft_value_iteration",
     "policy_evaluation",
     "q_values",
@@ -252,6 +253,73 @@ def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_it
                       "raise max_iter or tol.", ConvergenceWarning, stacklevel=2)
     Qf = RT + gamma * (V @ Pf.T)
     Q = Qf.reshape(T, A, S).transpose(0, 2, 1)
+    V = Q.max(axis=2)
+    return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
+
+
+def policy_iteration(mdp: MDP, rewards: Any = None, *, max_iter: int = 1000,
+                     init: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Optimal values by policy iteration (Howard), batched over tasks; exact up to round-off.
+
+    Each iteration evaluates the current deterministic policies of all tasks exactly
+    (Bellman equation 2.25: one batched S x S linear solve per task) and makes them greedy
+    on the resulting action values (eq. 2.26); an action changes only where it improves
+    its state's value by more than round-off, so ties cannot make the loop cycle. It ends
+    when no policy changes: the values then satisfy the optimality equation (2.27)
+    exactly, where value iteration stops at a tolerance. A few iterations suffice
+    (usually 3-6 from scratch on the grid worlds here, 1-2 when warm-started from nearby
+    rewards), against hundreds of value-iteration sweeps at discount 0.9 and tolerance 1e-10;
+    each iteration costs ``n_tasks`` S x S solves, so this is the faster choice for the
+    small state spaces of chapter 4 (S = 100) and value iteration for large S.
+
+    Parameters
+    ----------
+    mdp : MDP
+    rewards : array-like of shape (S, A) or (n_tasks, S, A), optional
+        Default: ``mdp.rewards``.
+    max_iter : int, default=1000
+    init : array-like of shape (S,) or (n_tasks, S), optional
+        Values whose greedy policy starts the iteration (warm start); default: the policy
+        greedy on the immediate rewards.
+
+    Returns
+    -------
+    V, Q : as :func:`value_iteration`.
+    """
+    max_iter = check_positive_int(max_iter, "max_iter")
+    batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
+    T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
+    gamma = mdp.discount
+    P = mdp.transitions
+    states = np.arange(S)
+    RT3 = RT.reshape(T, A, S)
+    Q = (RT + gamma * (V @ Pf.T)).reshape(T, A, S)
+    act = Q.argmax(axis=1)  # (T, S)
+    active = np.arange(T)  # tasks whose policy changed in the last improvement
+    diag = (slice(None), states, states)
+    for _ in range(max_iter):
+        a = act[active]
+        M = P[a, states[None, :], :]  # (n, S, S): row s is P(. | s, a[s])
+        M *= -gamma
+        M[diag] += 1.0  # I - gamma P_pi
+        rpi = np.take_along_axis(RT3[active], a[:, None, :], axis=1)[:, 0, :]
+        Va = np.linalg.solve(M, rpi[..., None])[..., 0]
+        V[active] = Va
+        Qa = (RT[active] + gamma * (Va @ Pf.T)).reshape(-1, A, S)
+        Q[active] = Qa
+        best = Qa.argmax(axis=1)
+        q_cur = np.take_along_axis(Qa, a[:, None, :], axis=1)[:, 0, :]
+        q_best = np.take_along_axis(Qa, best[:, None, :], axis=1)[:, 0, :]
+        better = q_best > q_cur + 1e-12 * (1.0 + np.abs(q_cur))
+        changed = better.any(axis=1)
+        act[active[changed]] = np.where(better[changed], best[changed], a[changed])
+        active = active[changed]
+        if active.size == 0:
+            break
+    else:
+        warnings.warn(f"policy iteration stopped after max_iter={max_iter} iterations with policies still changing.",
+                      ConvergenceWarning, stacklevel=2)
+    Q = Q.transpose(0, 2, 1)
     V = Q.max(axis=2)
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
 
