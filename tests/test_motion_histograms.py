@@ -39,6 +39,22 @@ def test_kde_counts_are_proportions(rng):
     np.testing.assert_allclose(m.transform(X), [[0.5, 0.25, 0.25], [0, 0, 1.0]])
 
 
+def test_kde_grid_ignores_rare_outliers(rng):
+    # One glitch in 2000 samples: the default grid spans the 0.5-99.5 % quantiles, so the
+    # ordinary values still spread over the bins; the min-max grid puts them all in one.
+    x = rng.uniform(0.0, 1.0, size=(2000, 1))
+    x[100] = 1000.0
+    robust = MotionHistograms(data="angles", n_bins=10, smoothing=0.0).fit([x])
+    plain = MotionHistograms(data="angles", n_bins=10, smoothing=0.0, range_quantile=0.0).fit([x])
+    assert robust.edges_[0][0][-1] < 1.0 and plain.edges_[0][0][-1] >= 1000.0
+    h_robust, h_plain = robust.transform([x])[0], plain.transform([x])[0]
+    assert h_robust.max() < 0.15 and h_plain.max() > 0.99
+    assert h_robust[-1] > 0  # the glitch falls in the edge bin, not lost
+    np.testing.assert_allclose(h_robust.sum(), 1.0)
+    with pytest.raises(ParameterError, match="range_quantile"):
+        MotionHistograms(range_quantile=0.5).fit([x])
+
+
 def test_transform_uses_train_grid_and_codebook(rng):
     train = _data(rng)
     for cfg in (dict(method="kde"), dict(method="vq", n_bins=6)):

@@ -249,7 +249,9 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     for j, feats in enumerate(feature_list):
         for i, (tr, te) in enumerate(splits):
             fold_seed = int(np.random.SeedSequence([seed, i]).generate_state(1)[0] % (2**31 - 1))
-            h = hashlib.sha1(pickle.dumps((fp, sorted(feats.items()), tuple(learners), sorted(params.items()), single,
+            # Every histogram parameter, defaults included, so a changed default is a new key.
+            hist_params = sorted(MotionHistograms(**feats).get_params().items())
+            h = hashlib.sha1(pickle.dumps((fp, hist_params, tuple(learners), sorted(params.items()), single,
                                            np.asarray(tr).tobytes(), np.asarray(te).tobytes(), fold_seed, __version__, 2)))
             key = cache / f"{h.hexdigest()}.pkl"
             if key.exists():

@@ -77,8 +77,9 @@ class MotionHistograms(TransformerMixin, BaseEstimator):
         The KDE grid of each axis spans the ``range_quantile`` and ``1 - range_quantile``
         quantiles of the training values (0: minimum to maximum); values beyond fall in the
         edge bins. Delayed velocities have heavy tails (a tracking glitch makes one huge
-        difference): with the plain range, on Choreo1-like data, most velocities of a
-        recording landed in the one or two central bins.
+        difference): on the synthetic single-primitive Choreo1 set (delay 3, 15 bins, no
+        smoothing), the two fullest bins of each degree of freedom held 90 % of its velocity
+        samples with the minimum-maximum range, 62 % with the default.
     assignment : {"hard", "soft"}, default="hard"
         Vector-quantisation assignment.
     softness : float, default=1.0
