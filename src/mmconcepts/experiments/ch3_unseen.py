@@ -2,7 +2,7 @@
 
 Thesis section 3.3.4, "Handling unknown combinations of primitives". Same data, features
 and learners as ``ch3-choreography`` (see that module for every choice: k = 150, MU
-iterations, KDE joint angle-velocity histograms, threshold by CV on the training fold),
+iterations, soft-VQ joint angle-velocity histograms, threshold by CV on the training fold),
 but the test sets are made only of label combinations absent from their training set:
 all examples showing one combination of gestures are held out together. Full mode leaves
 one combination out at a time (the analogue of the thesis' leave-one-out); quick mode
