@@ -27,6 +27,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/nmf.py
 	$(BIN)/python benchmarks/dtw.py
 	$(BIN)/python benchmarks/tree.py
+	$(BIN)/python benchmarks/mdp.py
 
 clean:
 	rm -rf $(VENV) $(RESULTS) .pytest_cache
