@@ -347,7 +347,7 @@ def _stats(mdp: MDP, demos: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndar
 
 
 class _WarmVI:
-    """Keeps the last values of each task to warm-start value iteration."""
+    """Keeps the last values of each task to warm-start the planner."""
 
     def __init__(self, n_tasks: int, n_states: int) -> None:
         self.V = np.zeros((n_tasks, n_states))
@@ -357,7 +357,8 @@ class GradIRL:
     """Flat gradient IRL (Neu and Szepesvari 2007; thesis section 2.2.3), one parameter per task.
 
     Minimises the policy-matching loss (2.30) of each task independently by gradient
-    descent with Armijo steps; all tasks are processed together (batched value iteration).
+    descent with Armijo steps; all tasks are processed together (batched planning: policy
+    iteration for up to 1500 states, value iteration beyond).
 
     Parameters
     ----------
