@@ -133,6 +133,18 @@ def _dist2(center, i, q):  # pragma: no cover - compiled
 
 
 @nb.njit(**_OPTS)
+def _scan_leaves(center, child, node, m, q, best, best2):  # pragma: no cover - compiled
+    """Nearest of the ``m`` leaf children of ``node`` if nearer than ``best``: (best, best squared distance)."""
+    for j in range(m):
+        c = child[node, j]
+        d2 = _dist2(center, c, q)
+        if d2 < best2:
+            best2 = d2
+            best = c
+    return best, best2
+
+
+@nb.njit(**_OPTS)
 def _search_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves, hp, hn,
                 dbuf):  # pragma: no cover - compiled
     """Nearest leaf of ``q``: returns (leaf node id, distance, distance evaluations).
@@ -167,12 +179,7 @@ def _search_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_
             node = hn[top]
             m = nchild[node]
             if leaf_of[child[node, 0]] >= 0:
-                for j in range(m):
-                    c = child[node, j]
-                    d2 = _dist2(center, c, q)
-                    if d2 < best2:
-                        best2 = d2
-                        best = c
+                best, best2 = _scan_leaves(center, child, node, m, q, best, best2)
                 n_eval += m
                 continue
             for j in range(m):
@@ -202,12 +209,7 @@ def _search_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_
             if m == 0:
                 break
             if leaf_of[child[node, 0]] >= 0:
-                for j in range(m):
-                    c = child[node, j]
-                    d2 = _dist2(center, c, q)
-                    if d2 < best2:
-                        best2 = d2
-                        best = c
+                best, best2 = _scan_leaves(center, child, node, m, q, best, best2)
                 n_eval += m
                 break
             jm = 0
