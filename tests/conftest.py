@@ -14,6 +14,45 @@ import pytest
 TESTS_DIR = Path(__file__).resolve().parent
 
 
+def _data_root() -> Path | None:
+    """The data root of the real-data tests: $MMCONCEPTS_DATA_ROOT, else ../shared/data beside the checkout."""
+    env = os.environ.get("MMCONCEPTS_DATA_ROOT")
+    if env:
+        return Path(env).expanduser()
+    shared = TESTS_DIR.parents[1] / "shared" / "data"
+    return shared if shared.is_dir() else None
+
+
+#: Where the real data sets are for the tests (None when there is none; real-data tests skip).
+DATA_ROOT = _data_root()
+
+#: Folder names a real set may have under the data root (the first that exists is used).
+_SET_FOLDERS = {
+    "fsdd": ("fsdd",),
+    "msr-action3d": ("msr-action3d",),
+    "eth80": ("eth80", "eth80-96px"),
+    "coil20": ("coil20",),
+}
+
+
+def real_data_path(name: str) -> Path:
+    """Path of the real data set ``name`` under :data:`DATA_ROOT`, or skip the test with a reason."""
+    if DATA_ROOT is None:
+        pytest.skip(f"real data set {name!r} absent: no data root (set MMCONCEPTS_DATA_ROOT or put ../shared/data beside the checkout)")
+    for folder in _SET_FOLDERS.get(name, (name,)):
+        if (DATA_ROOT / folder).exists():
+            return DATA_ROOT / folder
+    pytest.skip(f"real data set {name!r} absent from the data root {DATA_ROOT}")
+
+
+@pytest.fixture(scope="session")
+def data_root() -> Path:
+    """The data root holding the real sets (skips the test when there is none)."""
+    if DATA_ROOT is None:
+        pytest.skip("no data root (set MMCONCEPTS_DATA_ROOT or put ../shared/data beside the checkout)")
+    return DATA_ROOT
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     """A seeded random generator, the same in every test."""
