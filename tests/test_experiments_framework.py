@@ -6,6 +6,7 @@ import json
 import math
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 
@@ -158,7 +159,7 @@ def test_run_writes_complete_record_and_figures(toy, tmp_path):
     path = out / "toy-mean.json"
     stored = _strict_json(path)
     assert set(RECORD_KEYS) <= stored.keys()
-    assert stored["schema_version"] == 1
+    assert stored["schema_version"] == 2
     assert stored["status"] == "ok" and record["status"] == "ok"
     assert stored["experiment"] == "toy-mean"
     assert stored["preset"] == "quick"
@@ -213,14 +214,42 @@ def test_rerun_is_skipped_unless_config_changes_or_forced(toy, tmp_path, caplog)
     assert (out / "toy-mean" / "hist.png").exists()
 
 
-def test_rerun_after_version_change_recomputes(toy, tmp_path):
+def test_rerun_after_code_change_recomputes(toy, tmp_path):
     out = tmp_path / "v"
     run_experiment("toy-mean", output=out, progress=False)
     stored = _strict_json(out / "toy-mean.json")
-    stored["version"] = "0.0.0-old"
+    from mmconcepts._fingerprint import code_fingerprint
+
+    assert stored["code"] == code_fingerprint()
+    stored["code"] = "0123456789abcdef"  # made by other code, same package version
     (out / "toy-mean.json").write_text(json.dumps(stored))
     run_experiment("toy-mean", output=out, progress=False)
     assert toy.CALLS == [0, 0]
+    run_experiment("toy-mean", output=out, progress=False)  # now up to date
+    assert toy.CALLS == [0, 0]
+
+
+def test_code_fingerprint_changes_with_any_source_file(tmp_path):
+    """Regression (issue 12): results were keyed on the package version, never bumped."""
+    import shutil
+
+    import mmconcepts
+    from mmconcepts._fingerprint import code_fingerprint, fingerprint_parts
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(Path(mmconcepts.__file__).parent, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    before = code_fingerprint(pkg)
+    assert before == code_fingerprint(pkg) and len(before) == 16
+    target = pkg / "nmf" / "_beta.py"
+    target.write_text(target.read_text() + "\n# an edit\n")
+    edited = fingerprint_parts(pkg)["source"]
+    from mmconcepts import _fingerprint
+
+    _fingerprint._cached.cache_clear()
+    after = code_fingerprint(pkg)
+    assert after != before
+    assert edited != fingerprint_parts(Path(mmconcepts.__file__).parent)["source"]
+    assert "numpy" in fingerprint_parts(pkg)["dependencies"]
 
 
 def test_nan_metrics_are_null_in_json_and_nan_when_read(registry, tmp_path):
@@ -363,3 +392,78 @@ def test_context_validates_workers_and_requires_data(tmp_path):
 def test_toy_module_not_leaked(registry):
     # the fixture gives a fresh import each time; nothing stays registered afterwards
     assert "_toy_experiment" not in sys.modules
+
+
+# --------------------------------------------------------------------------- data variants (issue 11)
+
+
+def _variant_experiment(toy):
+    def run(config, ctx):
+        path = ctx.data.get("fsdd")
+        return Result(
+            metrics={"acc": 0.9 if path is not None else 0.5, "n_sets": float(len(ctx.data))},
+            samples={"acc": [0.88, 0.9, 0.92] if path is not None else [0.4, 0.5, 0.6]},
+        )
+
+    return toy.make_experiment("toy-variant", run, datasets=("fsdd", "toyfile"),
+                               claims=[Claim("accuracy above 0.7", "acc > 0.7")])
+
+
+def _fsdd_like(root: Path) -> Path:
+    folder = root / "fsdd"
+    folder.mkdir(parents=True)
+    (folder / "labels.csv").write_text("file,speaker,labels,transcription\n0_alice_0.wav,alice,zero,zero\n")
+    (folder / "0_alice_0.wav").write_bytes(b"RIFF")
+    return folder
+
+
+def test_reproduce_runs_real_and_synthetic_side_by_side(toy, tmp_path, monkeypatch):
+    exp = _variant_experiment(toy)
+    root = tmp_path / "root"
+    folder = _fsdd_like(root)
+    monkeypatch.setenv("MMCONCEPTS_DATA_ROOT", str(root))
+    register(exp)
+    out = tmp_path / "res"
+    records = reproduce(output=out, ids=["toy-variant"], progress=False)
+    assert [(r["variant"], r["metrics"]["acc"]) for r in records] == [("real", 0.9), ("synthetic", 0.5)]
+    real, synth = _strict_json(out / "toy-variant.json"), _strict_json(out / "toy-variant.synthetic.json")
+    assert real["data"] == {"fsdd": str(folder.resolve())} and synth["data"] == {}
+    assert real["claims"][0]["verdict"] == "holds" and synth["claims"][0]["verdict"] == "fails"
+    assert real["intervals"]["acc"][0] < 0.9 < real["intervals"]["acc"][1]
+    assert real["samples"]["acc"] == [0.88, 0.9, 0.92]
+    # without the data root the default run is on generated data, and the stale secondary record goes
+    monkeypatch.delenv("MMCONCEPTS_DATA_ROOT")
+    records = reproduce(output=out, ids=["toy-variant"], progress=False)
+    assert [r["variant"] for r in records] == ["synthetic"]
+    assert not (out / "toy-variant.synthetic.json").exists()
+    assert _strict_json(out / "toy-variant.json")["variant"] == "synthetic"
+
+
+def test_explicit_data_overrides_the_root_and_real_variant_skips_without_data(toy, tmp_path, monkeypatch):
+    exp = _variant_experiment(toy)
+    monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
+    rec = run_experiment(exp, output=tmp_path / "a", variant="real", progress=False)
+    assert rec["status"] == "skipped" and "--data-root" in rec["message"]
+    other = tmp_path / "elsewhere"
+    other.mkdir()
+    rec = run_experiment(exp, output=tmp_path / "b", data={"fsdd": other, "toyfile": other}, progress=False)
+    assert rec["variant"] == "real" and rec["data"] == {"fsdd": str(other.resolve()), "toyfile": str(other.resolve())}
+    assert rec["metrics"]["n_sets"] == 2.0
+    with pytest.raises(ParameterError, match="variant"):
+        run_experiment(exp, output=tmp_path, variant="both")
+
+
+def test_schema_1_records_are_read_with_verdicts(tmp_path):
+    old = {"schema_version": 1, "experiment": "x", "status": "ok", "metrics": {"a": 1.0}, "data": {},
+           "claims": [{"text": "t", "rule": "a > 0", "holds": True}, {"text": "u", "rule": "a > 2", "holds": False}]}
+    (tmp_path / "x.json").write_text(json.dumps(old))
+    rec = load_record(tmp_path / "x.json")
+    assert rec["variant"] == "synthetic" and rec["intervals"] == {} and rec["code"] is None
+    assert [c["verdict"] for c in rec["claims"]] == ["holds", "fails"]
+
+
+def test_samples_must_belong_to_a_metric():
+    with pytest.raises(ExperimentError, match="not a metric"):
+        Result(metrics={"a": 1.0}, samples={"b": [1.0, 2.0]}).validate()
+    with pytest.raises(ExperimentError, match="real numbers"):
+        Result(metrics={"a": 1.0}, samples={"a": "12"}).validate()

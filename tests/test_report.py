@@ -64,21 +64,24 @@ def test_report_shows_metrics_thesis_values_and_verdicts(results):
     html_text = html_path.read_text()
     md = md_path.read_text()
 
-    # metrics table: metric | ours | thesis, thesis blank when absent
-    assert f"| mean | {ours} | 0.5 |" in md
-    assert f"| std | {stored['metrics']['std']:.4g} | 0.2887 |" in md
-    assert re.search(r"\| 1\.chunk_mean \| [0-9.]+ \| +\|", md)
-    assert f'<td>mean</td><td class="num">{ours}</td><td class="num">0.5</td>' in html_text
+    # numbers table: metric | thesis | ours on each data, thesis blank when absent
+    assert "| metric | thesis | generated data |" in md
+    assert f"| mean | 0.5 | {ours} |" in md
+    assert f"| std | 0.2887 | {stored['metrics']['std']:.4g} |" in md
+    assert re.search(r"\| 1\.chunk_mean \| +\| [0-9.]+ \|", md)
+    assert f'<td>mean</td><td class="num">0.5</td><td class="num">{ours}</td>' in html_text
 
-    # claims with verdicts
-    assert "**holds**: The sample mean is close to one half." in md
-    assert "**does not hold**: The sample mean exceeds one (false on purpose)." in md
-    assert "verdict-holds" in html_text and "verdict-does-not-hold" in html_text
+    # claims with three-valued verdicts, one column per data
+    assert "| claim | rule | generated data |" in md
+    assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| holds \|", md)
+    assert re.search(r"\| The sample mean exceeds one \(false on purpose\)\. \| [^|]+ \| fails \|", md)
+    assert "verdict-holds" in html_text and "verdict-fails" in html_text
 
-    # summary lines
-    assert "| toy-mean | Toy: the mean of uniform numbers | ok | 1/2 claims hold |" in md
-    assert re.search(r"\| toy-fail \| [^|]+ \| FAILED \|", md)
-    assert re.search(r"\| toy-skip \| [^|]+ \| skipped \|", md)
+    # summary lines: what ran, on which data, and the claims apart
+    assert "| toy-mean | Toy: the mean of uniform numbers | generated data | ran | 1 holds, 1 fails |" in md
+    assert re.search(r"\| toy-fail \| [^|]+ \| [^|]+ \| FAILED \|", md)
+    assert re.search(r"\| toy-skip \| [^|]+ \| [^|]+ \| skipped \|", md)
+    assert "On generated data: 1 run(s); claims: 1 holds, 1 fails, 0 inconclusive, 0 not evaluated." in md
     assert "broke on purpose" in md and "no real data here" in md
 
     # result table, config, run info, figures
@@ -115,10 +118,10 @@ def test_report_reevaluates_claims_from_stored_metrics(results):
     record["metrics"]["mean"] = None  # and a metric is now unknown (NaN)
     path.write_text(json.dumps(record))
     md = write_report(results)[1].read_text()
-    assert "**not evaluated**: The sample mean is close to one half." in md
-    assert "**not evaluated**: The sample mean exceeds one" in md
-    assert "| mean | n/a | 0.5 |" in md
-    assert "0/2 claims hold (2 not evaluated)" in md
+    assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| not evaluated \|", md)
+    assert re.search(r"\| The sample mean exceeds one [^|]+ \| [^|]+ \| not evaluated \|", md)
+    assert "| mean | 0.5 | n/a |" in md
+    assert "| 2 not evaluated |" in md
 
 
 def test_report_of_missing_folder_is_a_clear_error(tmp_path):
@@ -141,5 +144,5 @@ def test_nan_claim_shown_as_not_evaluated(toy, tmp_path):
     )
     run_experiment(exp, output=tmp_path, progress=False)
     md = write_report(tmp_path)[1].read_text()
-    assert "**not evaluated**: acc beats base" in md
-    assert "| acc | n/a | 0.9 |" in md
+    assert "| acc beats base | acc &gt; base | not evaluated |" in md
+    assert "| acc | 0.9 | n/a |" in md

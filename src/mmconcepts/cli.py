@@ -7,7 +7,9 @@ Examples
     mmconcepts list
     mmconcepts run ch2-nmf-recovery                # quick preset, results in ./results
     mmconcepts run ch2-nmf-recovery --full --seed 3 --workers 8
-    mmconcepts reproduce --data choreo1=~/data/choreo1 --output results-full --full
+    mmconcepts reproduce --data-root ~/mmdata --output results-full --full
+    mmconcepts data list --data-root ~/mmdata
+    mmconcepts data fetch fsdd --data-root ~/mmdata
     mmconcepts report results
 
 Exit codes: 0 on success, 1 if an experiment failed (or another error occurred), 2 on a
@@ -68,6 +70,14 @@ def _workers(text: str) -> int:
     return value
 
 
+def _data_root_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--data-root", metavar="DIR", type=Path, default=None,
+        help="folder holding the real data sets by name (default: $MMCONCEPTS_DATA_ROOT; "
+             "without either, experiments run on generated data)",
+    )
+
+
 def _run_options(parser: argparse.ArgumentParser) -> None:
     preset = parser.add_mutually_exclusive_group()
     preset.add_argument(
@@ -83,10 +93,11 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         "--output", "-o", metavar="DIR", type=Path, default=DEFAULT_RESULTS_DIR,
         help="results folder (default: %(default)s)",
     )
+    _data_root_option(parser)
     parser.add_argument(
         "--data", metavar="NAME=PATH", action="append", default=[],
-        help="a real data set for the experiments that use NAME (repeatable; "
-             "see `mmconcepts list` for the names)",
+        help="a real data set for the experiments that use NAME, overriding the data root's "
+             "(repeatable; see `mmconcepts data list` for the names)",
     )
     parser.add_argument(
         "--workers", "-j", metavar="N", type=_workers, default=1,
@@ -141,16 +152,27 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("id", metavar="ID", help="experiment id (see `mmconcepts list`)")
     p.add_argument("--seed", type=int, metavar="N", default=None, help="replace the preset's random seed")
+    p.add_argument(
+        "--variant", choices=("auto", "real", "synthetic"), default="auto",
+        help="data to run on: the real sets found (real), generated stand-ins (synthetic), or "
+             "real when found, else generated (auto, the default)",
+    )
     _run_options(p)
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser(
         "reproduce", parents=[common], help="run every experiment and write the report",
-        description="Run every experiment (or those given with --only), keep going when one "
-                    "fails, then write DIR/report.html and DIR/report.md. Up-to-date results "
-                    "are not recomputed. Experiments needing absent real data are skipped.",
+        description="Run every experiment (or those given with --only) on the real data sets "
+                    "found under the data root and on generated data, keep going when one fails, "
+                    "then write DIR/report.html and DIR/report.md with the real and generated "
+                    "results side by side. Up-to-date results are not recomputed. Experiments "
+                    "that only exist on absent real data are skipped.",
     )
     _run_options(p)
+    p.add_argument(
+        "--no-synthetic", dest="synthetic", action="store_false",
+        help="do not also run the experiments that have real data on generated data",
+    )
     p.add_argument("--only", metavar="ID", nargs="+", default=None, help="run only these experiments")
     p.set_defaults(func=_cmd_reproduce)
 
@@ -161,6 +183,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("dir", metavar="DIR", type=Path, nargs="?", default=DEFAULT_RESULTS_DIR,
                    help="results folder (default: %(default)s)")
     p.set_defaults(func=_cmd_report)
+
+    p = sub.add_parser(
+        "data", parents=[common], help="list or fetch the real data sets",
+        description="The real data sets the experiments use, by name, under a data root "
+                    "(--data-root DIR, else $MMCONCEPTS_DATA_ROOT).",
+    )
+    data_sub = p.add_subparsers(dest="data_command", metavar="ACTION", required=True)
+    q = data_sub.add_parser(
+        "list", parents=[common], help="every known set: where it was found, how many recordings, how to obtain it",
+        description="Show every known data set, where it was found under the data root (or not), "
+                    "how many recordings it holds, its licence and how to obtain it.",
+    )
+    _data_root_option(q)
+    q.set_defaults(func=_cmd_data_list)
+    q = data_sub.add_parser(
+        "fetch", parents=[common], help="download, verify and unpack a set into the data root",
+        description="Download a data set that has a stable public download, check its SHA-256, "
+                    "and unpack it into DATA_ROOT/NAME.",
+    )
+    q.add_argument("name", metavar="NAME", help="data set name (see `mmconcepts data list`)")
+    _data_root_option(q)
+    q.add_argument("--url", default=None, help="download from this address instead of the set's own")
+    q.add_argument("--sha256", default=None, help="expected SHA-256 of the download (with --url)")
+    q.set_defaults(func=_cmd_data_fetch)
     return parser
 
 
@@ -189,7 +235,11 @@ def _columns(rows: list[list[str]], indent: str = "  ") -> str:
     return "\n".join(indent + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
 
 
-_VERDICT = {True: "holds", False: "does not hold", None: "not evaluated"}
+def _claims_summary(claims: list[dict[str, Any]]) -> str:
+    from .experiments.uncertainty import VERDICTS
+
+    counts = {v: sum((c.get("verdict") or "not evaluated") == v for c in claims) for v in VERDICTS}
+    return ", ".join(f"{n} {v}" for v, n in counts.items() if n) or "no claims"
 
 
 def _print_record(record: dict[str, Any], json_path: Path) -> None:
@@ -197,23 +247,30 @@ def _print_record(record: dict[str, Any], json_path: Path) -> None:
 
     status = record["status"]
     print(f"{record['experiment']}: {record['title']} [{record.get('thesis_ref', '')}]")
-    print(f"  status: {status}   preset: {record['preset']}   seed: {record['seed']}   "
-          f"time: {record.get('elapsed_s', 0):.1f} s")
+    print(f"  status: {status}   data: {record.get('variant', '?')}   preset: {record['preset']}   "
+          f"seed: {record['seed']}   time: {record.get('elapsed_s', 0):.1f} s")
+    for name, path in (record.get("data") or {}).items():
+        print(f"  data {name}: {path}")
     print(f"  result: {json_path}")
     if status != "ok":
         print(f"  {status}: {record.get('message')}")
         return
     metrics, reference = record.get("metrics") or {}, record.get("reference") or {}
+    intervals = record.get("intervals") or {}
     names = list(metrics) + [n for n in reference if n not in metrics]
     if names:
-        rows = [["metric", "ours", "thesis"]] + [[n, _fmt(metrics.get(n)), _fmt(reference.get(n))] for n in names]
+        def interval(n: str) -> str:
+            lo_hi = intervals.get(n)
+            return f"[{_fmt(lo_hi[0])}, {_fmt(lo_hi[1])}]" if lo_hi else ""
+
+        rows = [["metric", "ours", "95 % interval", "thesis"]]
+        rows += [[n, _fmt(metrics.get(n)), interval(n), _fmt(reference.get(n))] for n in names]
         print(_columns(rows))
     claims = record.get("claims") or []
     if claims:
-        n_hold = sum(c.get("holds") is True for c in claims)
-        print(f"  claims: {n_hold}/{len(claims)} hold")
+        print(f"  claims: {_claims_summary(claims)}")
         for c in claims:
-            print(f"    [{_VERDICT[c.get('holds')]}] {c['text']}  ({c['rule']})")
+            print(f"    [{c.get('verdict') or 'not evaluated'}] {c['text']}  ({c['rule']})")
 
 
 # --------------------------------------------------------------------------- commands
@@ -245,6 +302,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from .errors import MMConceptsError
     from .experiments import check_data, get, load_experiments, run_experiment
+    from .experiments.runner import record_path, resolve_data
 
     data = _data(args)
     load_experiments()  # an experiment module that does not import is not a usage error
@@ -255,10 +313,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
     record = run_experiment(
-        exp, preset=args.preset, seed=args.seed, output=args.output, data=data,
-        workers=args.workers, force=args.force, progress=not args.quiet, raise_errors=False,
+        exp, preset=args.preset, seed=args.seed, output=args.output, data=data, data_root=args.data_root,
+        variant=args.variant, workers=args.workers, force=args.force, progress=not args.quiet, raise_errors=False,
     )
-    _print_record(record, args.output / f"{exp.id}.json")
+    secondary = record.get("variant") == "synthetic" and bool(resolve_data(exp, data, args.data_root))
+    _print_record(record, record_path(args.output, exp.id, secondary=secondary))
     if record["status"] == "failed" and args.verbose and record.get("traceback"):
         print(record["traceback"], file=sys.stderr, end="")
     return 1 if record["status"] == "failed" else 0
@@ -278,16 +337,15 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
     records = reproduce(
-        preset=args.preset, output=args.output, data=data, workers=args.workers,
-        force=args.force, ids=args.only, progress=not args.quiet,
+        preset=args.preset, output=args.output, data=data, data_root=args.data_root, synthetic=args.synthetic,
+        workers=args.workers, force=args.force, ids=args.only, progress=not args.quiet,
     )
     html_path, md_path = write_report(args.output)
-    rows = []
+    rows = [["experiment", "data", "ran", "claims"]]
     for r in records:
-        claims = r.get("claims") or []
-        verdict = f"{sum(c.get('holds') is True for c in claims)}/{len(claims)} claims hold" if claims else "no claims"
         message = ((r.get("message") or "").splitlines() or [""])[0]
-        rows.append([r["experiment"], r["status"], verdict if r["status"] == "ok" else message])
+        claims = _claims_summary(r.get("claims") or []) if r["status"] == "ok" else message
+        rows.append([r["experiment"], r.get("variant", ""), r["status"], claims])
     print(_columns(rows, indent=""))
     print(f"report: {html_path}")
     print(f"        {md_path}")
@@ -298,6 +356,33 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
                 print(f"--- {r['experiment']}", file=sys.stderr)
                 print(r["traceback"], file=sys.stderr, end="")
     return 1 if failed else 0
+
+
+def _cmd_data_list(args: argparse.Namespace) -> int:
+    from .datasets import data_root, dataset_status
+
+    root = data_root(args.data_root)
+    print(f"data root: {root if root is not None else '(none: pass --data-root DIR or set MMCONCEPTS_DATA_ROOT)'}")
+    rows = [["name", "found", "recordings", "licence", "how to obtain"]]
+    for st in dataset_status(root):
+        found = str(st["found"]) if st.get("found") else ("wrong layout: " + st["problem"] if st.get("problem") else "-")
+        n = "" if st.get("n") is None else str(st["n"])
+        rows.append([st["name"], found, n, st.get("licence") or "", st.get("obtain") or ""])
+    print(_columns(rows, indent=""))
+    return 0
+
+
+def _cmd_data_fetch(args: argparse.Namespace) -> int:
+    from .datasets import DATASETS, data_root, fetch_dataset
+
+    if args.name not in DATASETS:
+        raise _UsageError(f"unknown data set {args.name!r}; known: {', '.join(sorted(DATASETS))}.")
+    root = data_root(args.data_root)
+    if root is None:
+        raise _UsageError("no data root: pass --data-root DIR or set MMCONCEPTS_DATA_ROOT.")
+    path = fetch_dataset(args.name, root, url=args.url, sha256=args.sha256, progressbar=not args.quiet)
+    print(f"{args.name}: {path}")
+    return 0
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

@@ -185,6 +185,12 @@ class Result:
         Remarks for the report (what differs from the thesis and why, ...).
     extra : dict
         Anything else JSON-able worth keeping (per-trial scores, ...).
+    samples : dict of str to list of float
+        The per-fold, per-seed or per-draw values behind a metric, by the metric's name
+        (each name must also be in ``metrics``). The runner turns them into a 95 %
+        interval and uses them to decide claims beyond their uncertainty: metrics whose
+        samples have the same length are taken to come from the same folds or seeds and
+        are resampled together (a paired bootstrap).
     """
 
     metrics: dict[str, float] = field(default_factory=dict)
@@ -192,6 +198,7 @@ class Result:
     figures: dict[str, "Figure"] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
+    samples: dict[str, list[float]] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Check names and types; raise :class:`ExperimentError` naming the culprit."""
@@ -213,6 +220,16 @@ class Result:
                 raise ExperimentError(f"figure {name!r} must be a matplotlib Figure; got {type(fig).__name__}.")
         if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
             raise ExperimentError("Result.notes must be a list of strings.")
+        for name, values in self.samples.items():
+            if name not in self.metrics:
+                raise ExperimentError(
+                    f"samples given for {name!r}, which is not a metric; add metrics[{name!r}] (their summary) "
+                    "or rename the samples to the metric they belong to."
+                )
+            if isinstance(values, (str, bytes)) or not all(
+                isinstance(v, numbers.Real) and not isinstance(v, bool) for v in values
+            ):
+                raise ExperimentError(f"samples[{name!r}] must be a list of real numbers; got {values!r:.80}.")
 
 
 def _progress_enabled(show: bool) -> bool:
@@ -307,7 +324,10 @@ class RunContext:
         if name in self.data:
             return self.data[name]
         more = f" {hint}" if hint else ""
-        raise ExperimentSkipped(f"needs the real data set {name!r}: pass --data {name}=PATH.{more}")
+        raise ExperimentSkipped(
+            f"needs the real data set {name!r}: put it under the data root (--data-root DIR or "
+            f"$MMCONCEPTS_DATA_ROOT; see `mmconcepts data list`) or pass --data {name}=PATH.{more}"
+        )
 
 
 def _check_config_cls(exp_id: str, config_cls: Any) -> None:
@@ -346,9 +366,14 @@ class Experiment:
     claims : sequence of Claim, optional
         The thesis' claims, each with a rule over metric names.
     datasets : tuple of str, optional
-        Names of real data sets accepted by ``--data NAME=PATH`` (empty if synthetic).
+        Names of the data sets it runs on when present (see :mod:`mmconcepts.datasets`):
+        found under the data root or given with ``--data NAME=PATH`` (empty if it only
+        runs on generated data).
     description : str, optional
         A paragraph for ``mmconcepts list`` and the report.
+    synthetic : bool, default=True
+        Whether it also runs without real data, on generated stand-ins (its *synthetic
+        variant*). An experiment that only exists on a real set sets this to False.
     """
 
     id: str
@@ -360,6 +385,7 @@ class Experiment:
     claims: Sequence[Claim] = ()
     datasets: tuple[str, ...] = ()
     description: str = ""
+    synthetic: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.id, str) or not _ID.fullmatch(self.id):

@@ -1,25 +1,38 @@
 """Run experiments, write their results as JSON + PNG, skip what is up to date.
 
-A result record is a JSON object with a stable schema (``schema_version`` 1)::
+A result record is a JSON object with a stable schema (``schema_version`` 2)::
 
-    schema_version  1
+    schema_version  2
     experiment      id                       title, thesis_ref
     status          "ok" | "failed" | "skipped"
     message         why it failed or was skipped (null when ok)
     traceback       the traceback text of a failure (else null)
     preset          "quick" | "full"         config (the dataclass as a dict), seed
-    version         mmconcepts.__version__   data (name -> absolute path)
+    variant         "real" | "synthetic"     which data it ran on: the real sets found
+                                             (data root or --data) or generated stand-ins
+    data            name -> absolute path of each real set used (empty when synthetic)
+    version         mmconcepts.__version__
+    code            fingerprint of the code that produced it (package sources and
+                    dependency versions, :func:`mmconcepts._fingerprint.code_fingerprint`)
     metrics         name -> number (null for NaN or infinite, read back as NaN)
+    intervals       name -> [low, high], the 95 % t interval of a metric with samples
+    samples         name -> the per-fold / per-seed values behind a metric
     reference       name -> the thesis' number
-    claims          [{text, rule, holds}]    holds: true, false or null (not evaluated)
+    claims          [{text, rule, holds, verdict, support, basis}]
+                    holds: the rule on the reported numbers (true, false or null);
+                    verdict: "holds" | "fails" | "inconclusive" | "not evaluated", decided
+                    beyond the samples' uncertainty (:mod:`.uncertainty`)
     tables          name -> {title, columns, rows, note}
     figures         name -> path of the PNG, relative to the results folder
     notes, extra    remarks and JSON-able extras
     elapsed_s, started_at (ISO 8601, UTC), python, platform
 
-``<output>/<id>.json`` and the figures ``<output>/<id>/<name>.png`` are written
-atomically (a temporary file in the same folder, then :func:`os.replace`), figures first,
-so a JSON file on disk always describes complete results.
+The record of an experiment's default run is ``<output>/<id>.json`` (on the real sets
+when any is found, else on generated data); when real sets were found, its run on
+generated data is ``<output>/<id>.synthetic.json``. Figures go to ``<output>/<id>/`` (and
+``<output>/<id>.synthetic/``). Everything is written atomically (a temporary file in the
+same folder, then :func:`os.replace`), figures first, so a JSON file on disk always
+describes complete results. Schema-1 records (before variants and verdicts) are still read.
 """
 
 from __future__ import annotations
@@ -45,11 +58,12 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from .._fingerprint import code_fingerprint
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
 from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext
 from .registry import all_experiments, get
-from .rules import evaluate_rule
+from .uncertainty import claim_verdict, t_interval
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -60,12 +74,18 @@ __all__ = [
     "check_data",
     "load_record",
     "to_jsonable",
+    "resolve_data",
+    "record_path",
+    "VARIANTS",
 ]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
 #: Version of the result-record schema written by :func:`run_experiment`.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+
+#: The data variants of a run: on the real sets found, or on generated stand-ins.
+VARIANTS = ("real", "synthetic")
 
 #: Keys present in every result record, whatever its status.
 RECORD_KEYS = (
@@ -79,9 +99,13 @@ RECORD_KEYS = (
     "preset",
     "config",
     "seed",
+    "variant",
     "version",
+    "code",
     "data",
     "metrics",
+    "intervals",
+    "samples",
     "reference",
     "claims",
     "tables",
@@ -205,6 +229,14 @@ def load_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
     if not isinstance(metrics, dict):
         return None
     obj["metrics"] = {k: (math.nan if v is None else float(v)) for k, v in metrics.items()}
+    if obj["schema_version"] < 2:  # before variants, fingerprints and three-valued verdicts
+        obj.setdefault("variant", "real" if obj.get("data") else "synthetic")
+        obj.setdefault("code", None)
+        for claim in obj.get("claims") or []:
+            if isinstance(claim, dict):
+                claim.setdefault("verdict", {True: "holds", False: "fails"}.get(claim.get("holds"), "not evaluated"))
+    obj.setdefault("intervals", {})
+    obj.setdefault("samples", {})
     return obj
 
 
@@ -255,8 +287,10 @@ def check_data(
         return {}
     if isinstance(data, (str, bytes)) or not isinstance(data, Mapping):
         raise ExperimentError(f"data must be a mapping of data-set names to paths; got {type(data).__name__}.")
+    from ..datasets import DATASETS
+
     resolved = {str(name): Path(path).expanduser() for name, path in data.items()}
-    declared = {n for exp in experiments or () for n in exp.datasets}
+    declared = {n for exp in experiments or () for n in exp.datasets} | set(DATASETS)
     if any(name not in declared for name in resolved):
         registered = all_experiments()
         declared |= {n for exp in registered for n in exp.datasets}
@@ -273,6 +307,45 @@ def check_data(
     return {name: path.resolve() for name, path in resolved.items()}
 
 
+def resolve_data(
+    exp: Experiment,
+    data: Mapping[str, str | os.PathLike[str]] | None = None,
+    data_root: str | os.PathLike[str] | None = None,
+) -> dict[str, Path]:
+    """The real data sets ``exp`` runs on: those of its ``datasets`` found under the data
+    root, overridden by the ones given explicitly (``--data NAME=PATH``).
+
+    Parameters
+    ----------
+    exp : Experiment
+    data : mapping of str to path, optional
+        Explicit sets; names the experiment does not declare are ignored.
+    data_root : path, optional
+        The data root (default: ``$MMCONCEPTS_DATA_ROOT``; none if unset). See
+        :func:`mmconcepts.datasets.data_root`.
+
+    Returns
+    -------
+    dict of str to Path
+        ``{name: absolute folder}`` for the sets found, in the order of ``exp.datasets``.
+    """
+    from ..datasets import DATASETS, find_datasets
+    from ..datasets import data_root as _data_root
+
+    root = _data_root(data_root)
+    known = [name for name in exp.datasets if name in DATASETS]
+    found = find_datasets(root, names=known) if root is not None and known else {}
+    given = {str(k): Path(v).expanduser().resolve() for k, v in (data or {}).items() if str(k) in exp.datasets}
+    merged = {**{k: Path(v).resolve() for k, v in found.items()}, **given}
+    return {name: merged[name] for name in exp.datasets if name in merged}
+
+
+def record_path(output: str | os.PathLike[str], exp_id: str, *, secondary: bool = False) -> Path:
+    """Where a record goes: ``<output>/<id>.json``, or ``<output>/<id>.synthetic.json`` for
+    the run on generated data of an experiment whose default run is on real data."""
+    return Path(output) / (f"{exp_id}.synthetic.json" if secondary else f"{exp_id}.json")
+
+
 # --------------------------------------------------------------------------- running
 
 
@@ -281,7 +354,7 @@ def _up_to_date(existing: Mapping[str, Any] | None, fresh: Mapping[str, Any], ou
         return False
     if existing.get("schema_version") != SCHEMA_VERSION or existing.get("experiment") != fresh["experiment"]:
         return False
-    for key in ("config", "version", "data", "preset"):
+    for key in ("config", "code", "data", "preset", "variant"):
         if existing.get(key) != fresh[key]:
             return False
     figures = existing.get("figures") or {}
@@ -328,15 +401,17 @@ def run_experiment(
     seed: int | None = None,
     output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
     data: Mapping[str, str | os.PathLike[str]] | None = None,
+    data_root: str | os.PathLike[str] | None = None,
+    variant: str = "auto",
     workers: int = 1,
     force: bool = False,
     progress: bool = True,
     raise_errors: bool = True,
 ) -> dict[str, Any]:
-    """Run one experiment and write ``<output>/<id>.json`` and its figures.
+    """Run one experiment and write its record (see the module docstring) and figures.
 
-    If ``<output>/<id>.json`` already holds a successful result for the same config,
-    package version, data and preset, it is returned without recomputing (unless
+    If the record file already holds a successful result for the same config, code
+    fingerprint, data, variant and preset, it is returned without recomputing (unless
     ``force``).
 
     Parameters
@@ -350,8 +425,17 @@ def run_experiment(
     output : str or path-like, default="results"
         Results folder (created if needed).
     data : mapping of str to path, optional
-        Real data sets by name (``--data NAME=PATH``). Names the experiment does not
-        declare are ignored if another registered experiment declares them.
+        Real data sets by name (``--data NAME=PATH``); they override the data root's.
+        Names the experiment does not declare are ignored if another registered
+        experiment, or the data-set registry, knows them.
+    data_root : str or path-like, optional
+        Folder holding the real sets by name (default ``$MMCONCEPTS_DATA_ROOT``, else
+        none); see :mod:`mmconcepts.datasets`.
+    variant : {"auto", "real", "synthetic"}, default="auto"
+        ``"real"`` runs on the real sets found (skipped when there are none),
+        ``"synthetic"`` on generated data, ``"auto"`` on the real sets when any is
+        found, else on generated data. The run on generated data of an experiment that
+        has real data is written to ``<id>.synthetic.json``.
     workers : int, default=1
         Processes for :meth:`RunContext.parallel`; -1 for one per CPU.
     force : bool, default=False
@@ -366,24 +450,28 @@ def run_experiment(
     -------
     dict
         The result record (see the module docstring); ``record["status"]`` is ``"ok"``,
-        ``"skipped"`` (the experiment raised :class:`ExperimentSkipped`) or ``"failed"``.
+        ``"skipped"`` (the experiment raised :class:`ExperimentSkipped`, or the variant
+        cannot run here) or ``"failed"``.
 
     Raises
     ------
     ExperimentError
-        On an unknown id, a bad preset or data argument, or (with ``raise_errors``) the
-        experiment's own error.
+        On an unknown id, a bad preset, variant or data argument, or (with
+        ``raise_errors``) the experiment's own error.
     """
     exp = _resolve(exp_or_id)
+    if variant not in ("auto", *VARIANTS):
+        raise ParameterError(f"variant must be 'auto', 'real' or 'synthetic'; got {variant!r}.")
     config = exp.make_config(preset, seed=seed)
-    all_data = check_data(data, [exp])
-    exp_data = {name: path for name, path in all_data.items() if name in exp.datasets}
-    for name in sorted(set(all_data) - set(exp_data)):
-        logger.debug("%s: ignoring --data %s (not used by this experiment)", exp.id, name)
+    check_data(data, [exp])
+    real_sets = resolve_data(exp, data, data_root)
+    chosen = ("real" if real_sets else "synthetic") if variant == "auto" else variant
+    exp_data = real_sets if chosen == "real" else {}
+    secondary = chosen == "synthetic" and bool(real_sets)
 
     output = Path(output)
-    json_path = output / f"{exp.id}.json"
-    fig_dir = output / exp.id
+    json_path = record_path(output, exp.id, secondary=secondary)
+    fig_dir = json_path.with_suffix("")
     config_json = json.loads(json.dumps(to_jsonable(config, where="config"), allow_nan=False))
     record: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
@@ -396,11 +484,18 @@ def run_experiment(
         "preset": preset,
         "config": config_json,
         "seed": to_jsonable(config.seed),
+        "variant": chosen,
         "version": __version__,
+        "code": code_fingerprint(),
         "data": {name: str(path) for name, path in sorted(exp_data.items())},
         "metrics": {},
+        "intervals": {},
+        "samples": {},
         "reference": dict(exp.reference),
-        "claims": [{"text": c.text, "rule": c.rule, "holds": None} for c in exp.claims],
+        "claims": [
+            {"text": c.text, "rule": c.rule, "holds": None, "verdict": "not evaluated", "support": None, "basis": ""}
+            for c in exp.claims
+        ],
         "tables": {},
         "figures": {},
         "notes": [],
@@ -421,22 +516,41 @@ def run_experiment(
     if not force and json_path.exists():
         existing = load_record(json_path)
         if existing is not None and _up_to_date(existing, record, output):
-            logger.info("%s: skipped: up to date (%s)", exp.id, json_path)
+            logger.info("%s (%s data): skipped: up to date (%s)", exp.id, chosen, json_path)
             return existing
 
     output.mkdir(parents=True, exist_ok=True)
-    logger.info("%s: running (%s preset, seed %s)", exp.id, preset, config.seed)
+    if not secondary:  # a default run on generated data supersedes an older run on generated data
+        stale = record_path(output, exp.id, secondary=True)
+        if chosen == "synthetic" and stale.exists():
+            stale.unlink()
+            _remove_stale_figures(stale.with_suffix(""), ())
+    logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, chosen, preset, config.seed)
     t0 = time.perf_counter()
     result: Any = None
     error: BaseException | None = None
     try:
+        if chosen == "real" and not exp_data:
+            raise ExperimentSkipped(
+                f"no real data set of {', '.join(exp.datasets) or '(none declared)'} was found: "
+                "give a data root (--data-root DIR) or --data NAME=PATH (see `mmconcepts data list`)."
+            )
+        if chosen == "synthetic" and not exp.synthetic:
+            raise ExperimentSkipped(f"{exp.id} runs only on real data ({', '.join(exp.datasets)}).")
         result = exp.run(config, ctx)
         if not isinstance(result, Result):
             raise ExperimentError(f"{exp.id}: run() must return a Result; got {type(result).__name__}.")
         result.validate()
         metrics = {name: float(value) for name, value in result.metrics.items()}
+        samples = {name: [float(v) for v in values] for name, values in result.samples.items()}
         for claim in record["claims"]:
-            claim["holds"] = evaluate_rule(claim["rule"], metrics)
+            verdict = claim_verdict(claim["rule"], metrics, samples)
+            claim.update(holds=verdict.holds, verdict=verdict.verdict, support=verdict.support, basis=verdict.basis)
+        intervals = {}
+        for name, values in samples.items():
+            interval = t_interval(metrics[name], values)
+            if interval is not None:
+                intervals[name] = list(interval)
         missing = sorted(set(exp.reference) - set(metrics))
         if missing:
             logger.warning("%s: reference values without a metric of ours: %s", exp.id, ", ".join(missing))
@@ -444,6 +558,8 @@ def run_experiment(
         if bad:
             logger.warning("%s: infinite metric(s) stored as null: %s", exp.id, ", ".join(bad))
         record["metrics"] = to_jsonable(metrics, where="metrics")
+        record["samples"] = to_jsonable(samples, where="samples")
+        record["intervals"] = to_jsonable(intervals, where="intervals")
         record["tables"] = {
             str(name): to_jsonable(table.to_dict(), where=f"tables[{name!r}]") for name, table in result.tables.items()
         }
@@ -453,7 +569,7 @@ def run_experiment(
             buf = io.BytesIO()
             fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
             _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
-            record["figures"][name] = f"{exp.id}/{name}.png"
+            record["figures"][name] = f"{fig_dir.name}/{name}.png"
     except ExperimentSkipped as exc:
         record["status"] = "skipped"
         record["message"] = str(exc)
@@ -469,10 +585,11 @@ def run_experiment(
             _close_figures(result.figures)
 
     if record["status"] != "ok":
-        for key, empty in (("metrics", {}), ("tables", {}), ("figures", {}), ("notes", []), ("extra", {})):
+        for key, empty in (("metrics", {}), ("intervals", {}), ("samples", {}), ("tables", {}), ("figures", {}),
+                           ("notes", []), ("extra", {})):
             record[key] = empty
         for claim in record["claims"]:
-            claim["holds"] = None
+            claim.update(holds=None, verdict="not evaluated", support=None, basis="")
     record["elapsed_s"] = round(time.perf_counter() - t0, 3)
     _atomic_write(json_path, _dumps(record).encode("utf-8"))
     _remove_stale_figures(fig_dir, (Path(p).name for p in record["figures"].values()))
@@ -489,6 +606,8 @@ def reproduce(
     preset: str = "quick",
     output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
     data: Mapping[str, str | os.PathLike[str]] | None = None,
+    data_root: str | os.PathLike[str] | None = None,
+    synthetic: bool = True,
     workers: int = 1,
     force: bool = False,
     ids: Sequence[str] | None = None,
@@ -496,9 +615,12 @@ def reproduce(
 ) -> list[dict[str, Any]]:
     """Run every registered experiment (or those in ``ids``), keeping going on failures.
 
-    An experiment that raises is recorded with ``status: "failed"`` and its traceback;
-    one that raises :class:`ExperimentSkipped` with ``status: "skipped"``. The report is
-    not written here (the report layer sits above this one): call
+    Each experiment runs on the real sets found for it (data root, ``data``), and, when
+    ``synthetic``, also on its generated stand-ins, so that the report can put the two
+    side by side; an experiment with no real set found runs once, on generated data. An
+    experiment that raises is recorded with ``status: "failed"`` and its traceback; one
+    that raises :class:`ExperimentSkipped` with ``status: "skipped"``. The report is not
+    written here (the report layer sits above this one): call
     :func:`mmconcepts.report.write_report` on ``output`` afterwards, as
     ``mmconcepts reproduce`` does.
 
@@ -507,8 +629,12 @@ def reproduce(
     preset : {"quick", "full"}, default="quick"
     output : str or path-like, default="results"
     data : mapping of str to path, optional
-        Real data sets by name; each name must be declared by some registered experiment
-        and each path must exist.
+        Real data sets by name; each name must be known (declared by some registered
+        experiment or in :data:`mmconcepts.datasets.DATASETS`) and each path must exist.
+    data_root : str or path-like, optional
+        Folder holding the real sets by name (default ``$MMCONCEPTS_DATA_ROOT``).
+    synthetic : bool, default=True
+        Also run the experiments that have real data on generated data.
     workers : int, default=1
     force : bool, default=False
         Recompute up-to-date results too.
@@ -519,7 +645,7 @@ def reproduce(
     Returns
     -------
     list of dict
-        One record per experiment, in the order run.
+        One record per run, in the order run (the real-data run of an experiment first).
     """
     if preset not in PRESETS:
         raise ParameterError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}.")
@@ -528,19 +654,13 @@ def reproduce(
         raise ExperimentError("no experiments are registered; nothing to reproduce.")
     checked = check_data(data, all_experiments())
     records = []
+    common = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers, force=force,
+                  progress=progress, raise_errors=False)
     for exp in experiments:
-        records.append(
-            run_experiment(
-                exp,
-                preset=preset,
-                output=output,
-                data=checked,
-                workers=workers,
-                force=force,
-                progress=progress,
-                raise_errors=False,
-            )
-        )
+        has_real = bool(resolve_data(exp, checked, data_root))
+        records.append(run_experiment(exp, variant="auto", **common))
+        if has_real and synthetic and exp.synthetic:
+            records.append(run_experiment(exp, variant="synthetic", **common))
     counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "failed", "skipped")}
     logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
     return records

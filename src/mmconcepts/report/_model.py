@@ -11,12 +11,12 @@ from typing import Any
 
 from ..errors import ExperimentError
 from ..experiments.runner import load_record
-from ..experiments.rules import evaluate_rule
+from ..experiments.uncertainty import VERDICTS, claim_verdict
 
 logger = logging.getLogger("mmconcepts.report")
 
-VERDICTS = {True: "holds", False: "does not hold", None: "not evaluated"}
-STATUS_LABELS = {"ok": "ok", "failed": "FAILED", "skipped": "skipped"}
+STATUS_LABELS = {"ok": "ran", "failed": "FAILED", "skipped": "skipped"}
+VARIANT_LABELS = {"real": "real data", "synthetic": "generated data"}
 
 
 def format_number(value: Any) -> str:
@@ -61,11 +61,9 @@ class ClaimView:
     text: str
     rule: str
     holds: bool | None
+    verdict: str = "not evaluated"
+    basis: str = ""
     error: str | None = None
-
-    @property
-    def verdict(self) -> str:
-        return VERDICTS[self.holds]
 
 
 @dataclass
@@ -88,31 +86,75 @@ class ExperimentView:
     source: str
     elapsed: str = ""
     extra_keys: list[str] = field(default_factory=list)
+    variant: str = "synthetic"
+    data: list[tuple[str, str]] = field(default_factory=list)  # (set name, path)
+    values: dict[str, str] = field(default_factory=dict)  # metric -> "0.81 [0.75, 0.87]"
 
     @property
     def n_claims(self) -> int:
         return len(self.claims)
 
-    @property
-    def n_hold(self) -> int:
-        return sum(c.holds is True for c in self.claims)
+    def count(self, verdict: str) -> int:
+        return sum(c.verdict == verdict for c in self.claims)
 
     @property
-    def n_not_evaluated(self) -> int:
-        return sum(c.holds is None for c in self.claims)
+    def data_label(self) -> str:
+        """``real data (fsdd, eth80)`` or ``generated data``."""
+        label = VARIANT_LABELS.get(self.variant, self.variant)
+        return f"{label} ({', '.join(n for n, _ in self.data)})" if self.data else label
 
     @property
     def claims_summary(self) -> str:
         if not self.claims:
             return "no claims"
-        text = f"{self.n_hold}/{self.n_claims} claims hold"
-        if self.status == "ok" and self.n_not_evaluated:
-            text += f" ({self.n_not_evaluated} not evaluated)"
-        return text
+        if self.status != "ok":
+            return f"{self.n_claims} not evaluated"
+        return ", ".join(f"{self.count(v)} {v}" for v in VERDICTS if self.count(v))
+
+
+@dataclass
+class ExperimentGroup:
+    """One experiment's runs: on real data first, then on generated data."""
+
+    id: str
+    title: str
+    thesis_ref: str
+    views: list[ExperimentView]
+
+    def metric_rows(self) -> tuple[list[str], list[list[str]]]:
+        """Columns ``metric, thesis, <one per run>`` and one row per metric (values with their interval)."""
+        columns = ["metric", "thesis"] + [v.data_label for v in self.views]
+        reference: dict[str, str] = {}
+        names: list[str] = []
+        for view in self.views:
+            for name, _ours, thesis in view.metrics:
+                if name not in names:
+                    names.append(name)
+                if thesis and name not in reference:
+                    reference[name] = thesis
+        rows = [[n, reference.get(n, "")] + [v.values.get(n, "") for v in self.views] for n in names]
+        return columns, rows
+
+    def claim_rows(self) -> tuple[list[str], list[list[str]]]:
+        """Columns ``claim, rule, <verdict per run>``."""
+        columns = ["claim", "rule"] + [v.data_label for v in self.views]
+        rows: list[list[str]] = []
+        index: dict[tuple[str, str], int] = {}
+        for j, view in enumerate(self.views):
+            for claim in view.claims:
+                key = (claim.text, claim.rule)
+                if key not in index:
+                    index[key] = len(rows)
+                    rows.append([claim.text, claim.rule] + [""] * len(self.views))
+                cell = claim.verdict + (f" ({claim.error})" if claim.error else "")
+                rows[index[key]][2 + j] = cell
+        return columns, rows
 
 
 def _claims(record: dict[str, Any]) -> list[ClaimView]:
+    """The claims, re-decided from the stored metrics and samples."""
     metrics = record.get("metrics") or {}
+    samples = record.get("samples") or {}
     views = []
     for claim in record.get("claims") or []:
         text, rule = str(claim.get("text", "")), str(claim.get("rule", ""))
@@ -120,18 +162,25 @@ def _claims(record: dict[str, Any]) -> list[ClaimView]:
             views.append(ClaimView(text, rule, None))
             continue
         try:
-            holds = evaluate_rule(rule, metrics)
-            error = None
+            decided = claim_verdict(rule, metrics, samples)
         except ExperimentError as exc:
-            holds, error = None, str(exc).splitlines()[0]
-        stored = claim.get("holds")
-        if error is None and stored is not holds:
+            views.append(ClaimView(text, rule, None, error=str(exc).splitlines()[0]))
+            continue
+        stored = claim.get("verdict")
+        if stored is not None and stored != decided.verdict:
             logger.warning(
-                "%s: claim %r was stored as %s but its rule gives %s on the stored metrics; reporting %s",
-                record.get("experiment"), rule, stored, holds, holds,
+                "%s: claim %r was stored as %r but its rule gives %r on the stored metrics; reporting %r",
+                record.get("experiment"), rule, stored, decided.verdict, decided.verdict,
             )
-        views.append(ClaimView(text, rule, holds, error))
+        views.append(ClaimView(text, rule, decided.holds, decided.verdict, decided.basis))
     return views
+
+
+def _with_interval(value: Any, interval: Any) -> str:
+    text = format_number(value)
+    if isinstance(interval, (list, tuple)) and len(interval) == 2 and text:
+        text += f" [{format_number(interval[0])}, {format_number(interval[1])}]"
+    return text
 
 
 def build_view(record: dict[str, Any], results_dir: Path, source: Path) -> ExperimentView:
@@ -145,12 +194,16 @@ def build_view(record: dict[str, Any], results_dir: Path, source: Path) -> Exper
         figures.append((str(name), str(rel), (results_dir / str(rel)).is_file()))
     config = [(str(k), format_cell(v)) for k, v in (record.get("config") or {}).items()]
     data = record.get("data") or {}
+    intervals = record.get("intervals") or {}
+    values = {name: _with_interval(value, intervals.get(name)) for name, value in metrics.items()}
     run_info = [
+        ("data", VARIANT_LABELS.get(str(record.get("variant")), str(record.get("variant", "")))),
         ("preset", str(record.get("preset", ""))),
         ("seed", format_cell(record.get("seed"))),
         ("run time", format_duration(record.get("elapsed_s"))),
         ("started at", str(record.get("started_at", ""))),
         ("mmconcepts version", str(record.get("version", ""))),
+        ("code fingerprint", str(record.get("code") or "")),
         ("python", str(record.get("python", ""))),
         ("platform", str(record.get("platform", ""))),
     ]
@@ -184,11 +237,14 @@ def build_view(record: dict[str, Any], results_dir: Path, source: Path) -> Exper
         source=source.name,
         elapsed=format_duration(record.get("elapsed_s")),
         extra_keys=sorted(str(k) for k in (record.get("extra") or {})),
+        variant=str(record.get("variant") or ("real" if data else "synthetic")),
+        data=[(str(k), str(v)) for k, v in data.items()],
+        values=values,
     )
 
 
 def collect(results_dir: Path) -> list[ExperimentView]:
-    """Read every result record of ``results_dir``, sorted by experiment id."""
+    """Read every result record of ``results_dir``, sorted by experiment id (real data first)."""
     views = []
     for path in sorted(results_dir.glob("*.json")):
         record = load_record(path)
@@ -196,5 +252,15 @@ def collect(results_dir: Path) -> list[ExperimentView]:
             logger.info("ignoring %s: not a result record", path)
             continue
         views.append(build_view(record, results_dir, path))
-    views.sort(key=lambda v: v.id)
+    views.sort(key=lambda v: (v.id, v.variant != "real"))
     return views
+
+
+def group(views: list[ExperimentView]) -> list[ExperimentGroup]:
+    """Group the views of one experiment (as :func:`collect` sorts them)."""
+    groups: dict[str, ExperimentGroup] = {}
+    for view in views:
+        if view.id not in groups:
+            groups[view.id] = ExperimentGroup(view.id, view.title, view.thesis_ref, [])
+        groups[view.id].views.append(view)
+    return list(groups.values())

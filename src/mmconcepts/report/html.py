@@ -8,7 +8,7 @@ from importlib import resources
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import STATUS_LABELS, ExperimentView
+from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, group
 
 __all__ = ["render_html"]
 
@@ -57,15 +57,12 @@ def _status(status: str) -> str:
     return f'<span class="status status-{_e(status)}">{_e(STATUS_LABELS.get(status, status))}</span>'
 
 
-def _section(view: ExperimentView) -> str:
-    out = [f'<section id="{_e(_slug(view.id))}">']
-    out.append(f"<h2>{_e(view.title)}</h2>")
-    out.append(
-        f'<p class="meta"><code>{_e(view.id)}</code> · thesis: {_e(view.thesis_ref or "—")} · '
-        f"status {_status(view.status)}"
-        + (f" · {_e(view.elapsed)}" if view.elapsed else "")
-        + "</p>"
-    )
+def _run(view: ExperimentView) -> str:
+    out = [f'<section class="run run-{_e(view.variant)}">']
+    out.append(f"<h3>On {_e(view.data_label)}</h3>")
+    out.append(f'<p class="meta">status {_status(view.status)}' + (f" · {_e(view.elapsed)}" if view.elapsed else "") + "</p>")
+    if view.data:
+        out.append("<ul>" + "".join(f"<li>data set <code>{_e(n)}</code>: <code>{_e(p)}</code></li>" for n, p in view.data) + "</ul>")
     if view.status == "failed":
         message = view.message or ""
         if "\n" in message:
@@ -76,28 +73,11 @@ def _section(view: ExperimentView) -> str:
             out.append(f"<details><summary>traceback</summary><pre>{_e(view.traceback)}</pre></details>")
     elif view.status == "skipped":
         out.append(f"<p><strong>Skipped:</strong> {_e(view.message or '')}</p>")
-
-    if view.claims:
-        out.append("<h3>Claims</h3><ul class=\"claims\">")
-        for claim in view.claims:
-            cls = "verdict-" + claim.verdict.replace(" ", "-")
-            detail = f' <span class="muted">({_e(claim.error)})</span>' if claim.error else ""
-            out.append(
-                f'<li><span class="verdict {cls}">{_e(claim.verdict)}</span> {_e(claim.text)} '
-                f"<code>{_e(claim.rule)}</code>{detail}</li>"
-            )
-        out.append("</ul>")
-
-    if view.metrics:
-        out.append("<h3>Metrics</h3>")
-        out.append(_table(["metric", "ours", "thesis"], [list(r) for r in view.metrics]))
-
     for table in view.tables:
-        out.append(f"<h3>{_e(table['title'])}</h3>")
+        out.append(f"<h4>{_e(table['title'])}</h4>")
         out.append(_table(table["columns"], table["rows"]))
         if table["note"]:
             out.append(f'<p class="note">{_e(table["note"])}</p>')
-
     for name, rel, exists in view.figures:
         src = quote(rel, safe="/")
         missing = "" if exists else ' <span class="muted">(file missing)</span>'
@@ -105,16 +85,42 @@ def _section(view: ExperimentView) -> str:
             f'<figure><img src="{_e(src)}" alt="{_e(name)}" loading="lazy">'
             f"<figcaption>{_e(name)}{missing}</figcaption></figure>"
         )
-
     if view.notes:
-        out.append("<h3>Notes</h3><ul>" + "".join(f"<li>{_e(n)}</li>" for n in view.notes) + "</ul>")
-
+        out.append("<h4>Notes</h4><ul>" + "".join(f"<li>{_e(n)}</li>" for n in view.notes) + "</ul>")
     if view.config:
-        out.append("<h3>Configuration</h3>")
+        out.append("<h4>Configuration</h4>")
         out.append(_table(["parameter", "value"], [list(r) for r in view.config]))
-    out.append("<h3>Run</h3>")
+    out.append("<h4>Run</h4>")
     out.append(_table(["", ""], [list(r) for r in view.run_info], numeric=False))
     out.append(f'<p class="note">Record: <code>{_e(view.source)}</code></p>')
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def _verdict(text: str) -> str:
+    word = text.split(" (")[0]
+    if word not in VERDICTS:
+        return _e(text)
+    return f'<span class="verdict verdict-{_e(word.replace(" ", "-"))}">{_e(text)}</span>'
+
+
+def _section(group: ExperimentGroup) -> str:
+    out = [f'<section id="{_e(_slug(group.id))}">']
+    out.append(f"<h2>{_e(group.title)}</h2>")
+    out.append(f'<p class="meta"><code>{_e(group.id)}</code> · thesis: {_e(group.thesis_ref or "—")}</p>')
+    columns, rows = group.claim_rows()
+    if rows:
+        out.append("<h3>Claims</h3><table><thead><tr>" + "".join(f"<th>{_e(c)}</th>" for c in columns)
+                   + "</tr></thead><tbody>")
+        for row in rows:
+            out.append(f"<tr><td>{_e(row[0])}</td><td><code>{_e(row[1])}</code></td>"
+                       + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:]) + "</tr>")
+        out.append("</tbody></table>")
+    columns, rows = group.metric_rows()
+    if rows:
+        out.append("<h3>Numbers: the thesis' and ours, on each data</h3>")
+        out.append(_table(columns, rows, caption="95 % interval in brackets where there are folds or seeds"))
+    out.extend(_run(view) for view in group.views)
     out.append("</section>")
     return "\n".join(out)
 
@@ -122,6 +128,7 @@ def _section(view: ExperimentView) -> str:
 def render_html(views: list[ExperimentView], *, title: str) -> str:
     """Return the whole HTML report for ``views``."""
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    groups = group(views)
     out = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -130,20 +137,27 @@ def render_html(views: list[ExperimentView], *, title: str) -> str:
         f"<style>\n{_css()}\n</style></head><body>",
         f"<h1>{_e(title)}</h1>",
         f'<p class="meta">Generated {_e(now)} by mmconcepts {_e(__version__)} · '
-        f"{len(views)} experiment(s)</p>",
+        f"{len(groups)} experiment(s), {len(views)} run(s)</p>",
     ]
     if not views:
         out.append("<p>No result records found.</p>")
     else:
-        out.append("<h3>Summary</h3><table><thead><tr><th>experiment</th><th>title</th><th>status</th>"
+        out.append("<h3>Summary</h3><table><thead><tr><th>experiment</th><th>title</th><th>data</th><th>ran</th>"
                    "<th>claims</th><th>run time</th></tr></thead><tbody>")
         for view in views:
             out.append(
                 f'<tr><td><a href="#{_e(_slug(view.id))}"><code>{_e(view.id)}</code></a></td>'
-                f"<td>{_e(view.title)}</td><td>{_status(view.status)}</td>"
+                f"<td>{_e(view.title)}</td><td>{_e(view.data_label)}</td><td>{_status(view.status)}</td>"
                 f"<td>{_e(view.claims_summary)}</td><td>{_e(view.elapsed)}</td></tr>"
             )
         out.append("</tbody></table>")
-    out.extend(_section(view) for view in views)
+        out.append("<ul>")
+        for variant in ("real", "synthetic"):
+            runs = [v for v in views if v.variant == variant and v.status == "ok"]
+            if runs:
+                counts = ", ".join(f"{sum(v.count(x) for v in runs)} {x}" for x in VERDICTS)
+                out.append(f"<li>On {_e(VARIANT_LABELS[variant])}: {len(runs)} run(s); claims: {_e(counts)}.</li>")
+        out.append("</ul>")
+    out.extend(_section(g) for g in groups)
     out.append("</body></html>\n")
     return "\n".join(out)

@@ -6,7 +6,7 @@ import datetime as _dt
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import STATUS_LABELS, ExperimentView
+from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, group
 
 __all__ = ["render_markdown"]
 
@@ -36,54 +36,74 @@ def _table(columns: list[str], rows: list[list[str]]) -> list[str]:
     return out + [""]
 
 
-def _section(view: ExperimentView) -> list[str]:
-    out = [f"## {_text(view.title)}", ""]
-    meta = f"`{view.id}` · thesis: {_text(view.thesis_ref or '—')} · status: **{STATUS_LABELS.get(view.status, view.status)}**"
+def _run(view: ExperimentView) -> list[str]:
+    meta = f"status: **{STATUS_LABELS.get(view.status, view.status)}**"
     if view.elapsed:
         meta += f" · {view.elapsed}"
-    out += [meta, ""]
+    out = [f"### On {_text(view.data_label)}", "", meta, ""]
+    if view.data:
+        out += [f"- data set `{_text(name)}`: `{_text(path)}`" for name, path in view.data] + [""]
     if view.status == "failed":
         out += [f"**Failed:** {_text(view.message or '')}", ""]
         if view.traceback:
             out += ["```", view.traceback.rstrip("\n").replace("```", "` ` `"), "```", ""]
     elif view.status == "skipped":
         out += [f"**Skipped:** {_text(view.message or '')}", ""]
-    if view.claims:
-        out += ["### Claims", ""]
-        for claim in view.claims:
-            detail = f" ({_text(claim.error)})" if claim.error else ""
-            out.append(f"- **{claim.verdict}**: {_text(claim.text)} {_code(claim.rule)}{detail}")
-        out.append("")
-    if view.metrics:
-        out += ["### Metrics", ""] + _table(["metric", "ours", "thesis"], [list(r) for r in view.metrics])
     for table in view.tables:
-        out += [f"### {_text(table['title'])}", ""] + _table(table["columns"], table["rows"])
+        out += [f"#### {_text(table['title'])}", ""] + _table(table["columns"], table["rows"])
         if table["note"]:
             out += [f"*{_text(table['note'])}*", ""]
     for name, rel, exists in view.figures:
         missing = " (file missing)" if not exists else ""
         out += [f"![{_text(name)}]({quote(rel, safe='/')}){missing}", ""]
     if view.notes:
-        out += ["### Notes", ""] + [f"- {_text(n)}" for n in view.notes] + [""]
+        out += ["#### Notes", ""] + [f"- {_text(n)}" for n in view.notes] + [""]
     if view.config:
-        out += ["### Configuration", ""] + _table(["parameter", "value"], [list(r) for r in view.config])
-    out += ["### Run", ""] + _table(["", ""], [list(r) for r in view.run_info])
+        out += ["#### Configuration", ""] + _table(["parameter", "value"], [list(r) for r in view.config])
+    out += ["#### Run", ""] + _table(["", ""], [list(r) for r in view.run_info])
     out += [f"Record: `{view.source}`", ""]
+    return out
+
+
+def _section(group: ExperimentGroup) -> list[str]:
+    out = [f"## {_text(group.title)}", "", f"`{group.id}` · thesis: {_text(group.thesis_ref or '—')}", ""]
+    columns, rows = group.claim_rows()
+    if rows:
+        out += ["### Claims", ""] + _table(columns, rows)
+    columns, rows = group.metric_rows()
+    if rows:
+        out += ["### Numbers: the thesis' and ours, on each data (95 % interval where there are folds or seeds)", ""]
+        out += _table(columns, rows)
+    for view in group.views:
+        out += _run(view)
+    return out
+
+
+def _summary(views: list[ExperimentView]) -> list[str]:
+    rows = [[v.id, v.title, v.data_label, STATUS_LABELS.get(v.status, v.status), v.claims_summary, v.elapsed]
+            for v in views]
+    out = ["## Summary", ""] + _table(["experiment", "title", "data", "ran", "claims", "run time"], rows)
+    totals = {verdict: sum(v.count(verdict) for v in views if v.status == "ok") for verdict in VERDICTS}
+    for variant in ("real", "synthetic"):
+        runs = [v for v in views if v.variant == variant and v.status == "ok"]
+        if runs:
+            counts = ", ".join(f"{sum(v.count(x) for v in runs)} {x}" for x in VERDICTS)
+            out += [f"- On {VARIANT_LABELS[variant]}: {len(runs)} run(s); claims: {counts}."]
+    if any(totals.values()):
+        out.append("")
     return out
 
 
 def render_markdown(views: list[ExperimentView], *, title: str) -> str:
     """Return the whole Markdown report for ``views``."""
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-    out = [f"# {_text(title)}", "", f"Generated {now} by mmconcepts {__version__} · {len(views)} experiment(s)", ""]
+    groups = group(views)
+    out = [f"# {_text(title)}", "", f"Generated {now} by mmconcepts {__version__} · {len(groups)} experiment(s), "
+           f"{len(views)} run(s)", ""]
     if not views:
         out += ["No result records found.", ""]
     else:
-        out += ["## Summary", ""]
-        out += _table(
-            ["experiment", "title", "status", "claims", "run time"],
-            [[v.id, v.title, STATUS_LABELS.get(v.status, v.status), v.claims_summary, v.elapsed] for v in views],
-        )
-    for view in views:
-        out += _section(view)
+        out += _summary(views)
+    for g in groups:
+        out += _section(g)
     return "\n".join(out).rstrip("\n") + "\n"
