@@ -107,6 +107,21 @@ def test_registry_names_and_fields():
         ds.find_dataset("msr")
 
 
+def test_every_loader_resolves():
+    import importlib
+
+    for info in ds.DATASETS.values():
+        module, _, funcs = info.loader.partition(":")
+        mod = importlib.import_module(module)
+        assert any(callable(getattr(mod, f, None)) for f in funcs.split("|")), info.loader
+
+
+def test_load_reads_a_found_set(tmp_path, no_env_root):
+    _make_msr(tmp_path / "msr-action3d", 2)
+    rec = ds.DATASETS["msr-action3d"].load(ds.find_dataset("msr-action3d", tmp_path))
+    assert len(rec) == 2
+
+
 # --------------------------------------------------------------------------- data root
 
 
@@ -126,8 +141,12 @@ def test_data_root_none_without_env_never_shared(no_env_root, monkeypatch):
     assert all(row["found"] is None and row["problem"] is None for row in ds.dataset_status())
 
 
-def test_data_root_expands_user(no_env_root):
+def test_data_root_expands_user_and_is_absolute(tmp_path, no_env_root, monkeypatch):
     assert ds.data_root("~/x") == Path.home() / "x"
+    monkeypatch.chdir(tmp_path)
+    assert ds.data_root("rel") == tmp_path / "rel"
+    monkeypatch.setenv(ds.DATA_ROOT_ENV, "rel-env")
+    assert ds.data_root() == tmp_path / "rel-env"
 
 
 # --------------------------------------------------------------------------- finding sets
@@ -259,7 +278,7 @@ def test_fetch_fsdd_from_loopback(server, tmp_path, no_env_root):
     data = _fsdd_archive()
     (served / "v1.0.9.tar.gz").write_bytes(data)
     root = tmp_path / "root"
-    out = ds.fetch_dataset("fsdd", root, url=f"{base}/v1.0.9.tar.gz", sha256=_sha256(data))
+    out = ds.fetch_dataset("fsdd", root, url=f"{base}/v1.0.9.tar.gz", sha256=_sha256(data), progressbar=True)
     assert out == root / "fsdd"
     assert _leftovers(root) == ["fsdd"]  # no staging folder or download left
     assert ds.find_dataset("fsdd", root) == out
@@ -274,6 +293,7 @@ def test_fetch_fsdd_from_loopback(server, tmp_path, no_env_root):
 
     corpus = load_generic_audio(out)
     assert len(corpus) == len(FSDD_FILES)
+    assert len(ds.DATASETS["fsdd"].load(out)) == len(FSDD_FILES)
     # Present already: returned untouched, nothing downloaded (the served file is gone).
     (served / "v1.0.9.tar.gz").unlink()
     assert ds.fetch_dataset("fsdd", root, url=f"{base}/v1.0.9.tar.gz", sha256=_sha256(data)) == out

@@ -265,7 +265,7 @@ class DatasetInfo:
     url: str | None = None
     sha256: str | None = None
     real: bool = True
-    loader: str = ""  # "module:function" reading the set's folder
+    loader: str = ""  # "module:function" reading the set's folder ("module:f|g": the first that exists)
     _check: Callable[[Path], str | None] | None = field(default=None, repr=False, compare=False)
     _count: Callable[[Path], int] | None = field(default=None, repr=False, compare=False)
 
@@ -295,12 +295,16 @@ class DatasetInfo:
 
     def load(self, path: PathLike, **kwargs):
         """Load the set from ``path`` with its loader (``kwargs`` go to the loader)."""
-        module, _, func = self.loader.partition(":")
+        module, _, funcs = self.loader.partition(":")
         try:
-            fn = getattr(importlib.import_module(module), func)
-        except (ImportError, AttributeError) as exc:
+            mod = importlib.import_module(module)
+        except ImportError as exc:
             raise DataError(f"data set {self.name!r}: its loader {self.loader!r} is not available ({exc}).") from exc
-        return fn(path, **kwargs)
+        for func in funcs.split("|"):  # the first that exists
+            fn = getattr(mod, func, None)
+            if fn is not None:
+                return fn(path, **kwargs)
+        raise DataError(f"data set {self.name!r}: its loader {self.loader!r} is not available.")
 
 
 _FSDD_URL = "https://github.com/Jakobovski/free-spoken-digit-dataset/archive/v1.0.9.tar.gz"
@@ -319,19 +323,20 @@ _LIST: tuple[DatasetInfo, ...] = (
         layout=(
             "Mono 8 kHz WAV files named {digit}_{speaker}_{index}.wav (one digit word said alone, "
             "'zero'..'nine') and labels.csv in the generic audio layout (file,speaker,labels,"
-            "transcription; labels is the digit's word). `data fetch fsdd` writes this layout."
+            "transcription; labels is the digit's word). `data fetch fsdd` writes this layout from "
+            "the v1.0.9 archive (5 speakers, 2500 recordings; upstream's recordings/ folder "
+            "flattened, its README.md and metadata.py kept as upstream-*)."
         ),
         source="https://github.com/Jakobovski/free-spoken-digit-dataset",
         licence="CC BY-SA 4.0",
         citation=(
-            "Z. Jackson, C. Souza, J. Flaks, Y. Pan, H. Nicolas, A. Thite. Free Spoken Digit Dataset "
-            "(FSDD), v1.0.9, 2018. https://github.com/Jakobovski/free-spoken-digit-dataset, "
-            "doi:10.5281/zenodo.1342401"
+            "Z. Jackson et al. Free Spoken Digit Dataset (FSDD). "
+            "https://github.com/Jakobovski/free-spoken-digit-dataset, doi:10.5281/zenodo.1342401"
         ),
         obtain="mmconcepts data fetch fsdd (v1.0.9 tag archive, 12 MB, sha256-verified)",
         url=_FSDD_URL,
         sha256=_FSDD_SHA256,
-        loader="mmconcepts.sound.data:load_fsdd",
+        loader="mmconcepts.sound.data:load_fsdd|load_generic_audio",
         _check=_check_fsdd,
         _count=_count_fsdd,
     ),
@@ -352,8 +357,8 @@ _LIST: tuple[DatasetInfo, ...] = (
             "CVPR Workshops (CVPR4HB), 2010."
         ),
         obtain=(
-            "download the skeleton files (real-world coordinates) from the MSR Action3D page "
-            "(https://sites.google.com/view/wanqingli/data-sets/msr-action3d) and unpack the "
+            "request/download the skeleton files (real-world coordinates) as the MSR Action3D page "
+            "says (https://sites.google.com/view/wanqingli/data-sets/msr-action3d) and unpack the "
             "*_skeleton3D.txt files into DATA_ROOT/msr-action3d"
         ),
         loader="mmconcepts.motion.data:load_msr_action3d",
@@ -370,16 +375,16 @@ _LIST: tuple[DatasetInfo, ...] = (
             "folder or its sub-folders (the original cropped-close128 archive's <category>/<object>/ "
             "tree works as is); any image size."
         ),
-        source="https://www.d2.mpi-inf.mpg.de/Datasets/ETH80",
+        source="http://datasets.d2.mpi-inf.mpg.de/eth80/ (MPI Informatics)",
         licence="research use (see the data set's page); cite the paper",
         citation=(
             "B. Leibe, B. Schiele. Analyzing appearance and contour based methods for object "
             "categorization. CVPR 2003."
         ),
         obtain=(
-            "download eth80-cropped-close128.tgz from the ETH-80 page (MPI Informatics, "
-            "https://www.d2.mpi-inf.mpg.de/Datasets/ETH80; no published checksum) and unpack it into "
-            "DATA_ROOT/eth80, or fetch it with `mmconcepts data fetch eth80 --url URL --sha256 HASH`"
+            "download http://datasets.d2.mpi-inf.mpg.de/eth80/eth80-cropped-close128.tgz (all 80 "
+            "objects, 128x128; no published checksum) and unpack it into DATA_ROOT/eth80, or run "
+            "`mmconcepts data fetch eth80 --url URL --sha256 HASH` with a hash you trust"
         ),
         loader="mmconcepts.vision.data:load_eth80",
         _check=_check_eth80,
@@ -537,12 +542,13 @@ def _info(name: str) -> DatasetInfo:
 def data_root(path: PathLike | None = None) -> Path | None:
     """The data root: ``path`` if given, else ``$MMCONCEPTS_DATA_ROOT``, else None.
 
-    Never looks anywhere else. The folder is not required to exist (``fetch`` creates it).
+    Never looks anywhere else. The path is made absolute (not resolved through links); the
+    folder is not required to exist (``fetch`` creates it).
     """
     if path is not None and str(path) != "":
-        return Path(path).expanduser()
+        return Path(path).expanduser().absolute()
     env = os.environ.get(DATA_ROOT_ENV, "").strip()
-    return Path(env).expanduser() if env else None
+    return Path(env).expanduser().absolute() if env else None
 
 
 def _locate(info: DatasetInfo, root: Path) -> tuple[Path | None, str | None]:
@@ -775,6 +781,11 @@ def fetch_dataset(
             f"move or remove it, then fetch again."
         )
 
+    if progressbar:
+        try:
+            import tqdm  # noqa: F401  (pooch needs it for its progress bar)
+        except ImportError:
+            progressbar = False
     root.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".fetch-{info.folders[0]}-", dir=root))
     try:
