@@ -108,6 +108,8 @@ def _check_labels_csv(path: Path, columns: tuple[str, ...], layout: str) -> str 
 def _check_fsdd(path: Path) -> str | None:
     problem = _check_labels_csv(path, ("file", "speaker", "labels"), "generic audio")
     if problem:
+        if not (path / "labels.csv").exists() and next(iter(_iter_files(path, _FSDD_NAME)), None) is not None:
+            problem += "; it holds FSDD WAVs: move them aside and run `mmconcepts data fetch fsdd`, or write labels.csv"
         return problem
     if next(iter(_iter_files(path, _FSDD_NAME)), None) is None:
         return "no {digit}_{speaker}_{index}.wav file"
