@@ -5,6 +5,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 RESULTS ?= results
+# The folder of real data sets (fsdd, msr-action3d, eth80, ...); empty: $$MMCONCEPTS_DATA_ROOT, else generated data only.
+DATA_ROOT ?=
 
 .PHONY: reproduce test bench clean
 
@@ -14,9 +16,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[all]"
 	touch $(STAMP)
 
-## Run every registered experiment in quick mode and write results/report.html and results/report.md
+## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
+## and write results/report.html and results/report.md
 reproduce: $(STAMP)
-	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS)
+	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included)
 test: $(STAMP)

@@ -467,3 +467,19 @@ def test_samples_must_belong_to_a_metric():
         Result(metrics={"a": 1.0}, samples={"b": [1.0, 2.0]}).validate()
     with pytest.raises(ExperimentError, match="real numbers"):
         Result(metrics={"a": 1.0}, samples={"a": "12"}).validate()
+
+
+def test_warnings_of_a_run_are_recorded_and_reported(toy, tmp_path):
+    import warnings as _w
+
+    from mmconcepts.report import write_report
+
+    def run(config, ctx):
+        _w.warn("1 file(s) of the toy set could not be read and were skipped: bad.wav", RuntimeWarning)
+        return Result(metrics={"a": 1.0})
+
+    exp = toy.make_experiment("toy-warn", run)
+    with pytest.warns(RuntimeWarning, match="skipped"):  # still shown to the caller
+        rec = run_experiment(exp, output=tmp_path, progress=False)
+    assert rec["warnings"] == ["RuntimeWarning: 1 file(s) of the toy set could not be read and were skipped: bad.wav"]
+    assert "bad.wav" in write_report(tmp_path)[1].read_text()

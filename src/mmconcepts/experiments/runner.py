@@ -25,6 +25,9 @@ A result record is a JSON object with a stable schema (``schema_version`` 2)::
     tables          name -> {title, columns, rows, note}
     figures         name -> path of the PNG, relative to the results folder
     notes, extra    remarks and JSON-able extras
+    warnings        the distinct warnings raised during the run ("RuntimeWarning: 2 file(s)
+                    of ... could not be read and were skipped ..."), so that the report
+                    records what a loader skipped
     elapsed_s, started_at (ISO 8601, UTC), python, platform
 
 The record of an experiment's default run is ``<output>/<id>.json`` (on the real sets
@@ -51,6 +54,7 @@ import re
 import tempfile
 import time
 import traceback
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path, PurePath
 from typing import Any
@@ -112,6 +116,7 @@ RECORD_KEYS = (
     "figures",
     "notes",
     "extra",
+    "warnings",
     "elapsed_s",
     "started_at",
     "python",
@@ -237,6 +242,7 @@ def load_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
                 claim.setdefault("verdict", {True: "holds", False: "fails"}.get(claim.get("holds"), "not evaluated"))
     obj.setdefault("intervals", {})
     obj.setdefault("samples", {})
+    obj.setdefault("warnings", [])
     return obj
 
 
@@ -500,6 +506,7 @@ def run_experiment(
         "figures": {},
         "notes": [],
         "extra": {},
+        "warnings": [],
         "elapsed_s": 0.0,
         "started_at": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "python": platform.python_version(),
@@ -537,7 +544,16 @@ def run_experiment(
             )
         if chosen == "synthetic" and not exp.synthetic:
             raise ExperimentSkipped(f"{exp.id} runs only on real data ({', '.join(exp.datasets)}).")
-        result = exp.run(config, ctx)
+        with warnings.catch_warnings(record=True) as caught:  # filters still apply ("error" raises)
+            try:
+                result = exp.run(config, ctx)
+            finally:
+                for w in caught:
+                    text = f"{w.category.__name__}: {w.message}"
+                    if text not in record["warnings"]:
+                        record["warnings"].append(text)
+        for w in caught:  # shown as usual, after being recorded
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         if not isinstance(result, Result):
             raise ExperimentError(f"{exp.id}: run() must return a Result; got {type(result).__name__}.")
         result.validate()

@@ -89,6 +89,7 @@ class ExperimentView:
     variant: str = "synthetic"
     data: list[tuple[str, str]] = field(default_factory=list)  # (set name, path)
     values: dict[str, str] = field(default_factory=dict)  # metric -> "0.81 [0.75, 0.87]"
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def n_claims(self) -> int:
@@ -240,6 +241,7 @@ def build_view(record: dict[str, Any], results_dir: Path, source: Path) -> Exper
         variant=str(record.get("variant") or ("real" if data else "synthetic")),
         data=[(str(k), str(v)) for k, v in data.items()],
         values=values,
+        warnings=[str(w) for w in record.get("warnings") or []],
     )
 
 

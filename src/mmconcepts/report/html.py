@@ -87,6 +87,9 @@ def _run(view: ExperimentView) -> str:
         )
     if view.notes:
         out.append("<h4>Notes</h4><ul>" + "".join(f"<li>{_e(n)}</li>" for n in view.notes) + "</ul>")
+    if view.warnings:
+        out.append("<h4>Warnings during the run (skipped files, ...)</h4><ul>"
+                   + "".join(f"<li>{_e(w)}</li>" for w in view.warnings) + "</ul>")
     if view.config:
         out.append("<h4>Configuration</h4>")
         out.append(_table(["parameter", "value"], [list(r) for r in view.config]))

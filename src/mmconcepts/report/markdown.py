@@ -58,6 +58,8 @@ def _run(view: ExperimentView) -> list[str]:
         out += [f"![{_text(name)}]({quote(rel, safe='/')}){missing}", ""]
     if view.notes:
         out += ["#### Notes", ""] + [f"- {_text(n)}" for n in view.notes] + [""]
+    if view.warnings:
+        out += ["#### Warnings during the run (skipped files, ...)", ""] + [f"- {_text(w)}" for w in view.warnings] + [""]
     if view.config:
         out += ["#### Configuration", ""] + _table(["parameter", "value"], [list(r) for r in view.config])
     out += ["#### Run", ""] + _table(["", ""], [list(r) for r in view.run_info])
