@@ -142,3 +142,38 @@ def test_python_dash_m_help():
     assert "reproduce" in proc.stdout
     proc = subprocess.run([sys.executable, "-m", "mmconcepts", "run"], capture_output=True, text=True, env=env, timeout=60)
     assert proc.returncode == 2 and "ID" in proc.stderr
+
+
+def test_data_list_shows_every_set_and_where_it_is(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
+    assert main(["data", "list"]) == 0
+    out = capsys.readouterr().out
+    assert "data root: (none" in out
+    for name in ("fsdd", "msr-action3d", "eth80", "coil20", "choreo1", "choreo2", "acorns"):
+        assert re.search(rf"^{re.escape(name)} +- ", out, re.M), name
+    msr = tmp_path / "msr-action3d"
+    msr.mkdir()
+    (msr / "a01_s01_e01_skeleton3D.txt").write_text("0 0 0 0\n" * 20)
+    assert main(["data", "list", "--data-root", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(rf"^msr-action3d +{re.escape(str(msr))} +1 ", out, re.M)
+
+
+def test_data_list_on_the_real_data_root(capsys):
+    from conftest import DATA_ROOT
+
+    if DATA_ROOT is None:
+        pytest.skip("no data root (set MMCONCEPTS_DATA_ROOT or put ../shared/data beside the checkout)")
+    assert main(["data", "list", "--data-root", str(DATA_ROOT)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^fsdd +\S+ +1500 ", out, re.M) and re.search(r"^msr-action3d +\S+ +567 ", out, re.M)
+
+
+def test_data_fetch_usage_errors(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
+    assert main(["data", "fetch", "nosuchset", "--data-root", str(tmp_path)]) == 2
+    assert "unknown data set 'nosuchset'" in capsys.readouterr().err
+    assert main(["data", "fetch", "fsdd"]) == 2
+    assert "no data root" in capsys.readouterr().err
+    assert main(["data", "fetch", "msr-action3d", "--data-root", str(tmp_path)]) == 1
+    assert "no public download" in capsys.readouterr().err
