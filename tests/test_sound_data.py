@@ -218,3 +218,168 @@ def test_corpus_from_utterances(tmp_path, rng):
     c = SpeechCorpus([Utterance(p, "s", ("a",)), Utterance(p, "t", ("b", "a"))])
     np.testing.assert_array_equal(c.label_matrix(), [[1, 0], [1, 1]])
     assert c.speakers == ("s", "t") and len(c.subset(np.array([False, True]))) == 1
+
+
+# --------------------------------------------------------------------------- FSDD
+
+from conftest import real_data_path  # noqa: E402
+
+from mmconcepts.errors import DataError  # noqa: E402
+from mmconcepts.sound.data import FSDD_WORDS, compose_utterances, composed_sources, load_fsdd  # noqa: E402
+
+FSDD_FILES = [("3", "bob", 1), ("0", "alice", 0), ("1", "alice", 0), ("0", "bob", 0), ("0", "alice", 10),
+              ("0", "alice", 2)]
+
+
+def _fsdd_upstream(root, rng):
+    for d, spk, i in FSDD_FILES:
+        _wav(root / "recordings" / f"{d}_{spk}_{i}.wav", rng, 0.3 + 0.05 * int(d), sr=8000)
+    return root
+
+
+def test_fsdd_upstream_layout_labels_and_speakers_from_file_names(tmp_path, rng):
+    root = _fsdd_upstream(tmp_path / "free-spoken-digit-dataset", rng)
+    c = load_fsdd(root)
+    assert c.name == "fsdd" and c.skipped == []
+    # ordered by speaker, digit, index (numerically: 0_alice_2 before 0_alice_10)
+    assert [u.path.name for u in c] == ["0_alice_0.wav", "0_alice_2.wav", "0_alice_10.wav", "1_alice_0.wav",
+                                        "0_bob_0.wav", "3_bob_1.wav"]
+    assert c.labels == [("zero",), ("zero",), ("zero",), ("one",), ("zero",), ("three",)]
+    assert c.speakers == ("alice", "bob") and c[5].transcription == "three"
+    assert c[5].meta == {"digit": 3, "index": 1} and c[5].duration == pytest.approx(0.45, abs=1e-3)
+    # 8 kHz on disk, 16 kHz for the pipeline
+    assert c.load(5, sr=None).size == 3600 and c.load(5).size == pytest.approx(7200, abs=2)
+    assert load_fsdd(root / "recordings").labels == c.labels  # the recordings/ folder itself
+    assert [u.path.name for u in load_fsdd(root, speakers=["bob"])] == ["0_bob_0.wav", "3_bob_1.wav"]
+    with pytest.raises(ParameterError, match="carol"):
+        load_fsdd(root, speakers=["bob", "carol"])
+
+
+def test_fsdd_generic_layout_gives_the_same_corpus(tmp_path, rng):
+    up = load_fsdd(_fsdd_upstream(tmp_path / "up", rng))
+    root = tmp_path / "generic"
+    root.mkdir()
+    rows = ["file,speaker,labels,transcription"]
+    for d, spk, i in reversed(FSDD_FILES):  # table order must not matter
+        name = f"{d}_{spk}_{i}.wav"
+        (root / name).write_bytes((tmp_path / "up" / "recordings" / name).read_bytes())
+        rows.append(f"{name},{spk},{FSDD_WORDS[int(d)]},{FSDD_WORDS[int(d)]}")
+    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    gen = load_fsdd(root)
+    assert [u.path.name for u in gen] == [u.path.name for u in up]
+    assert gen.labels == up.labels and list(gen.speaker_ids) == list(up.speaker_ids)
+    assert [u.meta for u in gen] == [u.meta for u in up]
+
+
+def test_fsdd_corrupt_wav_is_an_error_or_a_logged_skip(tmp_path, rng, caplog):
+    root = _fsdd_upstream(tmp_path / "fsdd", rng)
+    (root / "recordings" / "1_alice_0.wav").write_bytes(b"RIFF\x00\x00\x00\x00WAVEgarbage")
+    with pytest.raises(DataFormatError, match=r"1_alice_0\.wav"):
+        load_fsdd(root)
+    with caplog.at_level("WARNING", logger="mmconcepts.sound.data"), pytest.warns(RuntimeWarning, match="1 file"):
+        c = load_fsdd(root, on_error="skip")
+    assert len(c) == len(FSDD_FILES) - 1 and "one" not in c.keywords
+    assert [s.file.split("/")[-1] for s in c.skipped] == ["1_alice_0.wav"]
+    assert any("1_alice_0.wav" in r.getMessage() and r.levelname == "WARNING" for r in caplog.records)
+
+
+def test_fsdd_badly_named_file_and_empty_folder(tmp_path, rng):
+    root = _fsdd_upstream(tmp_path / "fsdd", rng)
+    _wav(root / "recordings" / "hello.wav", rng, 0.2, sr=8000)
+    with pytest.raises(DataFormatError, match=r"hello\.wav.*digit"):
+        load_fsdd(root)
+    with pytest.warns(RuntimeWarning):
+        assert len(load_fsdd(root, on_error="skip")) == len(FSDD_FILES)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DataFormatError, match="not an FSDD folder"):
+        load_fsdd(tmp_path / "empty")
+    with pytest.raises(FileNotFoundError):
+        load_fsdd(tmp_path / "nowhere")
+
+
+def test_fsdd_real_set_file_names_agree_with_labels():
+    root = real_data_path("fsdd")
+    c = load_fsdd(root, check_audio=False)
+    assert len(c) > 0 and set(c.keywords) <= set(FSDD_WORDS)
+    for u in c:
+        d, spk, _ = u.path.stem.split("_")
+        assert u.labels == (FSDD_WORDS[int(d)],) and u.speaker == spk
+    first = c.by_speaker(c.speakers[0])
+    assert set(first.keywords) == set(FSDD_WORDS)  # every speaker says every digit
+    y8, y16 = first.load(0, sr=None), first.load(0)
+    assert abs(len(y16) - 2 * len(y8)) <= 2  # 8 kHz resampled explicitly to the pipeline's 16 kHz
+
+
+# --------------------------------------------------------------------------- composed utterances
+
+
+@pytest.fixture
+def words_corpus(tmp_path, rng):
+    """Two speakers, four words each, two recordings per word, at 8 kHz, of different lengths."""
+    root = tmp_path / "words"
+    rows = ["file,speaker,labels,transcription"]
+    for spk in ("s1", "s2"):
+        for w, word in enumerate(("red", "green", "blue", "black")):
+            for k in range(2):
+                name = f"{spk}_{word}_{k}.wav"
+                _wav(root / name, rng, 0.2 + 0.03 * w + 0.01 * k, sr=8000)
+                rows.append(f"{name},{spk},{word},{word}")
+    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    return load_generic_audio(root)
+
+
+def test_composed_utterances_timings_labels_and_audio_are_exact(words_corpus, tmp_path):
+    comp = compose_utterances(words_corpus, tmp_path / "comp", n_utterances=12, n_words=(2, 4),
+                              pause_s=(0.1, 0.3), sr=SR, random_state=7)
+    assert len(comp) == 12 and comp.speakers == ("s1", "s2")
+    sources = composed_sources(comp)
+    by_path = {str(u.path): u for u in words_corpus}
+    n_words = []
+    for u, srcs in zip(comp, sources):
+        src = [by_path[p] for p in srcs]
+        n_words.append(len(src))
+        assert 2 <= len(src) <= 4 and {s.speaker for s in src} == {u.speaker}  # one speaker per utterance
+        assert u.labels == tuple(s.labels[0] for s in src) and len(set(u.labels)) == len(u.labels)
+        assert [w.word for w in u.word_timings] == list(u.labels)
+        y = comp.load(comp.utterances.index(u))
+        pieces = [words_corpus.load(words_corpus.utterances.index(s)) for s in src]
+        # timings are the cumulative lengths of the recordings and the pauses, in samples
+        starts = np.array([w.start for w in u.word_timings]) * SR
+        ends = np.array([w.end for w in u.word_timings]) * SR
+        np.testing.assert_allclose(ends - starts, [len(p) for p in pieces], atol=1e-6)
+        assert starts[0] == 0 and ends[-1] == pytest.approx(len(y), abs=1e-6)
+        pauses = (starts[1:] - ends[:-1]) / SR
+        assert np.all((pauses >= 0.1 - 1e-4) & (pauses <= 0.3 + 1e-4))
+        # the audio is the concatenation (up to 16-bit rounding), silence in the pauses
+        for p, a, b in zip(pieces, starts.round().astype(int), ends.round().astype(int)):
+            np.testing.assert_allclose(y[a:b], np.clip(p, -1, 1), atol=1.0 / 32767)
+        for a, b in zip(ends[:-1].round().astype(int), starts[1:].round().astype(int)):
+            assert np.all(y[a:b] == 0)
+    assert set(n_words) == {2, 3, 4}
+
+
+def test_composed_utterances_are_deterministic_and_cached(words_corpus, tmp_path):
+    a = compose_utterances(words_corpus, tmp_path / "a", n_utterances=6, random_state=3)
+    stamp = (tmp_path / "a" / "00000_s1.wav").stat().st_mtime_ns
+    again = compose_utterances(words_corpus, tmp_path / "a", n_utterances=6, random_state=3)
+    assert (tmp_path / "a" / "00000_s1.wav").stat().st_mtime_ns == stamp  # reused, not rebuilt
+    b = compose_utterances(words_corpus, tmp_path / "b", n_utterances=6, random_state=3)
+    assert a.labels == again.labels == b.labels
+    assert [u.word_timings for u in a] == [u.word_timings for u in b]
+    assert all(np.array_equal(a.load(i), b.load(i)) for i in range(6))
+    ss = np.random.SeedSequence(3)
+    assert compose_utterances(words_corpus, tmp_path / "c", n_utterances=6, random_state=ss).labels == a.labels
+    other = compose_utterances(words_corpus, tmp_path / "a", n_utterances=6, random_state=4)  # rebuilds in place
+    assert other.labels != a.labels and not list(tmp_path.glob(".a.*"))
+
+
+def test_compose_utterances_bad_input(words_corpus, tmp_path):
+    with pytest.raises(ParameterError, match="n_words"):
+        compose_utterances(words_corpus, tmp_path / "x", n_utterances=2, n_words=(3, 2), random_state=0)
+    with pytest.raises(ParameterError, match="pause_s"):
+        compose_utterances(words_corpus, tmp_path / "x", n_utterances=2, pause_s=(-0.1, 0.2), random_state=0)
+    with pytest.raises(ParameterError, match="random_state"):
+        compose_utterances(words_corpus, tmp_path / "x", n_utterances=2, random_state=np.random.default_rng(0))
+    two = SpeechCorpus([Utterance(words_corpus[0].path, "s", ("a", "b"))])
+    with pytest.raises(DataError, match="exactly one label"):
+        compose_utterances(two, tmp_path / "x", n_utterances=2, random_state=0)

@@ -4,7 +4,8 @@ and speech data (thesis chapter 5 and Appendix B.1).
 Audio and data
     load_audio, write_audio, resample, audio_info; SpeechCorpus, Utterance, WordTiming,
     load_generic_audio (folder + labels.csv), load_acorns (ACORNS Caregiver layout),
-    save_generic_audio.
+    load_fsdd (Free Spoken Digit Dataset, generic or upstream layout), save_generic_audio,
+    compose_utterances (several recordings of one speaker in a row, exact word timings).
 Features (sections 5.2.3, 5.3)
     MFCCConfig, mfcc, delta (the thesis' operator), add_deltas, sliding_windows,
     mfcc_windows; HAC (histograms of acoustic co-occurrences, sparse).
@@ -24,11 +25,14 @@ from typing import Any
 
 from .audio import audio_info, load_audio, resample, write_audio
 from .data import (
+    FSDD_WORDS,
     SkippedFile,
     SpeechCorpus,
     Utterance,
     WordTiming,
+    compose_utterances,
     load_acorns,
+    load_fsdd,
     load_generic_audio,
     save_generic_audio,
 )
@@ -69,6 +73,7 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
+    "FSDD_WORDS",
     "HAC",
     "EventVoting",
     "MFCCConfig",
@@ -79,10 +84,12 @@ __all__ = [
     "WordTiming",
     "add_deltas",
     "audio_info",
+    "compose_utterances",
     "cooccurrence_counts",
     "delta",
     "load_acorns",
     "load_audio",
+    "load_fsdd",
     "load_generic_audio",
     "mfcc",
     "mfcc_windows",

@@ -31,7 +31,12 @@ ACORNS Caregiver
     audio-file or a tag element gets a :class:`~mmconcepts.errors.DataFormatError` that
     names it and lists the elements it does have.
 
-Both loaders take ``on_error="raise"`` (the first bad file raises a
+Free Spoken Digit Dataset (FSDD)
+    Mono WAV files named ``{digit}_{speaker}_{index}.wav``, either in the generic layout
+    above (a folder with ``labels.csv``) or in the upstream layout (a ``recordings/``
+    sub-folder and no ``labels.csv``): see :func:`load_fsdd`.
+
+All loaders take ``on_error="raise"`` (the first bad file raises a
 :class:`~mmconcepts.errors.DataFormatError` naming it) or ``"skip"`` (bad files are left
 out, listed as ``(file, reason)`` in ``corpus.skipped``, and a :class:`RuntimeWarning`
 says how many).
@@ -65,7 +70,11 @@ __all__ = [
     "SpeechCorpus",
     "Utterance",
     "WordTiming",
+    "FSDD_WORDS",
+    "compose_utterances",
+    "composed_sources",
     "load_acorns",
+    "load_fsdd",
     "load_generic_audio",
     "normalize_word",
     "save_generic_audio",
@@ -287,7 +296,7 @@ def _report_skipped(skipped: list[SkippedFile], what: str) -> None:
     if not skipped:
         return
     for s in skipped:
-        _LOG.info("skipped %s: %s", s.file, s.reason)
+        _LOG.warning("skipped %s: %s", s.file, s.reason)
     msg = (f"{len(skipped)} file(s) of {what} could not be read and were skipped (see corpus.skipped); "
            f"first: {skipped[0].reason}")
     _LOG.warning(msg)
@@ -482,6 +491,390 @@ def _write_csv(path: Path, header: list[str], rows: list[list[str]]) -> None:
         except OSError:
             pass
         raise
+
+
+# --------------------------------------------------------------------------- FSDD
+
+#: The word said in the recordings of each digit of the Free Spoken Digit Dataset.
+FSDD_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
+
+_FSDD_NAME = re.compile(r"^(\d)_(.+)_(\d+)$")
+
+
+def _fsdd_name(path: Path) -> tuple[int, str, int] | None:
+    """``(digit, speaker, index)`` from ``{digit}_{speaker}_{index}.wav``, None if the name differs."""
+    m = _FSDD_NAME.match(path.stem)
+    return None if m is None else (int(m.group(1)), m.group(2), int(m.group(3)))
+
+
+def _fsdd_order(u: Utterance) -> tuple:
+    parsed = _fsdd_name(u.path)
+    return (u.speaker, 0, parsed[0], parsed[2], "") if parsed else (u.speaker, 1, 0, 0, u.path.name)
+
+
+def load_fsdd(
+    root: str | os.PathLike[str],
+    *,
+    speakers: Iterable[str] | None = None,
+    on_error: str = "raise",
+    check_audio: bool = True,
+) -> SpeechCorpus:
+    """Load the Free Spoken Digit Dataset (FSDD): English digit words, each said alone.
+
+    Layout. Mono WAV files (8 kHz, 16-bit PCM upstream) named
+    ``{digit}_{speaker}_{index}.wav`` (``0_jackson_12.wav``: the 13th "zero" of speaker
+    ``jackson``), in either of two layouts:
+
+    - *generic* (what :func:`load_generic_audio` reads): the folder holds the WAV files
+      and ``labels.csv`` (``file,speaker,labels,transcription``; ``labels`` is the digit's
+      word, ``"zero"`` .. ``"nine"``). The table is authoritative: labels and speakers come
+      from it.
+    - *upstream* (a clone or archive of the repository): a ``recordings/`` sub-folder of
+      WAV files and no ``labels.csv`` (``root`` may also be that folder itself). The label
+      is the English word of the digit in the file name (:data:`FSDD_WORDS`) and the
+      speaker the name's middle part; a WAV whose name does not follow the pattern is a
+      bad file (see ``on_error``).
+
+    Utterances are ordered by speaker, digit and index in both layouts, so a protocol
+    gives the same result whichever layout the set came in. Each utterance has one label
+    and its transcription is that word; there are no word timings (each file is the one
+    word, trimmed to near minimal silence). The audio is 8 kHz: load it with
+    :meth:`SpeechCorpus.load` / :func:`~mmconcepts.sound.load_audio`, which resample it
+    explicitly to the pipeline's 16 kHz (``sr=16000``, the default).
+
+    Source: Z. Jackson, C. Souza, J. Flaks, Y. Pan, H. Nicolas and A. Thite, *Free Spoken
+    Digit Dataset*, https://github.com/Jakobovski/free-spoken-digit-dataset (6 speakers
+    and 3000 recordings in its 2024 version; any subset of speakers loads). Licence:
+    Creative Commons Attribution-ShareAlike 4.0 (CC BY-SA 4.0). Cite as::
+
+        @misc{fsdd,
+          author = {Jackson, Zohar and Souza, C{\'e}sar and Flaks, Jason and Pan, Yuxin and
+                    Nicolas, Hereman and Thite, Adhish},
+          title = {Jakobovski/free-spoken-digit-dataset},
+          publisher = {Zenodo}, doi = {10.5281/zenodo.1342401}, year = {2018}}
+
+    Parameters
+    ----------
+    root : path-like
+        The folder holding ``labels.csv`` and the WAVs, or the repository's folder (with
+        ``recordings/``), or the ``recordings/`` folder itself.
+    speakers : iterable of str, optional
+        Keep only these speakers (default: all). An unknown speaker is an error.
+    on_error : {"raise", "skip"}
+        ``"raise"``: the first unreadable, empty or truncated WAV (or, in the upstream
+        layout, a WAV named otherwise) raises :class:`DataFormatError` naming the file.
+        ``"skip"``: such files are left out, listed in ``corpus.skipped``, each logged as a
+        warning naming the file, and a :class:`RuntimeWarning` says how many; the rest
+        loads.
+    check_audio : bool, default=True
+        Open each WAV header (finds corrupt files at load time; gives ``duration``).
+
+    Returns
+    -------
+    SpeechCorpus
+        Named ``"fsdd"``; ``meta`` holds ``digit`` and ``index`` where the file name has
+        them.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``root`` does not exist.
+    DataFormatError
+        If the folder holds neither ``labels.csv`` nor FSDD recordings, or a bad file with
+        ``on_error="raise"``.
+    ParameterError
+        If ``speakers`` names a speaker the set does not have.
+
+    Examples
+    --------
+    >>> corpus = load_fsdd("data/fsdd", speakers=["jackson"])   # doctest: +SKIP
+    >>> corpus.keywords                                        # doctest: +SKIP
+    ('eight', 'five', 'four', 'nine', 'one', 'seven', 'six', 'three', 'two', 'zero')
+    >>> y = corpus.load(0)       # float32 at 16 kHz (resampled from 8 kHz)   # doctest: +SKIP
+    """
+    _check_on_error(on_error)
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"FSDD folder not found: {root}")
+    want = None if speakers is None else {str(s) for s in speakers}
+    if (root / LABELS_FILE).exists():
+        corpus = load_generic_audio(root, on_error=on_error, check_audio=check_audio, name="fsdd")
+        utts, skipped = list(corpus.utterances), list(corpus.skipped)
+        utts = [_with_fsdd_meta(u) for u in utts]
+    else:
+        rec = _child_dir(root, "recordings") or root
+        files = sorted(p for p in rec.iterdir() if p.suffix.lower() in _AUDIO_EXTENSIONS and p.is_file())
+        if not files:
+            raise DataFormatError(
+                f"{root} is not an FSDD folder: it has no {LABELS_FILE} (generic layout) and no recordings/ "
+                "folder of {digit}_{speaker}_{index}.wav files (upstream layout)."
+            )
+        utts, skipped = [], []
+        for path in files:
+            try:
+                parsed = _fsdd_name(path)
+                if parsed is None:
+                    raise DataFormatError(
+                        f"{path}: not an FSDD file name; expected {{digit}}_{{speaker}}_{{index}}.wav "
+                        "(e.g. 0_jackson_12.wav)."
+                    )
+                digit, speaker, index = parsed
+                if want is not None and speaker not in want:
+                    continue
+                duration = _audio_duration(path) if check_audio else None
+                word = FSDD_WORDS[digit]
+                utts.append(Utterance(path=path, speaker=speaker, labels=(word,), transcription=word,
+                                      duration=duration, source=str(path), meta={"digit": digit, "index": index}))
+            except DataFormatError as exc:
+                if on_error == "raise":
+                    raise
+                skipped.append(SkippedFile(str(path), str(exc)))
+        _report_skipped(skipped, str(root))
+    if want is not None:
+        have = {u.speaker for u in utts}
+        unknown = sorted(want - have)
+        if unknown:
+            raise ParameterError(f"FSDD at {root} has no speaker {unknown}; it has {sorted(have)}.")
+        utts = [u for u in utts if u.speaker in want]
+    if not utts:
+        raise DataFormatError(f"No FSDD recording could be read from {root}.")
+    utts.sort(key=_fsdd_order)
+    return SpeechCorpus(utts, "fsdd", root, skipped)
+
+
+def _with_fsdd_meta(u: Utterance) -> Utterance:
+    """``u`` with ``meta`` holding ``digit`` and ``index`` parsed from its FSDD file name (if it has one)."""
+    parsed = _fsdd_name(u.path)
+    if parsed is None:
+        return u
+    return Utterance(u.path, u.speaker, u.labels, u.transcription or " ".join(u.labels), u.word_timings,
+                     u.duration, u.source, {**u.meta, "digit": parsed[0], "index": parsed[2]})
+
+
+# --------------------------------------------------------------------------- composed utterances
+
+#: Version of the composed-utterance format; a cache of another version is rebuilt.
+COMPOSE_VERSION = 1
+_COMPOSE_MANIFEST = "composed.json"
+
+
+def _seed_identity(random_state) -> tuple[np.random.SeedSequence, dict]:
+    if isinstance(random_state, np.random.SeedSequence):
+        ss = random_state
+    elif isinstance(random_state, (int, np.integer)) and not isinstance(random_state, bool) and random_state >= 0:
+        ss = np.random.SeedSequence(int(random_state))
+    else:
+        raise ParameterError(
+            "random_state must be a non-negative int or a numpy.random.SeedSequence (it names the cached "
+            f"composition); got {random_state!r}."
+        )
+    return ss, {"entropy": str(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]}
+
+
+def _check_range(value, name: str, *, integer: bool, low: float) -> tuple:
+    try:
+        lo, hi = value
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a pair (low, high); got {value!r}.") from None
+    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
+    if any(isinstance(v, bool) or not isinstance(v, kinds) or not np.isfinite(v) for v in (lo, hi)) or not (
+            low <= lo <= hi):
+        what = "ints" if integer else "numbers"
+        raise ParameterError(f"{name} must be {what} with {low} <= low <= high; got {value!r}.")
+    return (int(lo), int(hi)) if integer else (float(lo), float(hi))
+
+
+def _sources_digest(corpus: SpeechCorpus) -> str:
+    import hashlib
+
+    h = hashlib.sha1()
+    for u in corpus:
+        p = Path(u.path).resolve()
+        st = p.stat()
+        h.update(f"{p}|{st.st_size}|{st.st_mtime_ns}|{u.speaker}|{';'.join(u.labels)}|{u.transcription}|"
+                 f"{u.word_timings}\n".encode())
+    return h.hexdigest()
+
+
+def compose_utterances(
+    corpus: SpeechCorpus,
+    root: str | os.PathLike[str],
+    *,
+    n_utterances: int,
+    n_words: tuple[int, int] = (2, 4),
+    pause_s: tuple[float, float] = (0.1, 0.3),
+    sr: int = DEFAULT_SR,
+    random_state: int | np.random.SeedSequence,
+    name: str | None = None,
+) -> SpeechCorpus:
+    """Longer utterances made by concatenating recordings of one speaker with short pauses.
+
+    Each composed utterance takes one speaker (in turn, over the sorted speakers), a
+    number of words ``n`` uniform in ``n_words`` (bounds included; at most the number of
+    distinct labels the speaker has), ``n`` *distinct* labels of that speaker uniformly,
+    and for each label one of the speaker's recordings that has it, uniformly; the
+    recordings are resampled to ``sr``, put end to end in that order with a silence
+    uniform in ``pause_s`` (seconds) between two of them, and written to ``root`` in the
+    generic audio layout: ``NNNNN_<speaker>.wav`` (16-bit PCM), ``labels.csv`` (the
+    labels of the recordings, in spoken order) and ``word_timings.csv``, whose times are
+    exact (sample counts divided by ``sr``, written with 9 significant digits): a
+    recording with word timings contributes its words shifted by its offset, one
+    without contributes one word (its transcription, else its label) spanning the whole
+    recording. This is how the FSDD digits (one word per file) give utterances with
+    several keywords, the setting of thesis section 5.4 ("simple sentences containing one
+    or several keywords").
+
+    ``root`` is a cache: when it holds a composition made with the same sources (paths,
+    sizes, modification times, labels), parameters, seed and code version, it is loaded
+    instead of rebuilt. The composition is built in a temporary sibling folder and
+    renamed, so an interrupted build leaves nothing half-written behind.
+
+    Parameters
+    ----------
+    corpus : SpeechCorpus
+        Source recordings, each with exactly one label.
+    root : path-like
+        Folder to write (created; replaced if it holds another composition).
+    n_utterances : int
+        Number of utterances to compose.
+    n_words : (int, int), default=(2, 4)
+        Fewest and most recordings per utterance.
+    pause_s : (float, float), default=(0.1, 0.3)
+        Shortest and longest pause between two recordings, seconds.
+    sr : int, default=16000
+        Sample rate of the written audio (sources are resampled to it).
+    random_state : int or numpy.random.SeedSequence
+        Seeds every draw; the same seed gives the same files.
+    name : str, optional
+        Corpus name (default ``"<corpus.name>-composed"``).
+
+    Returns
+    -------
+    SpeechCorpus
+        The composed utterances, loaded from ``root`` (``labels``: the words said,
+        ``word_timings``: when).
+
+    Raises
+    ------
+    DataError
+        If the corpus is empty or a source recording has no label or several.
+    ParameterError
+        If a parameter is out of range.
+
+    Notes
+    -----
+    Samples are clipped to [-1, 1] before 16-bit writing (resampling can overshoot a
+    full-scale recording by a hair); the clipped samples are the only difference between
+    the file and the concatenation of the resampled sources, besides 16-bit rounding.
+    """
+    import json
+    import shutil
+
+    from .._fingerprint import code_fingerprint
+    from .._validation import check_positive_int
+    from .audio import write_audio
+
+    n_utt = check_positive_int(n_utterances, "n_utterances")
+    lo_w, hi_w = _check_range(n_words, "n_words", integer=True, low=1)
+    lo_p, hi_p = _check_range(pause_s, "pause_s", integer=False, low=0.0)
+    if isinstance(sr, bool) or not isinstance(sr, (int, np.integer)) or sr <= 0:
+        raise ParameterError(f"sr must be a positive int (Hz); got {sr!r}.")
+    ss, seed_id = _seed_identity(random_state)
+    utts = list(corpus)
+    if not utts:
+        raise DataError("compose_utterances needs a non-empty corpus.")
+    for u in utts:
+        if len(u.labels) != 1:
+            raise DataError(f"{u.path}: compose_utterances needs exactly one label per source recording; got {u.labels}.")
+    root = Path(root)
+    want = {"format": COMPOSE_VERSION, "code": code_fingerprint(), "sources": _sources_digest(corpus),
+            "n_utterances": n_utt, "n_words": [lo_w, hi_w], "pause_s": [lo_p, hi_p], "sr": int(sr),
+            "seed": seed_id}
+    corpus_name = name if name is not None else f"{corpus.name or 'corpus'}-composed"
+    if _composition_matches(root, want):
+        return load_generic_audio(root, name=corpus_name)
+
+    rng = np.random.default_rng(ss)
+    speakers = sorted({u.speaker for u in utts})
+    by_label: dict[str, dict[str, list[int]]] = {s: {} for s in speakers}
+    for i, u in enumerate(utts):
+        by_label[u.speaker].setdefault(u.labels[0], []).append(i)
+    plan = []  # (speaker, [source indices], [pause samples])
+    for j in range(n_utt):
+        spk = speakers[j % len(speakers)]
+        labels = sorted(by_label[spk])
+        n = min(int(rng.integers(lo_w, hi_w + 1)), len(labels))
+        chosen = rng.choice(len(labels), size=n, replace=False)
+        srcs = [int(rng.choice(by_label[spk][labels[c]])) for c in chosen]
+        pauses = [int(round(rng.uniform(lo_p, hi_p) * sr)) for _ in range(n - 1)]
+        plan.append((spk, srcs, pauses))
+
+    root.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", suffix=".tmp", dir=root.parent))
+    try:
+        audio: dict[int, np.ndarray] = {}
+        label_rows, timing_rows = [], []
+        for j, (spk, srcs, pauses) in enumerate(plan):
+            pieces, offset = [], 0
+            words: list[WordTiming] = []
+            for k, i in enumerate(srcs):
+                if i not in audio:
+                    audio[i] = load_audio(utts[i].path, sr=int(sr), min_duration=0.0)
+                y = audio[i]
+                u = utts[i]
+                t0 = offset / sr
+                if u.word_timings:
+                    words += [WordTiming(w.word, t0 + w.start, t0 + w.end) for w in u.word_timings]
+                else:
+                    words.append(WordTiming(u.transcription.strip() or u.labels[0], t0, (offset + len(y)) / sr))
+                pieces.append(y)
+                offset += len(y)
+                if k < len(pauses):
+                    pieces.append(np.zeros(pauses[k], dtype=np.float32))
+                    offset += pauses[k]
+            rel = f"{j:05d}_{spk}.wav"
+            write_audio(tmp / rel, np.clip(np.concatenate(pieces), -1.0, 1.0), int(sr))
+            label_rows.append([rel, spk, ";".join(utts[i].labels[0] for i in srcs),
+                               " ".join(utts[i].transcription.strip() or utts[i].labels[0] for i in srcs)])
+            timing_rows += [[rel, w.word, format(w.start, ".9g"), format(w.end, ".9g")] for w in words]
+        _write_csv(tmp / LABELS_FILE, ["file", "speaker", "labels", "transcription"], label_rows)
+        _write_csv(tmp / TIMINGS_FILE, ["file", "word", "start", "end"], timing_rows)
+        sources = [[str(utts[i].path) for i in srcs] for _, srcs, _ in plan]
+        (tmp / "sources.json").write_text(json.dumps(sources))
+        (tmp / _COMPOSE_MANIFEST).write_text(json.dumps(want, sort_keys=True))
+        if root.exists():
+            shutil.rmtree(root)
+        try:
+            os.rename(tmp, root)
+        except OSError:  # another process finished the same composition first
+            if not _composition_matches(root, want):
+                raise
+            shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return load_generic_audio(root, name=corpus_name)
+
+
+def composed_sources(corpus: SpeechCorpus) -> list[list[str]]:
+    """The source recordings of each utterance of a corpus made by :func:`compose_utterances`."""
+    import json
+
+    if corpus.root is None:
+        raise DataError("The corpus has no root folder; it was not made by compose_utterances.")
+    table = json.loads((Path(corpus.root) / "sources.json").read_text())
+    index = {f"{j:05d}": s for j, s in enumerate(table)}
+    return [index[Path(u.path).stem.split("_", 1)[0]] for u in corpus]
+
+
+def _composition_matches(root: Path, want: dict) -> bool:
+    import json
+
+    try:
+        have = json.loads((root / _COMPOSE_MANIFEST).read_text())
+    except (OSError, ValueError):
+        return False
+    return have == json.loads(json.dumps(want, sort_keys=True)) and (root / LABELS_FILE).is_file()
 
 
 # --------------------------------------------------------------------------- ACORNS
