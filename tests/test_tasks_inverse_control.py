@@ -83,6 +83,23 @@ def test_supervised_dictionary_is_recovered_and_loss_decreases(rng):
     assert uns.transform(list(demos[:3])).shape == (3, 4)
 
 
+def test_cg_reaches_the_least_squares_dictionary_where_steepest_descent_crawls(rng):
+    f = RBFFeatures(5)
+    D = rng.standard_normal((4, 25))
+    A = rng.uniform(0.5, 1.5, (40, 4))
+    demos = control_trajectories(f, A @ D, rng.random((40, 2)), n_steps=60)  # noise-free: D is the minimiser
+    cg = FactorialInverseControl(4, features=f, max_iter=2000, d_solver="cg", random_state=1).fit(list(demos), A)
+    np.testing.assert_allclose(cg.components_, D, atol=1e-4 * np.abs(D).max())
+    assert np.linalg.norm(cg.init_components_ - D) > 0.5 * np.linalg.norm(D)  # it did not start there
+    assert (np.diff(cg.loss_history_) <= 1e-9 * cg.loss_history_[0]).all()
+    sd = FactorialInverseControl(4, features=f, max_iter=cg.n_iter_, d_solver="steepest", random_state=1)
+    sd.fit(list(demos), A)
+    np.testing.assert_array_equal(sd.init_components_, cg.init_components_)
+    assert np.linalg.norm(sd.components_ - D) > 100 * np.linalg.norm(cg.components_ - D)
+    uns = FactorialInverseControl(4, features=f, max_iter=5, d_solver="cg", random_state=1).fit(list(demos))
+    assert uns.loss_history_[-1] < uns.loss_history_[0]
+
+
 def test_bad_input():
     f = RBFFeatures(5)
     with pytest.raises(DataError, match="shape"):
@@ -95,5 +112,7 @@ def test_bad_input():
         control_trajectories(f, np.zeros(25), [0.5, 0.5], method="rk4")
     with pytest.raises(ParameterError, match="settle_tol"):
         control_trajectories(f, np.zeros(25), [0.5, 0.5], method="ode", settle_tol=1e-3)
+    with pytest.raises(ParameterError, match="d_solver"):
+        FactorialInverseControl(2, features=f, d_solver="newton").fit([np.zeros((3, 2)) + 0.5], np.ones((1, 2)))
     with pytest.raises(ParameterError, match="coefficients"):
         FactorialInverseControl(2, features=f).fit([np.zeros((3, 2)) + 0.5], np.ones((2, 2)))

