@@ -7,8 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from mmconcepts.experiments import get, run_experiment
-from mmconcepts.experiments.ch2_nmf_recovery import Config, make_data
+import dataclasses
+
+from mmconcepts.experiments import RunContext, get, run_experiment
+from mmconcepts.experiments.ch2_nmf_recovery import Config, make_data, run, streams
 from mmconcepts.report import write_report
 
 
@@ -27,6 +29,47 @@ def test_generator_is_deterministic():
     np.testing.assert_array_equal(a[0], b[0])
 
 
+TINY = Config(n_samples=40, n_features=12, n_components=3, betas=(1.0,), pg_betas=(), max_iter=30, n_repeats=2)
+
+
+def _states(tree):
+    if isinstance(tree, dict):
+        return {k: _states(v) for k, v in tree.items()}
+    if isinstance(tree, list):
+        return [_states(v) for v in tree]
+    return tree.generate_state(4).tolist()
+
+
+def test_learner_seed_alone_leaves_the_data_unchanged():
+    a, b = _states(streams(TINY)), _states(streams(dataclasses.replace(TINY, learner_seed=5)))
+    assert a["data"] == b["data"] and a["reference"] == b["reference"]
+    assert a["learner"] != b["learner"]
+
+
+def test_data_seed_alone_leaves_the_learner_unchanged():
+    a = _states(streams(dataclasses.replace(TINY, seed=1, learner_seed=5)))
+    b = _states(streams(dataclasses.replace(TINY, seed=2, learner_seed=5)))
+    assert a["learner"] == b["learner"]
+    assert a["data"] != b["data"] and a["reference"] != b["reference"]
+
+
+def test_no_stream_is_shared():
+    st = _states(streams(TINY))
+    flat = [tuple(x) for kind in ("identifiable", "nonidentifiable") for part in ("data", "learner")
+            for x in st[part][kind]] + [tuple(x) for x in st["reference"]]
+    assert len(set(flat)) == len(flat) == 2 * 2 * TINY.n_repeats + TINY.n_repeats
+
+
+def test_tiny_run_keeps_per_repeat_samples():
+    res = run(TINY, RunContext(show_progress=False))
+    res.validate()
+    for name in ("identifiable.beta_1.mu.distance", "nonidentifiable.median_distance", "random_dictionary.distance"):
+        assert len(res.samples[name]) == TINY.n_repeats
+        assert res.metrics[name] == pytest.approx(np.median(res.samples[name]))
+    assert len(set(res.samples["random_dictionary.distance"])) == TINY.n_repeats  # one draw per repeat
+    assert "mu_mm.max_relative_increase" not in res.samples  # a worst case, not an average
+
+
 @pytest.mark.slow
 def test_quick_run_writes_result_and_report(tmp_path):
     record = run_experiment("ch2-nmf-recovery", preset="quick", output=tmp_path, workers=2, progress=False)
@@ -34,6 +77,7 @@ def test_quick_run_writes_result_and_report(tmp_path):
     on_disk = json.loads((tmp_path / "ch2-nmf-recovery.json").read_text())
     assert on_disk["config"]["n_samples"] == Config.quick().n_samples
     claims = {c["rule"].split()[0]: c["holds"] for c in on_disk["claims"]}
+    assert on_disk["samples"]["identifiable.median_distance"]
     assert claims["mu_mm.max_relative_increase"] is True  # the MM updates are monotone
     assert on_disk["metrics"]["mu_mm.max_relative_increase"] <= 1e-9
     assert on_disk["metrics"]["identifiable.median_distance"] < on_disk["metrics"]["random_dictionary.distance"] / 10
