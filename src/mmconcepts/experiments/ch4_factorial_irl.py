@@ -206,14 +206,18 @@ def run(config: Config, ctx: RunContext) -> Result:
     default = results[(m0, N0)]
 
     metrics: dict[str, float] = {}
+    samples: dict[str, list[float]] = {}  # per task: the tasks are the random draws behind each mean
     for split, learners in (("train", TRAIN_LEARNERS), ("transfer", TRANSFER_LEARNERS)):
         for name in learners:
-            metrics[f"{split}.{name}.deviation"] = _mean(default, split, name)
-            metrics[f"{split}.{name}.normalised"] = _mean(default, split, name, "normalised")
+            for key in ("deviation", "normalised"):
+                metrics[f"{split}.{name}.{key}"] = _mean(default, split, name, key)
+                if name in default[split]:
+                    samples[f"{split}.{name}.{key}"] = [float(v) for v in default[split][name][key]]
     tasks_pts = sorted(k for k in results if k[0] == m0)
-    adv = [_mean(results[k], "train", "flat") - _mean(results[k], "train", "factorial") for k in tasks_pts]
-    metrics["tasks_curve.min_tasks.advantage"] = adv[0]
-    metrics["tasks_curve.max_tasks.advantage"] = adv[-1]
+    for label, key in (("min_tasks", tasks_pts[0]), ("max_tasks", tasks_pts[-1])):
+        diff = np.subtract(results[key]["train"]["flat"]["deviation"], results[key]["train"]["factorial"]["deviation"])
+        metrics[f"tasks_curve.{label}.advantage"] = float(diff.mean())
+        samples[f"tasks_curve.{label}.advantage"] = diff.tolist()
     metrics["factorial.converged"] = float(default["factorial_converged"])
     metrics["factorial.last_rel_decrease"] = float(default["factorial_last_rel_decrease"])
     metrics["seconds.default_point"] = default["seconds"]
@@ -324,10 +328,20 @@ def run(config: Config, ctx: RunContext) -> Result:
         f"(relative loss decrease in the last alternation: {default['factorial_last_rel_decrease']:.3g}; "
         "tol = 1e-4, at most factorial_max_iter alternations). Measured when this limit was set: 32 alternations "
         "(9.5 s) at the quick default point, 83 (61 s) at the full one.",
+        "Spread: the experiment has one world and one draw of tasks; each mean deviation keeps its per-task values "
+        "as samples (the report's 95 % interval and the claims' paired bootstrap are over tasks: learners are "
+        "compared on the same tasks; tasks_curve.*.advantage: per-task flat minus factorial deviation). The "
+        "uncertainty of the world and primitive draw itself is not covered (one seed).",
+        "Random streams: SeedSequence(seed) children draw the primitive rewards, the training tasks and their "
+        "demonstrations, the test tasks and the 15 example tasks of flat_examples independently. The learners "
+        "draw nothing (PCA initialisation, deterministic gradient steps), so no seed reaches them.",
+        "Claims audited for identities and diverging baselines: none found; every claim compares learners "
+        "scored on the same tasks by eq. (4.11), whose deviations are bounded by the random policy's "
+        "(normalised deviation 1).",
         "Seconds per fitted point: " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
                                                  for r in results.values()),
     ]
-    return Result(metrics=metrics, tables=tables, figures=figures, notes=notes,
+    return Result(metrics=metrics, tables=tables, figures=figures, notes=notes, samples=samples,
                   extra={"loss_history": list(map(float, fd["loss_history"]))})
 
 
