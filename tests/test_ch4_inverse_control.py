@@ -78,6 +78,22 @@ def test_no_stream_is_shared_and_repetitions_differ():
     assert not np.array_equal(_data(cfg, 0)["D"], _data(cfg, 1)["D"])
 
 
+def test_learner_children_do_not_depend_on_what_was_spawned_before():
+    from mmconcepts.experiments.ch4_inverse_control import _children
+
+    seq = streams(TINY)[0]["learner"]
+    first = [_state(c) for c in _children(seq, 3)]
+    seq.spawn(5)  # spawn is stateful; a job run after another in the same process must not see other streams
+    assert [_state(c) for c in _children(seq, 3)] == first
+
+
+def test_same_config_same_numbers_with_one_or_two_workers():
+    cfg = dataclasses.replace(TINY, n_repeats=2)
+    a = run(cfg, RunContext(show_progress=False, workers=1)).metrics
+    b = run(cfg, RunContext(show_progress=False, workers=2)).metrics
+    assert a == b
+
+
 def test_learners_do_not_start_at_the_true_dictionary():
     # regression: the true dictionary and the learners' initial one used to be the same draw of default_rng(seed)
     res = run(dataclasses.replace(TINY, supervised_max_iter=1, sensor_noise=0.0), RunContext(show_progress=False))
