@@ -1,14 +1,16 @@
-"""The chapter 5 recogniser and experiments, on a tiny generated corpus in the generic layout."""
+"""The chapter 5 recogniser and experiments: a tiny generated corpus, a fake FSDD, and the real FSDD."""
 
 from __future__ import annotations
 
 import dataclasses
+import importlib
 
 import numpy as np
 import pytest
 
+from conftest import real_data_path
 from mmconcepts.errors import DataError, ParameterError
-from mmconcepts.experiments import RunContext
+from mmconcepts.experiments import RunContext, evaluate_rule
 from mmconcepts.experiments import _ch5_common as common
 from mmconcepts.sound.voting import TreeVotingClassifier
 
@@ -122,3 +124,234 @@ def test_corpus_loading_rejects_multi_keyword_utterances(tmp_path):
 
     with pytest.raises(DataError, match="utterance 1"):
         common.keyword_targets(Fake())
+
+
+# -- data sources ------------------------------------------------------------------------
+def _fake_fsdd(root, rng, *, speakers=("bob", "amy"), per_digit=4, seconds=0.25):
+    """FSDD-named 8 kHz WAVs (a tone per digit, plus noise) in the generic layout."""
+    from mmconcepts.sound.audio import write_audio
+    from mmconcepts.sound.data import FSDD_WORDS
+
+    rows = ["file,speaker,labels,transcription"]
+    t = np.arange(int(seconds * 8000)) / 8000
+    for spk in speakers:
+        for d in range(10):
+            for k in range(per_digit):
+                name = f"{d}_{spk}_{k}.wav"
+                y = 0.3 * np.sin(2 * np.pi * (200 + 150 * d) * t) + 0.05 * rng.standard_normal(t.size)
+                write_audio(root / name, np.clip(y, -1, 1), 8000)
+                rows.append(f"{name},{spk},{FSDD_WORDS[d]},{FSDD_WORDS[d]}")
+    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    return root
+
+
+@pytest.fixture
+def fake_fsdd(tmp_path, rng):
+    return _fake_fsdd(tmp_path / "fsdd", rng)
+
+
+def test_load_corpus_prefers_acorns_then_fsdd_then_audio(fake_fsdd, tmp_path):
+    ctx = RunContext(data={"audio": fake_fsdd, "fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False)
+    assert common.data_source(ctx) == "fsdd"
+    corpus = common.load_corpus(ctx, n_per_speaker=1)
+    assert corpus.name == "fsdd" and corpus.speakers == ("amy", "bob")  # sorted ids, whatever they are
+    note = common.data_source_note(ctx, corpus)
+    assert "Free Spoken Digit" in note and "80 utterances, 2 speakers, 10 keywords" in note
+    assert common.data_source(RunContext(data={"audio": fake_fsdd}, cache_dir=tmp_path)) == "audio"
+    assert common.data_source(RunContext(data={"acorns": tmp_path, "fsdd": fake_fsdd}, cache_dir=tmp_path)) == "acorns"
+    assert common.data_source(RunContext(data={}, cache_dir=tmp_path)) == "synthetic"
+    sub, speaker, keywords, y = common.first_speaker(ctx, n_per_speaker=1)  # chapter 6's entry point
+    assert speaker == "amy" and len(sub) == 40 and len(keywords) == 10 and y.shape == (40,)
+
+
+def test_mfcc_cache_is_keyed_on_the_code_fingerprint(fake_fsdd, tmp_path, monkeypatch):
+    from mmconcepts.sound.features import MFCCConfig
+
+    ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False)
+    corpus = common.load_corpus(ctx, n_per_speaker=1).subset(range(3))
+    common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
+    assert len(list((tmp_path / "ch5-mfcc").glob("*.npz"))) == 1
+    common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
+    assert len(list((tmp_path / "ch5-mfcc").glob("*.npz"))) == 1  # reused
+    monkeypatch.setattr(common, "code_fingerprint", lambda: "0" * 16)  # other code: recomputed
+    common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
+    assert len(list((tmp_path / "ch5-mfcc").glob("*.npz"))) == 2
+
+
+# -- independent random streams (issue 12) ------------------------------------------------
+def test_streams_are_spawned_independent_and_deterministic():
+    s = common.streams(3)
+    assert s == common.streams(3) and len(set(s)) == 4 and 3 not in s
+    kids = np.random.SeedSequence(3).spawn(4)
+    assert s.learner == int(kids[1].generate_state(1)[0] % (2**31 - 1))
+    assert common.streams(4).data != s.data
+
+
+class _Stop(Exception):
+    pass
+
+
+class _SpyContext(RunContext):
+    """Runs everything in process and stops at the parallel call named ``stop_at``, keeping its items."""
+
+    stop_at = ""
+    seen: list = []
+
+    def parallel(self, fn, items, *, desc=None):
+        items = list(items)
+        if desc == self.stop_at:
+            type(self).seen = items
+            raise _Stop
+        return [fn(i) for i in items]
+
+
+BASE = common.Streams(data=11, learner=22, splits=33, reference=44)
+
+
+def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams, **tiny):
+    mod = importlib.import_module(f"mmconcepts.experiments.{module}")
+    monkeypatch.setattr(common, "streams", lambda seed: streams)
+    ctx = _SpyContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False)
+    ctx.stop_at = stop_at
+    with pytest.raises(_Stop):
+        mod.run(dataclasses.replace(mod.Config.quick(), **tiny), ctx)
+    return _SpyContext.seen
+
+
+def test_ch5_nmf_keywords_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
+    tiny = {"n_folds": 3, "n_composed_per_fold": 6}
+    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_nmf_keywords", "folds", s, **tiny)  # noqa: E731
+    a, learner, data, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(data=77)), \
+        grab(BASE._replace(splits=55))
+
+    def folds(t):
+        return [(x["train"].tolist(), x["test"].tolist()) for x in t]
+
+    def composed(t):
+        return t[0]["Y"].tolist(), [c.tolist() for c in t[0]["c_hac_seqs"]]
+
+    # the learner's seed alone: same folds, same composed utterances, other learner seeds
+    assert folds(learner) == folds(a) and composed(learner) == composed(a)
+    assert [x["seed"] for x in learner] != [x["seed"] for x in a]
+    # the composition's seed alone: other utterances, same folds and learners
+    assert composed(data) != composed(a) and folds(data) == folds(a)
+    assert [x["seed"] for x in data] == [x["seed"] for x in a]
+    # the splits' seed alone: other folds, same learners
+    assert folds(splits) != folds(a) and [x["seed"] for x in splits] == [x["seed"] for x in a]
+    # no recording of a test fold is in a training utterance: each fold's utterances come from its own recordings
+    assert all(len(x["c_test"]) == 6 and len(x["c_train"]) == 12 for x in a)
+
+
+def test_ch5_incremental_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
+    tiny = {"n_train": 20, "n_test": 10, "session": 10, "multi_session": 20}
+    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_incremental", "learners", s, **tiny)  # noqa: E731
+    a, learner, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(splits=55))
+
+    def split(t):
+        return [(x["train"].tolist(), x["test"].tolist()) for x in t]
+
+    assert split(learner) == split(a) and [x["seed"] for x in learner] != [x["seed"] for x in a]
+    assert split(splits) != split(a) and [x["seed"] for x in splits] == [x["seed"] for x in a]
+    assert [x["name"] for x in a] == ["amy", "bob", "__multi__"]  # sorted speaker ids, none hard-coded
+
+
+def test_ch5_tree_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
+    from mmconcepts.experiments import ch5_tree
+
+    seen = {}
+
+    def spy(ctx, windows, train, config, learner_seed):
+        seen.update(train=train.tolist(), seed=learner_seed)
+        raise _Stop
+
+    monkeypatch.setattr(ch5_tree, "_build_tree", spy)
+
+    def grab(s):
+        monkeypatch.setattr(common, "streams", lambda seed: s)
+        ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache", show_progress=False)
+        with pytest.raises(_Stop):
+            ch5_tree.run(dataclasses.replace(ch5_tree.Config.quick(), n_train_utterances=40), ctx)
+        return dict(seen)
+
+    a, learner, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(splits=55))
+    assert learner["train"] == a["train"] and (a["seed"], learner["seed"]) == (22, 99)
+    assert splits["train"] != a["train"] and splits["seed"] == 22
+
+
+# -- claims that can fail (issue 12) -------------------------------------------------------
+def _claims(module):
+    from mmconcepts.experiments import registry
+
+    importlib.import_module(f"mmconcepts.experiments.{module}")
+    exp = registry.get(module.replace("_", "-"))
+    return [c.rule for c in exp.claims]
+
+
+def test_ch5_tree_old_backtracking_claim_was_an_identity(rng):
+    """Why 'restart_b4.recall > greedy.recall' was dropped: a restart search never misses where greedy hits."""
+    from mmconcepts.sound.tree import ClusterTree
+
+    X = rng.normal(size=(600, 6)) * rng.uniform(0.3, 3, size=6)
+    tree = ClusterTree(1.0, metric="euclidean", random_state=0).partial_fit(X[:500])
+    exact, _, _ = tree.query_batch(X[500:], search="exact")
+    greedy, _, _ = tree.query_batch(X[500:], search="greedy")
+    restart, _, _ = tree.query_batch(X[500:], search="restart", backtrack=4)
+    assert np.all((restart == exact) >= (greedy == exact))
+
+
+def test_ch5_tree_claims_can_fail():
+    rules = _claims("ch5_tree")
+    assert "restart_b4.recall > greedy.recall" not in rules
+    gain = next(r for r in rules if "greedy.recall" in r)
+    good = {"restart_b4.recall": 0.95, "greedy.recall": 0.66}
+    little = {"restart_b4.recall": 0.70, "greedy.recall": 0.66}  # backtracking helps, but little
+    assert evaluate_rule(gain, good) is True and evaluate_rule(gain, little) is False
+
+
+def test_ch5_nmf_keywords_composed_claims_can_fail():
+    rules = [r for r in _claims("ch5_nmf_keywords") if "composed" in r]
+    assert len(rules) == 2
+    base = {"nmf.accuracy": 0.97, "composed.nmf.l_given_number": 0.76, "composed.chance.l_given_number": 0.012,
+            "composed.nmf.keyword_recall": 0.92}
+    assert all(evaluate_rule(r, base) is True for r in rules)
+    worse = dict(base, **{"composed.nmf.l_given_number": 0.08, "composed.nmf.keyword_recall": 0.6})
+    assert all(evaluate_rule(r, worse) is False for r in rules)
+
+
+def test_recall_score_known_answer():
+    from mmconcepts.experiments.ch5_nmf_keywords import _recall
+
+    Y = np.array([[1, 1, 0, 0], [0, 0, 1, 0]])
+    S = np.array([[0.9, 0.1, 0.5, 0.0], [0.0, 0.0, 1.0, 0.2]])
+    assert _recall(Y, S) == pytest.approx((0.5 + 1.0) / 2)
+
+
+# -- real voices ---------------------------------------------------------------------------
+@pytest.fixture
+def real_fsdd_subset(tmp_path):
+    """Two real speakers, 6 recordings per digit each (links to the real files), in the generic layout."""
+    from mmconcepts.sound.data import load_fsdd
+
+    corpus = load_fsdd(real_data_path("fsdd"), check_audio=False)
+    root = tmp_path / "fsdd"
+    root.mkdir()
+    rows = ["file,speaker,labels,transcription"]
+    for u in corpus:
+        if u.speaker in corpus.speakers[:2] and u.meta["index"] < 6:
+            (root / u.path.name).symlink_to(u.path)
+            rows.append(f"{u.path.name},{u.speaker},{u.labels[0]},{u.transcription}")
+    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    return root
+
+
+def test_ch5_incremental_on_real_voices(real_fsdd_subset, tmp_path):
+    from mmconcepts.experiments.ch5_incremental import Config, run
+
+    cfg = dataclasses.replace(Config.quick(), n_train=40, n_test=20, session=20, multi_session=40)
+    res = run(cfg, RunContext(data={"fsdd": real_fsdd_subset}, cache_dir=tmp_path / "cache", show_progress=False))
+    res.validate()
+    m = res.metrics
+    assert m["chance.accuracy"] == pytest.approx(0.1)
+    assert m["single_speaker.final_accuracy"] > 3 * m["chance.accuracy"]  # real digits, one speaker
+    assert "Free Spoken Digit" in res.notes[0] and "120 utterances, 2 speakers" in res.notes[0]
+    assert len(res.samples["single_speaker.final_accuracy"]) == 2  # one per speaker

@@ -1,12 +1,20 @@
 """Shared machinery of the chapter-5 experiments: the speech corpus and cached MFCCs.
 
-- :func:`load_corpus` reads real speech from ``--data acorns=DIR`` (ACORNS Caregiver
-  layout) or ``--data audio=DIR`` (generic layout), else generates (once, cached) the
-  synthetic Caregiver-like corpus of :func:`mmconcepts.sound.synthetic.fetch_caregiver`.
-  The corpus' seed is fixed (``CORPUS_SEED``) so every experiment, and chapter 6, share
-  one cached corpus; the experiment's own seed drives splits and learners.
-- :func:`corpus_mfcc` computes the MFCC sequence of every utterance once per MFCC
-  configuration and caches it under ``ctx.cache_dir/ch5-mfcc``.
+- :func:`load_corpus` reads real speech, in this order of preference: ``acorns``
+  (ACORNS Caregiver layout, the thesis' corpus), ``fsdd`` (Free Spoken Digit Dataset,
+  :func:`mmconcepts.sound.data.load_fsdd`), ``audio`` (generic layout); else it generates
+  (once, cached) the synthetic Caregiver-like corpus of
+  :func:`mmconcepts.sound.synthetic.fetch_caregiver`. The generated corpus' seed is fixed
+  (``CORPUS_SEED``) so every experiment, and chapter 6, share one cached corpus; the
+  experiment's own seed drives compositions, splits and learners through
+  :func:`streams`.
+- :func:`streams` spawns the independent random streams of an experiment (data
+  composition, learner initialisation, splits, reference draws) from its seed.
+- :func:`corpus_mfcc` computes the MFCC sequence of every utterance once per data set
+  and MFCC configuration and caches it under ``ctx.cache_dir/ch5-mfcc``, keyed on the
+  files, the configuration and the code fingerprint.
+- :func:`composed_corpus` builds (once, cached) utterances of several words by
+  concatenating recordings of one speaker (:func:`mmconcepts.sound.data.compose_utterances`).
 - :func:`keyword_targets` gives the keyword of each utterance (the thesis' tasks have one
   keyword per utterance).
 """
@@ -20,24 +28,61 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from typing import NamedTuple
+
+from .._fingerprint import code_fingerprint
 from ..errors import DataError
 from ..sound.features import MFCCConfig, mfcc
 from .base import RunContext
 
-__all__ = ["CORPUS_SEED", "load_corpus", "data_source_note", "corpus_mfcc", "keyword_targets", "speaker_ids"]
+__all__ = ["CORPUS_SEED", "Streams", "streams", "load_corpus", "data_source", "data_source_note", "corpus_mfcc",
+           "composed_corpus", "keyword_targets", "speaker_ids"]
 
 #: Seed of the generated corpus, shared by all experiments (chapters 5 and 6).
 CORPUS_SEED = 0
 
 
-def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
-    """The speech corpus: real (``acorns=DIR`` / ``audio=DIR``) or synthetic (generated once, cached)."""
-    from ..sound.data import load_acorns, load_generic_audio
+class Streams(NamedTuple):
+    """Independent seeds of one experiment (issue 12): the seed that draws data never reaches a learner."""
 
-    if "acorns" in ctx.data:
+    data: int
+    learner: int
+    splits: int
+    reference: int
+
+
+def streams(seed: int) -> Streams:
+    """``numpy.random.SeedSequence(seed).spawn(4)`` as ints: data composition, learner initialisation,
+    splits and reference draws."""
+    kids = np.random.SeedSequence(int(seed)).spawn(4)
+    return Streams(*(int(k.generate_state(1)[0] % (2**31 - 1)) for k in kids))
+
+
+def sub_seed(seed: int, *key: int) -> int:
+    """An independent int seed for item ``key`` of a stream (a fold, a speaker)."""
+    return int(np.random.SeedSequence([int(seed), *map(int, key)]).generate_state(1)[0] % (2**31 - 1))
+
+
+#: Real speech sets, in the order load_corpus prefers them.
+REAL_SETS = ("acorns", "fsdd", "audio")
+
+
+def data_source(ctx: RunContext) -> str:
+    """Name of the speech set the chapter 5 experiments use: ``acorns``, ``fsdd``, ``audio`` or ``synthetic``."""
+    return next((name for name in REAL_SETS if name in ctx.data), "synthetic")
+
+
+def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
+    """The speech corpus: real (``acorns`` > ``fsdd`` > ``audio`` in ``ctx.data``) or synthetic (generated once,
+    cached; ``n_per_speaker`` and ``n_speakers`` size it and are ignored for real sets)."""
+    from ..sound.data import load_acorns, load_fsdd, load_generic_audio
+
+    source = data_source(ctx)
+    if source == "acorns":
         return load_acorns(ctx.data["acorns"], on_error="skip")
-    if "audio" in ctx.data:
+    if source == "fsdd":
+        return load_fsdd(ctx.data["fsdd"], on_error="skip")
+    if source == "audio":
         return load_generic_audio(ctx.data["audio"], on_error="skip")
     from ..sound.synthetic import fetch_caregiver
 
@@ -50,16 +95,49 @@ def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
     )
 
 
-def data_source_note(ctx: RunContext) -> str:
-    if "acorns" in ctx.data:
-        return f"Data: ACORNS Caregiver recordings from {ctx.data['acorns']}."
-    if "audio" in ctx.data:
-        return f"Data: recordings in the generic audio layout from {ctx.data['audio']}."
+def _sizes(corpus) -> str:
+    if corpus is None:
+        return ""
+    spk = speaker_ids(corpus)
+    n_spk = len(set(spk))
+    return (f" ({len(corpus)} utterances, {n_spk} speaker{'s' if n_spk != 1 else ''}, "
+            f"{len(corpus.keywords)} keywords{', %d files skipped' % len(corpus.skipped) if corpus.skipped else ''})")
+
+
+def data_source_note(ctx: RunContext, corpus=None) -> str:
+    """Which speech data the experiment ran on, with its sizes when ``corpus`` (the one used) is given."""
+    source, size = data_source(ctx), _sizes(corpus)
+    if source == "acorns":
+        return f"Data: ACORNS Caregiver recordings{size} from {ctx.data['acorns']}."
+    if source == "fsdd":
+        return (f"Data: real voices, the Free Spoken Digit Dataset{size} from {ctx.data['fsdd']} (English digit words "
+                "said alone, 8 kHz WAV resampled to 16 kHz; Z. Jackson et al., CC BY-SA 4.0).")
+    if source == "audio":
+        return f"Data: recordings in the generic audio layout{size} from {ctx.data['audio']}."
     return (
-        "Data: the synthetic Caregiver-like corpus (mmconcepts.sound.synthetic: offline text-to-speech with "
+        f"Data: the synthetic Caregiver-like corpus{size} (mmconcepts.sound.synthetic: offline text-to-speech with "
         "piper and eSpeak NG voices, keyword sentences in the style of Table 5.1, speaker-level rate, pitch, "
-        "noise and room filtering); pass --data acorns=DIR or --data audio=DIR for recorded speech."
+        "noise and room filtering); real speech is used when the data root holds fsdd or acorns "
+        "(or --data audio=DIR)."
     )
+
+
+def composed_corpus(ctx: RunContext, corpus, *, n_utterances: int, seed: int, n_words=(2, 4), pause_s=(0.1, 0.3)):
+    """Utterances of ``n_words`` recordings of one speaker in a row, built once under ``ctx.cache_dir``.
+
+    The folder is named from the sources and the parameters, so two protocols never
+    overwrite each other's compositions; :func:`~mmconcepts.sound.data.compose_utterances`
+    checks the rest (sources, code fingerprint) and rebuilds when they differ.
+    """
+    from ..sound.data import compose_utterances
+
+    h = hashlib.sha1()
+    for f in corpus.paths:
+        h.update(f"{Path(f).resolve()}\n".encode())
+    h.update(json.dumps([n_utterances, seed, list(n_words), list(pause_s)]).encode())
+    root = Path(ctx.cache_dir) / "ch5-composed" / f"{corpus.name or 'corpus'}-{h.hexdigest()[:16]}"
+    return compose_utterances(corpus, root, n_utterances=n_utterances, n_words=tuple(n_words),
+                              pause_s=tuple(pause_s), random_state=seed)
 
 
 def speaker_ids(corpus) -> np.ndarray:
@@ -104,7 +182,7 @@ def corpus_mfcc(ctx: RunContext, corpus, config: MFCCConfig) -> list[np.ndarray]
         st = os.stat(f)
         h.update(f"{f}:{st.st_size}:{int(st.st_mtime)}\n".encode())
     h.update(json.dumps(config.to_dict(), sort_keys=True).encode())
-    h.update(__version__.encode())
+    h.update(code_fingerprint().encode())
     cache = Path(ctx.cache_dir) / "ch5-mfcc"
     cache.mkdir(parents=True, exist_ok=True)
     key = cache / f"{h.hexdigest()}.npz"
