@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import real_data_path
 from mmconcepts.experiments import RunContext
 from mmconcepts.experiments import _ch3_common as common
 
@@ -89,3 +90,69 @@ def test_evaluate_folds_caches_and_pools(rng, tmp_path):
     np.testing.assert_array_equal(f1[0]["nmf_frobenius"]["scores"], f2[0]["nmf_frobenius"]["scores"])
     score = common.pooled_scores(f1, Y, "nmf_frobenius", single=True)["l_single"]
     assert score > 0.75  # two well separated classes
+
+
+# --------------------------------------------------------------------------- real data: MSR Action3D subsets
+def test_data_priority_choreo1_then_msr_then_synthetic(tmp_path):
+    assert common.data_kind(RunContext(cache_dir=tmp_path)) == "synthetic"
+    assert common.data_kind(RunContext(cache_dir=tmp_path, data={"msr-action3d": tmp_path})) == "msr-action3d"
+    both = {"msr-action3d": tmp_path, "choreo1": tmp_path}
+    assert common.data_kind(RunContext(cache_dir=tmp_path, data=both)) == "choreo1"
+
+
+def test_msr_mixtures_join_the_limbs_of_their_sources():
+    folder = real_data_path("msr-action3d")
+    prim = common.msr_subset(folder, "primitive", seed=0)
+    actions = np.array(prim.label_ids)[np.argmax(prim.Y, axis=1)]
+    part = common.msr_subset(folder, "mixed_partial", seed=0)
+    full = common.msr_subset(folder, "mixed_full", seed=0)
+    assert part.Y.shape[1] == 18 and full.Y.shape[1] == 33
+    assert np.all(part.Y.sum(axis=1) == 2) and np.all(full.Y.sum(axis=1) == 3)
+    legs = [c for c in range(16) if c not in common.ARM_COLUMNS]
+    for r in range(0, len(part.Y), 37):
+        i, j = part.info["sources"][r]
+        assert actions[i] in common.MSR_ARM_ACTIONS and actions[j] in common.MSR_LEG_ACTIONS
+        x = part.angles[r]
+        np.testing.assert_array_equal(x[:, common.ARM_COLUMNS], prim.angles[i][:len(x), common.ARM_COLUMNS])
+        np.testing.assert_array_equal(x[:, legs], prim.angles[j][:len(x), legs])
+        assert set(np.array(part.label_ids)[part.Y[r] > 0]) == {actions[i], actions[j]}
+    for r in range(0, len(full.Y), 37):
+        i, k, j = full.info["sources"][r]
+        assert actions[i] != actions[k]
+        x = full.angles[r]
+        np.testing.assert_array_equal(x[:, common.RIGHT_ARM_COLUMNS], prim.angles[i][:len(x), common.RIGHT_ARM_COLUMNS])
+        np.testing.assert_array_equal(x[:, common.LEFT_ARM_COLUMNS], prim.angles[k][:len(x), common.RIGHT_ARM_COLUMNS])
+        assert set(np.array(full.label_ids)[full.Y[r] > 0]) == {actions[i], 100 + actions[k], actions[j]}
+    # most large-set combinations are unique (as the thesis' Fig. 3.8), the small set's repeat
+    assert len(np.unique(common.combination_ids(full.Y))) > len(full.Y) / 2
+    assert len(np.unique(common.combination_ids(part.Y))) <= 45
+
+
+def test_msr_subsets_use_whatever_subjects_are_given(tmp_path):
+    """No subject id is built in: a folder holding two subjects renamed to s41 and s77 works."""
+    folder = real_data_path("msr-action3d")
+    subjects = sorted({p.name.split("_")[1] for p in folder.glob("a*_s*_e*_skeleton3D.txt")})[:2]
+    for new, old in zip(("s41", "s77"), subjects):
+        for p in folder.glob(f"a*_{old}_e*_skeleton3D.txt"):
+            (tmp_path / p.name.replace(f"_{old}_", f"_{new}_")).symlink_to(p)
+    for subset in ("primitive", "mixed_partial", "mixed_full"):
+        a = common.msr_subset(tmp_path, subset, seed=0)
+        assert a.info["n_subjects"] == 2 and len(a.Y) > 20
+    again = common.msr_subset(tmp_path, "mixed_full", seed=0)
+    other = common.msr_subset(tmp_path, "mixed_full", seed=1)
+    assert again.info["sources"] == common.msr_subset(tmp_path, "mixed_full", seed=0).info["sources"]
+    assert again.info["sources"] != other.info["sources"]  # the pairing is drawn from the data stream
+
+
+def test_fold_cache_key_follows_the_code_fingerprint(rng, tmp_path, monkeypatch):
+    """A change of code (another fingerprint) recomputes the folds instead of reusing them."""
+    angles = [rng.normal(size=(20, 3)) for _ in range(8)]
+    Y = np.eye(2)[np.arange(8) % 2]
+    ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
+    args = dict(features={"data": "angles", "method": "kde", "n_bins": 4}, learners=("chance",), params={}, seed=0,
+                single=True)
+    common.evaluate_folds(ctx, angles, Y, common.kfold_splits(8, 2, 0), **args)
+    assert len(list((tmp_path / "ch3-folds").glob("*.pkl"))) == 2
+    monkeypatch.setattr(common, "code_fingerprint", lambda: "0123456789abcdef")
+    common.evaluate_folds(ctx, angles, Y, common.kfold_splits(8, 2, 0), **args)
+    assert len(list((tmp_path / "ch3-folds").glob("*.pkl"))) == 4

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+
+from conftest import real_data_path
 
 from mmconcepts.errors import DataError, DataFormatError, ParameterError
 from mmconcepts.motion import (
@@ -21,8 +22,6 @@ from mmconcepts.motion import (
     save_choreo1_text,
     save_choreo2,
 )
-
-MSR = Path(__file__).resolve().parents[2] / "shared" / "data" / "msr-action3d"
 
 
 def _recs(rng, n=3, markers=CHOREO1_MARKERS, orient=False):
@@ -150,9 +149,8 @@ def test_msr_lost_frames_interpolated(tmp_path):
     assert load_msr_action3d(tmp_path, lost_frames="drop")[0].n_frames == 3
 
 
-@pytest.mark.skipif(not MSR.is_dir(), reason="real MSR Action3D data (../shared/data/msr-action3d) absent")
 def test_msr_real_data_all_zero_frames_handled():
-    ds = load_msr_action3d(MSR, actions=[13, 20])
+    ds = load_msr_action3d(real_data_path("msr-action3d"), actions=[13, 20])
     assert len(ds) > 50
     for r in ds:
         assert not np.any(np.all(r.positions == 0, axis=(1, 2)))

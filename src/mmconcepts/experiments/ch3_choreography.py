@@ -9,6 +9,13 @@ choreography's labels are reconstructed from its histograms alone, and the label
 the reconstructed activations above a threshold chosen by cross-validation on the
 training folds. The baseline is one linear SVM per label.
 
+Data: the thesis' Choreo1 (``--data choreo1=DIR``), else real Kinect skeletons of MSR
+Action3D (``--data msr-action3d=DIR``) recombined limb-wise into mixed choreographies (the
+16-gesture set becomes 2-limb mixtures over 18 labels, the 47-gesture set 3-limb mixtures
+over 33 labels; see :func:`mmconcepts.experiments._ch3_common.msr_subset`), else the
+synthetic dancer. The metric names are the same on every data set ("16" = the small mixed
+set, "47" = the large one).
+
 Choices (the thesis' where it says):
 
 - k = 150 atoms (thesis section 3.3.2); multiplicative updates (the plain NMF of the
@@ -26,10 +33,30 @@ Choices (the thesis' where it says):
   4 x 4 grid per degree of freedom), too coarse on the angle axis: on the quick protocol it
   gave NMF (Frobenius) l_full 0.56 (16 labels) and 0.18 (47 labels) against the SVM's 0.91
   and 0.30, where soft VQ gives 0.98 and 0.74 against 0.98 and 0.68.
+- Sizes: the thesis' (137 records in the 16-gesture set, 277 in the 47-gesture set); on
+  MSR Action3D, where the limb mixtures give 427 of each, a random draw of that many (data
+  stream). ``None`` keeps every record.
 - Protocol: leave-one-out in full mode (thesis section 3.3.1), shuffled 10-fold in quick
   mode; scores pooled over all test examples.
 - The label weight of the stacked matrix (the thesis does not say) is LabelNMF's 'l1'
   rule of thesis section 6.4.
+- Baselines: ``svm`` is the thesis' plain linear SVM (one per label, C = 1, on the raw
+  histograms); ``svm_std`` standardises each feature first (ours; on raw histograms the
+  plain SVM with C = 1 is strongly regularised and predicts few labels). Both are
+  reported side by side (issue 12: a choice that can decide a verdict is shown both ways);
+  the claims use the thesis' ``svm``.
+- Sensitivity (``sensitivity=True``): NMF (Frobenius) and the SVM again with KDE
+  histograms (same bins and delay) instead of soft VQ, in a second table, since the
+  thesis does not say which Table 3.2 used and the choice can decide the NMF-vs-SVM
+  verdict (metrics ``<set>.kde.<learner>.*`` and ``<set>.[kde.]nmf_minus_svm.l_full``).
+- Random streams: ``SeedSequence(seed).spawn(4)`` gives the data (synthetic recordings,
+  MSR limb pairings), learner (codebooks, NMF initialisation, SVM), splits and reference
+  streams (:func:`~mmconcepts.experiments._ch3_common.streams`).
+- ``l_given_number >= l_full`` holds for any scores (a label set found exactly by the
+  threshold is also the top-n of the activations), so it is no claim; the claim is the
+  *size* of the gain ``gain_given_number = l_given_number - l_full``: the thesis' gains
+  (Table 3.2: 0.117 / 0.130 for NMF Frobenius, 0.116 / 0.105 for KL) say that most errors are
+  in the number of gestures, not in which; we check the gain is at least half the thesis'.
 - ``chance.l_full`` predicts the most frequent training label set,
   ``chance.l_given_number`` is the expected score of a random ranking of the labels.
 """
@@ -49,7 +76,8 @@ from .registry import register
 
 __all__ = ["Config", "evaluate_mixed", "run"]
 
-LEARNERS = ("nmf_frobenius", "nmf_kl", "svm", "chance")
+LEARNERS = ("nmf_frobenius", "nmf_kl", "svm", "svm_std", "chance")
+SENSITIVITY_LEARNERS = ("nmf_frobenius", "svm")
 SUBSETS = {"16": "mixed_partial", "47": "mixed_full"}
 
 
@@ -66,8 +94,9 @@ class Config:
     n_bins: int = 16
     delay: int = 3
     assignment: str = "soft"
-    n_records_partial: int | None = None
-    n_records_full: int | None = None
+    n_records_partial: int | None = 137
+    n_records_full: int | None = 277
+    sensitivity: bool = True
     seed: int = 0
 
     @classmethod
@@ -87,19 +116,36 @@ class Config:
     def params(self) -> dict:
         return {"n_components": self.n_components, "max_iter": self.max_iter, "inner_cv": self.inner_cv}
 
+    def alternative_features(self) -> dict:
+        """The sensitivity alternative: the other histogram method (KDE <-> VQ), all else equal."""
+        if self.method == "vq":
+            return {"data": self.data, "method": "kde", "n_bins": self.n_bins, "delay": self.delay}
+        return {"data": self.data, "method": "vq", "assignment": self.assignment, "n_bins": self.n_bins,
+                "delay": self.delay}
 
-def evaluate_mixed(config, ctx: RunContext, n_labels: str, *, learners=LEARNERS, unseen: bool = False):
-    """Load one mixed subset and evaluate ``learners`` on its folds; return (Y, folds, dataset)."""
+
+def mixed_arrays(config, ctx: RunContext, n_labels: str) -> common.MotionArrays:
+    """The mixed subset ``n_labels`` ("16" or "47") drawn from the data stream of ``config.seed``."""
     n_rec = config.n_records_partial if n_labels == "16" else config.n_records_full
-    ds = common.load_subset(ctx, SUBSETS[n_labels], seed=config.seed, n_records=n_rec)
-    angles, Y, _ = common.motion_arrays(ds)
+    return common.subset_arrays(ctx, SUBSETS[n_labels], seed=common.streams(config.seed).data, n_records=n_rec)
+
+
+def evaluate_mixed(config, ctx: RunContext, n_labels: str, *, learners=LEARNERS, unseen: bool = False,
+                   features: dict | None = None):
+    """Load one mixed subset and evaluate ``learners`` on its folds; return (Y, folds, arrays).
+
+    ``features`` replaces ``config.features()`` (the sensitivity table)."""
+    st = common.streams(config.seed)
+    arrays = mixed_arrays(config, ctx, n_labels)
+    Y = arrays.Y
     if unseen:
-        splits = common.unseen_combination_splits(Y, config.n_folds, config.seed)
+        splits = common.unseen_combination_splits(Y, config.n_folds, st.splits)
     else:
-        splits = common.kfold_splits(len(Y), config.n_folds, config.seed)
-    folds = common.evaluate_folds(ctx, angles, Y, splits, features=config.features(), learners=learners,
-                                  params=config.params(), seed=config.seed, desc=f"{n_labels} labels")
-    return Y, folds, ds
+        splits = common.kfold_splits(len(Y), config.n_folds, st.splits)
+    folds = common.evaluate_folds(ctx, arrays.angles, Y, splits, features=features or config.features(),
+                                  learners=learners,
+                                  params=config.params(), seed=st.learner, desc=f"{n_labels} labels")
+    return Y, folds, arrays
 
 
 def _bar_figure(metrics: dict, reference: dict, rows: list[tuple[str, str]], title: str) -> Figure:
@@ -122,13 +168,18 @@ def _bar_figure(metrics: dict, reference: dict, rows: list[tuple[str, str]], tit
 
 def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
     metrics: dict[str, float] = {}
+    samples: dict[str, list[float]] = {}
     rows = []
     seconds = {}
+    used = []
     for nl in SUBSETS:
         t0 = time.perf_counter()
-        Y, folds, _ = evaluate_mixed(config, ctx, nl, learners=learners, unseen=unseen)
+        Y, folds, arrays = evaluate_mixed(config, ctx, nl, learners=learners, unseen=unseen)
+        used.append(arrays)
         seconds[nl] = time.perf_counter() - t0
         metrics[f"{nl}.n_examples"] = float(len(Y))
+        n_present = int((Y.sum(axis=0) > 0).sum())  # labels that occur (a loader may list unused ones)
+        metrics[f"{nl}.n_labels"] = float(n_present)
         if unseen:
             metrics[f"{nl}.n_test_folds"] = float(len(folds))
         for name in learners:
@@ -137,7 +188,13 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
             metrics[f"{nl}.{name}.l_given_number"] = sc["l_given_number"]
             if name == "chance":  # a random ranking of the labels names the true set with probability 1/C(L, n)
                 metrics[f"{nl}.chance.l_given_number"] = sc["l_given_number"] = float(np.mean(
-                    [1.0 / comb(Y.shape[1], int(k)) for k in Y.sum(axis=1)]))
+                    [1.0 / comb(n_present, int(k)) for k in Y.sum(axis=1)]))
+            metrics[f"{nl}.{name}.gain_given_number"] = sc["l_given_number"] - sc["l_full"]
+            if name != "chance":
+                for k, v in common.fold_samples(folds, Y, name).items():
+                    samples[f"{nl}.{name}.{k}"] = v
+                samples[f"{nl}.{name}.gain_given_number"] = [
+                    g - f for g, f in zip(samples[f"{nl}.{name}.l_given_number"], samples[f"{nl}.{name}.l_full"])]
             thr = [f[name]["threshold"] for f in folds if "threshold" in f[name]]
             if thr:
                 metrics[f"{nl}.{name}.mean_threshold"] = float(np.mean(thr))
@@ -150,13 +207,45 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
             f"delay {config.delay}. Run time: " + ", ".join(f"{k} labels {v:.0f} s" for k, v in seconds.items()) + ".")
     table = Table(title, ["data", "learner", "l_full", "thesis l_full", "l_given_number", "thesis l_given_number"],
                   rows, note=note)
+    tables = {"scores": table}
+    if getattr(config, "sensitivity", False):
+        alt = config.alternative_features()
+        tag = alt["method"]
+        srows = []
+        for nl in SUBSETS:
+            Y, folds, _ = evaluate_mixed(config, ctx, nl, learners=SENSITIVITY_LEARNERS, unseen=unseen, features=alt)
+            for name in SENSITIVITY_LEARNERS:
+                sc = common.pooled_scores(folds, Y, name)
+                for k in ("l_full", "l_given_number"):
+                    metrics[f"{nl}.{tag}.{name}.{k}"] = sc[k]
+                for k, v in common.fold_samples(folds, Y, name).items():
+                    samples[f"{nl}.{tag}.{name}.{k}"] = v
+                srows.append([f"{nl} labels", name, metrics[f"{nl}.{name}.l_full"], sc["l_full"],
+                              metrics[f"{nl}.{name}.l_given_number"], sc["l_given_number"]])
+            gap = metrics[f"{nl}.nmf_frobenius.l_full"] - metrics[f"{nl}.svm.l_full"]
+            gap_alt = metrics[f"{nl}.{tag}.nmf_frobenius.l_full"] - metrics[f"{nl}.{tag}.svm.l_full"]
+            metrics[f"{nl}.nmf_minus_svm.l_full"] = gap
+            metrics[f"{nl}.{tag}.nmf_minus_svm.l_full"] = gap_alt
+        main = config.features()["method"]
+        tables["sensitivity"] = Table(
+            f"Sensitivity to the histogram method: {main} (the default) against {tag}, same bins and delay",
+            ["data", "learner", f"l_full ({main})", f"l_full ({tag})", f"l_given_number ({main})",
+             f"l_given_number ({tag})"], srows,
+            note="The thesis does not say how Table 3.2's histograms were built; the NMF-vs-SVM verdicts are shown "
+                 "under both methods (metrics <set>.<method>.<learner>.*; <set>.[<method>.]nmf_minus_svm.l_full).")
     plot_rows = [(nl, f"{n}.{s}") for nl in SUBSETS for n in learners if n != "chance"
-                 for s in ("l_full", "l_given_number") if not (n == "svm" and s == "l_given_number")]
+                 for s in ("l_full", "l_given_number") if not (n.startswith("svm") and s == "l_given_number")]
     fig = _bar_figure(metrics, reference, plot_rows, title)
-    return Result(metrics=metrics, tables={"scores": table}, figures={"scores": fig},
-                  notes=[common.data_source_note(ctx), note,
-                         "The SVM's l_given_number ranks its per-label decision values; the thesis gives none."],
-                  extra={"seconds": seconds})
+    return Result(metrics=metrics, tables=tables, figures={"scores": fig},
+                  notes=[common.data_source_note(ctx, used), note,
+                         "The SVM's l_given_number ranks its per-label decision values; the thesis gives none.",
+                         "svm = the thesis' plain linear SVM on raw histograms; svm_std = the same on standardised "
+                         "features (a second baseline, shown so that the verdicts' dependence on it is visible).",
+                         "No claim 'l_given_number >= l_full': it holds for any scores (an exact label set found by the "
+                         "threshold is also the top-n of the activations). The claim is the size of the gain "
+                         "gain_given_number = l_given_number - l_full against the thesis' gain.",
+                         "Per-fold values of every score are in extra.samples (spread over folds)."],
+                  extra={"seconds": seconds, "samples": samples})
 
 
 REFERENCE = {
@@ -188,17 +277,15 @@ register(Experiment(
               "16.nmf_frobenius.l_full > 16.nmf_kl.l_full and 47.nmf_frobenius.l_full > 47.nmf_kl.l_full and "
               "16.nmf_frobenius.l_given_number > 16.nmf_kl.l_given_number and "
               "47.nmf_frobenius.l_given_number > 47.nmf_kl.l_given_number"),
-        Claim("Knowing the number of gestures helps: l_given_number >= l_full for every NMF.",
-              "16.nmf_frobenius.l_given_number >= 16.nmf_frobenius.l_full and "
-              "16.nmf_kl.l_given_number >= 16.nmf_kl.l_full and "
-              "47.nmf_frobenius.l_given_number >= 47.nmf_frobenius.l_full and "
-              "47.nmf_kl.l_given_number >= 47.nmf_kl.l_full"),
+        Claim("Knowing the number of gestures helps substantially: for NMF (Frobenius) the gain "
+              "l_given_number - l_full is at least half the thesis' (0.117 with 16 labels, 0.130 with 47).",
+              "16.nmf_frobenius.gain_given_number >= 0.5 * 0.117 and 47.nmf_frobenius.gain_given_number >= 0.5 * 0.130"),
         Claim("The 47-label set is harder than the 16-label set.",
               "47.nmf_frobenius.l_full < 16.nmf_frobenius.l_full"),
         Claim("All learners are far above chance (at least 5 times the most-frequent-label-set score, and above 0.3).",
               "min(16.nmf_frobenius.l_full, 16.nmf_kl.l_full, 16.svm.l_full) > max(0.3, 5 * 16.chance.l_full) and "
               "min(47.nmf_frobenius.l_full, 47.nmf_kl.l_full, 47.svm.l_full) > max(0.3, 5 * 47.chance.l_full)"),
     ],
-    datasets=("choreo1",),
+    datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))

@@ -8,12 +8,15 @@ Here: that distribution on our data, and, reusing the test activations of the
 ``ch3-choreography`` protocol (same config and folds, cached), the success of NMF
 (Frobenius) on examples whose combination occurs once against those whose combination
 occurs several times. With k-fold splits a "seen" combination may still have all of its
-other occurrences in the test fold; the per-frequency scores are indicative.
+other occurrences in the test fold; the per-frequency scores are indicative. The fraction of
+examples whose combination is unique is reported (and compared with the thesis' 60 %) but
+is no claim: on generated data it is an input of the generator.
 """
 
 from __future__ import annotations
 
 from collections import Counter
+from math import comb
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +39,7 @@ class Config(_BaseConfig):
 
 
 def run(config: Config, ctx: RunContext) -> Result:
-    Y, folds, _ = evaluate_mixed(config, ctx, "47", learners=LEARNERS)
+    Y, folds, arrays = evaluate_mixed(config, ctx, "47", learners=LEARNERS)
     groups = common.combination_ids(Y)
     count = Counter(groups.tolist())
     occ = np.array([count[g] for g in groups])  # occurrences of each example's combination
@@ -54,6 +57,10 @@ def run(config: Config, ctx: RunContext) -> Result:
         if sel.any():
             metrics[f"{tag}.nmf_frobenius.l_full"] = float(l_full(Y[sel], P[sel]))
             metrics[f"{tag}.nmf_frobenius.l_given_number"] = float(l_given_number(Y[sel], S[sel]))
+            # a random ranking of the labels names the true set with probability 1 / C(L, n)
+            n_present = int((Y.sum(axis=0) > 0).sum())
+            metrics[f"{tag}.chance.l_given_number"] = float(np.mean([1.0 / comb(n_present, int(k))
+                                                                     for k in Y[sel].sum(axis=1)]))
             rows.append([tag, int(sel.sum()), metrics[f"{tag}.nmf_frobenius.l_full"],
                          metrics[f"{tag}.nmf_frobenius.l_given_number"]])
     fig = Figure(figsize=(6, 4))
@@ -69,7 +76,11 @@ def run(config: Config, ctx: RunContext) -> Result:
     succ = Table("NMF (Frobenius) success by frequency of the combination", ["combination", "examples", "l_full",
                                                                               "l_given_number"], rows)
     return Result(metrics=metrics, tables={"distribution": dist, "success": succ}, figures={"fig3_8": fig},
-                  notes=[common.data_source_note(ctx)])
+                  notes=[common.data_source_note(ctx, arrays),
+                         ("fraction_seen_once describes the data, it is no claim: on the synthetic set it is an input of "
+                          "the generator (n_single = round(0.6 n), set from Fig. 3.8), on MSR Action3D it follows from "
+                          "our random limb pairings; on the thesis' Choreo1 it would be a fact about the recordings. "
+                          "The claims are about the learner on unique combinations.")])
 
 
 register(Experiment(
@@ -80,12 +91,13 @@ register(Experiment(
     run=run,
     reference={"fraction_seen_once": 0.6},
     claims=[
-        Claim("About 60 % of the choreographies show a combination observed only once (between 0.5 and 0.7 here).",
-              "fraction_seen_once > 0.5 and fraction_seen_once < 0.7"),
         Claim("Choreographies whose combination is unique are still labelled (the learner captures the "
               "combinatorial structure): l_given_number on them above 0.3.",
               "once.nmf_frobenius.l_given_number > 0.3"),
+        Claim("Choreographies whose combination is unique are labelled far above a random ranking of the labels "
+              "(5 times its expected l_given_number).",
+              "once.nmf_frobenius.l_given_number > 5 * once.chance.l_given_number"),
     ],
-    datasets=("choreo1",),
+    datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))

@@ -10,6 +10,11 @@ uses 10 folds of whole combinations. The thesis reports NMF Frobenius and the SV
 ``chance.l_full`` (the most frequent training label set) is 0 by construction here;
 ``chance.l_given_number`` is the expected score of a random ranking of the labels.
 
+On MSR Action3D (``--data msr-action3d=DIR``) the mixed sets are recombined real skeletons
+(see ``ch3-choreography``); ``svm_std`` is the standardised SVM, a second baseline beside
+the thesis' plain ``svm``. ``l_given_number >= l_full`` holds for any scores, so the claim
+is the size of the gain (thesis: 0.232 with 16 labels, 0.247 with 47), at least half of it.
+
 A test gesture can be absent from every training example of its fold (rare in the 16-label
 set, possible in the 47-label set); it then can never be predicted, by any learner.
 """
@@ -25,7 +30,7 @@ from .registry import register
 
 __all__ = ["Config", "run"]
 
-LEARNERS = ("nmf_frobenius", "svm", "chance")
+LEARNERS = ("nmf_frobenius", "svm", "svm_std", "chance")
 
 
 @dataclass(frozen=True)
@@ -63,10 +68,10 @@ register(Experiment(
         Claim("NMF is far above a random ranking of the labels (l_given_number).",
               "16.nmf_frobenius.l_given_number > 5 * 16.chance.l_given_number and "
               "47.nmf_frobenius.l_given_number > 5 * 47.chance.l_given_number"),
-        Claim("l_given_number >= l_full.",
-              "16.nmf_frobenius.l_given_number >= 16.nmf_frobenius.l_full and "
-              "47.nmf_frobenius.l_given_number >= 47.nmf_frobenius.l_full"),
+        Claim("On unseen combinations most errors are in the number of gestures: the gain l_given_number - l_full "
+              "of NMF (Frobenius) is at least half the thesis' (0.232 with 16 labels, 0.247 with 47).",
+              "16.nmf_frobenius.gain_given_number >= 0.5 * 0.232 and 47.nmf_frobenius.gain_given_number >= 0.5 * 0.247"),
     ],
-    datasets=("choreo1",),
+    datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))

@@ -1,0 +1,134 @@
+"""Chapter 3: independent random streams, and claims that can fail (issue 12, section 1)."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conftest import real_data_path
+from mmconcepts.experiments import RunContext, evaluate_rule
+from mmconcepts.experiments import _ch3_common as common
+from mmconcepts.nmf import l_full, l_given_number
+
+# experiment module -> tiny config overrides (the data only has to be drawn, nothing is fitted)
+_MIXED = {"n_records_partial": 12, "n_records_full": 12, "n_folds": 3}
+EXPERIMENTS = {
+    "ch3_choreography": _MIXED,
+    "ch3_unseen": _MIXED,
+    "ch3_threshold": _MIXED,
+    "ch3_combinations": _MIXED,
+    "ch3_representations": {"n_records": 12, "n_folds": 3},
+}
+
+
+def test_streams_are_spawned_independent_and_deterministic():
+    s = common.streams(3)
+    assert s == common.streams(3)
+    assert len(set(s)) == 4  # data, learner, splits, reference: four different seeds
+    kids = np.random.SeedSequence(3).spawn(4)
+    assert s.data == int(kids[0].generate_state(1)[0] % (2**31 - 1))
+    assert s.learner == int(kids[1].generate_state(1)[0] % (2**31 - 1))
+    assert 3 not in s  # the experiment's seed itself reaches no step
+    assert common.streams(4).data != s.data
+
+
+class _Stop(Exception):
+    pass
+
+
+def _capture(monkeypatch, tmp_path, module, streams, data=None, **tiny):
+    """Run an experiment up to its first evaluate_folds call with the given streams; return what it got."""
+    mod = importlib.import_module(f"mmconcepts.experiments.{module}")
+    seen = {}
+
+    def spy(ctx, angles, Y, splits, **kw):
+        seen.update(angles=angles, Y=Y, splits=splits, seed=kw["seed"])
+        raise _Stop
+
+    monkeypatch.setattr(common, "streams", lambda seed: streams)
+    monkeypatch.setattr(common, "evaluate_folds", spy)
+    config = dataclasses.replace(mod.Config.quick(), **tiny)
+    ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False, data=data or {})
+    with pytest.raises(_Stop):
+        mod.run(config, ctx)
+    return seen
+
+
+def _same_data(a, b):
+    return len(a["angles"]) == len(b["angles"]) and all(np.array_equal(x, y) for x, y in zip(a["angles"], b["angles"])) \
+        and np.array_equal(a["Y"], b["Y"])
+
+
+def _check_streams(monkeypatch, tmp_path, module, data=None, **tiny):
+    base = common.Streams(data=11, learner=22, splits=33, reference=44)
+    a = _capture(monkeypatch, tmp_path, module, base, data, **tiny)
+    b = _capture(monkeypatch, tmp_path, module, base._replace(learner=99), data, **tiny)
+    c = _capture(monkeypatch, tmp_path, module, base._replace(data=77), data, **tiny)
+    # the learner's seed alone changed: same data, same splits, the new learner seed reaches the folds
+    assert _same_data(a, b)
+    assert all(np.array_equal(x[1], y[1]) for x, y in zip(a["splits"], b["splits"]))
+    assert a["seed"] == 22 and b["seed"] == 99
+    # the data's seed alone changed: other data, the same learner seed
+    assert not _same_data(a, c)
+    assert c["seed"] == 22
+
+
+@pytest.mark.parametrize("module", sorted(EXPERIMENTS))
+def test_learner_seed_alone_leaves_data_unchanged_synthetic(monkeypatch, tmp_path, module):
+    _check_streams(monkeypatch, tmp_path, module, **EXPERIMENTS[module])
+
+
+@pytest.mark.parametrize("module", sorted(EXPERIMENTS) + ["ch3_msr_action3d"])
+def test_learner_seed_alone_leaves_data_unchanged_msr(monkeypatch, tmp_path, module):
+    folder = real_data_path("msr-action3d")
+    # the MSR single-action set holds every sequence: with n_records only a random draw depends on the data stream
+    tiny = EXPERIMENTS.get(module, {"n_records": 30, "n_folds_single": 3})
+    _check_streams(monkeypatch, tmp_path, module, data={"msr-action3d": folder}, **tiny)
+
+
+# --------------------------------------------------------------------------- claims that can fail
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 30), st.integers(2, 8), st.floats(0.05, 0.95))
+def test_l_given_number_never_below_l_full_for_thresholded_scores(seed, n, L, eta):
+    """Why ``l_given_number >= l_full`` is no claim: it holds for any scores and threshold."""
+    rng = np.random.default_rng(seed)
+    Y = (rng.random((n, L)) < 0.4).astype(float)
+    S = np.round(rng.random((n, L)), 1)  # ties included
+    assert l_given_number(Y, S) >= l_full(Y, (S >= eta).astype(int))
+
+
+def _claims(exp_id):
+    from mmconcepts.experiments import get
+
+    return get(exp_id).claims
+
+
+@pytest.mark.parametrize("exp_id", ["ch3-choreography", "ch3-unseen", "ch3-msr-action3d"])
+def test_no_identity_claim_l_given_number_vs_l_full(exp_id):
+    for claim in _claims(exp_id):
+        rule = claim.rule.replace(" ", "")
+        assert not ("l_given_number>=" in rule and ".l_full" in rule and "gain" not in rule), claim.rule
+
+
+@pytest.mark.parametrize("exp_id, prefixes, thesis_gain", [
+    ("ch3-choreography", ("16.nmf_frobenius", "47.nmf_frobenius"), (0.117, 0.130)),
+    ("ch3-unseen", ("16.nmf_frobenius", "47.nmf_frobenius"), (0.232, 0.247)),
+    ("ch3-msr-action3d", ("mixed.nmf_frobenius",), (0.117,)),
+])
+def test_gain_claim_can_fail(exp_id, prefixes, thesis_gain):
+    rules = [c.rule for c in _claims(exp_id) if "gain_given_number" in c.rule]
+    assert len(rules) == 1
+    at_thesis = {f"{p}.gain_given_number": g for p, g in zip(prefixes, thesis_gain)}
+    no_gain = {f"{p}.gain_given_number": 0.0 for p in prefixes}
+    assert evaluate_rule(rules[0], at_thesis) is True
+    assert evaluate_rule(rules[0], no_gain) is False  # l_given_number == l_full: the claim fails
+
+
+def test_combinations_claims_do_not_test_a_generator_input():
+    for claim in _claims("ch3-combinations"):
+        assert "fraction_seen_once" not in claim.rule
