@@ -1,4 +1,4 @@
-"""The chapter 6 motion/sound/label experiments on tiny generated data."""
+"""The chapter 6 experiments: on tiny generated data, on small real subsets, and their building blocks."""
 
 from __future__ import annotations
 
@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+
+from conftest import real_data_path
 
 from mmconcepts.experiments import RunContext
 
@@ -25,7 +27,7 @@ def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
     res.validate()
     m = res.metrics
     keys = [k for k in m if k.count(".") == 2 and not k.endswith("_std") and not k.startswith("shuffled")]
-    assert len(keys) == 18  # 2 directions x 3 spaces x 3 metrics, the keys of Table 6.2
+    assert len(keys) == 24  # 2 directions x 3 spaces x 4 metrics (KL = I-divergence, KL normalised, Eucl., cos.)
     assert all(0.0 <= m[k] <= 1.0 for k in keys)
     assert m["sound2motion.internal.cosine"] > m["shuffled.sound2motion.internal.cosine"]
     # the other two reuse the cached folds
@@ -92,7 +94,7 @@ def test_ch6_modalities_small(tiny_speech_corpus, tmp_path):
     for key in ("two.S2M", "three.S2M", "three.SM2I", "three.I2SM", "k_5.two", "k_10.three"):
         assert 0.0 <= m[key] <= 1.0
     assert m["k_10.two"] == pytest.approx(m["two.mean_1to1"])  # k = 10 is the main fit: same models
-    assert set(res.figures) == {"fig6_5_6_6", "fig6_7"}
+    assert set(res.figures) == {"fig6_5_6_7", "fig6_6"}  # Fig. 6.6 is the k sweep
 
 
 def test_stream_windows_cover_the_stream():
@@ -119,19 +121,119 @@ def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
     assert set(res.figures) == {"fig6_8", "fig6_9"}
 
 
-MSR = __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "data" / "msr-action3d"
+def test_streams_are_independent_and_reproducible():
+    from mmconcepts.experiments._ch6_common import child_seeds, streams
+
+    a, b = streams(0), streams(1)
+    assert a == streams(0) and len(set(a)) == len(a)  # five different seeds from one
+    assert all(x != y for x, y in zip(a, b))
+    assert child_seeds(a.learner, 3)[:2] == child_seeds(a.learner, 2)
+
+
+def test_pairing_stays_within_concept_and_part(rng):
+    from mmconcepts.experiments._ch6_common import concept_parts, pair_within_parts
+
+    y = np.repeat(np.arange(4), 30)  # 30 utterances per concept
+    item_concept = np.r_[np.repeat(np.arange(4), 11), -np.ones(5, int)]  # 11 records per concept, 5 unused
+    part_y = concept_parts(y, (0.6, 0.2, 0.2), rng)
+    part_i = concept_parts(item_concept, (0.6, 0.2, 0.2), rng)
+    assert (part_i[item_concept < 0] == -1).all()
+    for c in range(4):
+        assert np.bincount(part_y[y == c]).tolist() == [18, 6, 6]
+        assert np.bincount(part_i[item_concept == c]).tolist() == [7, 2, 2]
+    idx = pair_within_parts(y, part_y, item_concept, part_i, rng)
+    assert (item_concept[idx] == y).all() and (part_i[idx] == part_y).all()
+    # without replacement while possible: the 7 training records of a concept serve 18 utterances 2-3 times each
+    counts = np.bincount(idx[(y == 0) & (part_y == 0)], minlength=len(item_concept))
+    assert set(counts[counts > 0].tolist()) <= {2, 3}
+    folds = concept_parts(y, 5, rng)
+    assert all(np.bincount(folds[y == c]).tolist() == [6] * 5 for c in range(4))
+
+
+def test_composed_test_utterances_place_the_target_exactly(rng):
+    from mmconcepts.experiments.ch6_sliding import compose_test_utterances
+
+    lengths = rng.integers(20, 60, size=40)
+    mfccs = [np.full((n, 3), float(i)) for i, n in enumerate(lengths)]  # each frame names its recording
+    y = np.arange(40) % 10
+    pool = np.arange(0, 40, 2)
+    seqs, labels, spans, parts = compose_test_utterances(mfccs, y, pool, rng, hop=0.01)
+    assert len(seqs) == len(pool) and (labels == y[pool]).all()
+    for seq, (t0, t1), (p, pos), target in zip(seqs, spans, parts, pool):
+        assert 2 <= len(p) <= 4 and p[pos] == target and set(p) <= set(pool.tolist())
+        assert all(y[j] != y[target] for k, j in enumerate(p) if k != pos)  # flanking words: other concepts
+        inside = seq[int(round(t0 / 0.01)): int(round(t1 / 0.01)), 0]
+        assert (inside == target).all() and inside.size == lengths[target]
+    assert {len(p) for p, _ in parts} == {2, 3, 4}
+
+
+def test_eth80_objects_round_robin_over_categories():
+    from mmconcepts.experiments._ch6_common import eth80_objects
+
+    objs = ["car11", "car2", "car1", "apple2", "apple1", "cow1"]
+    assert eth80_objects(objs, ["car", "car", "car", "apple", "apple", "cow"], 5) == \
+        ["apple1", "car1", "cow1", "apple2", "car2"]
+
+
+def _real_ctx(tmp_path, *names):
+    return RunContext(data={n: real_data_path(n) for n in names}, cache_dir=tmp_path, show_progress=False)
+
+
+def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
+    from mmconcepts.experiments import _ch6_common as common
+    from mmconcepts.experiments.ch6_motion_sound import Config
+
+    ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
+    st = common.streams(0)
+    kw = dict(n_per_speaker=50, n_motion=0, n_folds=3)
+    data = common.load_pairs(ctx, seeds=st, **kw)
+    assert len(data["y"]) == 50 and np.bincount(data["y"]).tolist() == [5] * 10  # 5 recordings per digit
+    assert sorted(data["keywords"])[:3] == ["eight", "five", "four"]
+    assert sorted(data["mapping"].values()) == sorted(common.MSR_ACTIONS)  # a bijection onto the ten actions
+    gestures = data["motion"]["gesture"][data["motion_idx"]]
+    assert all(gestures[i] == data["mapping"][data["keywords"][c]] for i, c in enumerate(data["y"]))
+    assert all(a.shape[1] == 16 for a in data["angles"])  # joint angles of the limb model
+    for rec in set(data["motion_idx"].tolist()):  # a motion record serves in one fold only
+        assert len(set(data["fold"][data["motion_idx"] == rec].tolist())) == 1
+    cfg = dataclasses.replace(Config.quick(), n_folds=3)
+    # a new learner seed leaves the data (bijection, pairing, folds) unchanged ...
+    other_learner = common.load_pairs(ctx, seeds=st._replace(learner=st.learner + 1), **kw)
+    for key in ("y", "fold", "motion_idx"):
+        np.testing.assert_array_equal(other_learner[key], data[key])
+    assert other_learner["mapping"] == data["mapping"]
+    t0, t1 = common.fold_tasks(data, cfg, st), common.fold_tasks(data, cfg, st._replace(learner=st.learner + 1))
+    assert [t["learner_seed"] for t in t0] != [t["learner_seed"] for t in t1]
+    assert [t["reference_seed"] for t in t0] == [t["reference_seed"] for t in t1]
+    # ... and new data leave the learner's initialisation unchanged
+    other_data = common.load_pairs(ctx, seeds=st._replace(data=st.data + 1), **kw)
+    assert other_data["mapping"] != data["mapping"]
+    np.testing.assert_array_equal(other_data["fold"], data["fold"])  # same fold stream
+    t2 = common.fold_tasks(other_data, cfg, st._replace(data=st.data + 1))
+    assert [t["learner_seed"] for t in t2] == [t["learner_seed"] for t in t0]
+    other_folds = common.load_pairs(ctx, seeds=st._replace(folds=st.folds + 1), **kw)
+    assert other_folds["mapping"] == data["mapping"] and not np.array_equal(other_folds["fold"], data["fold"])
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not MSR.is_dir(), reason="needs ../shared/data/msr-action3d (real MSR Action3D skeletons)")
-def test_ch6_labels_on_real_msr_motion(tiny_speech_corpus, tmp_path):
-    from mmconcepts.experiments import _ch6_common as common
+def test_ch6_labels_on_real_voices_and_motion(tmp_path):
     from mmconcepts.experiments.ch6_motion_sound import Config, run_labels
 
-    ctx = RunContext(data={"audio": tiny_speech_corpus, "msr": MSR}, cache_dir=tmp_path, show_progress=False)
-    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=0, seed=0)
-    assert set(data["mapping"].values()) <= set(common.MSR_ACTIONS)
-    assert all(a.shape[1] == 16 for a in data["angles"])  # joint angles of the limb model
-    res = run_labels(dataclasses.replace(Config.quick(), n_folds=2, k=12, n_iter=30), ctx)
-    assert "MSR Action3D" in res.notes[0]
+    ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
+    res = run_labels(dataclasses.replace(Config.quick(), n_per_speaker=100, n_folds=2, k=12, n_iter=30), ctx)
+    assert "Free Spoken Digit" in res.notes[0] and "MSR Action3D" in res.notes[0]
     assert res.metrics["motion_labels.m2l"] > 2 * res.metrics["chance"]
+    assert res.metrics["sound_labels.s2l"] > 2 * res.metrics["chance"]
+
+
+@pytest.mark.slow
+def test_ch6_sliding_on_real_words_and_objects(tmp_path):
+    from mmconcepts.experiments.ch6_sliding import Config, run
+
+    ctx = _real_ctx(tmp_path, "fsdd", "eth80")
+    cfg = dataclasses.replace(Config.quick(), n_per_speaker=100, widths=(0.2, 0.5), k=12, n_iter=30, probe_width=0.2)
+    res = run(cfg, ctx)
+    res.validate()
+    m = res.metrics
+    assert m["localisation.n_utterances"] == 20  # every test recording, flanked by 1-3 others
+    assert "flanked by 1-3 other test recordings" in res.notes[2] and "ETH-80" in res.notes[0]
+    assert 0.0 < m["localisation.chance"] < 1.0 and 0.0 <= m["best.s2i"] <= 1.0

@@ -169,3 +169,17 @@ def test_bad_input(rng):
         crossmodal_distances(model, {"sound": mods["sound"]}, {"sound": mods["sound"]})
     with pytest.raises(ParameterError):
         MultimodalNMF(3, normalize="l2").fit(mods)
+
+
+def test_i_divergence_on_unnormalised_data(rng):
+    """"idiv" is the generalised KL of eq. 2.8 on the data as they are; "kl" normalises first."""
+    A = rng.random((4, 6)) + 0.05
+    B = rng.random((5, 6)) + 0.05
+    by_hand = np.array([[np.sum(a * np.log(a / b) - a + b) for b in B] for a in A])
+    np.testing.assert_allclose(pairwise_divergence(A, B, "idiv"), by_hand, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(np.diag(pairwise_divergence(A, A, "idiv")), 0.0, atol=1e-9)
+    # scale matters to the I-divergence, not to the normalised KL
+    assert np.all(pairwise_divergence(A, 3 * A, "idiv")[np.arange(4), np.arange(4)] > 0.1)
+    np.testing.assert_allclose(np.diag(pairwise_divergence(A, 3 * A, "kl")), 0.0, atol=1e-9)
+    with pytest.raises(DataError, match="nonnegative"):
+        pairwise_divergence(-A, B, "idiv")

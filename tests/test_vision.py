@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from conftest import real_data_path
+
 from mmconcepts.errors import DataError, DataFormatError, ParameterError
 from mmconcepts.vision import (
     ColorHistograms,
@@ -31,11 +33,21 @@ from mmconcepts.vision import (
     write_image_folder,
 )
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-ETH80 = SHARED / "eth80-96px"
-COIL20 = SHARED / "coil20" / "COIL20.mat"
-needs_eth80 = pytest.mark.skipif(not ETH80.is_dir(), reason=f"ETH-80 not found at {ETH80}")
-needs_coil20 = pytest.mark.skipif(not COIL20.is_file(), reason=f"COIL-20 not found at {COIL20}")
+
+
+@pytest.fixture
+def eth80() -> Path:
+    """The real ETH-80 folder of the data root (skips the test when absent)."""
+    return real_data_path("eth80")
+
+
+@pytest.fixture
+def coil20() -> Path:
+    """The real COIL20.mat of the data root (skips the test when absent)."""
+    path = real_data_path("coil20") / "COIL20.mat"
+    if not path.is_file():
+        pytest.skip(f"COIL20.mat absent from {path.parent}")
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -175,9 +187,8 @@ def test_image_folder_errors(tmp_path):
 # --------------------------------------------------------------------------- real data
 
 
-@needs_eth80
-def test_load_eth80_subset():
-    s = load_eth80(ETH80, categories=["cow", "cup"], instances=[1, 2])
+def test_load_eth80_subset(eth80):
+    s = load_eth80(eth80, categories=["cow", "cup"], instances=[1, 2])
     assert s.classes == ("cow1", "cow2", "cup1", "cup2")
     assert len(s) == 4 * 41
     assert set(s.categories) == {"cow", "cup"}
@@ -185,15 +196,14 @@ def test_load_eth80_subset():
     assert all(im.shape == (96, 96, 3) and 0 <= im.min() and im.max() <= 1 for im in s.images)
     assert s.paths[0].name == "cow1-000-000.png"
     with pytest.raises(ParameterError, match="zebra"):
-        load_eth80(ETH80, categories=["zebra"])
+        load_eth80(eth80, categories=["zebra"])
 
 
-@needs_eth80
-def test_load_eth80_corrupt_file(tmp_path):
+def test_load_eth80_corrupt_file(tmp_path, eth80):
     import shutil
 
     for name in ("cow1-000-000.png", "cow1-022-000.png"):
-        shutil.copy(ETH80 / name, tmp_path / name)
+        shutil.copy(eth80 / name, tmp_path / name)
     (tmp_path / "cow1-045-090.png").write_bytes(b"garbage")
     with pytest.raises(DataFormatError, match="cow1-045-090.png"):
         load_eth80(tmp_path)
@@ -207,9 +217,8 @@ def _extent(mask: np.ndarray) -> tuple[int, int]:
     return rr.max() - rr.min() + 1, cc.max() - cc.min() + 1
 
 
-@needs_coil20
-def test_load_coil20_upright():
-    s = load_coil20(COIL20)
+def test_load_coil20_upright(coil20):
+    s = load_coil20(coil20)
     assert len(s) == 1440 and len(s.classes) == 20
     assert all(s.labels.count(c) == 72 for c in s.classes)
     im = s.images[0]
@@ -403,10 +412,9 @@ def test_nearest_neighbour_recognises_generated_objects_from_new_views():
     assert _nn_accuracy(A, rng.permutation(train.labels), B, test.labels) < acc
 
 
-@needs_eth80
 @pytest.mark.slow
-def test_nearest_neighbour_recognises_eth80_objects_from_new_views():
-    s = load_eth80(ETH80, instances=[1])  # 8 objects (one per category), 41 views
+def test_nearest_neighbour_recognises_eth80_objects_from_new_views(eth80):
+    s = load_eth80(eth80, instances=[1])  # 8 objects (one per category), 41 views
     v = np.arange(len(s)) % 41
     train, test = s.subset(v % 2 == 0), s.subset(v % 2 == 1)
     f = ImageFeatures(random_state=0)
@@ -420,3 +428,24 @@ def test_parallel_extraction_gives_the_same_features():
     b = _small_features(descriptors=("color", "keypoint_pairs"), random_state=0, n_jobs=2).fit_transform(s)
     np.testing.assert_allclose(a["color"], b["color"])
     np.testing.assert_allclose(a["keypoint_pairs"].toarray(), b["keypoint_pairs"].toarray())
+
+
+def test_features_from_cached_locals_equal_direct_features():
+    """extract_locals + fit_locals / transform_locals give fit_transform / transform exactly."""
+    s = make_objects(3, 6, random_state=4)
+    train, test = s.subset(np.arange(len(s)) % 2 == 0), s.subset(np.arange(len(s)) % 2 == 1)
+    direct = _small_features(descriptors=("color", "keypoints", "color_pairs"), random_state=0)
+    a_tr, a_te = direct.fit_transform(train), direct.transform(test)
+    staged = _small_features(descriptors=("color", "keypoints", "color_pairs"), random_state=0)
+    b_tr = staged.fit_locals(*staged.extract_locals(train))
+    b_te = staged.transform_locals(*staged.extract_locals(test))
+    for name in ("color", "keypoints", "color_pairs"):
+        for a, b in ((a_tr[name], b_tr[name]), (a_te[name], b_te[name])):
+            a = a.toarray() if hasattr(a, "toarray") else a
+            b = b.toarray() if hasattr(b, "toarray") else b
+            np.testing.assert_array_equal(a, b)
+    only_colour = _small_features(descriptors=("color",), random_state=0)
+    c_loc, k_loc = only_colour.extract_locals(train)
+    assert k_loc is None and len(c_loc) == len(train)
+    with pytest.raises(ParameterError, match="keypoint"):
+        _small_features(descriptors=("keypoints",), random_state=0).fit_locals(c_loc, None)

@@ -1,53 +1,84 @@
-"""Shared machinery of the chapter-6 experiments: paired multimodal examples and fold evaluation.
+"""Shared machinery of the chapter-6 experiments: the three modalities, pairing by concept, folds.
 
-Thesis sections 6.5-6.6. Data:
+Thesis sections 6.5-6.6. Each modality comes from a real set when it is in ``ctx.data``,
+else from its generated stand-in:
 
-- sound: the utterances of one speaker (speaker 1, as in the thesis) of the chapter 5
-  corpus (:func:`mmconcepts.experiments._ch5_common.load_corpus`: ``--data acorns=DIR``,
-  ``--data audio=DIR`` or the synthetic corpus), each with one keyword; represented by HAC
-  (22 MFCC, codebooks 150/150/100, lags 2 and 5) with codebooks fitted per training fold;
-- motion: Choreo2 records (``--data choreo2=DIR`` or the synthetic Choreo2-like set), one
-  gesture each; the relative rotations along the limbs as Euler angles
-  (:func:`mmconcepts.motion.orientation_angles`) turned into joint angle-velocity
-  histograms (:class:`~mmconcepts.motion.MotionHistograms`) fitted per training fold; or
-  real Kinect skeletons of ten MSR Action3D actions (``--data msr=DIR``, positions only, so
-  the 16 joint angles of :func:`mmconcepts.motion.joint_angles`);
-- labels: the concept of each example as a one-hot vector (the symbolic modality).
+- sound: the utterances of one speaker (the first by name; the thesis uses speaker 1),
+  one keyword each. Real: ``fsdd`` (Free Spoken Digit Dataset: ten digit words said
+  alone, 50 recordings per word and speaker), ``acorns`` (Caregiver) or ``audio``
+  (generic layout); synthetic: the chapter 5 Caregiver-like corpus
+  (:func:`mmconcepts.experiments._ch5_common.load_corpus`). Represented by HAC (22 MFCC,
+  codebooks 150/150/100, lags 2 and 5) with codebooks fitted per training fold;
+- motion: one gesture per record. Real: ten MSR Action3D actions (``msr-action3d``: Kinect
+  skeletons, positions only, so the 16 joint angles of
+  :func:`mmconcepts.motion.joint_angles`) or Choreo2 (``choreo2``); synthetic: the
+  Choreo2-like set. Joint angle-velocity histograms
+  (:class:`~mmconcepts.motion.MotionHistograms`) fitted per training fold;
+- images: one object per concept, many views each. Real: ETH-80 (``eth80``: ten objects
+  taken round robin over the eight categories, apple1, car1, ..., tomato1, apple2, car2) or
+  a generic folder (``images``); synthetic: :func:`mmconcepts.vision.make_objects`;
+- labels: the concept as a one-hot vector (the symbolic modality).
 
-Concepts: keyword k is associated with gesture ``mapping[k]`` by a random bijection drawn
-from the seed (the thesis' Table 6.1 is one such mapping). Examples are paired by
-concept: each utterance gets a motion record of its concept's gesture, drawn without
-replacement while possible.
+Concepts: keyword k goes with gesture ``mapping[k]`` (and object ``objects[k]``) through a
+random bijection (the thesis' Table 6.1 is one such mapping). Examples are paired by
+concept *within each partition* (cross-validation fold, or training / test / reference
+part): the utterances, the motion records and the object views are each split by concept
+first, then every utterance gets a record (a view) of its concept from the same part,
+drawn without replacement while possible. So when a real set has fewer records than
+there are utterances (MSR Action3D: about 27 records per action for 50 utterances per
+word) a record may serve twice, but never in both training and test.
 
-:func:`evaluate` runs every fold (stratified k-fold over the paired examples) through
-``ctx.parallel`` and caches the fold results on disk, so the experiments of Tables 6.2,
-6.3 and 6.4 share one computation.
+Random streams (issue 12): :func:`streams` spawns independent seeds from the
+configuration's seed for the data (bijections, pairing, stream order), the folds (splits),
+the learners (HAC and histogram codebooks, NMF initialisation), the reference draws of the
+matching protocol, and the composition of the test utterances of the sliding windows.
+
+:func:`evaluate` runs every fold of Tables 6.2-6.4 through ``ctx.parallel`` and caches
+the fold results on disk (key: the data, the setting and :func:`code_fingerprint`), so
+the three experiments share one computation.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import pickle
 import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .. import __version__
+from .._fingerprint import code_fingerprint
 from ..errors import ConvergenceWarning, DataError
 from ..motion import MotionHistograms, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
-from ..multimodal import MultimodalNMF, crossmodal_distances, matching_success_rate
+from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
 from .base import RunContext
 
-__all__ = ["load_pairs", "evaluate", "data_source_note", "SPACE_NAMES", "METRIC_NAMES"]
+__all__ = ["Streams", "streams", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
+           "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
+           "MSR_ACTIONS", "SPEECH_SETS", "MOTION_SETS", "IMAGE_SETS", "image_locals", "image_concepts",
+           "child_seeds", "space_pairs", "gesture_mapping", "eth80_objects"]
 
-#: Metric names of the thesis' tables and the metric used for each.
-METRIC_NAMES = {"kl": "kl", "euclidean": "euclidean", "cosine": "cosine"}
+#: Metric names of the tables -> metric of :func:`mmconcepts.multimodal.pairwise_divergence`.
+#: "kl" is the thesis' setting: the data are not normalised per example, so the divergence
+#: is the I-divergence (generalised KL, section 6.6.1); "kl_normalised" is the KL divergence
+#: after normalising both sides to sum to one, reported beside it.
+METRIC_NAMES = {"kl": "idiv", "kl_normalised": "kl", "euclidean": "euclidean", "cosine": "cosine"}
+
+SPEECH_SETS = ("acorns", "fsdd", "audio")
+MOTION_SETS = ("choreo2", "msr-action3d")
+IMAGE_SETS = ("images", "eth80")
+
+#: The ten MSR Action3D actions used as gestures (arms, both arms, legs, whole body:
+#: 1 high arm wave, 2 horizontal arm wave, 5 forward punch, 6 high throw, 10 hand clap,
+#: 12 side boxing, 13 bend, 14 forward kick, 15 side kick, 16 jogging).
+MSR_ACTIONS = (1, 2, 5, 6, 10, 12, 13, 14, 15, 16)
 
 
 def SPACE_NAMES(direction: str) -> dict[str, str]:
@@ -57,80 +88,276 @@ def SPACE_NAMES(direction: str) -> dict[str, str]:
     return {"internal": "internal", "sound": "reference", "motion": "test"}
 
 
-#: The ten MSR Action3D actions used as gestures with ``--data msr=DIR`` (arms, both arms,
-#: legs, whole body: 1 high arm wave, 2 horizontal arm wave, 5 forward punch, 6 high throw,
-#: 10 hand clap, 12 side boxing, 13 bend, 14 forward kick, 15 side kick, 16 jogging).
-MSR_ACTIONS = (1, 2, 5, 6, 10, 12, 13, 14, 15, 16)
+# ---------------------------------------------------------------------------- random streams
+class Streams(NamedTuple):
+    """Independent integer seeds: data, folds, learner, reference draws, test composition."""
+
+    data: int
+    folds: int
+    learner: int
+    reference: int
+    composition: int
 
 
-def data_source_note(ctx: RunContext) -> str:
-    if "choreo2" in ctx.data:
-        motion = f"real Choreo2 records from {ctx.data['choreo2']}"
-    elif "msr" in ctx.data:
-        motion = (f"real Kinect skeletons of MSR Action3D from {ctx.data['msr']} (actions {MSR_ACTIONS}, joint "
-                  "angles of the limb model)")
-    else:
-        motion = "the synthetic Choreo2-like set (mmconcepts.motion.synthetic.make_choreo2)"
-    return f"Motion: {motion}. " + ch5.data_source_note(ctx)
+def streams(seed: int) -> Streams:
+    """Seeds of the independent random streams spawned from ``seed`` (numpy SeedSequence)."""
+    kids = np.random.SeedSequence(int(seed)).spawn(len(Streams._fields))
+    return Streams(*(int(k.generate_state(1, dtype=np.uint32)[0]) for k in kids))
 
 
-def _motion_dataset(ctx: RunContext, n_records: int):
-    """The motion records and the function giving their angle trajectories."""
+def child_seeds(seed: int, n: int) -> list[int]:
+    """``n`` independent seeds spawned from ``seed`` (one per fold or repetition)."""
+    return [int(k.generate_state(1, dtype=np.uint32)[0]) for k in np.random.SeedSequence(int(seed)).spawn(n)]
+
+
+# ---------------------------------------------------------------------------- data
+def _speech_ctx(ctx: RunContext) -> RunContext:
+    """The context the chapter 5 loader sees: FSDD read through its generic layout (labels.csv)."""
+    if "fsdd" in ctx.data and "acorns" not in ctx.data:
+        return dataclasses.replace(ctx, data={"audio": ctx.data["fsdd"]})
+    return ctx
+
+
+def _speech_name(ctx: RunContext) -> str | None:
+    return next((n for n in SPEECH_SETS if n in ctx.data), None)
+
+
+def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
+    """Utterances of the first speaker: MFCC sequences, concepts, keyword spans.
+
+    A real speaker with more than ``n_per_speaker`` utterances is subsampled to that many,
+    stratified by keyword (``seed``: the data stream); the generated corpus has exactly
+    ``n_per_speaker`` per speaker.
+    """
+    sub, first, keywords, y = ch5.first_speaker(_speech_ctx(ctx), n_per_speaker=n_per_speaker)
+    n_all = len(y)
+    if _speech_name(ctx) is not None and len(y) > n_per_speaker:
+        rng = np.random.default_rng(seed)
+        per = max(1, n_per_speaker // len(keywords))
+        keep = np.sort(np.concatenate([rng.permutation(np.flatnonzero(y == c))[:per] for c in range(len(keywords))]))
+        sub, y = sub.subset(keep), y[keep]
+    mfccs = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
+    return {"corpus": sub, "speaker": first, "keywords": keywords, "y": y, "mfcc": mfccs,
+            "spans": sub.keyword_spans(), "n_available": n_all,
+            "durations": np.array([len(m) * MFCCConfig(n_mfcc=22).hop_ms / 1000 for m in mfccs])}
+
+
+def load_motion(ctx: RunContext, *, n_motion: int) -> dict:
+    """Motion records (one gesture each): angle trajectories, gesture ids, record ids."""
     if "choreo2" in ctx.data:
         path = Path(ctx.data["choreo2"])
-        return load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip"), orientation_angles
-    if "msr" in ctx.data:
-        return load_msr_action3d(ctx.data["msr"], actions=MSR_ACTIONS, on_error="skip"), joint_angles
-    from ..motion.synthetic import make_choreo2
+        ds = load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip")
+        fn = orientation_angles
+    elif "msr-action3d" in ctx.data:
+        ds, fn = load_msr_action3d(ctx.data["msr-action3d"], actions=MSR_ACTIONS, on_error="skip"), joint_angles
+    else:
+        from ..motion.synthetic import make_choreo2
 
-    return make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_records), orientation_angles
-
-
-def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int) -> dict:
-    """Paired examples: HAC-ready MFCC sequences, joint-angle trajectories and concept ids."""
-    sub, first, keywords, concept = ch5.first_speaker(ctx, n_per_speaker=n_per_speaker)
-    kw = np.asarray(keywords)[concept]
-    mfccs = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
-    ds, angle_fn = _motion_dataset(ctx, n_motion)
-    gestures, angles = [], []
+        ds, fn = make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_motion), orientation_angles
+    gestures, angles, ids = [], [], []
     for rec in ds:
         if len(rec.labels) != 1:
             raise DataError(f"motion record {rec.record_id} has {len(rec.labels)} gestures; chapter 6 needs one each.")
         gestures.append(int(rec.labels[0]))
-        angles.append(np.ascontiguousarray(angle_fn(rec), dtype=np.float64))
-    gestures = np.asarray(gestures)
-    gesture_ids = sorted(set(gestures.tolist()))
+        angles.append(np.ascontiguousarray(fn(rec), dtype=np.float64))
+        ids.append(str(rec.record_id))
+    return {"angles": angles, "gesture": np.asarray(gestures), "ids": ids,
+            "skipped": [str(s) for s in getattr(ds, "skipped", [])]}
+
+
+def eth80_objects(labels, categories, n_objects: int) -> list[str]:
+    """``n_objects`` ETH-80 objects taken round robin over the categories (lowest instance of each, then the next)."""
+    by_cat: dict[str, list[str]] = {}
+    for lab, cat in set(zip(labels, categories)):
+        by_cat.setdefault(cat, []).append(lab)
+    for cat, objs in by_cat.items():
+        objs.sort(key=lambda o, n=len(cat): (int(o[n:]) if o[n:].isdigit() else 0, o))
+    out: list[str] = []
+    for rank in range(max(len(v) for v in by_cat.values())):
+        out += [objs[rank] for _, objs in sorted(by_cat.items()) if rank < len(objs)]
+    return out[:n_objects]
+
+
+def load_images(ctx: RunContext, n_objects: int, n_views: int):
+    """The image set: generic folder, ETH-80 (``n_objects`` objects over the categories) or synthetic objects."""
+    import re
+
+    from ..vision import load_eth80, load_image_folder, make_objects
+
+    if "images" in ctx.data:
+        return load_image_folder(ctx.data["images"], on_error="skip")
+    if "eth80" in ctx.data:
+        # choose the objects from the file names, then read only their images
+        pat = re.compile(r"^([a-z]+)(\d+)-\d{3}-\d{3}\.png$", re.IGNORECASE)
+        found = {(m.group(1).lower() + str(int(m.group(2))), m.group(1).lower())
+                 for p in Path(ctx.data["eth80"]).rglob("*.png") if (m := pat.match(p.name))}
+        if not found:
+            raise DataError(f"no ETH-80 image (<category><instance>-<tilt>-<pan>.png) in {ctx.data['eth80']}.")
+        labs, cats = zip(*sorted(found))
+        objs = eth80_objects(labs, cats, n_objects)
+        ims = load_eth80(ctx.data["eth80"], categories=sorted({c for o, c in found if o in objs}),
+                         instances=sorted({int(o.lstrip("abcdefghijklmnopqrstuvwxyz")) for o in objs}), on_error="skip")
+        return ims.subset(np.isin(ims.labels, objs))
+    return make_objects(n_objects, n_views, random_state=0)
+
+
+def speech_note(ctx: RunContext, speech: dict | None = None) -> str:
+    name = _speech_name(ctx)
+    size = ""
+    if speech is not None:
+        size = (f" ({len(speech['y'])} of speaker {speech['speaker']}'s {speech['n_available']} utterances, "
+                f"{len(speech['keywords'])} words)")
+    if name == "fsdd":
+        return (f"Sound: real spoken digits of the Free Spoken Digit Dataset (FSDD, {ctx.data['fsdd']}){size}, one "
+                "word said alone per recording, 8 kHz resampled to 16 kHz.")
+    if name is not None:
+        return f"Sound: real recordings ({name}, {ctx.data[name]}){size}."
+    return f"Sound: the synthetic Caregiver-like corpus (offline text-to-speech, keyword sentences){size}."
+
+
+def motion_note(ctx: RunContext, motion: dict | None = None) -> str:
+    size = ""
+    if motion is not None:
+        size = f" ({len(motion['angles'])} records of {len(set(motion['gesture'].tolist()))} gestures)"
+    if "choreo2" in ctx.data:
+        return f"Motion: real Choreo2 records from {ctx.data['choreo2']}{size}."
+    if "msr-action3d" in ctx.data:
+        return (f"Motion: real Kinect skeletons of MSR Action3D ({ctx.data['msr-action3d']}), actions "
+                f"{MSR_ACTIONS}{size}, 16 joint angles of the limb model.")
+    return f"Motion: the synthetic Choreo2-like set (mmconcepts.motion.synthetic.make_choreo2){size}."
+
+
+def image_note(ctx: RunContext, ims=None) -> str:
+    size = f" ({len(ims)} views of {len(set(ims.labels))} objects)" if ims is not None else ""
+    if "images" in ctx.data:
+        return f"Images: real photos in the generic layout from {ctx.data['images']}{size}."
+    if "eth80" in ctx.data:
+        objs = ", ".join(sorted(set(ims.labels))) if ims is not None else "ten objects"
+        return (f"Images: real ETH-80 photos ({ctx.data['eth80']}){size}: {objs} (round robin over the eight "
+                "categories).")
+    return f"Images: synthetic object photos (mmconcepts.vision.make_objects){size}."
+
+
+def data_source_note(ctx: RunContext, speech: dict | None = None, motion: dict | None = None) -> str:
+    return speech_note(ctx, speech) + " " + motion_note(ctx, motion)
+
+
+# ---------------------------------------------------------------------------- pairing
+def concept_parts(concept: np.ndarray, parts, rng: np.random.Generator) -> np.ndarray:
+    """Part of each item, split within each concept (items of concept -1 get part -1).
+
+    ``parts`` is a number of folds (items dealt round robin after a random permutation)
+    or a sequence of fractions (e.g. ``(0.6, 0.2, 0.2)``; each part gets at least one item
+    of each concept that has enough).
+    """
+    concept = np.asarray(concept)
+    out = np.full(concept.shape, -1, dtype=np.int64)
+    for c in np.unique(concept[concept >= 0]):
+        idx = rng.permutation(np.flatnonzero(concept == c))
+        if isinstance(parts, (int, np.integer)):
+            out[idx] = np.arange(idx.size) % int(parts)
+        else:
+            frac = np.asarray(parts, dtype=float)
+            counts = np.maximum(1, np.floor(frac / frac.sum() * idx.size).astype(int)) if idx.size >= len(frac) \
+                else np.r_[idx.size, np.zeros(len(frac) - 1, int)]
+            counts[0] = idx.size - counts[1:].sum()
+            out[idx] = np.repeat(np.arange(len(frac)), counts)
+    return out
+
+
+def pair_within_parts(y: np.ndarray, part_y: np.ndarray, item_concept: np.ndarray, part_item: np.ndarray,
+                      rng: np.random.Generator, what: str = "item") -> np.ndarray:
+    """For each example (concept ``y``, part ``part_y``), an item of the same concept and part.
+
+    Items are drawn without replacement while possible (then the pool is dealt again).
+    """
+    y, part_y = np.asarray(y), np.asarray(part_y)
+    out = np.empty(len(y), dtype=np.int64)
+    for c in np.unique(y):
+        for p in np.unique(part_y[y == c]):
+            want = np.flatnonzero((y == c) & (part_y == p))
+            pool = np.flatnonzero((item_concept == c) & (part_item == p))
+            if pool.size == 0:
+                raise DataError(f"no {what} of concept {c} in part {p}: too few {what}s for this split.")
+            reps = int(np.ceil(want.size / pool.size))
+            out[want] = np.concatenate([rng.permutation(pool) for _ in range(reps)])[: want.size]
+    return out
+
+
+def gesture_mapping(keywords, gestures: np.ndarray, rng: np.random.Generator) -> tuple[dict, np.ndarray]:
+    """Random keyword -> gesture bijection and the concept of each motion record (-1: unused gesture)."""
+    gesture_ids = sorted(set(np.asarray(gestures).tolist()))
     if len(gesture_ids) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(gesture_ids)} gestures: cannot map concepts one to one.")
-    rng = np.random.default_rng(seed)
-    mapping = dict(zip(keywords, rng.permutation(gesture_ids)[: len(keywords)].tolist()))
-    motion_idx = np.empty(len(kw), dtype=np.int64)
-    for k in keywords:
-        want = np.flatnonzero(kw == k)
-        pool = rng.permutation(np.flatnonzero(gestures == mapping[k]))
-        if pool.size == 0:
-            raise DataError(f"no motion record of gesture {mapping[k]} for keyword {k!r}.")
-        reps = int(np.ceil(want.size / pool.size))
-        motion_idx[want] = np.concatenate([rng.permutation(pool) for _ in range(reps)])[: want.size]
-    return {"mfcc": mfccs, "angles": [angles[i] for i in motion_idx], "y": concept, "keywords": keywords,
-            "mapping": {k: int(v) for k, v in mapping.items()}, "speaker": first,
-            "n_motion_records": len(ds)}
+    chosen = rng.permutation(gesture_ids)[: len(keywords)].tolist()
+    mapping = {k: int(g) for k, g in zip(keywords, chosen)}
+    concept_of_gesture = {g: c for c, g in enumerate(chosen)}
+    return mapping, np.array([concept_of_gesture.get(int(g), -1) for g in gestures])
 
 
+def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int = 0, n_folds: int = 1,
+               seeds: Streams | None = None) -> dict:
+    """Paired examples: MFCC sequences, joint-angle trajectories, concepts and folds.
+
+    The data stream of ``seed`` (or ``seeds``) draws the bijection and the pairing, its fold
+    stream the folds (``n_folds`` = 1: a single part, every example used together).
+    """
+    from sklearn.model_selection import StratifiedKFold
+
+    st = seeds if seeds is not None else streams(seed)
+    rng = np.random.default_rng(st.data)
+    speech = load_speech(ctx, n_per_speaker=n_per_speaker, seed=st.data)
+    motion = load_motion(ctx, n_motion=n_motion)
+    y, keywords = speech["y"], speech["keywords"]
+    mapping, item_concept = gesture_mapping(keywords, motion["gesture"], rng)
+    frng = np.random.default_rng(st.folds)
+    if n_folds > 1:
+        n_folds = min(n_folds, int(np.bincount(y).min()), int(np.bincount(item_concept[item_concept >= 0]).min()))
+        fold_y = np.empty(len(y), dtype=np.int64)
+        skf = StratifiedKFold(n_folds, shuffle=True, random_state=int(frng.integers(2**31 - 1)))
+        for f, (_, te) in enumerate(skf.split(np.zeros(len(y)), y)):
+            fold_y[te] = f
+        fold_m = concept_parts(item_concept, n_folds, frng)
+    else:
+        fold_y, fold_m = np.zeros(len(y), dtype=np.int64), np.where(item_concept >= 0, 0, -1)
+    motion_idx = pair_within_parts(y, fold_y, item_concept, fold_m, rng, "motion record")
+    return {"mfcc": speech["mfcc"], "angles": [motion["angles"][i] for i in motion_idx], "y": y,
+            "keywords": keywords, "mapping": mapping, "speaker": speech["speaker"], "fold": fold_y,
+            "n_folds": int(fold_y.max()) + 1, "motion_idx": motion_idx, "motion_ids": motion["ids"],
+            "n_motion_records": len(motion["angles"]), "speech": speech, "motion": motion, "streams": st}
+
+
+# ---------------------------------------------------------------------------- folds of Tables 6.2-6.4
 def _labels(y: np.ndarray, n: int) -> np.ndarray:
     L = np.zeros((len(y), n))
     L[np.arange(len(y)), y] = 1.0
     return L
 
 
-def _match(model, Xte: dict, y: np.ndarray, test_mods, ref_mods, space: str, metric: str, seed: int) -> float:
-    D = crossmodal_distances(model, {m: Xte[m] for m in test_mods}, {m: Xte[m] for m in ref_mods},
-                             space=space, metric=metric)
-    return matching_success_rate(D, y, y, random_state=seed)
+def space_pairs(model, X: dict, test_mods, ref_mods, cache: dict) -> dict[str, tuple]:
+    """(test side, reference side) matrices of each comparison space, as :func:`crossmodal_distances` builds them.
+
+    ``X`` holds the same examples in every modality (the test fold); internal
+    representations are computed once per set of modalities and kept in ``cache``, so
+    every metric and direction reuses them.
+    """
+    def h(mods):
+        key = tuple(mods)
+        if key not in cache:
+            cache[key] = model.transform({m: X[m] for m in mods})
+        return cache[key]
+
+    def obs(mods):
+        return np.hstack([X[m].toarray() if hasattr(X[m], "toarray") else np.asarray(X[m]) for m in mods])
+
+    return {"internal": (h(test_mods), h(ref_mods)),
+            "reference": (model.reconstruct(h(test_mods), list(ref_mods)), obs(ref_mods)),
+            "test": (obs(test_mods), model.reconstruct(h(ref_mods), list(test_mods)))}
 
 
 def _fold(task: dict) -> dict:
-    tr, te, y, seed = task["train"], task["test"], task["y"], task["seed"]
+    tr, te, y = task["train"], task["test"], task["y"]
+    seed, ref_seed = task["learner_seed"], task["reference_seed"]
     n_classes = int(y.max()) + 1
     out: dict[str, float] = {}
     with threadpool_limits(1), warnings.catch_warnings():
@@ -143,8 +370,7 @@ def _fold(task: dict) -> dict:
         Xtr = {"sound": S[tr], "motion": M[tr], "labels": L[tr]}
         Xte = {"sound": S[te], "motion": M[te]}
         kw = dict(n_components=task["k"], max_iter=task["n_iter"], random_state=seed)
-        rng = np.random.default_rng(seed)
-        shuffled_motion = M[tr][rng.permutation(len(tr))]
+        shuffled_motion = M[tr][np.random.default_rng(task["control_seed"]).permutation(len(tr))]
         fits = {
             "plain": MultimodalNMF(**kw).fit({"sound": Xtr["sound"], "motion": Xtr["motion"]}),
             "shuffled": MultimodalNMF(**kw).fit({"sound": Xtr["sound"], "motion": shuffled_motion}),
@@ -153,15 +379,20 @@ def _fold(task: dict) -> dict:
             "motion_labels": MultimodalNMF(**kw).fit({"motion": Xtr["motion"], "labels": Xtr["labels"]}),
         }
         for prefix, model in (("", fits["plain"]), ("shuffled.", fits["shuffled"]), ("symbolic.", fits["symbolic"])):
+            cache: dict = {}
             for direction, (tmods, rmods) in (("sound2motion", (["sound"], ["motion"])),
                                               ("motion2sound", (["motion"], ["sound"]))):
+                pairs = space_pairs(model, Xte, tmods, rmods, cache)
                 for space_name, space in SPACE_NAMES(direction).items():
-                    for metric in METRIC_NAMES:
-                        out[f"{prefix}{direction}.{space_name}.{metric}"] = _match(
-                            model, Xte, y[te], tmods, rmods, space, metric, seed)
+                    A, B = pairs[space]
+                    for name, metric in METRIC_NAMES.items():
+                        D = pairwise_divergence(A, B, metric)
+                        out[f"{prefix}{direction}.{space_name}.{name}"] = matching_success_rate(
+                            D, y[te], y[te], random_state=ref_seed)
+
         # label recognition (Table 6.4): the best reconstructed label
         def recognise(model, mods):
-            W = model.transform({m: Xte[m] for m in mods})
+            W = model.transform({m: Xte[m] for m in mods})  # noqa: N806
             return float(np.mean(model.reconstruct(W, "labels").argmax(1) == y[te]))
 
         out["sound_labels.s2l"] = recognise(fits["sound_labels"], ["sound"])
@@ -172,33 +403,47 @@ def _fold(task: dict) -> dict:
     return out
 
 
-def evaluate(ctx: RunContext, config, *, desc: str = "folds") -> tuple[dict, list[dict]]:
-    """Pairs and per-fold results (cached on disk under ``ctx.cache_dir/ch6-folds``)."""
-    from sklearn.model_selection import StratifiedKFold
-
-    data = load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, seed=config.seed)
-    y = data["y"]
-    n_folds = min(config.n_folds, int(np.bincount(y).min()))
-    splits = list(StratifiedKFold(n_folds, shuffle=True, random_state=config.seed).split(np.zeros(len(y)), y))
+def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
+    """One task per fold; learner, reference and control seeds from their own streams."""
+    n = data["n_folds"]
     features = {"data": "joint", "method": "vq", "n_bins": config.motion_bins, "delay": 3}
+    learner, reference, control = child_seeds(st.learner, n), child_seeds(st.reference, n), child_seeds(st.data + 1, n)
+    return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
+             "mfcc": data["mfcc"], "angles": data["angles"], "motion_features": features, "k": config.k,
+             "n_iter": config.n_iter, "learner_seed": learner[f], "reference_seed": reference[f],
+             "control_seed": control[f]} for f in range(n)]
+
+
+def _cache_key(data: dict, tasks: list[dict]) -> str:
     h = hashlib.sha1()
     for a in data["mfcc"]:
         h.update(np.ascontiguousarray(a).tobytes())
     for a in data["angles"]:
         h.update(np.ascontiguousarray(a).tobytes())
-    h.update(pickle.dumps((y.tobytes(), sorted(features.items()), config.k, config.n_iter, n_folds, config.seed,
-                           __version__, 2)))  # 2: MultimodalNMF random init
+    t0 = tasks[0]
+    h.update(pickle.dumps((data["y"].tobytes(), data["fold"].tobytes(), sorted(t0["motion_features"].items()),
+                           t0["k"], t0["n_iter"], [(t["learner_seed"], t["reference_seed"], t["control_seed"])
+                                                   for t in tasks], code_fingerprint())))
+    return h.hexdigest()
+
+
+def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | None = None) -> tuple[dict, list[dict]]:
+    """Pairs and per-fold results (cached on disk under ``ctx.cache_dir/ch6-folds``).
+
+    ``seeds`` replaces the streams spawned from ``config.seed`` (to vary one alone).
+    """
+    st = seeds if seeds is not None else streams(config.seed)
+    data = load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, n_folds=config.n_folds,
+                      seeds=st)
+    tasks = fold_tasks(data, config, st)
     cache = Path(ctx.cache_dir) / "ch6-folds"
     cache.mkdir(parents=True, exist_ok=True)
-    key = cache / f"{h.hexdigest()}.pkl"
+    key = cache / f"{_cache_key(data, tasks)}.pkl"
     if key.exists():
         try:
             return data, pickle.loads(key.read_bytes())
         except (OSError, pickle.UnpicklingError, EOFError):
             key.unlink(missing_ok=True)
-    tasks = [{"train": tr, "test": te, "y": y, "mfcc": data["mfcc"], "angles": data["angles"],
-              "motion_features": features, "k": config.k, "n_iter": config.n_iter,
-              "seed": config.seed * 1000 + i} for i, (tr, te) in enumerate(splits)]
     folds = ctx.parallel(_fold, tasks, desc=desc)
     tmp = key.with_suffix(f".{os.getpid()}.tmp")
     tmp.write_bytes(pickle.dumps(folds))
@@ -214,3 +459,47 @@ def summarise(folds: list[dict], keys) -> dict[str, float]:
         out[k] = float(v.mean())
         out[f"{k}_std"] = float(v.std())
     return out
+
+
+# ---------------------------------------------------------------------------- image features
+def _locals_chunk(images: list) -> tuple[list, list]:
+    from ..vision import THESIS_DESCRIPTORS, ImageFeatures
+
+    with threadpool_limits(1):
+        return ImageFeatures(THESIS_DESCRIPTORS).extract_locals(images)
+
+
+def image_locals(ctx: RunContext, ims, *, chunk: int = 40) -> tuple[list, list]:
+    """Colour and keypoint local features of every image (cached on disk per image set).
+
+    They do not depend on any codebook, so the experiments fit their codebooks on each
+    repetition's training images from these (:meth:`ImageFeatures.fit_locals`) instead of
+    extracting them again. Key: the image bytes and :func:`code_fingerprint`.
+    """
+    images = list(ims.images) if hasattr(ims, "images") else list(ims)
+    h = hashlib.sha1()
+    for im in images:
+        a = np.ascontiguousarray(im)
+        h.update(str(a.shape).encode() + a.tobytes())
+    h.update(code_fingerprint().encode())
+    cache = Path(ctx.cache_dir) / "ch6-image-locals"
+    cache.mkdir(parents=True, exist_ok=True)
+    key = cache / f"{h.hexdigest()}.pkl"
+    if key.exists():
+        try:
+            return pickle.loads(key.read_bytes())
+        except (OSError, pickle.UnpicklingError, EOFError):
+            key.unlink(missing_ok=True)
+    parts = ctx.parallel(_locals_chunk, [images[i:i + chunk] for i in range(0, len(images), chunk)],
+                         desc="image features")
+    out = ([c for p in parts for c in p[0]], [k for p in parts for k in p[1]])
+    tmp = key.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_bytes(pickle.dumps(out))
+    os.replace(tmp, key)
+    return out
+
+
+def image_concepts(labels, objects_of_concept) -> np.ndarray:
+    """Concept of each image (index of its object in ``objects_of_concept``; -1 for unused objects)."""
+    index = {o: c for c, o in enumerate(objects_of_concept)}
+    return np.array([index.get(lab, -1) for lab in labels])

@@ -1,8 +1,9 @@
 """ch6-concepts: do internal coefficients specialise on concepts? Mutual information (Fig 6.10).
 
 Thesis section 6.6.3. A multimodal NMF with k = 15 atoms learns from pairs of a motion
-demonstration and an acoustic description (the pairs of ``ch6-motion-sound``, all of them
-used for training; the concepts are never shown to the learner). For each concept l and
+demonstration and an acoustic description (the pairs of ``ch6-motion-sound``: by default
+real FSDD digits and MSR Action3D actions, all of them used for training; the concepts
+are never shown to the learner). For each concept l and
 coefficient j of the internal representations w_i of the training pairs, the mutual
 information I(X_l; Y_j) between X_l (example i features concept l) and Y_j = w_ij,
 discretised into 10 equal-width bins, is estimated from the samples. Coefficients are
@@ -97,17 +98,19 @@ def _analyse(y: np.ndarray, W: np.ndarray, n_bins: int) -> dict:
 
 
 def run(config: Config, ctx: RunContext) -> Result:
-    data = common.load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, seed=config.seed)
+    st = common.streams(config.seed)
+    data = common.load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, seeds=st)
     y = data["y"]
+    learner = common.child_seeds(st.learner, 3)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        S = HAC(random_state=config.seed).fit_transform(data["mfcc"])
+        S = HAC(random_state=learner[0]).fit_transform(data["mfcc"])
         M = MotionHistograms(data="joint", method="vq", n_bins=config.motion_bins, delay=3,
-                             random_state=config.seed).fit_transform(data["angles"])
-        model = MultimodalNMF(config.k, max_iter=config.n_iter, random_state=config.seed)
+                             random_state=learner[1]).fit_transform(data["angles"])
+        model = MultimodalNMF(config.k, max_iter=config.n_iter, random_state=learner[2])
         W = model.fit_transform({"sound": S, "motion": M})
     res = _analyse(y, W, config.n_bins)
-    shuffled = _analyse(np.random.default_rng(config.seed).permutation(y), W, config.n_bins)
+    shuffled = _analyse(np.random.default_rng(st.reference).permutation(y), W, config.n_bins)
     metrics = {
         "matched.mean_mi": float(res["matched"].mean()),
         "matched.max_mi": float(res["matched"].max()),
@@ -137,7 +140,7 @@ def run(config: Config, ctx: RunContext) -> Result:
                                   ["concept", "coefficient", "mutual information (bits)", "fraction of H(concept)"],
                                   rows)},
         figures={"fig6_10": fig},
-        notes=[common.data_source_note(ctx),
+        notes=[common.data_source_note(ctx, data["speech"], data["motion"]),
                f"{len(y)} sound-motion pairs of speaker {data['speaker']} (all used for training); k = {config.k}, "
                f"{config.n_iter} iterations; coefficients discretised into {config.n_bins} equal-width bins.",
                f"Shuffled-concept control: matched mean {metrics['shuffled.matched.mean_mi']:.3f} bits (estimator "
@@ -161,6 +164,6 @@ register(Experiment(
               "information than with shuffled concepts.",
               "matched.mean_mi > 5 * shuffled.matched.mean_mi"),
     ],
-    datasets=("acorns", "audio", "choreo2", "msr"),
+    datasets=("fsdd", "msr-action3d", "acorns", "audio", "choreo2"),
     description=__doc__.split("\n\n")[0],
 ))

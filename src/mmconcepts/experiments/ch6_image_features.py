@@ -14,8 +14,9 @@ Image descriptor sets (:class:`mmconcepts.vision.ImageFeatures`, standing in for
 robot's SURF and HSV superpixel features): ``keypoints`` (dense SIFT-like words, "SURF"),
 ``keypoint_pairs`` ("SURF mid-couples"), ``color`` (HSV superpixel words),
 ``color_pairs`` and ``color_triplets`` (colour mid-couples and triplets), and ``all``.
-Images: the synthetic objects of :func:`mmconcepts.vision.make_objects`, or
-``--data images=DIR`` (generic layout) or ``--data eth80=DIR`` (the first objects).
+Data: real FSDD spoken digits (one speaker) and real ETH-80 objects (ten objects round robin
+over the eight categories) when present; else the synthetic Caregiver-like corpus and the
+synthetic objects of :func:`mmconcepts.vision.make_objects`.
 """
 
 from __future__ import annotations
@@ -28,16 +29,16 @@ from matplotlib.figure import Figure
 from threadpoolctl import threadpool_limits
 
 from ..errors import ConvergenceWarning, DataError
-from ..multimodal import MultimodalNMF, crossmodal_distances, matching_success_rate
-from ..sound.features import MFCCConfig
+from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ..sound.hac import HAC
-from . import _ch5_common as ch5
+from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
 __all__ = ["Config", "run", "SETS"]
 
 SETS = ("keypoints", "keypoint_pairs", "color", "color_pairs", "color_triplets", "all")
+SPLIT = (0.6, 0.2, 0.2)  # training, test, reference
 
 
 @dataclass(frozen=True)
@@ -61,81 +62,69 @@ class Config:
 
 
 def load_images(ctx: RunContext, n_objects: int, n_views: int):
-    """The image set: generic folder, ETH-80 (first ``n_objects`` objects) or synthetic objects."""
-    from ..vision import load_eth80, load_image_folder, make_objects
-
-    if "images" in ctx.data:
-        return load_image_folder(ctx.data["images"], on_error="skip")
-    if "eth80" in ctx.data:
-        ims = load_eth80(ctx.data["eth80"], on_error="skip")
-        keep = np.isin(ims.labels, sorted(set(ims.labels))[:n_objects])
-        return ims.subset(keep)
-    return make_objects(n_objects, n_views, random_state=0)
+    """The image set (see :func:`mmconcepts.experiments._ch6_common.load_images`)."""
+    return common.load_images(ctx, n_objects, n_views)
 
 
-def _data_note(ctx: RunContext) -> str:
-    if "images" in ctx.data:
-        img = f"images from {ctx.data['images']}"
-    elif "eth80" in ctx.data:
-        img = f"real ETH-80 photos from {ctx.data['eth80']} (the first 10 objects)"
-    else:
-        img = "synthetic object photos (mmconcepts.vision.make_objects)"
-    return f"Images: {img}. " + ch5.data_source_note(ctx)
+def _data_note(ctx: RunContext, speech: dict | None = None, ims=None) -> str:
+    return common.image_note(ctx, ims) + " " + common.speech_note(ctx, speech)
 
 
 def _repeat(task: dict) -> dict:
-    from ..vision import ImageFeatures, THESIS_DESCRIPTORS, stack_descriptors
+    from ..vision import THESIS_DESCRIPTORS, ImageFeatures, stack_descriptors
 
-    y, seed = task["y"], task["seed"]
+    y, seed, ref_seed = task["y"], task["learner_seed"], task["reference_seed"]
     tr, te, ref = task["train"], task["test"], task["ref"]
-    images, mfcc = task["images"], task["mfcc"]
+    c_loc, k_loc, mfcc = task["c_loc"], task["k_loc"], task["mfcc"]
     out = {}
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        hac = HAC(random_state=seed).fit([mfcc[i] for i in tr])
+        learner = common.child_seeds(seed, 3)
+        hac = HAC(random_state=learner[0]).fit([mfcc[i] for i in tr])
         S = hac.transform(mfcc)
-        feats = ImageFeatures(THESIS_DESCRIPTORS, random_state=seed)
-        feats.fit([images[i] for i in np.unique(task["image_of"][tr])])
-        F = feats.transform(images)
+        feats = ImageFeatures(THESIS_DESCRIPTORS, random_state=learner[1])
+        used = np.unique(task["image_of"][tr])
+        feats.fit_locals([c_loc[i] for i in used], [k_loc[i] for i in used])
+        F = feats.transform_locals(c_loc, k_loc)
         F["all"] = stack_descriptors(F, list(THESIS_DESCRIPTORS))
         idx = task["image_of"]
         for name in SETS:
             I = F[name][idx]
-            model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=seed).fit(
+            model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=learner[2]).fit(
                 {"sound": S[tr], "image": I[tr]})
+            X = {"sound": S, "image": I}
+            H = {(m, part): model.transform({m: X[m][rows]}) for m in X for part, rows in (("test", te), ("ref", ref))}
             for key, (tm, rm) in (("i2s", ("image", "sound")), ("s2i", ("sound", "image"))):
-                X = {"sound": S, "image": I}
-                D = crossmodal_distances(model, {tm: X[tm][te]}, {rm: X[rm][ref]}, space="internal", metric="cosine")
-                out[f"{name}.{key}"] = matching_success_rate(D, y[te], y[ref], random_state=seed)
+                # internal space, cosine; references from the reference part (outside training and test)
+                D = pairwise_divergence(H[tm, "test"], H[rm, "ref"], "cosine")
+                out[f"{name}.{key}"] = matching_success_rate(D, y[te], y[ref], random_state=ref_seed)
     return out
 
 
 def run(config: Config, ctx: RunContext) -> Result:
-    from sklearn.model_selection import train_test_split
-
-    sub, first, keywords, y = ch5.first_speaker(ctx, n_per_speaker=config.n_per_speaker)
-    kw = np.asarray(keywords)[y]
-    mfcc = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
+    st = common.streams(config.seed)
+    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
+    keywords, y, mfcc = speech["keywords"], speech["y"], speech["mfcc"]
     ims = load_images(ctx, len(keywords), config.n_views)
     objects = sorted(set(ims.labels))
     if len(objects) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(objects)} objects: cannot map concepts one to one.")
-    rng = np.random.default_rng(config.seed)
-    mapping = dict(zip(keywords, rng.permutation(objects)[: len(keywords)].tolist()))
-    labels = np.asarray(ims.labels)
-    image_of = np.empty(len(y), dtype=np.int64)
-    for k in keywords:
-        want = np.flatnonzero(kw == k)
-        pool = np.flatnonzero(labels == mapping[k])
-        reps = int(np.ceil(want.size / pool.size))
-        image_of[want] = np.concatenate([rng.permutation(pool) for _ in range(reps)])[: want.size]
+    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.folds)
+    object_of = drng.permutation(objects)[: len(keywords)].tolist()
+    mapping = dict(zip(keywords, object_of))
+    image_concept = common.image_concepts(ims.labels, object_of)
+    c_loc, k_loc = common.image_locals(ctx, ims)
+    learner, reference = common.child_seeds(st.learner, config.n_repeats), common.child_seeds(st.reference,
+                                                                                             config.n_repeats)
     tasks = []
     for r in range(config.n_repeats):
-        s = int(rng.integers(2**31 - 1))
-        tr, rest = train_test_split(np.arange(len(y)), train_size=0.6, stratify=y, random_state=s)
-        te, ref = train_test_split(rest, train_size=0.5, stratify=y[rest], random_state=s)
-        tasks.append({"train": tr, "test": te, "ref": ref, "y": y, "mfcc": mfcc, "images": list(ims.images),
-                      "image_of": image_of, "k": config.k, "n_iter": config.n_iter, "seed": config.seed * 1000 + r})
+        part_y = common.concept_parts(y, SPLIT, frng)
+        part_i = common.concept_parts(image_concept, SPLIT, frng)
+        image_of = common.pair_within_parts(y, part_y, image_concept, part_i, drng, "image")
+        tasks.append({"train": np.flatnonzero(part_y == 0), "test": np.flatnonzero(part_y == 1),
+                      "ref": np.flatnonzero(part_y == 2), "y": y, "mfcc": mfcc, "c_loc": c_loc, "k_loc": k_loc,
+                      "image_of": image_of, "k": config.k, "n_iter": config.n_iter, "learner_seed": learner[r],
+                      "reference_seed": reference[r]})
     reps = ctx.parallel(_repeat, tasks, desc="repetitions")
     metrics: dict[str, float] = {"chance": 1.0 / len(keywords)}
     for name in SETS:
@@ -167,11 +156,13 @@ def run(config: Config, ctx: RunContext) -> Result:
         tables={"fig6_4": Table("Fig. 6.4: success rates by image descriptor set",
                                 ["descriptors", "I -> S", "std", "S -> I", "std"], rows)},
         figures={"fig6_4": fig},
-        notes=[_data_note(ctx),
-               f"Speaker {first}: {len(y)} utterances paired with {len(ims)} images of {len(objects)} objects; "
-               f"{config.n_repeats} repetitions of a stratified 60/20/20 train/test/reference split; internal space, "
-               f"cosine; k = {config.k}, {config.n_iter} iterations. Best single set: {best}.",
-               "Concepts: " + ", ".join(f"{k} -> {v}" for k, v in mapping.items()) + "."],
+        notes=[_data_note(ctx, speech, ims),
+               f"Speaker {speech['speaker']}: {len(y)} utterances paired with views of {len(keywords)} objects; "
+               f"{config.n_repeats} repetitions; in each, the utterances and each object's views are split 60/20/20 "
+               "into training / test / reference parts by concept and paired within their part (a view never "
+               "serves in two parts); internal space, cosine, one reference example per concept; "
+               f"k = {config.k}, {config.n_iter} iterations. Best single set: {best}.",
+               "Concepts (random bijection): " + ", ".join(f"{k} -> {v}" for k, v in mapping.items()) + "."],
     )
 
 
@@ -191,6 +182,6 @@ register(Experiment(
               "all.i2s > best_single.i2s - 0.1 and all.s2i > best_single.s2i - 0.1"),
         Claim("The colour representations work best (on the thesis' robot images).", "best_single_is_color == 1"),
     ],
-    datasets=("acorns", "audio", "images", "eth80"),
+    datasets=("fsdd", "eth80", "acorns", "audio", "images"),
     description=__doc__.split("\n\n")[0],
 ))

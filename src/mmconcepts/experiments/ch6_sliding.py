@@ -23,6 +23,12 @@ from the windows of each width.
 The sound stream is built from the per-utterance MFCC sequences laid end to end (10 ms
 frames), which equals the MFCC of the concatenated audio except for the two or three frames
 whose analysis window straddles a boundary.
+
+Real data (the default when present): FSDD spoken digits of one speaker and ETH-80 object
+views. FSDD recordings are single words, so for Fig. 6.9 each test recording is flanked by
+1-3 other test recordings of the same speaker (other words, other concepts), laid end to
+end the same way (:func:`compose_test_utterances`, its own random stream); the target's
+span is known exactly from the lengths.
 """
 
 from __future__ import annotations
@@ -38,12 +44,11 @@ from ..errors import ConvergenceWarning, DataError
 from ..multimodal import MultimodalNMF, crossmodal_distances, matching_success_rate, pairwise_divergence
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
-from . import _ch5_common as ch5
+from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
-from .ch6_image_features import _data_note, load_images
 from .registry import register
 
-__all__ = ["Config", "run", "stream_windows"]
+__all__ = ["Config", "run", "stream_windows", "compose_test_utterances"]
 
 
 @dataclass(frozen=True)
@@ -120,10 +125,42 @@ def _width(task: dict) -> dict:
             "i2s": ("image", "sound", task["I_test"], task["S_ref"], task["y_ref_img"], task["y_test"]),
         }.items():
             D = crossmodal_distances(model, {tm: Xt}, {rm: Xr}, space="internal", metric="cosine")
-            out[key] = matching_success_rate(D, yt, yr, random_state=task["seed"])
+            out[key] = matching_success_rate(D, yt, yr, random_state=task["reference_seed"])
         if task["probe"]:
             out["model"] = model
     return out
+
+
+def compose_test_utterances(mfccs, y: np.ndarray, pool: np.ndarray, rng: np.random.Generator, hop: float,
+                            n_flank: tuple[int, int] = (1, 3)) -> tuple[list, np.ndarray, np.ndarray, list]:
+    """Longer test utterances: each recording of ``pool`` flanked by 1-3 others of other concepts.
+
+    For corpora of isolated words (FSDD): the target recording is put at a random place
+    among ``n`` other recordings of ``pool`` (same speaker, other words, so other
+    concepts), their MFCC sequences laid end to end. The label is the target's concept and
+    the keyword's span is known exactly from the lengths.
+
+    Returns
+    -------
+    seqs : list of ndarray, the composed MFCC sequences
+    labels : ndarray of int, the target's concept
+    spans : ndarray of shape (n, 2), start and end (s) of the target
+    texts : list of str, the words said (the target in capitals)
+    """
+    seqs, labels, spans, parts_of = [], [], [], []
+    pool = np.asarray(pool)
+    for i in pool:
+        others = pool[y[pool] != y[i]]
+        n = int(rng.integers(n_flank[0], n_flank[1] + 1))
+        flank = rng.choice(others, size=min(n, others.size), replace=False)
+        pos = int(rng.integers(0, flank.size + 1))
+        parts = [int(j) for j in flank[:pos]] + [int(i)] + [int(j) for j in flank[pos:]]
+        start = sum(len(mfccs[j]) for j in parts[:pos]) * hop
+        seqs.append(np.concatenate([mfccs[j] for j in parts]))
+        labels.append(int(y[i]))
+        spans.append((start, start + len(mfccs[i]) * hop))
+        parts_of.append((parts, pos))
+    return seqs, np.asarray(labels), np.asarray(spans, dtype=float).reshape(-1, 2), parts_of
 
 
 def _probe(model, hac, mfccs, y, spans, I_ref, y_ref, width: float, shift: float, hop: float) -> dict:
@@ -131,12 +168,16 @@ def _probe(model, hac, mfccs, y, spans, I_ref, y_ref, width: float, shift: float
     h_img = model.transform({"image": I_ref})
     proto = np.stack([h_img[y_ref == c].mean(0) for c in range(int(y_ref.max()) + 1)])
     hits, chance, traces = [], [], []
-    for seq, c, span in zip(mfccs, y, spans):
+    starts, windows = [], []
+    for seq in mfccs:  # every window of every test utterance, transformed in one batch
         T = len(seq) * hop
         t0 = np.arange(0.0, max(T - width, 0.0) + 1e-9, shift)
-        win = [seq[int(a / hop): max(int(a / hop) + 1, int((a + width) / hop))] for a in t0]
-        h = model.transform({"sound": hac.transform(win)})
-        sim = 1.0 - pairwise_divergence(h, proto[c:c + 1], "cosine")[:, 0]
+        starts.append(t0)
+        windows += [seq[int(a / hop): max(int(a / hop) + 1, int((a + width) / hop))] for a in t0]
+    h_all = model.transform({"sound": hac.transform(windows)})
+    bounds = np.cumsum([0] + [len(t0) for t0 in starts])
+    for t0, c, span, a, b in zip(starts, y, spans, bounds[:-1], bounds[1:]):
+        sim = 1.0 - pairwise_divergence(h_all[a:b], proto[c:c + 1], "cosine")[:, 0]
         traces.append((t0 + width / 2, sim, span))
         if np.isfinite(span).all():
             over = _overlap(t0, t0 + width, span[0], span[1]) > 0
@@ -147,51 +188,50 @@ def _probe(model, hac, mfccs, y, spans, I_ref, y_ref, width: float, shift: float
 
 
 def run(config: Config, ctx: RunContext) -> Result:
-    from sklearn.model_selection import train_test_split
-
     from ..vision import ImageFeatures
 
-    sub, first, keywords, y = ch5.first_speaker(ctx, n_per_speaker=config.n_per_speaker)
-    mcfg = MFCCConfig(n_mfcc=22)
-    hop = mcfg.hop_ms / 1000
-    mfcc = ch5.corpus_mfcc(ctx, sub, mcfg)
-    spans = sub.keyword_spans()
-    ims = load_images(ctx, len(keywords), config.n_views)
+    st = common.streams(config.seed)
+    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
+    keywords, y, mfcc, sub = speech["keywords"], speech["y"], speech["mfcc"], speech["corpus"]
+    hop = MFCCConfig(n_mfcc=22).hop_ms / 1000
+    spans = speech["spans"]
+    ims = common.load_images(ctx, len(keywords), config.n_views)
     objects = sorted(set(ims.labels))
     if len(objects) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(objects)} objects.")
-    rng = np.random.default_rng(config.seed)
-    obj = rng.permutation(objects)[: len(keywords)]
-    labels = np.asarray(ims.labels)
-    tr, rest = train_test_split(np.arange(len(y)), train_size=0.6, stratify=y, random_state=config.seed)
-    te, ref = train_test_split(rest, train_size=0.5, stratify=y[rest], random_state=config.seed)
+    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.folds)
+    learner = common.child_seeds(st.learner, 3)  # HAC, colour codebook, NMF
+    obj = drng.permutation(objects)[: len(keywords)].tolist()
+    image_concept = common.image_concepts(ims.labels, obj)
+    part_y = common.concept_parts(y, (0.6, 0.2, 0.2), frng)
+    tr, te = np.flatnonzero(part_y == 0), np.flatnonzero(part_y == 1)
     # images: each concept's views split between the stream (training) and the references
-    img_train, img_ref = [], []
-    for c in range(len(keywords)):
-        views = rng.permutation(np.flatnonzero(labels == obj[c]))
-        cut = max(1, int(0.6 * views.size))
-        img_train.append(views[:cut])
-        img_ref.append(views[cut:] if views.size > cut else views[:1])
+    part_i = common.concept_parts(image_concept, (0.6, 0.4), frng)
+    img_train = [np.flatnonzero((image_concept == c) & (part_i == 0)) for c in range(len(keywords))]
+    img_ref = [np.flatnonzero((image_concept == c) & (part_i == 1)) for c in range(len(keywords))]
+    c_loc, _ = common.image_locals(ctx, ims)
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        hac = HAC(random_state=config.seed).fit([mfcc[i] for i in tr])
-        feats = ImageFeatures(("color",), random_state=config.seed).fit([ims.images[i] for i in np.concatenate(img_train)])
-        colour = feats.transform(list(ims.images))["color"]
+        hac = HAC(random_state=learner[0]).fit([mfcc[i] for i in tr])
+        feats = ImageFeatures(("color",), random_state=learner[1])
+        feats.fit_locals([c_loc[i] for i in np.concatenate(img_train)], None)
+        colour = feats.transform_locals(c_loc, None)["color"]
         colour = colour.toarray() if hasattr(colour, "toarray") else np.asarray(colour)
-        order = rng.permutation(tr)
+        order = drng.permutation(tr)
         durations = np.array([len(mfcc[i]) * hop for i in order])
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
         stream = np.concatenate([mfcc[i] for i in order])
         n_frames = int(np.ceil((starts[-1] + durations[-1]) * config.frame_rate))
         frame_t = np.arange(n_frames) / config.frame_rate
         playing = np.clip(np.searchsorted(starts, frame_t, side="right") - 1, 0, len(order) - 1)
-        frame_img = np.array([rng.choice(img_train[y[order[u]]]) for u in playing])
+        frame_img = np.array([drng.choice(img_train[y[order[u]]]) for u in playing])
         S_all = hac.transform(mfcc)
     ref_imgs = np.concatenate(img_ref)
     y_ref_img = np.concatenate([np.full(len(v), c) for c, v in enumerate(img_ref)])
     base = {"hac": hac, "hop": hop, "stream": stream, "starts": starts, "durations": durations,
             "shift": config.shift, "frame_rate": config.frame_rate, "frame_features": colour[frame_img],
-            "k": config.k, "n_iter": config.n_iter, "seed": config.seed,
+            "k": config.k, "n_iter": config.n_iter, "seed": learner[2],
+            "reference_seed": st.reference,
             "S_test": S_all[te], "y_test": y[te], "S_ref": S_all[te], "I_ref": colour[ref_imgs], "y_ref": y_ref_img,
             "I_test": colour[ref_imgs], "y_ref_img": y_ref_img}
     widths = list(config.widths)
@@ -205,7 +245,17 @@ def run(config: Config, ctx: RunContext) -> Result:
         metrics[f"{tag}.i2s"] = o["i2s"]
         metrics[f"{tag}.n_windows"] = float(o["n_windows"])
     metrics["best.s2i"] = max(o["s2i"] for o in outs)
-    probe = _probe(outs[probe_at]["model"], hac, [mfcc[i] for i in te], y[te], spans[te], colour[ref_imgs], y_ref_img,
+    # Fig. 6.9: test utterances with the keyword inside a longer utterance
+    composed = not np.isfinite(spans[te]).all(axis=1).any()
+    if composed:  # isolated words (FSDD): a target recording flanked by 1-3 other test recordings
+        seqs, y_probe, spans_probe, parts = compose_test_utterances(
+            mfcc, y, te, np.random.default_rng(st.composition), hop)
+        texts = [" ".join(keywords[y[j]].upper() if k == pos else keywords[y[j]] for k, j in enumerate(p))
+                 for p, pos in parts]
+    else:
+        seqs, y_probe, spans_probe = [mfcc[i] for i in te], y[te], spans[te]
+        texts = [sub.transcriptions[i] for i in te]
+    probe = _probe(outs[probe_at]["model"], hac, seqs, y_probe, spans_probe, colour[ref_imgs], y_ref_img,
                    widths[probe_at], config.probe_shift, hop)
     metrics["localisation.peak_in_keyword"] = probe["peak_in_keyword"]
     metrics["localisation.chance"] = probe["chance"]
@@ -225,7 +275,6 @@ def run(config: Config, ctx: RunContext) -> Result:
     fig8.tight_layout()
     fig9 = Figure(figsize=(8, 6))
     axes = fig9.subplots(3, 2).ravel()
-    texts = [sub.transcriptions[i] for i in te]
     for ax, (t, sim, span), text in zip(axes, probe["traces"][:6], texts[:6]):
         ax.plot(t, sim, "-")
         if np.isfinite(span).all():
@@ -242,11 +291,15 @@ def run(config: Config, ctx: RunContext) -> Result:
         tables={"fig6_8": Table("Fig. 6.8: success against window width", ["width (s)", "training windows", "S -> I",
                                                                             "I -> S"], rows)},
         figures={"fig6_8": fig8, "fig6_9": fig9},
-        notes=[_data_note(ctx),
-               f"Speaker {first}: a stream of {len(tr)} training utterances ({starts[-1] + durations[-1]:.0f} s), "
+        notes=[common.image_note(ctx, ims) + " " + common.speech_note(ctx, speech),
+               f"Speaker {speech['speaker']}: a stream of {len(tr)} training utterances ({starts[-1] + durations[-1]:.0f} s), "
                f"{config.frame_rate:g} image frames per second; windows shifted by {config.shift:g} of their width; "
                f"{len(te)} test utterances and {len(ref_imgs)} reference images; k = {config.k}.",
-               f"Localisation (Fig. 6.9): {probe['n']} test utterances with keyword timings; the most similar "
+               ("Fig. 6.9 test utterances (isolated words): each test recording flanked by 1-3 other test recordings "
+                "of the same speaker (other words, so other concepts) at a random place, their MFCC sequences laid "
+                "end to end (independent random stream); the target's span is known from the lengths. "
+                if composed else "Fig. 6.9 test utterances: the test sentences, keyword spans from the word timings. ")
+               + f"Localisation: {probe['n']} test utterances with keyword timings; the most similar "
                f"{widths[probe_at]:g} s window overlaps the keyword in {probe['peak_in_keyword']:.2f} of them "
                f"(chance {probe['chance']:.2f})."],
     )
@@ -266,6 +319,6 @@ register(Experiment(
               "overlaps the keyword more often than a random window would.",
               "localisation.peak_in_keyword > localisation.chance + 0.1"),
     ],
-    datasets=("acorns", "audio", "images", "eth80"),
+    datasets=("fsdd", "eth80", "acorns", "audio", "images"),
     description=__doc__.split("\n\n")[0],
 ))

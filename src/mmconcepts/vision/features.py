@@ -909,22 +909,47 @@ class ImageFeatures(BaseEstimator):
 
     def fit_transform(self, images, y=None) -> dict[str, np.ndarray | sp.csr_matrix]:
         """Learn the codebooks and return the training descriptor sets (extracted once)."""
+        return self.fit_locals(*self.extract_locals(images))
+
+    def _estimators(self):
+        """Unfitted colour and keypoint estimators with this object's normalisation (None if not needed)."""
         names = self._check_params()
         need_c = any(n.startswith("color") for n in names)
         need_k = any(n.startswith("keypoint") for n in names)
-        rng = check_random_state(self.random_state)
-        self.color_ = clone(self.color if self.color is not None else ColorHistograms()) if need_c else None
-        self.keypoints_ = clone(self.keypoints if self.keypoints is not None else KeypointBag()) if need_k else None
-        for est in (self.color_, self.keypoints_):
+        c_est = clone(self.color if self.color is not None else ColorHistograms()) if need_c else None
+        k_est = clone(self.keypoints if self.keypoints is not None else KeypointBag()) if need_k else None
+        for est in (c_est, k_est):
             if est is not None:
                 est.set_params(normalize=self.normalize, n_jobs=self.n_jobs)
                 est._check_params()
-        min_size = self.keypoints_._min_size() if need_k else 2
-        ims = check_images(images, min_size=min_size)
-        c_loc, k_loc = self._extract(ims, need_c, need_k, self.color_, self.keypoints_)
-        if need_c:
+        return names, c_est, k_est
+
+    def extract_locals(self, images) -> tuple[list | None, list | None]:
+        """Local colour and keypoint features of each image (no codebook involved).
+
+        They depend only on the images and the extraction parameters, not on the
+        codebooks, so a caller may compute them once and fit many codebooks on subsets
+        (:meth:`fit_locals`, :meth:`transform_locals`).
+
+        Returns
+        -------
+        (colour locals, keypoint locals) : lists of :class:`LocalFeatures` (None when unused)
+        """
+        _, c_est, k_est = self._estimators()
+        ims = check_images(images, min_size=k_est._min_size() if k_est is not None else 2)
+        c_loc, k_loc = self._extract(ims, c_est is not None, k_est is not None, c_est, k_est)
+        return (c_loc if c_est is not None else None), (k_loc if k_est is not None else None)
+
+    def fit_locals(self, c_loc, k_loc) -> dict[str, np.ndarray | sp.csr_matrix]:
+        """:meth:`fit_transform` from local features of :meth:`extract_locals`."""
+        names, self.color_, self.keypoints_ = self._estimators()
+        rng = check_random_state(self.random_state)
+        for est, loc, what in ((self.color_, c_loc, "colour"), (self.keypoints_, k_loc, "keypoint")):
+            if est is not None and loc is None:
+                raise ParameterError(f"{what} local features are needed by {names}; got None.")
+        if self.color_ is not None:
             self.color_._fit_locals(c_loc, rng)
-        if need_k:
+        if self.keypoints_ is not None:
             self.keypoints_._fit_locals(k_loc, rng)
         self.descriptors_ = tuple(names)
         self.n_features_out_ = {}
@@ -933,6 +958,11 @@ class ImageFeatures(BaseEstimator):
             K = est.n_features_out_
             self.n_features_out_[n] = K if n in ("color", "keypoints") else \
                 n_tuple_columns(K, 2 if n.endswith("pairs") else 3)
+        return self._compute(c_loc, k_loc)
+
+    def transform_locals(self, c_loc, k_loc) -> dict[str, np.ndarray | sp.csr_matrix]:
+        """:meth:`transform` from local features of :meth:`extract_locals`."""
+        check_is_fitted(self, "n_features_out_")
         return self._compute(c_loc, k_loc)
 
     def _compute(self, c_loc, k_loc) -> dict[str, np.ndarray | sp.csr_matrix]:
