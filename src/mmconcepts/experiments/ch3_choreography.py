@@ -208,6 +208,7 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
     table = Table(title, ["data", "learner", "l_full", "thesis l_full", "l_given_number", "thesis l_given_number"],
                   rows, note=note)
     tables = {"scores": table}
+    sens_notes: list[str] = []
     if getattr(config, "sensitivity", False):
         alt = config.alternative_features()
         tag = alt["method"]
@@ -226,7 +227,19 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
             gap_alt = metrics[f"{nl}.{tag}.nmf_frobenius.l_full"] - metrics[f"{nl}.{tag}.svm.l_full"]
             metrics[f"{nl}.nmf_minus_svm.l_full"] = gap
             metrics[f"{nl}.{tag}.nmf_minus_svm.l_full"] = gap_alt
+            for pre in ("", f"{tag}."):
+                samples[f"{nl}.{pre}nmf_minus_svm.l_full"] = [
+                    a - b for a, b in zip(samples[f"{nl}.{pre}nmf_frobenius.l_full"], samples[f"{nl}.{pre}svm.l_full"])]
         main = config.features()["method"]
+        for nl in SUBSETS:  # which NMF-vs-baseline orders depend on our choices (issue 12, section 3)
+            nmf = metrics[f"{nl}.nmf_frobenius.l_full"]
+            alts = {"svm (plain, the thesis')": metrics[f"{nl}.svm.l_full"]}
+            if f"{nl}.svm_std.l_full" in metrics:
+                alts["svm_std (standardised)"] = metrics[f"{nl}.svm_std.l_full"]
+            order = ", ".join(f"NMF {'>' if nmf > v else '<=' } {k} ({nmf:.3f} vs {v:.3f})" for k, v in alts.items())
+            alt_nmf, alt_svm = metrics[f"{nl}.{tag}.nmf_frobenius.l_full"], metrics[f"{nl}.{tag}.svm.l_full"]
+            sens_notes.append(f"{nl} labels, l_full: with {main} histograms {order}; with {tag} histograms NMF "
+                              f"{'>' if alt_nmf > alt_svm else '<='} svm ({alt_nmf:.3f} vs {alt_svm:.3f}).")
         tables["sensitivity"] = Table(
             f"Sensitivity to the histogram method: {main} (the default) against {tag}, same bins and delay",
             ["data", "learner", f"l_full ({main})", f"l_full ({tag})", f"l_given_number ({main})",
@@ -244,8 +257,9 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
                          "No claim 'l_given_number >= l_full': it holds for any scores (an exact label set found by the "
                          "threshold is also the top-n of the activations). The claim is the size of the gain "
                          "gain_given_number = l_given_number - l_full against the thesis' gain.",
-                         "Per-fold values of every score are in extra.samples (spread over folds)."],
-                  extra={"seconds": seconds, "samples": samples})
+                         "Per-fold values of every score are the result's samples (spread over folds; the report's "
+                         "intervals and verdicts come from them)."] + sens_notes,
+                  samples=samples, extra={"seconds": seconds})
 
 
 REFERENCE = {
