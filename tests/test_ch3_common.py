@@ -156,3 +156,16 @@ def test_fold_cache_key_follows_the_code_fingerprint(rng, tmp_path, monkeypatch)
     monkeypatch.setattr(common, "code_fingerprint", lambda: "0123456789abcdef")
     common.evaluate_folds(ctx, angles, Y, common.kfold_splits(8, 2, 0), **args)
     assert len(list((tmp_path / "ch3-folds").glob("*.pkl"))) == 4
+
+
+def test_msr_corrupt_file_is_skipped_and_named(tmp_path):
+    """A corrupt skeleton file among good ones: the rest loads and the data note names the file left out."""
+    folder = real_data_path("msr-action3d")
+    for p in sorted(folder.glob("a*_s0[12]_e01_skeleton3D.txt")):
+        (tmp_path / p.name).symlink_to(p)
+    (tmp_path / "a01_s01_e03_skeleton3D.txt").write_text("1 2 3\nnot numbers\n")
+    a = common.msr_subset(tmp_path, "primitive", seed=0)
+    assert len(a.Y) == len(list(folder.glob("a*_s0[12]_e01_skeleton3D.txt")))
+    assert "a01_s01_e03" in a.description and "a01_s01_e03" in a.info["skipped"]
+    ctx = RunContext(cache_dir=tmp_path, data={"msr-action3d": tmp_path})
+    assert "a01_s01_e03" in common.data_source_note(ctx, a)

@@ -279,7 +279,7 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None) 
     desc = (f"real MSR Action3D skeletons ({n_subj} subjects, 15 fps), {subset}: {len(Y)} examples, {len(ids)} labels, "
             f"{len(set(labels))} label combinations ({what})")
     if skipped:
-        desc += f"; left out: {', '.join(skipped)} (no usable frames)"
+        desc += f"; left out: {', '.join(skipped)} (unreadable, or no tracked frames, or too short)"
     return MotionArrays(out, Y, ids, "msr-action3d", desc, {"n_subjects": n_subj, "skipped": list(skipped),
                                                                   "sources": sources})
 
