@@ -132,7 +132,7 @@ def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
     sub, first, keywords, y = ch5.first_speaker(_speech_ctx(ctx), n_per_speaker=n_per_speaker)
     n_all = len(y)
     if _speech_name(ctx) is not None and len(y) > n_per_speaker:
-        rng = np.random.default_rng(seed)
+        rng = np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(1)[0])  # apart from the pairing's draws
         per = max(1, n_per_speaker // len(keywords))
         keep = np.sort(np.concatenate([rng.permutation(np.flatnonzero(y == c))[:per] for c in range(len(keywords))]))
         sub, y = sub.subset(keep), y[keep]
@@ -407,7 +407,7 @@ def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
     """One task per fold; learner, reference and control seeds from their own streams."""
     n = data["n_folds"]
     features = {"data": "joint", "method": "vq", "n_bins": config.motion_bins, "delay": 3}
-    learner, reference, control = child_seeds(st.learner, n), child_seeds(st.reference, n), child_seeds(st.data + 1, n)
+    learner, reference, control = child_seeds(st.learner, n), child_seeds(st.reference, n), child_seeds(st.data, n)
     return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
              "mfcc": data["mfcc"], "angles": data["angles"], "motion_features": features, "k": config.k,
              "n_iter": config.n_iter, "learner_seed": learner[f], "reference_seed": reference[f],

@@ -76,7 +76,8 @@ def _notes(ctx: RunContext, data: dict, folds: list, config: Config) -> list[str
     n_used = len(set(data["motion_idx"].tolist()))
     return [common.data_source_note(ctx, data["speech"], data["motion"]),
             f"Speaker {data['speaker']}: {len(data['y'])} utterances, each paired with a motion record of its concept "
-            f"({n_used} distinct records of the {data['n_motion_records']} used); stratified {len(folds)}-fold "
+            f"({n_used} of the {data['n_motion_records']} records used, each by about "
+            f"{len(data['y']) / max(n_used, 1):.1f} utterances); stratified {len(folds)}-fold "
             "cross-validation in which utterances and motion records are each split into folds by concept and "
             "paired within their fold (a record serves at most in one fold); HAC codebooks and motion histograms "
             f"fitted on each training fold; k = {config.k}, {config.n_iter} iterations.",
@@ -126,7 +127,17 @@ def run_motion_sound(config: Config, ctx: RunContext) -> Result:
                   tables={"table6_2": _table(metrics, "", "Table 6.2: motion <-> sound, success rates"),
                           "shuffled": _table(metrics, "shuffled.", "Control: shuffled training pairs")},
                   figures={"table6_2": _figure(metrics, "", "Table 6.2 (red: shuffled control, dotted: chance)")},
-                  notes=_notes(ctx, data, folds, config))
+                  notes=_notes(ctx, data, folds, config) + [_best_note(metrics)])
+
+
+def _best_note(metrics: dict) -> str:
+    """Which comparison space and metric did best in each direction (the thesis: internal, cosine)."""
+    parts = []
+    for d in DIRECTIONS:
+        best = max(((s, m) for s in _spaces(d) for m in METRICS), key=lambda sm: metrics[f"{d}.{sm[0]}.{sm[1]}"])
+        parts.append(f"{d.replace('2', ' -> ')}: {best[0]} space, {METRIC_TITLES[best[1]]} "
+                     f"({metrics[f'{d}.{best[0]}.{best[1]}']:.3f})")
+    return "Best comparison: " + "; ".join(parts) + " (thesis: internal space, cosine, in both directions)."
 
 
 def run_symbolic(config: Config, ctx: RunContext) -> Result:
