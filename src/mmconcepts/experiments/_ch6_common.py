@@ -40,7 +40,6 @@ the three experiments share one computation.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import os
 import pickle
@@ -111,13 +110,6 @@ def child_seeds(seed: int, n: int) -> list[int]:
 
 
 # ---------------------------------------------------------------------------- data
-def _speech_ctx(ctx: RunContext) -> RunContext:
-    """The context the chapter 5 loader sees: FSDD read through its generic layout (labels.csv)."""
-    if "fsdd" in ctx.data and "acorns" not in ctx.data:
-        return dataclasses.replace(ctx, data={"audio": ctx.data["fsdd"]})
-    return ctx
-
-
 def _speech_name(ctx: RunContext) -> str | None:
     return next((n for n in SPEECH_SETS if n in ctx.data), None)
 
@@ -129,7 +121,7 @@ def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
     stratified by keyword (``seed``: the data stream); the generated corpus has exactly
     ``n_per_speaker`` per speaker.
     """
-    sub, first, keywords, y = ch5.first_speaker(_speech_ctx(ctx), n_per_speaker=n_per_speaker)
+    sub, first, keywords, y = ch5.first_speaker(ctx, n_per_speaker=n_per_speaker)
     n_all = len(y)
     if _speech_name(ctx) is not None and len(y) > n_per_speaker:
         rng = np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(1)[0])  # apart from the pairing's draws
@@ -459,6 +451,11 @@ def summarise(folds: list[dict], keys) -> dict[str, float]:
         out[k] = float(v.mean())
         out[f"{k}_std"] = float(v.std())
     return out
+
+
+def fold_samples(folds: list[dict], metrics: dict, rename=lambda k: k) -> dict[str, list[float]]:
+    """Per-fold (or per-repetition) values of every key that is a metric (``rename``: key -> metric name or None)."""
+    return {rename(k): [float(f[k]) for f in folds] for k in folds[0] if rename(k) is not None and rename(k) in metrics}
 
 
 # ---------------------------------------------------------------------------- image features

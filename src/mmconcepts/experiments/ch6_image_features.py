@@ -153,6 +153,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     fig.tight_layout()
     return Result(
         metrics=metrics,
+        samples=common.fold_samples(reps, metrics),
         tables={"fig6_4": Table("Fig. 6.4: success rates by image descriptor set",
                                 ["descriptors", "I -> S", "std", "S -> I", "std"], rows)},
         figures={"fig6_4": fig},

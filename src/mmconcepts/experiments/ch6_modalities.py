@@ -175,6 +175,9 @@ def run(config: Config, ctx: RunContext) -> Result:
     metrics["two.mean_1to1"] = float(np.mean([metrics[f"two.{s}"] for s in ones]))
     metrics["three.mean_1to1"] = float(np.mean([metrics[f"three.{s}"] for s in ones]))
     metrics["three.min_all"] = min(metrics[_key(*s)] for s in _setups() if len(s[0]) == 3)
+    samples = common.fold_samples(reps, metrics)
+    for which in ("two", "three"):  # per repetition, the mean one-to-one success (a linear summary)
+        samples[f"{which}.mean_1to1"] = [float(np.mean([r[f"{which}.{s}"] for s in ones])) for r in reps]
 
     setups = _setups()
     rows = [[t, te, rf, metrics[_key(t, te, rf)], metrics[f"{_key(t, te, rf)}_std"]] for t, te, rf in setups]
@@ -205,6 +208,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     fig6.tight_layout()
     return Result(
         metrics=metrics,
+        samples=samples,
         tables={"setups": Table("Fig. 6.5, 6.7: success rates", ["training", "test", "reference", "mean", "std"], rows),
                 "k_sweep": Table("Fig. 6.6: mean one-to-one success against k", ["k", "two modalities", "three modalities"],
                                  [[k, metrics[f"k_{k}.two"], metrics[f"k_{k}.three"]] for k in ks])},

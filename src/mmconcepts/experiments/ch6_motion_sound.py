@@ -127,7 +127,8 @@ def run_motion_sound(config: Config, ctx: RunContext) -> Result:
                   tables={"table6_2": _table(metrics, "", "Table 6.2: motion <-> sound, success rates"),
                           "shuffled": _table(metrics, "shuffled.", "Control: shuffled training pairs")},
                   figures={"table6_2": _figure(metrics, "", "Table 6.2 (red: shuffled control, dotted: chance)")},
-                  notes=_notes(ctx, data, folds, config) + [_best_note(metrics)])
+                  notes=_notes(ctx, data, folds, config) + [_best_note(metrics)],
+                  samples=common.fold_samples(folds, metrics))
 
 
 def _best_note(metrics: dict) -> str:
@@ -152,7 +153,10 @@ def run_symbolic(config: Config, ctx: RunContext) -> Result:
                   tables={"table6_3": _table(metrics, "", "Table 6.3: motion <-> sound with labels in training"),
                           "without_labels": _table(metrics, "without_labels.", "Table 6.2 again (no labels)")},
                   figures={"table6_3": _figure(metrics, "", "Table 6.3 (dotted: chance)")},
-                  notes=_notes(ctx, data, folds, config))
+                  notes=_notes(ctx, data, folds, config),
+                  samples={**common.fold_samples(folds, metrics, lambda k: f"without_labels.{k}"),
+                           **common.fold_samples(folds, metrics, lambda k: k.removeprefix("symbolic.")
+                                                 if k.startswith("symbolic.") else None)})
 
 
 LABEL_KEYS = ("sound_labels.s2l", "motion_labels.m2l", "all.s2l", "all.m2l", "all.sm2l")
@@ -169,7 +173,8 @@ def run_labels(config: Config, ctx: RunContext) -> Result:
             ["S+M+L", "S+M -> L", metrics["all.sm2l"], metrics["all.sm2l_std"]]]
     return Result(metrics=metrics,
                   tables={"table6_4": Table("Table 6.4: label recognition", ["training", "test", "success rate", "std"], rows)},
-                  notes=_notes(ctx, data, folds, config))
+                  notes=_notes(ctx, data, folds, config),
+                  samples=common.fold_samples(folds, metrics))
 
 
 _DATASETS = ("fsdd", "msr-action3d", "acorns", "audio", "choreo2")
