@@ -275,7 +275,9 @@ def run(config: Config, ctx: RunContext) -> Result:
     fig8.tight_layout()
     fig9 = Figure(figsize=(8, 6))
     axes = fig9.subplots(3, 2).ravel()
-    for ax, (t, sim, span), text in zip(axes, probe["traces"][:6], texts[:6]):
+    shown = [int(np.flatnonzero(y_probe == c)[0]) for c in np.unique(y_probe)][:6]  # six different concepts
+    for ax, i in zip(axes, shown):
+        (t, sim, span), text = probe["traces"][i], texts[i]
         ax.plot(t, sim, "-")
         if np.isfinite(span).all():
             ax.axvspan(span[0], span[1], color="orange", alpha=0.3)
