@@ -237,3 +237,38 @@ def test_ch6_sliding_on_real_words_and_objects(tmp_path):
     assert m["localisation.n_utterances"] == 20  # every test recording, flanked by 1-3 others
     assert "flanked by 1-3 other test recordings" in res.notes[2] and "ETH-80" in res.notes[0]
     assert 0.0 < m["localisation.chance"] < 1.0 and 0.0 <= m["best.s2i"] <= 1.0
+
+
+def test_learner_seed_alone_leaves_the_data_unchanged_and_vice_versa(monkeypatch, tmp_path):
+    """Without any data set: fake loaders, then the streams of load_pairs and fold_tasks."""
+    from mmconcepts.experiments import _ch6_common as common
+    from mmconcepts.experiments.ch6_motion_sound import Config
+
+    y = np.repeat(np.arange(4), 12)
+    speech = {"y": y, "keywords": ["a", "b", "c", "d"], "mfcc": [np.zeros((5, 2))] * len(y), "speaker": "s"}
+    motion = {"angles": [np.full((4, 3), float(i)) for i in range(30)], "gesture": np.arange(30) % 6,
+              "ids": [str(i) for i in range(30)]}
+    monkeypatch.setattr(common, "load_speech", lambda ctx, **kw: speech)
+    monkeypatch.setattr(common, "load_motion", lambda ctx, **kw: motion)
+    ctx = RunContext(data={}, cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(Config.quick(), n_folds=3)
+    st = common.streams(7)
+
+    def draw(seeds):
+        data = common.load_pairs(ctx, n_per_speaker=48, n_motion=30, n_folds=3, seeds=seeds)
+        return data, common.fold_tasks(data, cfg, seeds)
+
+    base, t_base = draw(st)
+    assert (motion["gesture"][base["motion_idx"]] == np.array([base["mapping"][k] for k in "abcd"])[y]).all()
+    new_learner, t_learner = draw(st._replace(learner=st.learner + 1))
+    for key in ("fold", "motion_idx"):
+        np.testing.assert_array_equal(new_learner[key], base[key])
+    assert new_learner["mapping"] == base["mapping"]
+    assert [t["learner_seed"] for t in t_learner] != [t["learner_seed"] for t in t_base]
+    new_data, t_data = draw(st._replace(data=st.data + 1))
+    assert new_data["mapping"] != base["mapping"] or not np.array_equal(new_data["motion_idx"], base["motion_idx"])
+    np.testing.assert_array_equal(new_data["fold"], base["fold"])
+    assert [t["learner_seed"] for t in t_data] == [t["learner_seed"] for t in t_base]
+    assert [t["reference_seed"] for t in t_data] == [t["reference_seed"] for t in t_base]
+    new_folds, _ = draw(st._replace(folds=st.folds + 1))
+    assert new_folds["mapping"] == base["mapping"] and not np.array_equal(new_folds["fold"], base["fold"])
