@@ -94,11 +94,15 @@ def test_ch5_incremental_small(tiny_corpus, tmp_path):
 def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
     from mmconcepts.experiments.ch5_nmf_keywords import Config, run
 
-    cfg = dataclasses.replace(Config.quick(), n_folds=3, n_components=12, max_iter=40)
+    cfg = dataclasses.replace(Config.quick(), n_folds=3, n_components=12, max_iter=40, n_composed_per_fold=10,
+                              threshold_cv=2)
     res = run(cfg, ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
     assert m["n_utterances"] == 50 and m["n_folds"] == 3
+    assert m["composed.n_utterances"] == 30 and 2 <= m["composed.mean_words"] <= 4
+    assert len(res.samples["composed.nmf.l_given_number"]) == 3
+    assert m["composed.nmf.keyword_recall"] > m["composed.chance.keyword_recall"]
     assert m["nmf.accuracy"] > 2 * m["chance.accuracy"]
     assert m["voting.accuracy"] > 2 * m["chance.accuracy"]
 

@@ -383,3 +383,26 @@ def test_compose_utterances_bad_input(words_corpus, tmp_path):
     two = SpeechCorpus([Utterance(words_corpus[0].path, "s", ("a", "b"))])
     with pytest.raises(DataError, match="exactly one label"):
         compose_utterances(two, tmp_path / "x", n_utterances=2, random_state=0)
+
+
+def test_composed_utterances_shift_the_word_timings_of_sentences(tmp_path, rng):
+    """Sources with word timings (sentences with a keyword amid carrier words) keep every word, shifted."""
+    root = tmp_path / "sentences"
+    _wav(root / "a.wav", rng, 0.5)
+    _wav(root / "b.wav", rng, 0.4)
+    (root / "labels.csv").write_text("file,speaker,labels,transcription\na.wav,s,car,the car\nb.wav,s,book,a book\n")
+    (root / "word_timings.csv").write_text(
+        "file,word,start,end\na.wav,the,0.05,0.15\na.wav,car,0.15,0.45\nb.wav,a,0.0,0.1\nb.wav,book,0.1,0.35\n")
+    comp = compose_utterances(load_generic_audio(root), tmp_path / "comp", n_utterances=1, n_words=(2, 2),
+                              pause_s=(0.2, 0.2), random_state=0)
+    u = comp[0]
+    first, second = (0.5, 0.4) if u.labels == ("car", "book") else (0.4, 0.5)
+    words = [w.word for w in u.word_timings]
+    assert words in (["the", "car", "a", "book"], ["a", "book", "the", "car"])
+    offset = first + 0.2  # the second sentence starts after the first and the pause
+    src = {"the": (0.05, 0.15), "car": (0.15, 0.45), "a": (0.0, 0.1), "book": (0.1, 0.35)}
+    for k, w in enumerate(u.word_timings):
+        shift = 0.0 if k < 2 else offset
+        assert (w.start, w.end) == pytest.approx((src[w.word][0] + shift, src[w.word][1] + shift), abs=1e-6)
+    assert u.duration == pytest.approx(first + 0.2 + second, abs=1e-4)
+    assert u.transcription in ("the car a book", "a book the car")
