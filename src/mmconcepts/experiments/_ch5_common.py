@@ -111,7 +111,8 @@ def data_source_note(ctx: RunContext, corpus=None) -> str:
         return f"Data: ACORNS Caregiver recordings{size} from {ctx.data['acorns']}."
     if source == "fsdd":
         return (f"Data: real voices, the Free Spoken Digit Dataset{size} from {ctx.data['fsdd']} (English digit words "
-                "said alone, 8 kHz WAV resampled to 16 kHz; Z. Jackson et al., CC BY-SA 4.0).")
+                "said alone, 8 kHz WAV resampled to 16 kHz, so the mel bands above 4 kHz hold only the -80 dB floor of the "
+                "MFCC; Z. Jackson et al., CC BY-SA 4.0).")
     if source == "audio":
         return f"Data: recordings in the generic audio layout{size} from {ctx.data['audio']}."
     return (
