@@ -29,7 +29,7 @@ EXPERIMENTS = {
 def test_streams_are_spawned_independent_and_deterministic():
     s = common.streams(3)
     assert s == common.streams(3)
-    assert len(set(s)) == 4  # data, learner, splits, reference: four different seeds
+    assert len(set(s)) == 5  # data, learner, splits, reference, composition: five different seeds
     kids = np.random.SeedSequence(3).spawn(4)
     assert s.data == int(kids[0].generate_state(1)[0] % (2**31 - 1))
     assert s.learner == int(kids[1].generate_state(1)[0] % (2**31 - 1))

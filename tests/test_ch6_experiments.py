@@ -210,7 +210,7 @@ def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
     np.testing.assert_array_equal(other_data["fold"], data["fold"])  # same fold stream
     t2 = common.fold_tasks(other_data, cfg, st._replace(data=st.data + 1))
     assert [t["learner_seed"] for t in t2] == [t["learner_seed"] for t in t0]
-    other_folds = common.load_pairs(ctx, seeds=st._replace(folds=st.folds + 1), **kw)
+    other_folds = common.load_pairs(ctx, seeds=st._replace(splits=st.splits + 1), **kw)
     assert other_folds["mapping"] == data["mapping"] and not np.array_equal(other_folds["fold"], data["fold"])
 
 
@@ -270,5 +270,5 @@ def test_learner_seed_alone_leaves_the_data_unchanged_and_vice_versa(monkeypatch
     np.testing.assert_array_equal(new_data["fold"], base["fold"])
     assert [t["learner_seed"] for t in t_data] == [t["learner_seed"] for t in t_base]
     assert [t["reference_seed"] for t in t_data] == [t["reference_seed"] for t in t_base]
-    new_folds, _ = draw(st._replace(folds=st.folds + 1))
+    new_folds, _ = draw(st._replace(splits=st.splits + 1))
     assert new_folds["mapping"] == base["mapping"] and not np.array_equal(new_folds["fold"], base["fold"])

@@ -49,14 +49,14 @@ import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from .._fingerprint import code_fingerprint
 from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
-from .base import RunContext
+from .base import RunContext, Streams, streams
 
 __all__ = [
     "MotionArrays",
@@ -79,25 +79,6 @@ _SUBSETS = ("primitive", "mixed_partial", "mixed_full")
 
 
 # ---------------------------------------------------------------------------- random streams
-class Streams(NamedTuple):
-    """Seeds (ints) of the independent random streams of one experiment run."""
-
-    data: int
-    learner: int
-    splits: int
-    reference: int
-
-
-def streams(seed: int) -> Streams:
-    """Spawn the data / learner / splits / reference streams from an experiment's seed.
-
-    ``numpy.random.SeedSequence(seed).spawn(4)``: the four seeds are independent, and the
-    seed that drew the data never initialises a learner nor draws a split.
-    """
-    kids = np.random.SeedSequence(int(seed)).spawn(4)
-    return Streams(*(int(k.generate_state(1)[0] % (2**31 - 1)) for k in kids))
-
-
 # ---------------------------------------------------------------------------- data
 @dataclass
 class MotionArrays:

@@ -28,34 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
-from typing import NamedTuple
 
 from .._fingerprint import code_fingerprint
 from ..errors import DataError
 from ..sound.features import MFCCConfig, mfcc
-from .base import RunContext
+from .base import RunContext, Streams, streams
 
 __all__ = ["CORPUS_SEED", "Streams", "streams", "load_corpus", "data_source", "data_source_note", "corpus_mfcc",
            "composed_corpus", "keyword_targets", "speaker_ids"]
 
 #: Seed of the generated corpus, shared by all experiments (chapters 5 and 6).
 CORPUS_SEED = 0
-
-
-class Streams(NamedTuple):
-    """Independent seeds of one experiment (issue 12): the seed that draws data never reaches a learner."""
-
-    data: int
-    learner: int
-    splits: int
-    reference: int
-
-
-def streams(seed: int) -> Streams:
-    """``numpy.random.SeedSequence(seed).spawn(4)`` as ints: data composition, learner initialisation,
-    splits and reference draws."""
-    kids = np.random.SeedSequence(int(seed)).spawn(4)
-    return Streams(*(int(k.generate_state(1)[0] % (2**31 - 1)) for k in kids))
 
 
 def sub_seed(seed: int, *key: int) -> int:

@@ -45,7 +45,6 @@ import os
 import pickle
 import warnings
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -57,7 +56,7 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
-from .base import RunContext
+from .base import RunContext, Streams, streams
 
 __all__ = ["Streams", "streams", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
            "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
@@ -88,22 +87,6 @@ def SPACE_NAMES(direction: str) -> dict[str, str]:
 
 
 # ---------------------------------------------------------------------------- random streams
-class Streams(NamedTuple):
-    """Independent integer seeds: data, folds, learner, reference draws, test composition."""
-
-    data: int
-    folds: int
-    learner: int
-    reference: int
-    composition: int
-
-
-def streams(seed: int) -> Streams:
-    """Seeds of the independent random streams spawned from ``seed`` (numpy SeedSequence)."""
-    kids = np.random.SeedSequence(int(seed)).spawn(len(Streams._fields))
-    return Streams(*(int(k.generate_state(1, dtype=np.uint32)[0]) for k in kids))
-
-
 def child_seeds(seed: int, n: int) -> list[int]:
     """``n`` independent seeds spawned from ``seed`` (one per fold or repetition)."""
     return [int(k.generate_state(1, dtype=np.uint32)[0]) for k in np.random.SeedSequence(int(seed)).spawn(n)]
@@ -302,7 +285,7 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int 
     motion = load_motion(ctx, n_motion=n_motion)
     y, keywords = speech["y"], speech["keywords"]
     mapping, item_concept = gesture_mapping(keywords, motion["gesture"], rng)
-    frng = np.random.default_rng(st.folds)
+    frng = np.random.default_rng(st.splits)
     if n_folds > 1:
         n_folds = min(n_folds, int(np.bincount(y).min()), int(np.bincount(item_concept[item_concept >= 0]).min()))
         fold_y = np.empty(len(y), dtype=np.int64)

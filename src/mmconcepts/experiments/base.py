@@ -67,7 +67,9 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+
+import numpy as np
 
 from .._paths import data_home
 from ..errors import ExperimentError, ParameterError
@@ -77,6 +79,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 __all__ = [
+    "Streams",
+    "streams",
     "Claim",
     "Experiment",
     "ExperimentSkipped",
@@ -93,6 +97,43 @@ _ID = re.compile(r"[a-z0-9]+(?:-[a-z0-9]+)*\Z")
 _FIGURE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
 _T = TypeVar("_T")
 _R = TypeVar("_R")
+
+
+class Streams(NamedTuple):
+    """Seeds (ints) of the independent random streams of one experiment run.
+
+    ``data`` draws or composes the data, ``learner`` initialises the learners, ``splits``
+    draws cross-validation folds and train/test parts, ``reference`` draws reference
+    examples and random baselines, ``composition`` assembles derived test material (composed
+    utterances, streams). The seed that drew the data never reaches a learner.
+    """
+
+    data: int
+    learner: int
+    splits: int
+    reference: int
+    composition: int = 0
+
+
+def streams(seed: int) -> Streams:
+    """Spawn the independent streams of an experiment from its seed.
+
+    ``numpy.random.SeedSequence(seed).spawn(5)``, each child turned into an int seed in
+    ``[0, 2**31 - 1)`` (so that it can be passed as any library's ``random_state``). A
+    child depends only on ``seed`` and its index, so adding a stream never changes the
+    others.
+
+    Parameters
+    ----------
+    seed : int
+        The experiment's seed (``config.seed``).
+
+    Returns
+    -------
+    Streams
+    """
+    kids = np.random.SeedSequence(int(seed)).spawn(len(Streams._fields))
+    return Streams(*(int(k.generate_state(1)[0] % (2**31 - 1)) for k in kids))
 
 
 class ExperimentSkipped(ExperimentError):

@@ -109,7 +109,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     objects = sorted(set(ims.labels))
     if len(objects) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(objects)} objects: cannot map concepts one to one.")
-    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.folds)
+    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
     object_of = drng.permutation(objects)[: len(keywords)].tolist()
     mapping = dict(zip(keywords, object_of))
     image_concept = common.image_concepts(ims.labels, object_of)

@@ -145,7 +145,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     if len(objects) < n_concepts:
         raise DataError(f"{n_concepts} concepts but only {len(objects)} objects.")
     c_loc, _ = common.image_locals(ctx, ims)
-    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.folds)
+    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
     learner = common.child_seeds(st.learner, config.n_repeats)
     reference = common.child_seeds(st.reference, config.n_repeats)
     tasks = []

@@ -199,7 +199,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     objects = sorted(set(ims.labels))
     if len(objects) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(objects)} objects.")
-    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.folds)
+    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
     learner = common.child_seeds(st.learner, 3)  # HAC, colour codebook, NMF
     obj = drng.permutation(objects)[: len(keywords)].tolist()
     image_concept = common.image_concepts(ims.labels, obj)

@@ -1,6 +1,6 @@
 """Motion recordings, data sets and their loaders (thesis section 3.3.1, Appendix B.2-B.3).
 
-Formats (``/work/shared/reference/formats.md`` in the project docs):
+Formats (as the thesis' data formats describe them):
 
 Choreo1
     ``<subset>.json`` ``{"marker-names": [...], "data-file": "<subset>.npz", "records":
@@ -153,7 +153,7 @@ CHOREO2_GESTURES: tuple[str, ...] = (
 #: synthetic generator to reuse the same gesture model.
 CHOREO2_TO_CHOREO1: tuple[int, ...] = (23, 24, 28, 19, 20, 9, 10, 40, 45, 46)
 
-#: MSR Action3D joint order, checked on the data (``/work/shared/data/msr-action3d``):
+#: MSR Action3D joint order, checked on the data (the 567 skeleton files of the ``msr-action3d`` set):
 #: joint 20 is the highest (head); joints 17-20 lowest (ankles/feet); the arm that moves
 #: in "high arm wave" (subjects used their right arm) is 9/11/13 and the leg that moves in
 #: "forward kick" is 15/17/19, which fixes which of each pair is the right one.

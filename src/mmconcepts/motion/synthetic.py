@@ -23,7 +23,7 @@ Data sets (sizes of Thesis section 3.3.1 / Appendix B):
   marker written ``right_hand`` is the dancer's left hand.
 
 How the parameters were chosen (measured on the 566 usable real Kinect v1 skeletons of
-MSR Action3D, ``../shared/data/msr-action3d``, with :func:`joint_angles`; the script's
+MSR Action3D (the ``msr-action3d`` data set), with :func:`joint_angles`; the script's
 numbers are repeated here):
 
 ============================  ======================================  ==================

@@ -1,6 +1,6 @@
 """Speech corpora and their loaders (thesis chapter 5, section 6.5.2, Appendix B.1).
 
-Layouts (``/work/shared/reference/formats.md`` in the project docs):
+Layouts (as the thesis' data formats describe them):
 
 Generic audio layout
     A folder holding audio files (WAV or FLAC, in it or in sub-folders) and

@@ -1,6 +1,6 @@
 """Image sets and their loaders (the image modality of thesis chapter 6, section 6.5.3).
 
-Layouts (``/work/shared/reference/formats.md`` in the project docs):
+Layouts (as the thesis' data formats describe them):
 
 Generic image layout
     A folder holding image files (PNG, JPEG, ... anything ``imageio`` reads; in it or in

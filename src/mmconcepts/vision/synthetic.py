@@ -25,7 +25,7 @@ with a linear gradient, a few small distractor shapes behind the object, sensor 
 and 8-bit quantisation.
 
 How the values were chosen: measured on the 1640 ETH-80 images of
-``../shared/data/eth80-96px`` (object = not the blue background), percentiles 5/50/95
+the ``eth80`` data set at 96x96 pixels (object = not the blue background), percentiles 5/50/95
 (noise, gradient: 10/50/90); the generator's column gives its parameters and, in
 brackets, the same statistics of its output (:func:`image_statistics`, 300 images):
 
