@@ -174,5 +174,6 @@ register(Experiment(
               "mixed.nmf_frobenius.gain_given_number >= 0.5 * 0.117"),
     ],
     datasets=("msr-action3d",),
+    synthetic=False,
     description=__doc__.split("\n\n")[0],
 ))
