@@ -45,6 +45,12 @@ def real_data_path(name: str) -> Path:
     pytest.skip(f"real data set {name!r} absent from the data root {DATA_ROOT}")
 
 
+@pytest.fixture(autouse=True)
+def _no_data_root_from_the_environment(monkeypatch):
+    """A user's $MMCONCEPTS_DATA_ROOT must not turn a synthetic test into a real-data one."""
+    monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
+
+
 @pytest.fixture(scope="session")
 def data_root() -> Path:
     """The data root holding the real sets (skips the test when there is none)."""

@@ -483,3 +483,62 @@ def test_warnings_of_a_run_are_recorded_and_reported(toy, tmp_path):
         rec = run_experiment(exp, output=tmp_path, progress=False)
     assert rec["warnings"] == ["RuntimeWarning: 1 file(s) of the toy set could not be read and were skipped: bad.wav"]
     assert "bad.wav" in write_report(tmp_path)[1].read_text()
+
+
+def test_an_asked_variant_that_cannot_run_overwrites_nothing(toy, tmp_path):
+    exp = _variant_experiment(toy)
+    out = tmp_path / "res"
+    good = run_experiment(exp, output=out, progress=False)  # auto: generated data
+    assert good["variant"] == "synthetic" and good["status"] == "ok"
+    before = (out / "toy-variant.json").read_bytes()
+    rec = run_experiment(exp, output=out, variant="real", progress=False)
+    assert rec["status"] == "skipped" and "--data-root" in rec["message"]
+    assert (out / "toy-variant.json").read_bytes() == before
+
+
+def test_reproduce_removes_a_secondary_record_it_does_not_refresh(toy, tmp_path, monkeypatch):
+    exp = _variant_experiment(toy)
+    register(exp)
+    folder = _fsdd_like(tmp_path / "root")
+    out = tmp_path / "res"
+    reproduce(output=out, ids=["toy-variant"], data={"fsdd": folder}, progress=False)
+    assert (out / "toy-variant.synthetic.json").exists()
+    records = reproduce(output=out, ids=["toy-variant"], data={"fsdd": folder}, synthetic=False, progress=False)
+    assert [r["variant"] for r in records] == ["real"]
+    assert not (out / "toy-variant.synthetic.json").exists()
+
+
+def test_changed_recordings_recompute_the_result(toy, tmp_path):
+    calls = []
+
+    def run(config, ctx):
+        calls.append(1)
+        return Result(metrics={"n": float(len(list(ctx.data["fsdd"].iterdir())))})
+
+    exp = toy.make_experiment("toy-sig", run, datasets=("fsdd",))
+    folder = _fsdd_like(tmp_path / "root")
+    out = tmp_path / "res"
+    assert run_experiment(exp, output=out, data={"fsdd": folder}, progress=False)["metrics"]["n"] == 2
+    run_experiment(exp, output=out, data={"fsdd": folder}, progress=False)
+    assert len(calls) == 1  # up to date
+    (folder / "1_alice_0.wav").write_bytes(b"RIFF")  # one more recording, same folder
+    assert run_experiment(exp, output=out, data={"fsdd": folder}, progress=False)["metrics"]["n"] == 3
+    assert len(calls) == 2
+
+
+def _warn_in_worker(i):
+    import warnings as _w
+
+    _w.warn(f"worker {i} skipped a file", RuntimeWarning)
+    return i
+
+
+def test_warnings_raised_in_worker_processes_are_recorded(toy, tmp_path):
+    def run(config, ctx):
+        return Result(metrics={"s": float(sum(ctx.parallel(_warn_in_worker, [1, 2])))})
+
+    exp = toy.make_experiment("toy-warn2", run)
+    with pytest.warns(RuntimeWarning):
+        rec = run_experiment(exp, output=tmp_path, workers=2, progress=False)
+    assert rec["metrics"]["s"] == 3.0
+    assert sorted(rec["warnings"]) == ["RuntimeWarning: worker 1 skipped a file", "RuntimeWarning: worker 2 skipped a file"]

@@ -73,8 +73,9 @@ def test_report_shows_metrics_thesis_values_and_verdicts(results):
 
     # claims with three-valued verdicts, one column per data
     assert "| claim | rule | generated data |" in md
-    assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| holds \|", md)
-    assert re.search(r"\| The sample mean exceeds one \(false on purpose\)\. \| [^|]+ \| fails \|", md)
+    # (the toy keeps no per-fold samples: its verdicts say they were decided without a spread)
+    assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| holds \(no spread\) \|", md)
+    assert re.search(r"\| The sample mean exceeds one \(false on purpose\)\. \| [^|]+ \| fails \(no spread\) \|", md)
     assert "verdict-holds" in html_text and "verdict-fails" in html_text
 
     # summary lines: what ran, on which data, and the claims apart
@@ -146,3 +147,23 @@ def test_nan_claim_shown_as_not_evaluated(toy, tmp_path):
     md = write_report(tmp_path)[1].read_text()
     assert "| acc beats base | acc &gt; base | not evaluated |" in md
     assert "| acc | 0.9 | n/a |" in md
+
+
+def test_report_flags_records_of_older_code_and_verdicts_without_spread(toy, tmp_path):
+    from mmconcepts.experiments import Claim, Result
+
+    exp = toy.make_experiment(
+        "toy-spread",
+        lambda c, x: Result(metrics={"a": 0.8, "b": 0.6}, samples={"a": [0.8, 0.81, 0.79], "b": [0.6, 0.61, 0.59]}),
+        claims=[Claim("a beats b", "a > b")],
+    )
+    run_experiment(exp, output=tmp_path, progress=False)
+    md = write_report(tmp_path)[1].read_text()
+    assert "| a beats b | a &gt; b | holds |" in md  # decided over the folds: no suffix
+    assert re.search(r"\| a \| +\| 0\.8 \[0\.7\d*, 0\.8\d*\] \|", md)
+    assert "older code" not in md
+    path = tmp_path / "toy-spread.json"
+    record = json.loads(path.read_text())
+    record["code"] = "0000000000000000"
+    path.write_text(json.dumps(record))
+    assert "ran (older code)" in write_report(tmp_path)[1].read_text()

@@ -81,3 +81,12 @@ def test_verdict_agrees_with_the_point_estimate_or_is_inconclusive(values, delta
             assert v.verdict == "holds"
         if metrics["t"] > interval[1] + 1e-9:
             assert v.verdict == "fails"
+
+
+def test_a_nan_fold_is_dropped_from_the_whole_pair():
+    # fold 2 of a is missing: dropping it only from a would pair a's fold 3 with b's fold 2
+    a = [0.80, 0.62, float("nan"), 0.71, 0.90]
+    b = [0.78, 0.60, 0.99, 0.69, 0.88]
+    metrics = {"a": 0.7575, "b": 0.7375}
+    v = claim_verdict("a > b", metrics, {"a": a, "b": b})
+    assert v.verdict == "holds" and v.support == 1.0

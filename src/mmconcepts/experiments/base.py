@@ -63,6 +63,7 @@ import numbers
 import os
 import re
 import sys
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -273,6 +274,19 @@ class Result:
                 raise ExperimentError(f"samples[{name!r}] must be a list of real numbers; got {values!r:.80}.")
 
 
+class _WarningsCarried:
+    """Call ``fn`` in a worker process and return its result with the warnings it raised."""
+
+    def __init__(self, fn: Callable[[Any], Any]) -> None:
+        self.fn = fn
+
+    def __call__(self, item: Any) -> tuple[Any, list[tuple[type[Warning], str, str, int]]]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = self.fn(item)
+        return result, [(w.category, str(w.message), w.filename, w.lineno) for w in caught]
+
+
 def _progress_enabled(show: bool) -> bool:
     try:
         return bool(show) and sys.stderr is not None and sys.stderr.isatty()
@@ -336,7 +350,10 @@ class RunContext:
 
         With ``workers == 1`` this is a plain loop in this process. Otherwise joblib's
         process pool is used, so ``fn`` and the items must pickle (define ``fn`` at
-        module level) and each item must carry its own seed. Order is preserved.
+        module level) and each item must carry its own seed. Order is preserved. Warnings
+        raised in a worker process are raised again here, in this process, so that the
+        caller (and the runner's record of the run's warnings) sees the same warnings
+        whatever the number of workers.
 
         Parameters
         ----------
@@ -351,8 +368,13 @@ class RunContext:
         from joblib import Parallel, delayed
 
         n_jobs = min(self.workers, len(items))
-        gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(fn)(item) for item in items)
-        return list(self.progress(gen, total=len(items), desc=desc))
+        gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_WarningsCarried(fn))(item) for item in items)
+        out = []
+        for result, caught in self.progress(gen, total=len(items), desc=desc):
+            for category, message, filename, lineno in caught:
+                warnings.warn_explicit(message, category, filename, lineno)
+            out.append(result)
+        return out
 
     def require_data(self, name: str, *, hint: str = "") -> Path:
         """Return the path given for data set ``name``, or skip the experiment.

@@ -11,6 +11,8 @@ A result record is a JSON object with a stable schema (``schema_version`` 2)::
     variant         "real" | "synthetic"     which data it ran on: the real sets found
                                              (data root or --data) or generated stand-ins
     data            name -> absolute path of each real set used (empty when synthetic)
+    data_signature  name -> "<n> files, <bytes> bytes, newest <mtime>" of each set (part of
+                    the up-to-date key: changed recordings recompute the result)
     version         mmconcepts.__version__
     code            fingerprint of the code that produced it (package sources and
                     dependency versions, :func:`mmconcepts._fingerprint.code_fingerprint`)
@@ -107,6 +109,7 @@ RECORD_KEYS = (
     "version",
     "code",
     "data",
+    "data_signature",
     "metrics",
     "intervals",
     "samples",
@@ -346,6 +349,24 @@ def resolve_data(
     return {name: merged[name] for name in exp.datasets if name in merged}
 
 
+def data_signature(path: str | os.PathLike[str]) -> str:
+    """A cheap signature of a data set's contents: number of files, total bytes, newest change.
+
+    Part of a result's up-to-date key, so that adding, repairing or re-fetching recordings
+    recomputes the result even though the set's folder is the same.
+    """
+    path = Path(path)
+    files = [path] if path.is_file() else [p for p in path.rglob("*") if p.is_file()]
+    n = size = newest = 0
+    for f in files:
+        try:
+            st = f.stat()
+        except OSError:
+            continue
+        n, size, newest = n + 1, size + st.st_size, max(newest, st.st_mtime_ns)
+    return f"{n} files, {size} bytes, newest {newest}"
+
+
 def record_path(output: str | os.PathLike[str], exp_id: str, *, secondary: bool = False) -> Path:
     """Where a record goes: ``<output>/<id>.json``, or ``<output>/<id>.synthetic.json`` for
     the run on generated data of an experiment whose default run is on real data."""
@@ -360,7 +381,7 @@ def _up_to_date(existing: Mapping[str, Any] | None, fresh: Mapping[str, Any], ou
         return False
     if existing.get("schema_version") != SCHEMA_VERSION or existing.get("experiment") != fresh["experiment"]:
         return False
-    for key in ("config", "code", "data", "preset", "variant"):
+    for key in ("config", "code", "data", "data_signature", "preset", "variant"):
         if existing.get(key) != fresh[key]:
             return False
     figures = existing.get("figures") or {}
@@ -494,6 +515,7 @@ def run_experiment(
         "version": __version__,
         "code": code_fingerprint(),
         "data": {name: str(path) for name, path in sorted(exp_data.items())},
+        "data_signature": {name: data_signature(path) for name, path in sorted(exp_data.items())},
         "metrics": {},
         "intervals": {},
         "samples": {},
@@ -526,6 +548,18 @@ def run_experiment(
             logger.info("%s (%s data): skipped: up to date (%s)", exp.id, chosen, json_path)
             return existing
 
+    cannot_run = None
+    if chosen == "real" and not exp_data:
+        cannot_run = (f"no real data set of {', '.join(exp.datasets) or '(none declared)'} was found: "
+                      "give a data root (--data-root DIR) or --data NAME=PATH (see `mmconcepts data list`).")
+    elif chosen == "synthetic" and not exp.synthetic:
+        cannot_run = f"{exp.id} runs only on real data ({', '.join(exp.datasets)})."
+    if cannot_run is not None and variant != "auto":
+        # an explicitly asked variant that cannot run here: say so, but never overwrite a record
+        logger.warning("%s: skipped: %s", exp.id, cannot_run)
+        record.update(status="skipped", message=cannot_run)
+        return record
+
     output.mkdir(parents=True, exist_ok=True)
     if not secondary:  # a default run on generated data supersedes an older run on generated data
         stale = record_path(output, exp.id, secondary=True)
@@ -537,13 +571,8 @@ def run_experiment(
     result: Any = None
     error: BaseException | None = None
     try:
-        if chosen == "real" and not exp_data:
-            raise ExperimentSkipped(
-                f"no real data set of {', '.join(exp.datasets) or '(none declared)'} was found: "
-                "give a data root (--data-root DIR) or --data NAME=PATH (see `mmconcepts data list`)."
-            )
-        if chosen == "synthetic" and not exp.synthetic:
-            raise ExperimentSkipped(f"{exp.id} runs only on real data ({', '.join(exp.datasets)}).")
+        if cannot_run is not None:
+            raise ExperimentSkipped(cannot_run)
         with warnings.catch_warnings(record=True) as caught:  # filters still apply ("error" raises)
             try:
                 result = exp.run(config, ctx)
@@ -677,6 +706,12 @@ def reproduce(
         records.append(run_experiment(exp, variant="auto", **common))
         if has_real and synthetic and exp.synthetic:
             records.append(run_experiment(exp, variant="synthetic", **common))
+        else:  # a secondary record this run does not refresh would be shown as current
+            stale = record_path(output, exp.id, secondary=True)
+            if stale.exists():
+                logger.info("%s: removing %s (not part of this run)", exp.id, stale)
+                stale.unlink()
+                _remove_stale_figures(stale.with_suffix(""), ())
     counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "failed", "skipped")}
     logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
     return records

@@ -140,12 +140,25 @@ def claim_verdict(
     point = parsed.evaluate(metrics)
     if point is None:
         return Verdict(None, "not evaluated", None, "a metric it uses was not measured")
-    used = {name: _clean((samples or {}).get(name)) for name in sorted(parsed.metrics)}
-    used = {name: x for name, x in used.items() if x is not None}
+    raw = {}
+    for name in sorted(parsed.metrics):
+        values = (samples or {}).get(name)
+        if values is not None and len(values) >= 2:
+            raw[name] = np.asarray([np.nan if v is None else float(v) for v in values], dtype=float)
+    # samples of the same length are paired (same folds or seeds); a fold that is NaN in one
+    # metric of a group is dropped from the whole group, so that the pairs stay aligned
+    groups: dict[int, list[str]] = {}
+    for name, x in raw.items():
+        groups.setdefault(x.size, []).append(name)
+    used: dict[str, np.ndarray] = {}
+    for names in groups.values():
+        keep = np.logical_and.reduce([np.isfinite(raw[name]) for name in names])
+        if keep.sum() >= 2:
+            used.update({name: raw[name][keep] for name in names})
     if not used:
         return Verdict(point, "holds" if point else "fails", None, "reported numbers (no per-fold or per-seed samples)")
     rng = np.random.default_rng(_BOOT_SEED)
-    groups: dict[int, list[str]] = {}
+    groups = {}
     for name, x in used.items():
         groups.setdefault(x.size, []).append(name)
     shifts: dict[str, np.ndarray] = {}

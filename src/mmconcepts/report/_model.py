@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
 from ..experiments.runner import load_record
 from ..experiments.uncertainty import VERDICTS, claim_verdict
@@ -90,6 +91,12 @@ class ExperimentView:
     data: list[tuple[str, str]] = field(default_factory=list)  # (set name, path)
     values: dict[str, str] = field(default_factory=dict)  # metric -> "0.81 [0.75, 0.87]"
     warnings: list[str] = field(default_factory=list)
+    stale: bool = False  # produced by other code than the installed one
+
+    @property
+    def status_label(self) -> str:
+        label = STATUS_LABELS.get(self.status, self.status)
+        return f"{label} (older code)" if self.stale else label
 
     @property
     def n_claims(self) -> int:
@@ -147,7 +154,11 @@ class ExperimentGroup:
                 if key not in index:
                     index[key] = len(rows)
                     rows.append([claim.text, claim.rule] + [""] * len(self.views))
-                cell = claim.verdict + (f" ({claim.error})" if claim.error else "")
+                cell = claim.verdict
+                if claim.error:
+                    cell += f" ({claim.error})"
+                elif claim.basis.startswith("reported numbers"):
+                    cell += " (no spread)"  # decided on the reported numbers alone
                 rows[index[key]][2 + j] = cell
         return columns, rows
 
@@ -242,6 +253,7 @@ def build_view(record: dict[str, Any], results_dir: Path, source: Path) -> Exper
         data=[(str(k), str(v)) for k, v in data.items()],
         values=values,
         warnings=[str(w) for w in record.get("warnings") or []],
+        stale=record.get("code") != code_fingerprint(),
     )
 
 

@@ -53,14 +53,15 @@ def _table(columns: list[str], rows: list[list[str]], *, caption: str | None = N
     return "".join(out)
 
 
-def _status(status: str) -> str:
-    return f'<span class="status status-{_e(status)}">{_e(STATUS_LABELS.get(status, status))}</span>'
+def _status(status: str, label: str | None = None) -> str:
+    text = STATUS_LABELS.get(status, status) if label is None else label
+    return f'<span class="status status-{_e(status)}">{_e(text)}</span>'
 
 
 def _run(view: ExperimentView) -> str:
     out = [f'<section class="run run-{_e(view.variant)}">']
     out.append(f"<h3>On {_e(view.data_label)}</h3>")
-    out.append(f'<p class="meta">status {_status(view.status)}' + (f" · {_e(view.elapsed)}" if view.elapsed else "") + "</p>")
+    out.append(f'<p class="meta">status {_status(view.status, view.status_label)}' + (f" · {_e(view.elapsed)}" if view.elapsed else "") + "</p>")
     if view.data:
         out.append("<ul>" + "".join(f"<li>data set <code>{_e(n)}</code>: <code>{_e(p)}</code></li>" for n, p in view.data) + "</ul>")
     if view.status == "failed":
@@ -150,7 +151,7 @@ def render_html(views: list[ExperimentView], *, title: str) -> str:
         for view in views:
             out.append(
                 f'<tr><td><a href="#{_e(_slug(view.id))}"><code>{_e(view.id)}</code></a></td>'
-                f"<td>{_e(view.title)}</td><td>{_e(view.data_label)}</td><td>{_status(view.status)}</td>"
+                f"<td>{_e(view.title)}</td><td>{_e(view.data_label)}</td><td>{_status(view.status, view.status_label)}</td>"
                 f"<td>{_e(view.claims_summary)}</td><td>{_e(view.elapsed)}</td></tr>"
             )
         out.append("</tbody></table>")

@@ -37,7 +37,7 @@ def _table(columns: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def _run(view: ExperimentView) -> list[str]:
-    meta = f"status: **{STATUS_LABELS.get(view.status, view.status)}**"
+    meta = f"status: **{view.status_label}**"
     if view.elapsed:
         meta += f" · {view.elapsed}"
     out = [f"### On {_text(view.data_label)}", "", meta, ""]
@@ -82,7 +82,7 @@ def _section(group: ExperimentGroup) -> list[str]:
 
 
 def _summary(views: list[ExperimentView]) -> list[str]:
-    rows = [[v.id, v.title, v.data_label, STATUS_LABELS.get(v.status, v.status), v.claims_summary, v.elapsed]
+    rows = [[v.id, v.title, v.data_label, v.status_label, v.claims_summary, v.elapsed]
             for v in views]
     out = ["## Summary", ""] + _table(["experiment", "title", "data", "ran", "claims", "run time"], rows)
     totals = {verdict: sum(v.count(verdict) for v in views if v.status == "ok") for verdict in VERDICTS}
