@@ -80,7 +80,9 @@ def run(config: Config, ctx: RunContext) -> Result:
                          ("fraction_seen_once describes the data, it is no claim: on the synthetic set it is an input of "
                           "the generator (n_single = round(0.6 n), set from Fig. 3.8), on MSR Action3D it follows from "
                           "our random limb pairings; on the thesis' Choreo1 it would be a fact about the recordings. "
-                          "The claims are about the learner on unique combinations.")])
+                          "The claims are about the learner on unique combinations."),
+                         ("No claim compares with a random ranking of the labels: its expected l_given_number on "
+                          "these examples is about 1e-4, so '5 times chance' would hold for almost any learner.")])
 
 
 register(Experiment(
@@ -94,9 +96,6 @@ register(Experiment(
         Claim("Choreographies whose combination is unique are still labelled (the learner captures the "
               "combinatorial structure): l_given_number on them above 0.3.",
               "once.nmf_frobenius.l_given_number > 0.3"),
-        Claim("Choreographies whose combination is unique are labelled far above a random ranking of the labels "
-              "(5 times its expected l_given_number).",
-              "once.nmf_frobenius.l_given_number > 5 * once.chance.l_given_number"),
     ],
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],

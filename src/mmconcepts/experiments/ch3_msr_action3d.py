@@ -165,8 +165,10 @@ register(Experiment(
               "max(single.joint_kde.l_single, single.angles_kde.l_single) > 5 * single.chance.l_single"),
         Claim("VQ beats KDE for joint angle-velocity histograms with few bins (Fig. 3.5).",
               "max(single.joint_vq_hard.l_single, single.joint_vq_soft.l_single) > single.joint_kde.l_single"),
-        Claim("Learnt from label sets, NMF names both actions of new mixtures far above chance.",
-              "mixed.nmf_frobenius.l_given_number > 5 * mixed.chance.l_given_number"),
+        Claim("Learnt from label sets, NMF names both actions of most new mixtures (l_given_number above 0.5; "
+              "thesis, 16 gestures: 0.971). A bar of 5 times a random ranking (0.0065 here) would hold for almost "
+              "any learner.",
+              "mixed.nmf_frobenius.l_given_number > 0.5"),
         Claim("On unseen combinations NMF beats the linear SVM on l_full (Table 3.3, 47 labels).",
               "unseen.nmf_frobenius.l_full > unseen.svm.l_full"),
         Claim("Knowing the number of actions helps substantially: NMF's gain l_given_number - l_full is at least "

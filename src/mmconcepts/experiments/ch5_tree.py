@@ -123,9 +123,13 @@ def run(config: Config, ctx: RunContext) -> Result:
     bc_cost = metrics["best_children_b2.n_distances"]
     j = int(np.clip(np.searchsorted(costs, bc_cost), 1, len(costs) - 1))
     (c0, k0), (c1, k1) = restart[j - 1], restart[j]
-    a = float(np.clip((bc_cost - c0) / (c1 - c0), 0.0, 1.0)) if c1 > c0 else 0.0
-    at_cost = (1 - a) * hits[k0] + a * hits[k1]
-    metrics["restart.recall_at_best_children_b2_cost"] = float(at_cost.mean())
+    a = (bc_cost - c0) / (c1 - c0) if c1 > c0 else 0.0
+    if 0.0 <= a <= 1.0:
+        at_cost = (1 - a) * hits[k0] + a * hits[k1]
+        metrics["restart.recall_at_best_children_b2_cost"] = float(at_cost.mean())
+    else:  # outside the restart searches' costs: not measured (no extrapolation, no clipping)
+        at_cost = None
+        metrics["restart.recall_at_best_children_b2_cost"] = float("nan")
     fast = [b for m, b in SEARCHES if m == "restart" and metrics[f"restart_b{b}.recall"] >= 0.9]
     metrics["restart.cost_fraction_at_recall_0.9"] = (
         metrics[f"restart_b{min(fast)}.n_distances"] / metrics["exact.n_distances"] if fast else float("nan"))
@@ -145,7 +149,8 @@ def run(config: Config, ctx: RunContext) -> Result:
     ax.legend(fontsize=7)
     fig.tight_layout()
     samples = {f"{k}.recall": v.tolist() for k, v in hits.items()}
-    samples["restart.recall_at_best_children_b2_cost"] = at_cost.tolist()
+    if at_cost is not None:
+        samples["restart.recall_at_best_children_b2_cost"] = at_cost.tolist()
     return Result(
         metrics=metrics,
         samples=samples,
