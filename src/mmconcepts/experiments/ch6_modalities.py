@@ -110,13 +110,15 @@ def _repeat(task: dict) -> dict:
             return MultimodalNMF(k, max_iter=task["n_iter"], random_state=learner[2]).fit(
                 {NAMES[m]: X[m][tr] for m in train})
 
-        internal: dict = {}  # internal representations, once per model, modalities and part
+        # internal representations, once per model, modalities and part; each entry keeps its model
+        # alive, so that the id of a model of the k sweep is never reused by a later one
+        internal: dict = {}
 
         def h(model, mods: str, rows, part: str):
             key = (id(model), mods, part)
-            if key not in internal:
-                internal[key] = model.transform({NAMES[m]: X[m][rows] for m in mods})
-            return internal[key]
+            if key not in internal or internal[key][0] is not model:
+                internal[key] = (model, model.transform({NAMES[m]: X[m][rows] for m in mods}))
+            return internal[key][1]
 
         def match(model, test: str, refm: str) -> float:
             # internal space, cosine (as crossmodal_distances(space="internal", metric="cosine"))
