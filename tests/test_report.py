@@ -167,3 +167,34 @@ def test_report_flags_records_of_older_code_and_verdicts_without_spread(toy, tmp
     record["code"] = "0000000000000000"
     path.write_text(json.dumps(record))
     assert "ran (older code)" in write_report(tmp_path)[1].read_text()
+
+
+def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagreements_first(toy, tmp_path):
+    from mmconcepts.report._model import claims_by_data, collect
+
+    def make(variant_metrics):
+        def run(config, ctx):
+            m = variant_metrics["real" if ctx.data else "synthetic"]
+            return Result(metrics=m, samples={k: [v - 0.01, v, v + 0.01] for k, v in m.items()})
+        return run
+
+    exp = toy.make_experiment(
+        "toy-bydata",
+        make({"real": {"a": 0.2, "b": 0.6}, "synthetic": {"a": 0.8, "b": 0.6}}),
+        claims=[Claim("b is positive", "b > 0"), Claim("a beats b", "a > b")],
+        datasets=("toyset",),
+    )
+    data = tmp_path / "data" / "toyset"
+    data.mkdir(parents=True)
+    out = tmp_path / "out"
+    run_experiment(exp, output=out, progress=False, data={"toyset": data}, variant="real")
+    run_experiment(exp, output=out, progress=False, data={"toyset": data}, variant="synthetic")
+    columns, rows = claims_by_data(collect(out))
+    assert columns == ["experiment", "claim", "real data", "generated data", "agreement"]
+    # the claim that differs comes first, though it was declared second
+    assert rows == [["toy-bydata", "a beats b", "fails", "holds", "differ"],
+                    ["toy-bydata", "b is positive", "holds", "holds", "same"]]
+    md = write_report(out)[1].read_text()
+    assert "| toy-bydata | a beats b | fails | holds | differ |" in md
+    html = (out / "report.html").read_text()
+    assert _parse(html).errors == [] and "Every claim on each data" in html

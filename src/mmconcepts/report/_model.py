@@ -278,3 +278,33 @@ def group(views: list[ExperimentView]) -> list[ExperimentGroup]:
             groups[view.id] = ExperimentGroup(view.id, view.title, view.thesis_ref, [])
         groups[view.id].views.append(view)
     return list(groups.values())
+
+
+def claims_by_data(views: list[ExperimentView]) -> tuple[list[str], list[list[str]]]:
+    """Every claim of the runs that ran, with its verdict on each data: one row per claim.
+
+    Columns ``experiment, claim, <one per data variant present>, agreement``; the last
+    column says whether the verdicts on real and generated data agree (empty when the
+    claim was decided on one data only). Rows where they differ come first, then the
+    others, each in experiment order.
+    """
+    variants = [v for v in ("real", "synthetic") if any(x.variant == v and x.status == "ok" for x in views)]
+    columns = ["experiment", "claim"] + [VARIANT_LABELS[v] for v in variants] + ["agreement"]
+    rows: list[list[str]] = []
+    index: dict[tuple[str, str, str], int] = {}
+    for view in views:
+        if view.status != "ok" or view.variant not in variants:
+            continue
+        j = variants.index(view.variant)
+        for claim in view.claims:
+            key = (view.id, claim.text, claim.rule)
+            if key not in index:
+                index[key] = len(rows)
+                rows.append([view.id, claim.text] + [""] * len(variants) + [""])
+            rows[index[key]][2 + j] = claim.verdict
+    for row in rows:
+        decided = [c for c in row[2:2 + len(variants)] if c]
+        if len(decided) == 2:
+            row[-1] = "same" if decided[0] == decided[1] else "differ"
+    order = sorted(range(len(rows)), key=lambda i: (rows[i][-1] != "differ", i))
+    return columns, [rows[i] for i in order]

@@ -8,7 +8,7 @@ from importlib import resources
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, group
+from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, claims_by_data, group
 
 __all__ = ["render_html"]
 
@@ -162,6 +162,17 @@ def render_html(views: list[ExperimentView], *, title: str) -> str:
                 counts = ", ".join(f"{sum(v.count(x) for v in runs)} {x}" for x in VERDICTS)
                 out.append(f"<li>On {_e(VARIANT_LABELS[variant])}: {len(runs)} run(s); claims: {_e(counts)}.</li>")
         out.append("</ul>")
+        columns, rows = claims_by_data(views)
+        if rows:
+            out.append("<h3>Every claim on each data</h3><p class=\"note\">Claims whose verdict differs between real "
+                       "and generated data come first; the experiment's section has the numbers and intervals behind "
+                       "each verdict.</p>")
+            out.append("<table><thead><tr>" + "".join(f"<th>{_e(c)}</th>" for c in columns) + "</tr></thead><tbody>")
+            for row in rows:
+                out.append(f'<tr><td><a href="#{_e(_slug(row[0]))}"><code>{_e(row[0])}</code></a></td>'
+                           f"<td>{_e(row[1])}</td>" + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:-1])
+                           + f"<td>{_e(row[-1])}</td></tr>")
+            out.append("</tbody></table>")
     out.extend(_section(g) for g in groups)
     out.append("</body></html>\n")
     return "\n".join(out)

@@ -6,7 +6,7 @@ import datetime as _dt
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, group
+from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, claims_by_data, group
 
 __all__ = ["render_markdown"]
 
@@ -93,6 +93,12 @@ def _summary(views: list[ExperimentView]) -> list[str]:
             out += [f"- On {VARIANT_LABELS[variant]}: {len(runs)} run(s); claims: {counts}."]
     if any(totals.values()):
         out.append("")
+    columns, rows = claims_by_data(views)
+    if rows:
+        out += ["### Every claim on each data", "",
+                "Claims whose verdict differs between real and generated data come first; the experiment's "
+                "section has the numbers and intervals behind each verdict.", ""]
+        out += _table(columns, rows)
     return out
 
 
