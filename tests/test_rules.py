@@ -172,3 +172,68 @@ def test_result_is_a_python_bool():
 )
 def test_valid_metric_names(name, ok):
     assert is_valid_metric_name(name) is ok
+
+
+@pytest.mark.parametrize(
+    "rule, fragment",
+    [("a ** b > 1", "unexpected '*'"), ("a // b > 1", "unexpected '/'"), ("a, b", "unexpected ','"),
+     ("a > b, a", "unexpected ','"), ("min(a, b=1) > 0", "unexpected character '='")],
+)
+def test_python_syntax_outside_the_language_is_refused(rule, fragment):
+    with pytest.raises(ExperimentError) as info:
+        parse_rule(rule, {"a", "b"})
+    assert fragment in str(info.value)
+
+
+def test_every_registered_claim_rule_parses():
+    from mmconcepts.experiments import registry
+
+    rules = [claim.rule for exp in registry.all_experiments() for claim in exp.claims]
+    assert len(rules) > 40
+    for rule in rules:
+        assert parse_rule(rule).metrics  # every claim reads at least one metric
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_VALUES = {"a": 2.0, "b": 3.0, "neg": -4.0, "half": 0.5}
+
+
+def _num():
+    leaf = st.sampled_from(sorted(_VALUES) + ["1", "0.5", "2e-1", "3"])
+    return st.recursive(
+        leaf,
+        lambda inner: st.one_of(
+            st.tuples(inner, st.sampled_from(["+", "-", "*"]), inner).map(lambda t: f"({t[0]} {t[1]} {t[2]})"),
+            inner.map(lambda x: f"-{x}"),
+            inner.map(lambda x: f"abs({x})"),
+            st.lists(inner, min_size=1, max_size=3).map(lambda xs: f"min({', '.join(xs)})"),
+            st.lists(inner, min_size=1, max_size=3).map(lambda xs: f"max({', '.join(xs)})"),
+        ),
+        max_leaves=6,
+    )
+
+
+def _bool():
+    cmp = st.tuples(_num(), st.lists(st.tuples(st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), _num()),
+                                     min_size=1, max_size=2)).map(
+        lambda t: t[0] + "".join(f" {op} {x}" for op, x in t[1]))
+    return st.recursive(
+        cmp,
+        lambda inner: st.one_of(
+            st.tuples(inner, st.sampled_from(["and", "or"]), inner).map(lambda t: f"{t[0]} {t[1]} {t[2]}"),
+            inner.map(lambda x: f"not ({x})"),
+            inner.map(lambda x: f"({x})"),
+        ),
+        max_leaves=4,
+    )
+
+
+@settings(max_examples=300, deadline=None)
+@given(_bool())
+def test_rules_agree_with_python_on_random_expressions(rule):
+    # the outside answer: Python itself, on names that are identifiers (no division: IEEE rules differ)
+    # (min and max of one argument are that argument in rules, as in numpy, not an error as in Python)
+    funcs = {"abs": abs, "min": lambda *xs: min(xs), "max": lambda *xs: max(xs)}
+    assert evaluate_rule(rule, _VALUES) is bool(eval(rule, funcs, dict(_VALUES)))  # noqa: S307

@@ -6,27 +6,22 @@ full test set") and a rule that checks it from our numbers::
     nmf_frobenius.l_full > svm.l_full
     0.8 <= 16.nmf_kl.l_full < 1 and abs(bins_20.l_single - 0.5) < 0.1
 
-The language is parsed here by hand (no :func:`eval`): Python has no safe expression
-evaluator in the standard library, and metric names such as ``16.nmf_kl.l_full`` are not
-Python identifiers anyway.
+A rule is a Python expression over metric names, evaluated without :func:`eval`: the
+metric names (``16.nmf_kl.l_full`` is no Python identifier) are replaced by placeholders,
+the text is parsed by :func:`ast.parse`, and only a whitelist of nodes is accepted and
+walked here:
 
-Grammar (Python precedence, lowest first)::
+- numbers and metric names;
+- ``+ - * /`` and unary ``+ -``;
+- comparisons ``< <= > >= == !=``, chained as in Python (``0 < a < 1``);
+- ``and``, ``or``, ``not``;
+- the functions ``abs`` (one argument), ``min`` and ``max`` (one or more).
 
-    rule       := or_expr
-    or_expr    := and_expr ("or" and_expr)*
-    and_expr   := not_expr ("and" not_expr)*
-    not_expr   := "not" not_expr | comparison
-    comparison := sum (("<" | "<=" | ">" | ">=" | "==" | "!=") sum)*   # chained, like Python
-    sum        := product (("+" | "-") product)*
-    product    := unary (("*" | "/") unary)*
-    unary      := ("+" | "-") unary | atom
-    atom       := NUMBER | METRIC | FUNC "(" sum ("," sum)* ")" | "(" or_expr ")"
-    FUNC       := "abs" | "min" | "max"
-
-A *word* is a maximal run of ``[A-Za-z0-9_.]``. A word that is a known metric name is a
-metric; otherwise, if it reads as a decimal number (``3``, ``0.5``, ``.5``, ``1e-3``) it
-is a number; otherwise it is an unknown metric and an error. The words ``and``, ``or``,
-``not`` are operators, and ``abs``, ``min``, ``max`` are functions when a ``(`` follows.
+Precedence is Python's. A *word* is a maximal run of ``[A-Za-z0-9_.]``. A word that is a
+known metric name is a metric; otherwise, if it reads as a decimal number (``3``, ``0.5``,
+``.5``, ``1e-3``) it is a number; otherwise it is an unknown metric and an error. The
+words ``and``, ``or``, ``not`` are operators, and ``abs``, ``min``, ``max`` are functions
+when a ``(`` follows.
 
 Rules are typed: arithmetic and comparisons take numbers, ``and``/``or``/``not`` take
 truth values, and a whole rule must be a truth value. Type errors are found when the rule
@@ -39,12 +34,13 @@ follows IEEE arithmetic (``1 / 0`` is infinite).
 
 from __future__ import annotations
 
+import ast
+import bisect
 import difflib
 import math
 import re
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from ..errors import ExperimentError
 
@@ -57,9 +53,10 @@ _WORD_CHARS = re.compile(r"[A-Za-z0-9_.]+")
 _NUMBER = re.compile(r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?\Z")
 _EXPONENT_START = re.compile(r"(?:\d+(?:\.\d*)?|\.\d+)[eE]\Z")
 _EXPONENT_REST = re.compile(r"[+-]\d+")
-_OPERATORS = ("<=", ">=", "==", "!=", "<", ">", "+", "-", "*", "/", "(", ")", ",")
-_COMPARISONS = {"<", "<=", ">", ">=", "==", "!="}
+_SYMBOLS = re.compile(r"<=|>=|==|!=|[<>+\-*/(),]")
 _FUNCTIONS = {"abs": (1, 1), "min": (1, None), "max": (1, None)}
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+_COMPARE = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 
 
 def is_valid_metric_name(name: str) -> bool:
@@ -74,16 +71,6 @@ def is_valid_metric_name(name: str) -> bool:
         and name not in RESERVED_WORDS
         and _NUMBER.fullmatch(name) is None
     )
-
-
-# --------------------------------------------------------------------------- tokens
-
-
-@dataclass(frozen=True)
-class _Token:
-    kind: str  # "num", "metric", "op", "kw", "func", "end"
-    value: Any
-    pos: int
 
 
 class _Undefined(Exception):
@@ -106,17 +93,54 @@ def _unknown_metric(rule: str, name: str, names: Collection[str], pos: int) -> E
         listing = " Known metrics: " + ", ".join(known) + "."
     else:
         listing = f" ({len(known)} metrics are known.)"
-    return ExperimentError(
-        f"claim rule {rule!r}: unknown metric {name!r} at position {pos}.{hint}{listing}"
-    )
+    return ExperimentError(f"claim rule {rule!r}: unknown metric {name!r} at position {pos}.{hint}{listing}")
 
 
-def _tokenize(rule: str, names: Collection[str] | None) -> list[_Token]:
-    tokens: list[_Token] = []
+# --------------------------------------------------------------------------- words -> Python text
+
+
+@dataclass
+class _Source:
+    """The rule rewritten as Python text, with a map from its offsets back to the rule's."""
+
+    rule: str
+    text: str
+    starts: list[int]  # offsets in text where a piece begins
+    origins: list[int]  # the rule offset of each piece
+    tokens: list[tuple[int, str]]  # (rule offset, token as written), in order
+    metrics: dict[str, str]  # placeholder -> metric name
+
+    def position(self, offset: int) -> int:
+        """The rule offset of Python-text ``offset``."""
+        i = max(bisect.bisect_right(self.starts, offset) - 1, 0)
+        return min(self.origins[i] + max(offset - self.starts[i], 0), len(self.rule))
+
+    def token_at(self, pos: int) -> str:
+        """A description of the rule's token at ``pos`` (or the end of the rule)."""
+        for start, tok in self.tokens:
+            if start >= pos:
+                return repr(tok)
+        return "end of rule"
+
+
+def _rewrite(rule: str, names: Collection[str] | None) -> _Source:
+    parts: list[str] = []
+    src = _Source(rule, "", [], [], [], {})
+    metric_ids: dict[str, str] = {}
+    length = 0
+
+    def emit(text: str, origin: int) -> None:
+        nonlocal length
+        src.starts.append(length)
+        src.origins.append(origin)
+        parts.append(text)
+        length += len(text)
+
     i, n = 0, len(rule)
     while i < n:
         ch = rule[i]
         if ch.isspace():
+            emit(" ", i)
             i += 1
             continue
         m = _WORD_CHARS.match(rule, i)
@@ -124,211 +148,108 @@ def _tokenize(rule: str, names: Collection[str] | None) -> list[_Token]:
             word, start, i = m.group(), i, m.end()
             nxt = rule[i:].lstrip()[:1]
             if names is not None and word in names:
-                tokens.append(_Token("metric", word, start))
-            elif word in ("and", "or", "not"):
-                tokens.append(_Token("kw", word, start))
-            elif word in _FUNCTIONS and nxt == "(":
-                tokens.append(_Token("func", word, start))
+                kind = "metric"
+            elif word in ("and", "or", "not") or (word in _FUNCTIONS and nxt == "("):
+                kind = "word"
             elif _NUMBER.fullmatch(word):
-                tokens.append(_Token("num", float(word), start))
+                kind = "number"
             elif _EXPONENT_START.fullmatch(word) and _EXPONENT_REST.match(rule, i):
-                # "1e-3": the word run stops at the sign of the exponent.
+                # "1e-3": the word run stops at the sign of the exponent
                 rest = _EXPONENT_REST.match(rule, i)
                 assert rest is not None
                 i = rest.end()
-                tokens.append(_Token("num", float(rule[start:i]), start))
+                word, kind = rule[start:i], "number"
             elif word in RESERVED_WORDS:
                 raise _error(rule, f"{word!r} is a function and must be followed by '('", start)
             elif names is None:
-                tokens.append(_Token("metric", word, start))
+                kind = "metric"
             else:
                 raise _unknown_metric(rule, word, names, start)
+            src.tokens.append((start, word))
+            if kind == "metric":
+                placeholder = metric_ids.setdefault(word, f"_m{len(metric_ids)}")
+                src.metrics[placeholder] = word
+                emit(placeholder, start)
+            elif kind == "number":
+                emit(repr(float(word)), start)
+            else:
+                emit(word, start)
             continue
-        for op in _OPERATORS:
-            if rule.startswith(op, i):
-                tokens.append(_Token("op", op, i))
-                i += len(op)
-                break
-        else:
+        m = _SYMBOLS.match(rule, i)
+        if m is None:
             raise _error(rule, f"unexpected character {ch!r}", i)
-    tokens.append(_Token("end", None, n))
-    return tokens
+        src.tokens.append((i, m.group()))
+        emit(m.group(), i)
+        i = m.end()
+    src.text = "".join(parts)
+    return src
 
 
-# --------------------------------------------------------------------------- parser
-#
-# Nodes are tuples; node[0] is the kind:
-#   ("num", float) ("metric", name) ("neg", x) ("bin", op, a, b) ("call", f, [args])
-#   ("cmp", [ops], [operands]) ("and", [xs]) ("or", [xs]) ("not", x)
-# Numeric kinds: num metric neg bin call; boolean kinds: cmp and or not.
-
-_NUMERIC = {"num", "metric", "neg", "bin", "call"}
+# --------------------------------------------------------------------------- checking the tree
 
 
-class _Parser:
-    def __init__(self, rule: str, tokens: list[_Token]) -> None:
-        self.rule = rule
-        self.tokens = tokens
-        self.i = 0
+def _check(node: ast.AST, src: _Source) -> str:
+    """Check ``node`` against the whitelist; return its type, ``"num"`` or ``"bool"``."""
 
-    @property
-    def tok(self) -> _Token:
-        return self.tokens[self.i]
+    def pos(n: ast.AST) -> int:
+        return src.position(getattr(n, "col_offset", 0))
 
-    def _describe(self, tok: _Token) -> str:
-        if tok.kind == "end":
-            return "end of rule"
-        if tok.kind == "num":
-            return f"number {tok.value:g}"
-        return repr(tok.value)
+    def need(n: ast.AST, want: str) -> None:
+        got = _check(n, src)
+        if got != want:
+            if want == "num":
+                raise _error(src.rule, "expected a number here, found a true/false expression", pos(n))
+            raise _error(src.rule, "expected a true/false expression (a comparison) here, found a number", pos(n))
 
-    def fail(self, message: str, tok: _Token | None = None) -> ExperimentError:
-        tok = tok or self.tok
-        return _error(self.rule, message, tok.pos)
+    if isinstance(node, ast.Constant) and type(node.value) is float:
+        return "num"
+    if isinstance(node, ast.Name) and node.id in src.metrics:
+        return "num"
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
+        need(node.operand, "num")
+        return "num"
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+        need(node.operand, "bool")
+        return "bool"
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+        need(node.left, "num")
+        need(node.right, "num")
+        return "num"
+    if isinstance(node, ast.BoolOp):
+        for value in node.values:
+            need(value, "bool")
+        return "bool"
+    if isinstance(node, ast.Compare) and all(type(op) in _COMPARE for op in node.ops):
+        for operand in [node.left, *node.comparators]:
+            need(operand, "num")
+        return "bool"
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS \
+            and not node.keywords and not any(isinstance(a, ast.Starred) for a in node.args):
+        name = node.func.id
+        lo, hi = _FUNCTIONS[name]
+        if not node.args:
+            raise _error(src.rule, f"{name}() needs at least one argument", pos(node))
+        if len(node.args) < lo or (hi is not None and len(node.args) > hi):
+            expected = f"exactly {lo}" if lo == hi else f"at least {lo}"
+            raise _error(src.rule, f"{name}() takes {expected} argument(s), got {len(node.args)}", pos(node))
+        for arg in node.args:
+            need(arg, "num")
+        return "num"
+    # point at what is not allowed: the operator of 'a ** b', the comma of 'a, b', else the node
+    first = node.left if isinstance(node, ast.BinOp) else node.elts[0] if isinstance(node, ast.Tuple) and node.elts else None
+    p = src.position(first.end_col_offset) if first is not None and first.end_col_offset is not None else pos(node)
+    while p < len(src.rule) and src.rule[p].isspace():
+        p += 1
+    raise _error(src.rule, f"unexpected {src.token_at(p)}", p)
 
-    def accept(self, kind: str, value: Any = None) -> _Token | None:
-        tok = self.tok
-        if tok.kind == kind and (value is None or tok.value == value):
-            self.i += 1
-            return tok
-        return None
 
-    def expect(self, kind: str, value: Any, what: str) -> _Token:
-        tok = self.accept(kind, value)
-        if tok is None:
-            raise self.fail(f"expected {what}, found {self._describe(self.tok)}")
-        return tok
-
-    def need(self, node: tuple, want: str, tok: _Token) -> tuple:
-        is_num = node[0] in _NUMERIC
-        if want == "num" and not is_num:
-            raise self.fail("expected a number here, found a true/false expression", tok)
-        if want == "bool" and is_num:
-            raise self.fail("expected a true/false expression (a comparison) here, found a number", tok)
-        return node
-
-    def parse(self) -> tuple:
-        if self.tok.kind == "end":
-            raise _error(self.rule, "the rule is empty")
-        node = self.or_expr()
-        if self.tok.kind != "end":
-            raise self.fail(f"unexpected {self._describe(self.tok)}")
-        if node[0] in _NUMERIC:
-            raise _error(
-                self.rule,
-                "a rule must be true or false (use a comparison such as 'a > b'), "
-                "but this one computes a number",
-            )
-        return node
-
-    def or_expr(self) -> tuple:
-        tok = self.tok
-        items = [self.and_expr()]
-        while (op := self.accept("kw", "or")) is not None:
-            items.append(self.and_expr())
-            tok = op
-        if len(items) == 1:
-            return items[0]
-        for item in items:
-            self.need(item, "bool", tok)
-        return ("or", items)
-
-    def and_expr(self) -> tuple:
-        tok = self.tok
-        items = [self.not_expr()]
-        while (op := self.accept("kw", "and")) is not None:
-            items.append(self.not_expr())
-            tok = op
-        if len(items) == 1:
-            return items[0]
-        for item in items:
-            self.need(item, "bool", tok)
-        return ("and", items)
-
-    def not_expr(self) -> tuple:
-        op = self.accept("kw", "not")
-        if op is not None:
-            return ("not", self.need(self.not_expr(), "bool", op))
-        return self.comparison()
-
-    def comparison(self) -> tuple:
-        first_tok = self.tok
-        first = self.sum()
-        ops: list[str] = []
-        operands = [first]
-        while self.tok.kind == "op" and self.tok.value in _COMPARISONS:
-            op = self.tok
-            self.i += 1
-            ops.append(op.value)
-            operand_tok = self.tok
-            operands.append(self.need(self.sum(), "num", operand_tok))
-        if not ops:
-            return first
-        self.need(first, "num", first_tok)
-        return ("cmp", ops, operands)
-
-    def sum(self) -> tuple:
-        left_tok = self.tok
-        node = self.product()
-        while self.tok.kind == "op" and self.tok.value in ("+", "-"):
-            op = self.tok
-            self.i += 1
-            right_tok = self.tok
-            right = self.product()
-            node = ("bin", op.value, self.need(node, "num", left_tok), self.need(right, "num", right_tok))
-        return node
-
-    def product(self) -> tuple:
-        left_tok = self.tok
-        node = self.unary()
-        while self.tok.kind == "op" and self.tok.value in ("*", "/"):
-            op = self.tok
-            self.i += 1
-            right_tok = self.tok
-            right = self.unary()
-            node = ("bin", op.value, self.need(node, "num", left_tok), self.need(right, "num", right_tok))
-        return node
-
-    def unary(self) -> tuple:
-        if self.tok.kind == "op" and self.tok.value in ("+", "-"):
-            op = self.tok
-            self.i += 1
-            operand_tok = self.tok
-            operand = self.need(self.unary(), "num", operand_tok)
-            return ("neg", operand) if op.value == "-" else operand
-        return self.atom()
-
-    def atom(self) -> tuple:
-        tok = self.tok
-        if tok.kind == "num":
-            self.i += 1
-            return ("num", tok.value)
-        if tok.kind == "metric":
-            self.i += 1
-            return ("metric", tok.value)
-        if tok.kind == "func":
-            self.i += 1
-            self.expect("op", "(", f"'(' after {tok.value}")
-            args = []
-            if self.tok.kind == "op" and self.tok.value == ")":
-                raise self.fail(f"{tok.value}() needs at least one argument")
-            while True:
-                arg_tok = self.tok
-                args.append(self.need(self.sum(), "num", arg_tok))
-                if self.accept("op", ",") is None:
-                    break
-            self.expect("op", ")", f"',' or ')' in the call to {tok.value}")
-            lo, hi = _FUNCTIONS[tok.value]
-            if len(args) < lo or (hi is not None and len(args) > hi):
-                expected = f"exactly {lo}" if lo == hi else f"at least {lo}"
-                raise self.fail(f"{tok.value}() takes {expected} argument(s), got {len(args)}", tok)
-            return ("call", tok.value, args)
-        if tok.kind == "op" and tok.value == "(":
-            self.i += 1
-            node = self.or_expr()
-            self.expect("op", ")", "')'")
-            return node
-        raise self.fail(f"expected a number, a metric name or '(', found {self._describe(tok)}")
+def _describe_syntax_error(exc: SyntaxError, src: _Source) -> ExperimentError:
+    if "never closed" in str(exc.msg):
+        return _error(src.rule, "expected ')', found end of rule", len(src.rule))
+    p = src.position(exc.offset - 1) if exc.offset else len(src.rule)  # Python gives 0 at the end of input
+    if p >= len(src.rule.rstrip()):
+        return _error(src.rule, "unexpected end of rule", len(src.rule))
+    return _error(src.rule, f"unexpected {src.token_at(p)}", p)
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -342,80 +263,44 @@ def _div(a: float, b: float) -> float:
     return math.copysign(math.inf, a) * math.copysign(1.0, b)
 
 
-def _compare(op: str, a: float, b: float) -> bool:
+def _compare(op: type, a: float, b: float) -> bool:
     if math.isnan(a) or math.isnan(b):
         raise _Undefined
-    if op == "<":
-        return a < b
-    if op == "<=":
-        return a <= b
-    if op == ">":
-        return a > b
-    if op == ">=":
-        return a >= b
-    if op == "==":
-        return a == b
-    return a != b
+    return {ast.Lt: a < b, ast.LtE: a <= b, ast.Gt: a > b, ast.GtE: a >= b, ast.Eq: a == b, ast.NotEq: a != b}[op]
 
 
-def _eval(node: tuple, metrics: Mapping[str, float]) -> Any:
-    kind = node[0]
-    if kind == "num":
-        return node[1]
-    if kind == "metric":
-        return float(metrics[node[1]])
-    if kind == "neg":
-        return -_eval(node[1], metrics)
-    if kind == "bin":
-        a, b = _eval(node[2], metrics), _eval(node[3], metrics)
-        op = node[1]
-        if op == "+":
-            return a + b
-        if op == "-":
-            return a - b
-        if op == "*":
-            return a * b
-        return _div(a, b)
-    if kind == "call":
-        args = [_eval(arg, metrics) for arg in node[2]]
-        if node[1] == "abs":
-            return abs(args[0])
-        if any(math.isnan(x) for x in args):
-            return math.nan
-        return min(args) if node[1] == "min" else max(args)
-    if kind == "cmp":
-        ops, operands = node[1], node[2]
-        left = _eval(operands[0], metrics)
-        for op, operand in zip(ops, operands[1:]):
-            right = _eval(operand, metrics)
-            if not _compare(op, left, right):
+def _eval(node: ast.AST, values: Mapping[str, float]):
+    if isinstance(node, ast.Constant):
+        return float(node.value)
+    if isinstance(node, ast.Name):
+        return values[node.id]
+    if isinstance(node, ast.UnaryOp):
+        x = _eval(node.operand, values)
+        return -x if isinstance(node.op, ast.USub) else (not x if isinstance(node.op, ast.Not) else x)
+    if isinstance(node, ast.BinOp):
+        a, b = _eval(node.left, values), _eval(node.right, values)
+        op = type(node.op)
+        return a + b if op is ast.Add else a - b if op is ast.Sub else a * b if op is ast.Mult else _div(a, b)
+    if isinstance(node, ast.BoolOp):
+        if isinstance(node.op, ast.And):
+            return all(_eval(v, values) for v in node.values)
+        return any(_eval(v, values) for v in node.values)
+    if isinstance(node, ast.Compare):
+        left = _eval(node.left, values)
+        for op, right_node in zip(node.ops, node.comparators):
+            right = _eval(right_node, values)
+            if not _compare(type(op), left, right):
                 return False
             left = right
         return True
-    if kind == "and":
-        return all(_eval(item, metrics) for item in node[1])
-    if kind == "or":
-        return any(_eval(item, metrics) for item in node[1])
-    if kind == "not":
-        return not _eval(node[1], metrics)
-    raise AssertionError(f"unknown node {kind}")  # pragma: no cover
-
-
-def _collect_metrics(node: tuple, out: set[str]) -> None:
-    kind = node[0]
-    if kind == "metric":
-        out.add(node[1])
-    elif kind == "neg" or kind == "not":
-        _collect_metrics(node[1], out)
-    elif kind == "bin":
-        _collect_metrics(node[2], out)
-        _collect_metrics(node[3], out)
-    elif kind in ("call", "cmp"):
-        for child in node[2]:
-            _collect_metrics(child, out)
-    elif kind in ("and", "or"):
-        for child in node[1]:
-            _collect_metrics(child, out)
+    if isinstance(node, ast.Call):
+        args = [_eval(a, values) for a in node.args]
+        if node.func.id == "abs":  # type: ignore[attr-defined]
+            return abs(args[0])
+        if any(math.isnan(x) for x in args):
+            return math.nan
+        return min(args) if node.func.id == "min" else max(args)  # type: ignore[attr-defined]
+    raise AssertionError(f"unchecked node {type(node).__name__}")  # pragma: no cover
 
 
 @dataclass(frozen=True)
@@ -432,7 +317,8 @@ class Rule:
 
     text: str
     metrics: frozenset[str]
-    _tree: tuple
+    _tree: ast.Expression
+    _placeholders: tuple[tuple[str, str], ...]  # (placeholder, metric name)
 
     def evaluate(self, metrics: Mapping[str, float]) -> bool | None:
         """Evaluate the rule on ``metrics``.
@@ -451,12 +337,14 @@ class Rule:
         missing = sorted(name for name in self.metrics if name not in metrics)
         if missing:
             raise _unknown_metric(self.text, missing[0], list(metrics), self.text.find(missing[0]))
-        for name in self.metrics:
+        values: dict[str, float] = {}
+        for placeholder, name in self._placeholders:
             value = metrics[name]
             if value is None or math.isnan(float(value)):
                 return None
+            values[placeholder] = float(value)
         try:
-            return bool(_eval(self._tree, metrics))
+            return bool(_eval(self._tree.body, values))
         except _Undefined:
             return None
 
@@ -486,13 +374,28 @@ def parse_rule(rule: str, names: Collection[str] | None = None) -> Rule:
     """
     if not isinstance(rule, str):
         raise ExperimentError(f"a claim rule must be a string; got {type(rule).__name__}.")
+    if not rule.strip():
+        raise _error(rule, "the rule is empty")
     if names is not None and not isinstance(names, (set, frozenset, dict)):
         names = frozenset(names)
-    tokens = _tokenize(rule, names)
-    tree = _Parser(rule, tokens).parse()
-    used: set[str] = set()
-    _collect_metrics(tree, used)
-    return Rule(text=rule, metrics=frozenset(used), _tree=tree)
+    src = _rewrite(rule, names)
+    try:
+        tree = ast.parse(src.text.strip(), mode="eval")
+    except SyntaxError as exc:
+        lead = len(src.text) - len(src.text.lstrip())
+        if exc.offset:
+            exc.offset += lead
+        raise _describe_syntax_error(exc, src) from None
+    # strip() moved the offsets: walk with the leading blank accounted for
+    lead = len(src.text) - len(src.text.lstrip())
+    if lead:
+        for node in ast.walk(tree):
+            if hasattr(node, "col_offset"):
+                node.col_offset += lead  # type: ignore[attr-defined]
+    if _check(tree.body, src) != "bool":
+        raise _error(rule, "a rule must be true or false (use a comparison such as 'a > b'), but this one computes a number")
+    return Rule(text=rule, metrics=frozenset(src.metrics.values()), _tree=tree,
+                _placeholders=tuple(src.metrics.items()))
 
 
 def evaluate_rule(rule: str, metrics: Mapping[str, float]) -> bool | None:
