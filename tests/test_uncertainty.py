@@ -90,3 +90,49 @@ def test_a_nan_fold_is_dropped_from_the_whole_pair():
     metrics = {"a": 0.7575, "b": 0.7375}
     v = claim_verdict("a > b", metrics, {"a": a, "b": b})
     assert v.verdict == "holds" and v.support == 1.0
+
+
+def test_units_decide_what_is_paired():
+    # a leads b by 0.01 on every fold, across folds that differ by 0.3: paired, the lead is sure;
+    # declared as coming from different folds (units), it is lost in the spread between folds
+    folds = [0.2, 0.5, 0.8, 0.35, 0.65]
+    samples = {"a": [f + 0.01 for f in folds], "b": folds}
+    metrics = {"a": float(np.mean(samples["a"])), "b": float(np.mean(folds))}
+    assert claim_verdict("a > b", metrics, samples).verdict == "holds"
+    assert claim_verdict("a > b", metrics, samples, units={"a": "u", "b": "u"}).verdict == "holds"
+    apart = claim_verdict("a > b", metrics, samples, units={"a": "16-label folds", "b": "47-label folds"})
+    assert apart.verdict == "inconclusive" and 0.5 < apart.support < 0.95
+
+
+def test_result_checks_sample_units():
+    from mmconcepts.errors import ExperimentError
+    from mmconcepts.experiments import Result
+
+    ok = Result(metrics={"a": 1.0, "b": 2.0}, samples={"a": [1, 1], "b": [2, 2, 2]}, sample_units={"a": "x", "b": "y"})
+    ok.validate()
+    with pytest.raises(ExperimentError, match="same length"):
+        Result(metrics={"a": 1.0, "b": 2.0}, samples={"a": [1, 1], "b": [2, 2, 2]},
+               sample_units={"a": "x", "b": "x"}).validate()
+    with pytest.raises(ExperimentError, match="has no samples"):
+        Result(metrics={"a": 1.0}, sample_units={"a": "x"}).validate()
+
+
+def test_runner_stores_units_and_the_report_uses_them(toy, tmp_path):
+    import json
+
+    from mmconcepts.experiments import Claim, Result, run_experiment
+    from mmconcepts.report import write_report
+
+    folds = [0.2, 0.5, 0.8, 0.35, 0.65]
+    exp = toy.make_experiment(
+        "toy-units",
+        lambda c, x: Result(metrics={"a": float(np.mean(folds)) + 0.01, "b": float(np.mean(folds))},
+                            samples={"a": [f + 0.01 for f in folds], "b": folds},
+                            sample_units={"a": "first folds", "b": "other folds"}),
+        claims=[Claim("a beats b", "a > b")],
+    )
+    record = run_experiment(exp, output=tmp_path, progress=False)
+    assert record["sample_units"] == {"a": "first folds", "b": "other folds"}
+    assert record["claims"][0]["verdict"] == "inconclusive"
+    assert json.loads((tmp_path / "toy-units.json").read_text())["sample_units"]["a"] == "first folds"
+    assert "| a beats b | a &gt; b | inconclusive |" in write_report(tmp_path)[1].read_text()

@@ -232,7 +232,14 @@ class Result:
         (each name must also be in ``metrics``). The runner turns them into a 95 %
         interval and uses them to decide claims beyond their uncertainty: metrics whose
         samples have the same length are taken to come from the same folds or seeds and
-        are resampled together (a paired bootstrap).
+        are resampled together (a paired bootstrap), unless ``sample_units`` says
+        otherwise.
+    sample_units : dict of str to str
+        Optional: the unit of a metric's samples (``"16-label folds"``, ``"seeds"``). Metrics
+        with the same unit are paired (their samples must then have the same length and
+        order); metrics with different units are resampled independently, even when their
+        samples have the same length. A metric without an entry is paired with every other
+        metric without one whose samples have the same length.
     """
 
     metrics: dict[str, float] = field(default_factory=dict)
@@ -241,6 +248,7 @@ class Result:
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
     samples: dict[str, list[float]] = field(default_factory=dict)
+    sample_units: dict[str, str] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Check names and types; raise :class:`ExperimentError` naming the culprit."""
@@ -272,6 +280,22 @@ class Result:
                 isinstance(v, numbers.Real) and not isinstance(v, bool) for v in values
             ):
                 raise ExperimentError(f"samples[{name!r}] must be a list of real numbers; got {values!r:.80}.")
+        lengths: dict[str, tuple[str, int]] = {}
+        for name, unit in self.sample_units.items():
+            if name not in self.samples:
+                raise ExperimentError(
+                    f"sample_units gives a unit for {name!r}, which has no samples; give samples[{name!r}] or drop "
+                    "the entry."
+                )
+            if not isinstance(unit, str) or not unit:
+                raise ExperimentError(f"sample_units[{name!r}] must be a non-empty string; got {unit!r}.")
+            first = lengths.setdefault(unit, (name, len(self.samples[name])))
+            if first[1] != len(self.samples[name]):
+                raise ExperimentError(
+                    f"metrics of unit {unit!r} are paired, so their samples must have the same length: "
+                    f"{first[0]!r} has {first[1]}, {name!r} has {len(self.samples[name])}; give them different units "
+                    "if they do not come from the same folds or seeds."
+                )
 
 
 class _WarningsCarried:

@@ -19,6 +19,8 @@ A result record is a JSON object with a stable schema (``schema_version`` 2)::
     metrics         name -> number (null for NaN or infinite, read back as NaN)
     intervals       name -> [low, high], the 95 % t interval of a metric with samples
     samples         name -> the per-fold / per-seed values behind a metric
+    sample_units    name -> the unit of its samples, where the experiment names one
+                    (metrics of one unit are paired in the bootstrap)
     reference       name -> the thesis' number
     claims          [{text, rule, holds, verdict, support, basis}]
                     holds: the rule on the reported numbers (true, false or null);
@@ -113,6 +115,7 @@ RECORD_KEYS = (
     "metrics",
     "intervals",
     "samples",
+    "sample_units",
     "reference",
     "claims",
     "tables",
@@ -245,6 +248,7 @@ def load_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
                 claim.setdefault("verdict", {True: "holds", False: "fails"}.get(claim.get("holds"), "not evaluated"))
     obj.setdefault("intervals", {})
     obj.setdefault("samples", {})
+    obj.setdefault("sample_units", {})
     obj.setdefault("warnings", [])
     return obj
 
@@ -519,6 +523,7 @@ def run_experiment(
         "metrics": {},
         "intervals": {},
         "samples": {},
+        "sample_units": {},
         "reference": dict(exp.reference),
         "claims": [
             {"text": c.text, "rule": c.rule, "holds": None, "verdict": "not evaluated", "support": None, "basis": ""}
@@ -589,7 +594,7 @@ def run_experiment(
         metrics = {name: float(value) for name, value in result.metrics.items()}
         samples = {name: [float(v) for v in values] for name, values in result.samples.items()}
         for claim in record["claims"]:
-            verdict = claim_verdict(claim["rule"], metrics, samples)
+            verdict = claim_verdict(claim["rule"], metrics, samples, units=result.sample_units)
             claim.update(holds=verdict.holds, verdict=verdict.verdict, support=verdict.support, basis=verdict.basis)
         intervals = {}
         for name, values in samples.items():
@@ -604,6 +609,7 @@ def run_experiment(
             logger.warning("%s: infinite metric(s) stored as null: %s", exp.id, ", ".join(bad))
         record["metrics"] = to_jsonable(metrics, where="metrics")
         record["samples"] = to_jsonable(samples, where="samples")
+        record["sample_units"] = {str(k): str(v) for k, v in result.sample_units.items()}
         record["intervals"] = to_jsonable(intervals, where="intervals")
         record["tables"] = {
             str(name): to_jsonable(table.to_dict(), where=f"tables[{name!r}]") for name, table in result.tables.items()
@@ -630,8 +636,8 @@ def run_experiment(
             _close_figures(result.figures)
 
     if record["status"] != "ok":
-        for key, empty in (("metrics", {}), ("intervals", {}), ("samples", {}), ("tables", {}), ("figures", {}),
-                           ("notes", []), ("extra", {})):
+        for key, empty in (("metrics", {}), ("intervals", {}), ("samples", {}), ("sample_units", {}), ("tables", {}),
+                           ("figures", {}), ("notes", []), ("extra", {})):
             record[key] = empty
         for claim in record["claims"]:
             claim.update(holds=None, verdict="not evaluated", support=None, basis="")

@@ -10,8 +10,9 @@ or draws, the per-fold values behind it (``samples[name]``, see
   scores). A t interval rather than a percentile bootstrap, because quick protocols have
   3-10 folds, where the bootstrap's intervals are too narrow.
 - :func:`claim_verdict` decides a claim beyond that uncertainty by a *t-calibrated paired
-  bootstrap*: metrics whose samples have the same length are taken to come from the same
-  folds (or seeds) and are resampled together, so that a comparison of two learners on the
+  bootstrap*: metrics of the same unit (``units``; by default, metrics whose samples have
+  the same length) are taken to come from the same folds (or seeds) and are resampled
+  together, so that a comparison of two learners on the
   same folds is judged on its paired differences. Each replicate moves every sampled metric
   by the mean of its resampled deviations from the sample mean, scaled by
   ``c = t(0.975, n-1) / z(0.975) * sqrt(n / (n-1))`` so that a single metric's replicates
@@ -113,6 +114,7 @@ def claim_verdict(
     *,
     level: float = LEVEL,
     n_boot: int = _N_BOOT,
+    units: Mapping[str, str] | None = None,
 ) -> Verdict:
     """Decide a claim rule beyond the uncertainty of its metrics (see the module docstring).
 
@@ -126,6 +128,10 @@ def claim_verdict(
         Per-fold/per-seed values of some metrics.
     level : float, default=0.95
     n_boot : int, default=2000
+    units : mapping of str to str, optional
+        The unit of a metric's samples: metrics of one unit are resampled together (paired),
+        metrics of different units independently. A metric without a unit is paired with
+        the other metrics without one whose samples have the same length.
 
     Returns
     -------
@@ -145,24 +151,25 @@ def claim_verdict(
         values = (samples or {}).get(name)
         if values is not None and len(values) >= 2:
             raw[name] = np.asarray([np.nan if v is None else float(v) for v in values], dtype=float)
-    # samples of the same length are paired (same folds or seeds); a fold that is NaN in one
-    # metric of a group is dropped from the whole group, so that the pairs stay aligned
-    groups: dict[int, list[str]] = {}
+    # samples of one unit (by default: of the same length) are paired (same folds or seeds); a
+    # fold that is NaN in one metric of a group is dropped from the whole group, so that the
+    # pairs stay aligned
+    groups: dict[tuple[str, int], list[str]] = {}
     for name, x in raw.items():
-        groups.setdefault(x.size, []).append(name)
+        groups.setdefault(((units or {}).get(name, ""), x.size), []).append(name)
     used: dict[str, np.ndarray] = {}
+    paired: list[list[str]] = []
     for names in groups.values():
         keep = np.logical_and.reduce([np.isfinite(raw[name]) for name in names])
         if keep.sum() >= 2:
             used.update({name: raw[name][keep] for name in names})
+            paired.append(names)
     if not used:
         return Verdict(point, "holds" if point else "fails", None, "reported numbers (no per-fold or per-seed samples)")
     rng = np.random.default_rng(_BOOT_SEED)
-    groups = {}
-    for name, x in used.items():
-        groups.setdefault(x.size, []).append(name)
     shifts: dict[str, np.ndarray] = {}
-    for n, names in groups.items():
+    for names in paired:
+        n = used[names[0]].size
         idx = rng.integers(0, n, size=(n_boot, n))
         c = stats.t.ppf(0.5 + level / 2, n - 1) / stats.norm.ppf(0.5 + level / 2) * math.sqrt(n / (n - 1))
         for name in names:
@@ -179,7 +186,7 @@ def claim_verdict(
         n_eval += 1
         n_true += bool(value)
     support = n_true / n_eval if n_eval else None
-    sizes = ", ".join(str(n) for n in sorted(groups))
+    sizes = ", ".join(str(n) for n in sorted({used[names[0]].size for names in paired}))
     basis = f"t-calibrated paired bootstrap over {sizes} folds/seeds ({n_boot} replicates)"
     if support is None:
         return Verdict(point, "inconclusive", None, basis)

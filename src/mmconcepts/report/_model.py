@@ -174,7 +174,7 @@ def _claims(record: dict[str, Any]) -> list[ClaimView]:
             views.append(ClaimView(text, rule, None))
             continue
         try:
-            decided = claim_verdict(rule, metrics, samples)
+            decided = claim_verdict(rule, metrics, samples, units=record.get("sample_units") or {})
         except ExperimentError as exc:
             views.append(ClaimView(text, rule, None, error=str(exc).splitlines()[0]))
             continue
