@@ -67,7 +67,49 @@ def test_tiny_run_keeps_per_repeat_samples():
         assert len(res.samples[name]) == TINY.n_repeats
         assert res.metrics[name] == pytest.approx(np.median(res.samples[name]))
     assert len(set(res.samples["random_dictionary.distance"])) == TINY.n_repeats  # one draw per repeat
-    assert "mu_mm.max_relative_increase" not in res.samples  # a worst case, not an average
+
+
+def test_tiny_run_keeps_samples_behind_every_claim():
+    from mmconcepts.experiments.rules import parse_rule
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    res = run(TINY, RunContext(show_progress=False))
+    m, s = res.metrics, res.samples
+    # the property check keeps its maximum, with one sample per MM run: 2 kinds x 2 repeats x 1 beta
+    per_run = s["mu_mm.max_relative_increase"]
+    assert len(per_run) == 2 * TINY.n_repeats * len(TINY.betas) and min(per_run) >= 0.0
+    assert m["mu_mm.max_relative_increase"] == max(per_run)
+    # worst cases over repeats: per-repeat samples, paired with the other per-repeat samples
+    assert len(s["identifiable.max_distance"]) == TINY.n_repeats
+    assert m["identifiable.max_distance"] == max(s["identifiable.max_distance"])
+    assert s["identifiable.worst_method_median_distance"] == s["identifiable.beta_1.mu.distance"]  # one method
+    median = np.median(s["identifiable.beta_1.mu.distance"])
+    assert m["identifiable.worst_method_median_distance"] == pytest.approx(median)
+    for claim in get("ch2-nmf-recovery").claims:
+        for name in parse_rule(claim.rule).metrics:
+            assert len(s[name]) >= 2, name
+        v = claim_verdict(claim.rule, m, s)
+        assert v.basis.startswith("t-calibrated paired bootstrap"), (claim.rule, v.basis)
+
+
+def test_max_relative_increase_known_answer():
+    from mmconcepts.experiments.ch2_nmf_recovery import max_relative_increase
+
+    assert max_relative_increase(np.array([10.0, 8.0, 8.5, 7.0, 7.2])) == pytest.approx(0.05)
+    assert max_relative_increase(np.array([10.0, 8.0, 7.0])) == 0.0  # a decrease is not an increase
+    assert np.isnan(max_relative_increase(np.array([10.0])))  # nothing recorded: nothing shown
+
+
+def test_monotonicity_claim_can_fail():
+    """An MM run whose objective rises by 1e-6 of its start fails the check, beyond the per-run spread."""
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    rule = get("ch2-nmf-recovery").claims[0].rule
+    name = "mu_mm.max_relative_increase"
+    ok = [0.0] * 12
+    assert claim_verdict(rule, {name: 0.0}, {name: ok}).verdict == "holds"
+    bad = ok[:-1] + [1e-6]
+    assert claim_verdict(rule, {name: 1e-6}, {name: bad}).verdict == "fails"
 
 
 @pytest.mark.slow
@@ -80,6 +122,8 @@ def test_quick_run_writes_result_and_report(tmp_path):
     assert on_disk["samples"]["identifiable.median_distance"]
     assert claims["mu_mm.max_relative_increase"] is True  # the MM updates are monotone
     assert on_disk["metrics"]["mu_mm.max_relative_increase"] <= 1e-9
+    assert len(on_disk["samples"]["mu_mm.max_relative_increase"]) == 2 * 3 * 6  # kinds x repeats x betas
+    assert all(c["basis"].startswith("t-calibrated paired bootstrap") for c in on_disk["claims"])
     assert on_disk["metrics"]["identifiable.median_distance"] < on_disk["metrics"]["random_dictionary.distance"] / 10
     for name in ("loss_curves", "distances"):
         assert (tmp_path / on_disk["figures"][name]).stat().st_size > 1000
