@@ -275,7 +275,10 @@ def run(config: Config, ctx: RunContext) -> Result:
                f"{len(folds)} folds (it stops at the iteration limit, as in the thesis).",
                "The thesis gives no number for section 5.4; the reference is its Table 6.4 (S+L -> L, speaker 1 of "
                "the Caregiver corpus, 10-fold CV, 0.916 +- 0.034), which is the one-keyword protocol on real speech. "
-               "Spread: per-fold values (samples)."],
+               "Spread: per-fold values (samples), paired by fold (the composed utterances of a fold are made of "
+               "that fold's recordings); the chance levels are computed, not drawn. Magnitude: the project's uniform "
+               "rule, at least three quarters of the thesis' number (before issue 12's round: within 0.1 of 0.916, "
+               "a rule of this experiment alone)."],
     )
 
 
@@ -289,8 +292,9 @@ register(Experiment(
     claims=[
         Claim("Weak supervision by keyword tags is enough for NMF on HAC to recognise keywords far above chance.",
               "nmf.accuracy > 3 * chance.accuracy"),
-        Claim("The recognition rate is of the order of the thesis' (Table 6.4, S+L -> L: 0.916 +- 0.034): within "
-              "0.1 of it.", "abs(nmf.accuracy - 0.916) < 0.1"),
+        Claim("The recognition rate is of the order of the thesis' (Table 6.4, S+L -> L: 0.916 +- 0.034): at least "
+              "three quarters of the thesis' 0.916 (the project's uniform magnitude rule).",
+              "nmf.accuracy >= 0.75 * 0.916"),
         Claim("The cluster-tree voting system also recognises keywords far above chance.",
               "voting.accuracy > 3 * chance.accuracy"),
         Claim("The two systems reach similar accuracies (section 5.2.4: 'quite similar'), within 0.15.",
