@@ -61,13 +61,21 @@ from .base import RunContext, Streams, streams
 __all__ = ["Streams", "streams", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
            "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
            "MSR_ACTIONS", "SPEECH_SETS", "MOTION_SETS", "IMAGE_SETS", "image_locals", "image_concepts",
-           "child_seeds", "space_pairs", "gesture_mapping", "eth80_objects"]
+           "child_seeds", "space_pairs", "gesture_mapping", "eth80_objects", "KEYWORDS_NOTE"]
 
 #: Metric names of the tables -> metric of :func:`mmconcepts.multimodal.pairwise_divergence`.
 #: "kl" is the thesis' setting: the data are not normalised per example, so the divergence
 #: is the I-divergence (generalised KL, section 6.6.1); "kl_normalised" is the KL divergence
 #: after normalising both sides to sum to one, reported beside it.
 METRIC_NAMES = {"kl": "idiv", "kl_normalised": "kl", "euclidean": "euclidean", "cosine": "cosine"}
+
+#: The thesis' "13 or 10 keywords" ambiguity and the reading taken (in every chapter-6 experiment's notes).
+KEYWORDS_NOTE = (
+    "Thesis ambiguity, 13 or 10 keywords: the Caregiver corpus is described with 13 keywords (sections 5.2 and "
+    "B.1), chapter 6 with 10 (section 6.5.2: '1000 utterances containing 10 keywords'; Table 6.1 lists ten; "
+    "'we consider 10 semantic classes'). Reading taken: 10 concepts, so chance is 0.1 (the thesis' baseline "
+    "0.11 comes from its non-uniform keyword counts, footnote 6); the generated corpus uses the ten keywords of "
+    "Table 6.1, FSDD its ten digit words, and a real corpus the keywords of its first speaker's utterances.")
 
 SPEECH_SETS = ("acorns", "fsdd", "audio")
 MOTION_SETS = ("choreo2", "msr-action3d")
