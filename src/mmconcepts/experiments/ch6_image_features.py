@@ -133,10 +133,18 @@ def run(config: Config, ctx: RunContext) -> Result:
             metrics[f"{name}.{key}"] = float(v.mean())
             metrics[f"{name}.{key}_std"] = float(v.std())
     singles = [s for s in SETS if s != "all"]
-    metrics["best_single.i2s"] = max(metrics[f"{s}.i2s"] for s in singles)
-    metrics["best_single.s2i"] = max(metrics[f"{s}.s2i"] for s in singles)
-    best = max(singles, key=lambda s: metrics[f"{s}.i2s"] + metrics[f"{s}.s2i"])
-    metrics["best_single_is_color"] = float(best.startswith("color"))
+    for name in SETS:  # both directions together, per repetition (a linear summary: its samples are exact)
+        metrics[f"{name}.both"] = float(np.mean([metrics[f"{name}.i2s"], metrics[f"{name}.s2i"]]))
+    samples = common.fold_samples(reps, metrics)
+    for name in SETS:
+        samples[f"{name}.both"] = [float((r[f"{name}.i2s"] + r[f"{name}.s2i"]) / 2) for r in reps]
+    # descriptive oracle only (a maximum over sets chosen on the test results; no claim uses it): the set best on
+    # average, with that set's per-repetition values as samples
+    for key in ("i2s", "s2i"):
+        top = max(singles, key=lambda s, key=key: metrics[f"{s}.{key}"])
+        metrics[f"best_single.{key}"] = metrics[f"{top}.{key}"]
+        samples[f"best_single.{key}"] = list(samples[f"{top}.{key}"])
+    best = max(singles, key=lambda s: metrics[f"{s}.both"])
     rows = [[s, metrics[f"{s}.i2s"], metrics[f"{s}.i2s_std"], metrics[f"{s}.s2i"], metrics[f"{s}.s2i_std"]] for s in SETS]
     fig = Figure(figsize=(7, 3.5))
     ax = fig.subplots()
@@ -153,7 +161,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     fig.tight_layout()
     return Result(
         metrics=metrics,
-        samples=common.fold_samples(reps, metrics),
+        samples=samples,
         tables={"fig6_4": Table("Fig. 6.4: success rates by image descriptor set",
                                 ["descriptors", "I -> S", "std", "S -> I", "std"], rows)},
         figures={"fig6_4": fig},
@@ -163,7 +171,19 @@ def run(config: Config, ctx: RunContext) -> Result:
                "into training / test / reference parts by concept and paired within their part (a view never "
                "serves in two parts); internal space, cosine, one reference example per concept; "
                f"k = {config.k}, {config.n_iter} iterations. Best single set: {best}.",
-               "Concepts (random bijection): " + ", ".join(f"{k} -> {v}" for k, v in mapping.items()) + "."],
+               "Concepts (random bijection): " + ", ".join(f"{k} -> {v}" for k, v in mapping.items()) + ".",
+               "Uncertainty: each success rate is the mean over the repetitions, with the per-repetition values as "
+               "samples (all sets scored on the same repetitions, so compared pairwise); '<set>.both' is the mean of "
+               "I -> S and S -> I. best_single.* (the single set with the best mean) is a descriptive oracle chosen "
+               "on the test results: no claim uses it.",
+               "Thesis ambiguities of Fig. 6.4 and the readings taken: (1) the caption speaks of 'cross-validation', "
+               "the text of runs 'for various combinations of train, test, and reference examples, the latter always "
+               "taken outside the two previous sets': repeated random 60/20/20 training / test / reference splits "
+               "(the proportions are ours; the thesis gives none); (2) 'the color and color-pairs representations "
+               "work best': each of the two beats every other single set, with both directions averaged (the figure "
+               "shows the two directions side by side); (3) 'nearly as well as the best of the representations': "
+               "within 0.1 of the best single set, in each direction.",
+               common.KEYWORDS_NOTE],
     )
 
 
@@ -179,9 +199,15 @@ register(Experiment(
               "min(keypoints.i2s, keypoint_pairs.i2s, color.i2s, color_pairs.i2s, color_triplets.i2s) > 2 * chance and "
               "min(keypoints.s2i, keypoint_pairs.s2i, color.s2i, color_pairs.s2i, color_triplets.s2i) > 2 * chance"),
         Claim("The system is robust to adding information: all descriptor sets together do nearly as well as the best "
-              "set alone (within 0.1).",
-              "all.i2s > best_single.i2s - 0.1 and all.s2i > best_single.s2i - 0.1"),
-        Claim("The colour representations work best (on the thesis' robot images).", "best_single_is_color == 1"),
+              "set alone (within 0.1), in both directions. The best set is the maximum over the five sets' means, "
+              "taken inside the rule so that the bootstrap carries it (a maximum of noisy means is biased upwards: "
+              "the claim is conservative).",
+              "all.i2s > max(keypoints.i2s, keypoint_pairs.i2s, color.i2s, color_pairs.i2s, color_triplets.i2s) - 0.1 "
+              "and all.s2i > max(keypoints.s2i, keypoint_pairs.s2i, color.s2i, color_pairs.s2i, color_triplets.s2i) "
+              "- 0.1"),
+        Claim("The colour and colour-pair representations work best (thesis, on its robot images): each of them beats "
+              "every other single set, success averaged over I -> S and S -> I, paired over the repetitions.",
+              "min(color.both, color_pairs.both) > max(keypoints.both, keypoint_pairs.both, color_triplets.both)"),
     ],
     datasets=("fsdd", "eth80", "acorns", "audio", "images"),
     description=__doc__.split("\n\n")[0],
