@@ -176,10 +176,14 @@ def run(config: Config, ctx: RunContext) -> Result:
     ones = [f"{a}2{b}" for a, b in permutations(MODS, 2)]
     metrics["two.mean_1to1"] = float(np.mean([metrics[f"two.{s}"] for s in ones]))
     metrics["three.mean_1to1"] = float(np.mean([metrics[f"three.{s}"] for s in ones]))
-    metrics["three.min_all"] = min(metrics[_key(*s)] for s in _setups() if len(s[0]) == 3)
     samples = common.fold_samples(reps, metrics)
     for which in ("two", "three"):  # per repetition, the mean one-to-one success (a linear summary)
         samples[f"{which}.mean_1to1"] = [float(np.mean([r[f"{which}.{s}"] for s in ones])) for r in reps]
+    # per repetition, the worst of the twelve setups learnt from three modalities; the metric is the mean of these
+    # minima (at most the minimum of the setups' means, shown in the table), so that metric and samples agree
+    three_setups = [_key(*s) for s in _setups() if len(s[0]) == 3]
+    samples["three.min_all"] = [float(min(r[k] for k in three_setups)) for r in reps]
+    metrics["three.min_all"] = float(np.mean(samples["three.min_all"]))
 
     setups = _setups()
     rows = [[t, te, rf, metrics[_key(t, te, rf)], metrics[f"{_key(t, te, rf)}_std"]] for t, te, rf in setups]
@@ -220,7 +224,27 @@ def run(config: Config, ctx: RunContext) -> Result:
                f"{len(y)} examples (speaker {speech['speaker']}); {config.n_repeats} repetitions, each with new random "
                "keyword <-> gesture <-> object associations and a new 60/20/20 training / test / reference split of "
                "each modality by concept, examples paired within their part (no record or view serves in two "
-               f"parts); k = {config.k} unless swept; internal space, cosine."],
+               f"parts); k = {config.k} unless swept; internal space, cosine.",
+               "Uncertainty: every success rate is the mean over the repetitions, with the per-repetition values as "
+               "samples (all from the same repetitions, so compared pairwise). three.min_all is, per repetition, the "
+               "worst of the twelve setups learnt from three modalities (one-to-one, two-to-one, one-to-two), "
+               f"averaged over the repetitions ({metrics['three.min_all']:.3f}; the lowest setup mean is "
+               f"{min(metrics[k] for k in three_setups):.3f}).",
+               "Thesis ambiguities of Fig. 6.5-6.7 and the readings taken: (1) the captions speak of "
+               "'cross-validation', the text of '20 repetitions of the experiment with random label associations, "
+               "test set, train set, and reference examples': repetitions, each with new associations and a new "
+               "random 60/20/20 split (the proportions are ours); (2) the text says 'Figure 6.6 compares ... two "
+               "modalities ... and the case where an additional modality was also present during testing', then "
+               "'therefore fig. 6.6 present the same experiment for various values of k', and Fig. 6.6's caption is "
+               "the k sweep: Fig. 6.6 is the k sweep, the two-against-three comparison at k = 50 is read from the "
+               "one-to-one setups of Fig. 6.5 and 6.7, and 'present during testing' is read as 'during training'; "
+               "(3) Fig. 6.5's caption says 'six [testing setups] when two modalities are used for training' where "
+               "only three modalities give six one-to-one setups: read as 'three modalities', so Fig. 6.5 shows the "
+               "one-to-one setups only (two per pair of modalities, six with three) and Fig. 6.7 adds the two-to-one "
+               "and one-to-two setups learnt from three modalities; (4) the image modality uses the colour "
+               "descriptors ('that give the best results' in Fig. 6.4 on the thesis' images), whatever Fig. 6.4 "
+               "finds on ours.",
+               common.KEYWORDS_NOTE],
     )
 
 
@@ -233,7 +257,8 @@ register(Experiment(
     reference={},
     claims=[
         Claim("The semantic concepts are learnt when three modalities are present: every setup (one-to-one, "
-              "two-to-one, one-to-two) succeeds above twice chance.", "three.min_all > 2 * chance"),
+              "two-to-one, one-to-two) succeeds above twice chance (the worst setup of each repetition, on average).",
+              "three.min_all > 2 * chance"),
         Claim("A third modality neither helps nor hurts much: the mean one-to-one success with three modalities is "
               "within 0.1 of that with the two modalities tested.", "abs(three.mean_1to1 - two.mean_1to1) < 0.1"),
     ],
