@@ -79,6 +79,8 @@ def test_tiny_run_keeps_samples_behind_every_claim():
     per_run = s["mu_mm.max_relative_increase"]
     assert len(per_run) == 2 * TINY.n_repeats * len(TINY.betas) and min(per_run) >= 0.0
     assert m["mu_mm.max_relative_increase"] == max(per_run)
+    assert res.sample_units["mu_mm.max_relative_increase"] == "MM runs"  # paired with nothing
+    assert {res.sample_units[k] for k in s if k != "mu_mm.max_relative_increase"} == {"repeats"}
     # worst cases over repeats: per-repeat samples, paired with the other per-repeat samples
     assert len(s["identifiable.max_distance"]) == TINY.n_repeats
     assert m["identifiable.max_distance"] == max(s["identifiable.max_distance"])
@@ -88,7 +90,7 @@ def test_tiny_run_keeps_samples_behind_every_claim():
     for claim in get("ch2-nmf-recovery").claims:
         for name in parse_rule(claim.rule).metrics:
             assert len(s[name]) >= 2, name
-        v = claim_verdict(claim.rule, m, s)
+        v = claim_verdict(claim.rule, m, s, units=res.sample_units)
         assert v.basis.startswith("t-calibrated paired bootstrap"), (claim.rule, v.basis)
 
 

@@ -182,7 +182,7 @@ def run(config: Config, ctx: RunContext) -> Result:
                              float(np.median([r["seconds"] for r in sel]))])
     # the property check keeps its maximum over every MM run (the updates never increase the objective);
     # its samples are each run's own maximum, in task order (kind, repeat, beta): 2 x n_repeats x len(betas)
-    # values, a length no other sample set of this experiment has (they are not paired with anything)
+    # values, of their own unit ("MM runs", paired with nothing)
     mm = [r for r in runs if r["solver"] == "mu" and r["rule"] == "mm"]
     metrics["mu_mm.max_relative_increase"] = float(np.max([r["max_rel_increase"] for r in mm]))
     samples["mu_mm.max_relative_increase"] = [r["max_rel_increase"] for r in mm]
@@ -250,6 +250,8 @@ def run(config: Config, ctx: RunContext) -> Result:
 
     return Result(metrics=metrics, tables={"recovery": table}, figures={"loss_curves": fig_loss, "distances": fig_dist},
                   samples=samples,
+                  sample_units={name: "MM runs" if name == "mu_mm.max_relative_increase" else "repeats"
+                                for name in samples},
                   notes=["The thesis gives no numbers for this check; its claims are qualitative (section 2.1.2, "
                          "Appendix A.2).",
                          f"{config.n_repeats} repeats per data kind; distances are medians over repeats, with the "
@@ -258,7 +260,7 @@ def run(config: Config, ctx: RunContext) -> Result:
                          "identifiable.worst_method_median_distance: the per-repeat distances of the method with the "
                          "worst median, "
                          f"{worst}; identifiable.max_distance, the worst run over all methods and repeats: per repeat, "
-                         "the worst run of that repeat). All per-repeat samples are paired by repeat (the same data).",
+                         "the worst run of that repeat). All per-repeat samples are of one unit, repeats, and paired by repeat.",
                          "mu_mm.max_relative_increase is a property check, the largest increase of the objective "
                          "between two iterations over every multiplicative-update run with the MM exponent, relative to "
                          "the run's initial objective and 0 when it never increases; its samples are each run's own "
