@@ -249,6 +249,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     return Result(
         metrics=metrics,
         samples=samples,
+        sample_units={name: "folds" for name in samples},  # composed utterances of fold i: fold i's recordings
         tables={"per_keyword": Table("One keyword per utterance: recognition rate per keyword",
                                      ["keyword", "n", "nmf", "voting"], rows),
                 "composed": Table("One or several keywords per utterance (section 5.4): mean over folds",
