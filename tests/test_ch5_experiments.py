@@ -105,6 +105,10 @@ def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
     assert m["composed.nmf.keyword_recall"] > m["composed.chance.keyword_recall"]
     assert m["nmf.accuracy"] > 2 * m["chance.accuracy"]
     assert m["voting.accuracy"] > 2 * m["chance.accuracy"]
+    for name in _claim_metrics("ch5_nmf_keywords"):  # every claimed metric that is drawn keeps per-fold values
+        assert name == "chance.accuracy" or len(res.samples[name]) == 3, name
+    for v in _verdicts("ch5_nmf_keywords", res):
+        assert v.basis.startswith("t-calibrated paired bootstrap over 3 folds"), v.basis
 
 
 @pytest.mark.slow
@@ -359,3 +363,148 @@ def test_ch5_incremental_on_real_voices(real_fsdd_subset, tmp_path):
     assert m["single_speaker.final_accuracy"] > 3 * m["chance.accuracy"]  # real digits, one speaker
     assert "Free Spoken Digit" in res.notes[0] and "120 utterances, 2 speakers" in res.notes[0]
     assert len(res.samples["single_speaker.final_accuracy"]) == 2  # one per speaker
+
+
+# -- samples behind every claimed metric, and verdicts decided on them (issue 12) ------------------
+def _claim_metrics(module):
+    from mmconcepts.experiments.rules import parse_rule
+
+    return sorted({m for rule in _claims(module) for m in parse_rule(rule).metrics})
+
+
+def _verdicts(module, res):
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    return [claim_verdict(rule, res.metrics, res.samples, units=res.sample_units) for rule in _claims(module)]
+
+
+def test_query_blocks_keep_an_utterance_in_one_block():
+    from mmconcepts.experiments.ch5_tree import query_blocks
+
+    owner = np.array([5, 3, 5, 7, 3, 9])
+    order = np.array([9, 4, 3, 7, 5])  # utterance 4 owns no query: skipped
+    # utterances in order 9, 3, 7, 5 dealt round robin into 2 blocks: 9 -> 0, 3 -> 1, 7 -> 0, 5 -> 1
+    np.testing.assert_array_equal(query_blocks(owner, order, 2), [1, 1, 1, 0, 1, 0])
+    np.testing.assert_array_equal(query_blocks(owner, order, 10), [3, 1, 3, 2, 1, 0])  # one block per utterance
+
+
+def test_cost_fraction_at_recall_known_answer():
+    from mmconcepts.experiments.ch5_tree import cost_fraction_at_recall
+
+    recalls, costs = {2: 0.8, 4: 0.92, 8: 0.97}, {2: 50.0, 4: 70.0, 8: 110.0}
+    assert cost_fraction_at_recall(recalls, costs, 1400.0) == pytest.approx(0.05)
+    assert cost_fraction_at_recall({**recalls, 4: 0.89}, costs, 1400.0) == pytest.approx(110 / 1400)
+    assert cost_fraction_at_recall({2: 0.5, 4: 0.6}, costs, 1400.0) == 1.0  # only exact search reaches 0.9
+
+
+def test_ch5_tree_searches_by_block_match_a_hand_computation(rng):
+    """Per-block recall, cost and excess of a search, recomputed query by query on a small tree."""
+    from mmconcepts.experiments.ch5_tree import _search, block_means
+    from mmconcepts.sound.tree import ClusterTree
+
+    X = rng.normal(size=(400, 4)) * rng.uniform(0.3, 3, size=4)
+    tree = ClusterTree(1.0, metric="euclidean", random_state=0).partial_fit(X[:340])
+    Q, block = X[340:], np.arange(60) % 4
+    ex_leaf, ex_dist, ex_cost, ex_sec = _search(tree, Q, block, search="exact")
+    leaf, dist, cost, sec = _search(tree, Q, block, search="greedy")
+    assert ex_sec.shape == sec.shape == (4,) and (sec > 0).all()
+    hand = {"recall": [], "cost": [], "excess": []}
+    for k in range(4):
+        hits, costs, excess = [], [], []
+        for i in np.flatnonzero(block == k):
+            e_leaf, e_dist = tree.query(Q[i], search="exact")
+            g_leaf, g_dist, g_cost = tree.query(Q[i], search="greedy", return_stats=True)
+            hits.append(float(g_leaf == e_leaf))
+            costs.append(g_cost)
+            excess.append(g_dist / e_dist - 1)
+        hand["recall"].append(sum(hits) / len(hits))
+        hand["cost"].append(sum(costs) / len(costs))
+        hand["excess"].append(sum(excess) / len(excess))
+    np.testing.assert_allclose(block_means(leaf == ex_leaf, block), hand["recall"])
+    np.testing.assert_allclose(block_means(cost, block), hand["cost"])
+    np.testing.assert_allclose(block_means(dist / ex_dist - 1, block), hand["excess"])
+    assert 0 < np.mean(hand["recall"]) < 1  # the greedy descent misses some: the case is not trivial
+
+
+def test_ch5_tree_cost_claim_reads_recall_and_cost_of_every_restart_search():
+    from mmconcepts.experiments.ch5_tree import SEARCHES
+
+    rule = next(r for r in _claims("ch5_tree") if "exact.n_distances" in r)
+    assert "restart.cost_fraction_at_recall_0.9" not in rule
+    base = {f"restart_b{b}.{n}": v for b in (2, 4, 8, 12, 16, 24) for n, v in (("recall", 0.5), ("n_distances", 100.0))}
+    base["exact.n_distances"] = 1000.0
+    assert evaluate_rule(rule, base) is False  # no restart search reaches 0.9
+    assert evaluate_rule(rule, dict(base, **{"restart_b8.recall": 0.93})) is True  # 0.93 for 0.1 of the cost
+    assert evaluate_rule(rule, dict(base, **{"restart_b8.recall": 0.93, "restart_b8.n_distances": 250.0})) is False
+    assert len(SEARCHES) == 9
+
+
+def test_ch5_tree_samples_per_block_behind_every_claim(monkeypatch, tmp_path, fake_fsdd):
+    from mmconcepts.experiments import ch5_tree
+
+    cfg = dataclasses.replace(ch5_tree.Config.quick(), n_train_utterances=40, n_queries=60, n_blocks=5)
+    seen = {}
+    real_plan = ch5_tree._plan
+
+    def spy(*args):
+        out = real_plan(*args)
+        seen["block"] = out[2]
+        return out
+
+    monkeypatch.setattr(ch5_tree, "_plan", spy)
+    res = ch5_tree.run(cfg, RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
+    res.validate()
+    m, s, block = res.metrics, res.samples, seen["block"]
+    assert block.shape == (60,) and set(block.tolist()) == set(range(5))
+    used = _claim_metrics("ch5_tree")
+    timed = [k for k in m if k.endswith((".recall", ".n_distances", ".ms_per_query", ".distance_excess"))]
+    for name in set(used) | set(timed) | {"restart.cost_fraction_at_recall_0.9"}:
+        if name == "exact.recall" or np.isnan(m[name]):
+            continue
+        assert len(s[name]) == 5, name  # one value per block, the same blocks for every search: paired
+    sizes = np.bincount(block)
+    for name in ("greedy.recall", "restart_b4.n_distances", "best_children_b2.distance_excess", "exact.n_distances"):
+        # a pooled mean over queries is the size-weighted mean of the block means
+        assert np.average(s[name], weights=sizes) == pytest.approx(m[name])
+    assert m["exact.n_distances"] == m["n_leaves"] and s["exact.n_distances"] == [m["n_leaves"]] * 5
+    assert res.sample_units == {name: "query blocks" for name in s}  # one unit: every search on the same blocks
+    for v in _verdicts("ch5_tree", res):
+        assert v.basis.startswith("t-calibrated paired bootstrap over 5 folds"), v.basis
+
+
+def test_ch5_incremental_final_accuracies_keep_one_hit_per_test_utterance(tmp_path, rng):
+    from mmconcepts.experiments.ch5_incremental import Config, run
+
+    fsdd = _fake_fsdd(tmp_path / "fsdd", rng, speakers=("amy", "bob", "cy"), per_digit=3)
+    cfg = dataclasses.replace(Config.quick(), n_train=10, n_test=10, session=5, multi_session=10)
+    res = run(cfg, RunContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
+    res.validate()
+    m, s = res.metrics, res.samples
+    multi = s["multi_speaker.final_accuracy"]
+    assert len(multi) == 30 and set(multi) <= {0.0, 1.0}
+    assert np.mean(multi) == pytest.approx(m["multi_speaker.final_accuracy"])
+    assert m["multi_speaker.final_accuracy"] == res.tables["multi_speaker"].rows[-1][1]
+    for j in (1, 2, 3):
+        single, per = s[f"single_speaker.speaker_{j}.final_accuracy"], s[f"multi_speaker.speaker_{j}.final_accuracy"]
+        assert len(single) == len(per) == 10 and set(single) <= {0.0, 1.0}  # same test utterances: paired
+        assert np.mean(single) == pytest.approx(m[f"single_speaker.speaker_{j}.final_accuracy"])
+        assert np.mean(single) == pytest.approx(res.tables["single_speaker"].rows[-1][j])
+        assert per == multi[10 * (j - 1): 10 * j]  # speaker after speaker, in the same order
+        assert np.mean(per) == pytest.approx(m[f"multi_speaker.speaker_{j}.final_accuracy"])
+        units = {res.sample_units[f"{who}.speaker_{j}.final_accuracy"] for who in ("single_speaker", "multi_speaker")}
+        assert units == {f"speaker {j}'s test utterances"}  # paired, and with nothing else
+    assert len(s["single_speaker.final_accuracy"]) == 3  # one learner per speaker
+    assert len(s["multi_speaker.new_speaker_gain"]) == 2  # one per speaker after the first
+    assert res.sample_units["single_speaker.final_accuracy"] == res.sample_units["single_speaker.first_session_accuracy"]
+    assert set(res.sample_units) == set(s)
+    for name in _claim_metrics("ch5_incremental"):
+        assert name == "chance.accuracy" or len(s[name]) >= 2, name  # chance is computed, not drawn
+    for v in _verdicts("ch5_incremental", res):
+        assert v.basis.startswith("t-calibrated paired bootstrap"), v.basis
+    assert "binomial-type t interval" in " ".join(res.notes)
+
+
+def test_ch5_nmf_keywords_magnitude_claim_uses_the_uniform_rule():
+    rules = _claims("ch5_nmf_keywords")
+    assert "nmf.accuracy >= 0.75 * 0.916" in rules
+    assert not any("abs(nmf.accuracy - 0.916)" in r for r in rules)

@@ -91,7 +91,8 @@ def _learn(task: dict) -> dict:
             seen.append(start + len(batch))
             acc.append(float(ok.mean()))
             per_group.append({g: float(ok[groups[test] == g].mean()) for g in task["group_names"]})
-    return {"name": task["name"], "seen": seen, "accuracy": acc, "per_group": per_group,
+    # the last session's hits, one 0/1 value per test utterance in the order of task["test"]
+    return {"name": task["name"], "seen": seen, "accuracy": acc, "per_group": per_group, "final_hits": ok.astype(float),
             "n_leaves": int(voter.tree_.n_leaves_), "r_max": float(voter.r_max)}
 
 
@@ -130,9 +131,23 @@ def run(config: Config, ctx: RunContext) -> Result:
     firsts = [r["accuracy"][0] for r in single]
     metrics["single_speaker.final_accuracy"] = float(np.mean(finals))
     metrics["single_speaker.first_session_accuracy"] = float(np.mean(firsts))
-    for j, r in enumerate(single, 1):
+    # per test utterance (0/1) samples: the protocol draws one split and does not repeat, so the spread of a
+    # final accuracy is that of a mean over the test utterances (a binomial-type t interval). A speaker's
+    # samples are its test utterances in sorted order, for its own learner and for the several-speaker
+    # learner alike (the same utterances: the two are paired); multi_speaker.final_accuracy's are all test
+    # utterances, speaker after speaker.
+    hit_samples: dict[str, list[float]] = {}
+    units = {"single_speaker.final_accuracy": "speakers", "single_speaker.first_session_accuracy": "speakers",
+             "multi_speaker.final_accuracy": "test utterances"}
+    for j, (s, r) in enumerate(zip(speakers, single), 1):
         metrics[f"single_speaker.speaker_{j}.final_accuracy"] = r["accuracy"][-1]
+        hit_samples[f"single_speaker.speaker_{j}.final_accuracy"] = r["final_hits"].tolist()
+        mine = spk_all[multi_test] == s
+        hit_samples[f"multi_speaker.speaker_{j}.final_accuracy"] = multi["final_hits"][mine].tolist()
+        units[f"single_speaker.speaker_{j}.final_accuracy"] = units[f"multi_speaker.speaker_{j}.final_accuracy"] = \
+            f"speaker {j}'s test utterances"
     metrics["multi_speaker.final_accuracy"] = multi["accuracy"][-1]
+    hit_samples["multi_speaker.final_accuracy"] = multi["final_hits"].tolist()  # speaker after speaker
     # gain on speaker j's test utterances from learning speaker j's training utterances
     n_tr = [len(splits[s][0]) for s in speakers]
     ends = np.cumsum(n_tr)
@@ -185,14 +200,18 @@ def run(config: Config, ctx: RunContext) -> Result:
     ax.set_title("Fig. 5.4: several speakers")
     ax.legend(fontsize=7)
     fig4.tight_layout()
-    samples = {"single_speaker.final_accuracy": finals, "single_speaker.first_session_accuracy": firsts}
+    samples = {"single_speaker.final_accuracy": finals, "single_speaker.first_session_accuracy": firsts, **hit_samples}
     if gains:
         samples.update({"multi_speaker.new_speaker_before": befores, "multi_speaker.new_speaker_after": afters,
                         "multi_speaker.new_speaker_gain": gains})
+        units.update({name: "speakers after the first" for name in
+                      ("multi_speaker.new_speaker_before", "multi_speaker.new_speaker_after",
+                       "multi_speaker.new_speaker_gain")})
     leaves = ", ".join(f"speaker {j}: {r['n_leaves']} leaves (r_max {r['r_max']:.3g})" for j, r in enumerate(single, 1))
     return Result(
         metrics=metrics,
         samples=samples,
+        sample_units=units,
         tables={"single_speaker": t_single, "multi_speaker": t_multi},
         figures={"fig5_3": fig3, "fig5_4": fig4},
         notes=[common.data_source_note(ctx, corpus),
@@ -201,10 +220,16 @@ def run(config: Config, ctx: RunContext) -> Result:
                f"{config.multi_session} (several speakers) utterances; {config.window_ms:g} ms windows, "
                f"{config.metric.upper()}, restart search with b = {config.backtrack}.",
                f"Trees at the end: {leaves}; several speakers: {multi['n_leaves']} leaves.",
-               "The thesis' figures give curves without numbers; the claims are about their shape. Spread: the "
-               "single-speaker numbers have one sample per speaker (one learner each); the new-speaker numbers one "
-               "per speaker after the first (accuracy on that speaker's test utterances just before and just after "
-               "the session that ends its training utterances).",
+               "The thesis' figures give curves without numbers (its text gives none either), so no claim checks a "
+               "magnitude; the claims are about their shape. Spread: single_speaker.final_accuracy and "
+               "first_session_accuracy have one sample per speaker (one learner each, paired by speaker); the "
+               "new-speaker numbers one per speaker after the first (accuracy on that speaker's test utterances just "
+               "before and just after the session that ends its training utterances). The protocol draws one split "
+               "and does not repeat, so the final accuracy of one speaker's learner, of the several-speaker learner "
+               "on all test utterances and on each speaker's keep one 0/1 value per test utterance (hit or miss): "
+               "their interval is the binomial-type t interval of a mean over test utterances, which leaves out "
+               "the variation between splits and learners. A speaker's test utterances are the same for its own "
+               "learner and for the several-speaker learner, in the same order (paired).",
                "Reading for FSDD: the thesis' task classifies utterances that hold exactly one keyword amid carrier "
                "words. FSDD has digits only, so in an utterance composed of several digits every word would be a "
                "keyword and the one-tag task would be ill-posed; the honest equivalent is the isolated word (one "
