@@ -169,3 +169,34 @@ def test_msr_corrupt_file_is_skipped_and_named(tmp_path):
     assert "a01_s01_e03" in a.description and "a01_s01_e03" in a.info["skipped"]
     ctx = RunContext(cache_dir=tmp_path, data={"msr-action3d": tmp_path})
     assert "a01_s01_e03" in common.data_source_note(ctx, a)
+
+
+# --------------------------------------------------------------------------- units of per-fold statistics
+def _fake_folds(splits):
+    return [{"test": np.asarray(te)} for _, te in splits]
+
+
+def test_score_units_are_the_fold_test_sets_with_k_folds():
+    folds = _fake_folds(common.kfold_splits(37, 4, seed=0))
+    units = common.score_units(folds, seed=5)
+    assert len(units) == 4
+    for u, f in zip(units, folds):
+        np.testing.assert_array_equal(u, f["test"])
+
+
+def test_score_units_cut_leave_one_out_into_blocks_from_the_seed():
+    folds = _fake_folds(common.kfold_splits(37, None, seed=0))
+    units = common.score_units(folds, seed=5)
+    assert len(units) == common.N_BLOCKS == 10
+    assert sorted(len(u) for u in units) == [3] * 3 + [4] * 7  # numpy.array_split of 37 into 10
+    np.testing.assert_array_equal(np.sort(np.concatenate(units)), np.arange(37))  # a partition
+    expected = np.random.default_rng(5).permutation(37)  # the splits stream draws the blocks
+    for u, block in zip(units, np.array_split(expected, 10)):
+        np.testing.assert_array_equal(u, np.sort(block))
+    other = common.score_units(folds, seed=6)
+    assert any(not np.array_equal(a, b) for a, b in zip(units, other))
+
+
+def test_fold_thresholds_in_fold_order():
+    folds = [{"test": np.array([i]), "nmf_frobenius": {"threshold": t}} for i, t in enumerate((0.3, 0.45, 0.2))]
+    assert common.fold_thresholds(folds, "nmf_frobenius") == [0.3, 0.45, 0.2]

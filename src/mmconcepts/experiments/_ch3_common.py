@@ -26,7 +26,10 @@ Thesis section 3.3. What the experiments have in common:
 - :func:`pooled_scores` gathers the test scores of all folds (each example is tested exactly
   once) and computes l_full / l_given_number / l_single over all examples, which for
   leave-one-out is the thesis' "averaged over all possible test sets"; :func:`fold_samples`
-  gives the same scores per fold (the spread).
+  gives the same scores per fold (the spread), :func:`fold_thresholds` the threshold each
+  fold's NMF learnt. :func:`score_units` groups the test examples for per-fold statistics that
+  mean nothing on one example (a curve over thresholds, a subset's score): the folds' test
+  sets, or, under leave-one-out, blocks of examples drawn from the splits stream.
 
 Learners (names used in metric keys): ``nmf_frobenius`` and ``nmf_kl``
 (:class:`~mmconcepts.nmf.LabelNMF`, beta = 2 and 1, threshold by inner cross-validation on
@@ -67,10 +70,12 @@ __all__ = [
     "data_source_note",
     "evaluate_folds",
     "fold_samples",
+    "fold_thresholds",
     "kfold_splits",
     "msr_subset",
     "pooled",
     "pooled_scores",
+    "score_units",
     "streams",
     "subset_arrays",
     "unseen_combination_splits",
@@ -516,3 +521,42 @@ def fold_samples(folds: list[dict], Y: np.ndarray, name: str, *, single: bool = 
         out.setdefault("l_full", []).append(float(l_full(Yt, f[name]["pred"])))
         out.setdefault("l_given_number", []).append(float(l_given_number(Yt, S)))
     return out
+
+
+def fold_thresholds(folds: list[dict], name: str) -> list[float]:
+    """The threshold learner ``name`` chose by cross-validation on each training fold (fold order).
+
+    The samples of ``<set>.<name>.mean_threshold``: same folds, same order as :func:`fold_samples`.
+    """
+    return [float(f[name]["threshold"]) for f in folds]
+
+
+#: Leave-one-out test examples are grouped into this many blocks by :func:`score_units`.
+N_BLOCKS = 10
+
+
+def score_units(folds: list[dict], seed: int, *, n_blocks: int = N_BLOCKS) -> list[np.ndarray]:
+    """Groups of test examples over which a per-fold statistic is computed (its samples).
+
+    With k folds, each fold's test examples, in fold order (the units of :func:`fold_samples`).
+    With leave-one-out (every fold tests one example) a statistic of one example is 0 or 1
+    and a curve over thresholds is a step: the examples are then shuffled by ``seed`` (the
+    *splits* stream, which leave-one-out does not otherwise use) and cut into ``n_blocks``
+    blocks of nearly equal size (``numpy.array_split``), each block one unit.
+
+    Parameters
+    ----------
+    folds : fold results of :func:`evaluate_folds` (their ``test`` indices)
+    seed : int
+        The splits stream (``streams(config.seed).splits``).
+    n_blocks : int, default=:data:`N_BLOCKS`
+
+    Returns
+    -------
+    list of int arrays, a partition of the tested examples
+    """
+    tests = [np.asarray(f["test"]) for f in folds]
+    if len(tests) > n_blocks and all(t.size == 1 for t in tests):
+        order = np.random.default_rng(seed).permutation(np.concatenate(tests))
+        return [np.sort(b) for b in np.array_split(order, n_blocks)]
+    return tests
