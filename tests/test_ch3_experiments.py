@@ -4,22 +4,24 @@ from __future__ import annotations
 
 import importlib
 
+import numpy as np
 import pytest
 
 from conftest import real_data_path
+from mmconcepts.experiments import _ch3_common as common
 from mmconcepts.experiments import run_experiment
 
 TINY = {"n_folds": 3, "n_components": 20, "max_iter": 40, "inner_cv": 2, "n_records_partial": 60, "n_records_full": 90,
         "sensitivity": False}
 
 
-def _run(monkeypatch, tmp_path, module, exp_id, data=None, **tiny):
+def _run(monkeypatch, tmp_path, module, exp_id, data=None, record=False, **tiny):
     mod = importlib.import_module(f"mmconcepts.experiments.{module}")
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
     monkeypatch.setattr(mod.Config, "quick", classmethod(lambda cls: cls(**tiny)))
-    record = run_experiment(exp_id, preset="quick", output=tmp_path / "out", workers=2, progress=False, data=data)
-    assert record["status"] == "ok", record.get("message")
-    return record["metrics"]
+    out = run_experiment(exp_id, preset="quick", output=tmp_path / "out", workers=2, progress=False, data=data)
+    assert out["status"] == "ok", out.get("message")
+    return out if record else out["metrics"]
 
 
 @pytest.mark.slow
@@ -64,14 +66,49 @@ def test_representations_tiny(monkeypatch, tmp_path):
 
 @pytest.mark.slow
 def test_threshold_and_combinations_tiny(monkeypatch, tmp_path):
-    m = _run(monkeypatch, tmp_path, "ch3_threshold", "ch3-threshold", **TINY)
+    from mmconcepts.experiments import RunContext
+    from mmconcepts.experiments import ch3_threshold as thr_mod
+    from mmconcepts.experiments.ch3_choreography import evaluate_mixed
+    from mmconcepts.nmf import l_full, l_given_number
+
+    record = _run(monkeypatch, tmp_path, "ch3_threshold", "ch3-threshold", record=True, **TINY)
+    m, s = record["metrics"], record["samples"]
     assert 0.05 <= m["nmf_frobenius.cv_threshold"] <= 0.95
-    curve_ends = max(m["nmf_frobenius.lowest.l_full"], m["nmf_frobenius.highest.l_full"])
-    assert m["nmf_frobenius.best.l_full"] >= curve_ends  # the maximum of the curve
-    assert m["nmf_frobenius.best.l_full"] > 0.0
-    m = _run(monkeypatch, tmp_path, "ch3_combinations", "ch3-combinations", **TINY)
+    _bootstrap_decided(record)
+    for name in _claim_metrics("ch3-threshold"):
+        assert len(s[name]) == TINY["n_folds"], name  # one sample per fold, the same folds for all: paired
+    # the per-fold values, computed by hand from the same (cached) folds with nmf.l_full on thresholded scores
+    config = thr_mod.Config(**TINY)
+    Y, folds, _ = evaluate_mixed(config, RunContext(cache_dir=tmp_path / "cache", show_progress=False), "16")
+    central = [round(0.25 + 0.025 * i, 4) for i in range(21)]
+    for k, f in enumerate(folds):
+        Yt, St = Y[f["test"]], f["nmf_frobenius"]["scores"]
+        assert s["nmf_frobenius.lowest.l_full"][k] == pytest.approx(l_full(Yt, St, threshold=0.05))
+        assert s["nmf_frobenius.highest.l_full"][k] == pytest.approx(l_full(Yt, St, threshold=0.95))
+        values = [l_full(Yt, St, threshold=eta) for eta in central]
+        assert s["nmf_frobenius.central.mean_l_full"][k] == pytest.approx(np.mean(values))
+        assert s["nmf_frobenius.central.min_l_full"][k] == pytest.approx(np.min(values))
+        assert s["nmf_frobenius.cv.l_full"][k] == pytest.approx(
+            l_full(Yt, St, threshold=f["nmf_frobenius"]["threshold"]))
+        assert s["nmf_frobenius.cv_threshold"][k] == pytest.approx(f["nmf_frobenius"]["threshold"])
+    assert m["nmf_frobenius.best.l_full"] >= m["nmf_frobenius.central.mean_l_full"]  # the oracle: descriptive
+
+    record = _run(monkeypatch, tmp_path, "ch3_combinations", "ch3-combinations", record=True, **TINY)
+    m, s = record["metrics"], record["samples"]
     assert 0.0 < m["fraction_seen_once"] <= 1.0
     assert m["n_combinations"] <= m["n_examples"]
+    _bootstrap_decided(record)
+    Y, folds, _ = evaluate_mixed(config, RunContext(cache_dir=tmp_path / "cache", show_progress=False), "47")
+    groups = common.combination_ids(Y)
+    once = np.bincount(groups)[groups] == 1
+    for tag, sel in (("once", once), ("several", ~once)):
+        assert len(s[f"{tag}.nmf_frobenius.l_full"]) == TINY["n_folds"]
+        for k, f in enumerate(folds):
+            te = f["test"][sel[f["test"]]]
+            inside = sel[f["test"]]
+            want = l_given_number(Y[te], f["nmf_frobenius"]["scores"][inside]) if te.size else None
+            got = s[f"{tag}.nmf_frobenius.l_given_number"][k]
+            assert got is None if want is None else got == pytest.approx(want)
 
 
 @pytest.mark.slow
@@ -115,3 +152,85 @@ def test_no_machine_paths_in_chapter3_code():
                    "ch3_representations", "ch3_msr_action3d"):
         src = inspect.getsource(importlib.import_module(f"mmconcepts.experiments.{module}"))
         assert "shared" not in src and "parents[" not in src, module
+
+
+# --------------------------------------------------------------------------- issue 12: samples, pairing, no oracle
+def _bootstrap_decided(record):
+    for claim in record["claims"]:
+        assert claim["basis"].startswith("t-calibrated paired bootstrap"), (claim["rule"], claim["basis"])
+
+
+def _claim_metrics(exp_id):
+    from mmconcepts.experiments import registry
+    from mmconcepts.experiments.rules import parse_rule
+
+    return {name for c in registry.get(exp_id).claims for name in parse_rule(c.rule).metrics}
+
+
+def test_threshold_claims_at_fixed_thresholds():
+    """Fig. 3.7's claims compare fixed thresholds and the CV one, not the test curve's maximum (a near identity)."""
+    from mmconcepts.experiments import registry
+
+    rules = [c.rule for c in registry.get("ch3-threshold").claims]
+    assert not any("best" in r for r in rules)
+    assert _claim_metrics("ch3-threshold") == {"nmf_frobenius.lowest.l_full", "nmf_frobenius.highest.l_full",
+                                               "nmf_frobenius.central.mean_l_full", "nmf_frobenius.central.min_l_full",
+                                               "nmf_frobenius.cv.l_full"}
+    combos = [c.rule for c in registry.get("ch3-combinations").claims]
+    assert not any("chance" in r for r in combos)  # 5 x a chance of ~1e-4 would hold for any learner
+
+
+def test_threshold_metrics_by_hand_under_leave_one_out(rng):
+    """Per-unit curves, fixed-threshold values and CV scores equal nmf.l_full on thresholded scores."""
+    from mmconcepts.experiments import ch3_threshold as mod
+    from mmconcepts.nmf import l_full
+
+    n, L = 43, 6
+    Y = np.zeros((n, L))
+    for row in Y:
+        row[rng.choice(L, 2, replace=False)] = 1
+    S = np.clip(0.55 * Y + rng.normal(0.2, 0.2, (n, L)), 0, 1)  # activations: some examples right, some not
+    thr = rng.uniform(0.2, 0.6, n)
+    folds = [{"test": np.array([i]), "nmf_frobenius": {"scores": S[[i]], "threshold": float(thr[i]),
+                                                       "pred": (S[[i]] >= thr[i]).astype(np.int64)}}
+             for i in range(n)]
+    units = common.score_units(folds, seed=3)
+    assert len(units) == 10  # leave-one-out: blocks, not 43 single examples
+    m, s, curve, per_unit = mod.threshold_metrics(Y, folds, "nmf_frobenius", units)
+    central = [round(0.25 + 0.025 * i, 4) for i in range(21)]
+    for key in m:
+        if key != "best_threshold":
+            assert len(s[key]) == 10, key
+    for u, k in zip(units, range(10)):
+        assert s["lowest.l_full"][k] == pytest.approx(l_full(Y[u], S[u], threshold=0.05))
+        assert s["highest.l_full"][k] == pytest.approx(l_full(Y[u], S[u], threshold=0.95))
+        values = [l_full(Y[u], S[u], threshold=eta) for eta in central]
+        assert s["central.mean_l_full"][k] == pytest.approx(np.mean(values))
+        assert s["central.min_l_full"][k] == pytest.approx(np.min(values))
+        assert s["cv.l_full"][k] == pytest.approx(l_full(Y[u], (S[u] >= thr[u][:, None]).astype(int)))
+        assert s["cv_threshold"][k] == pytest.approx(thr[u].mean())
+    pooled = [l_full(Y, S, threshold=eta) for eta in central]
+    assert m["central.mean_l_full"] == pytest.approx(np.mean(pooled))
+    assert m["central.min_l_full"] == pytest.approx(np.min(pooled))
+    assert m["lowest.l_full"] == pytest.approx(l_full(Y, S, threshold=0.05))
+    assert m["cv_threshold"] == pytest.approx(thr.mean())
+    assert 0 < m["central.mean_l_full"] < 1  # the case is not degenerate
+
+
+def test_combination_subset_scores_by_hand(rng):
+    from mmconcepts.experiments.ch3_combinations import subset_unit_scores
+    from mmconcepts.nmf import l_full, l_given_number
+
+    n, L = 30, 5
+    Y = np.zeros((n, L))
+    for row in Y:
+        row[rng.choice(L, 2, replace=False)] = 1
+    S = rng.random((n, L)) + Y * 0.5
+    P = (S >= 0.8).astype(np.int64)
+    units = [np.arange(0, 10), np.arange(10, 20), np.arange(20, 30)]
+    select = np.zeros(n, bool)
+    select[[1, 4, 5, 12, 13, 17]] = True  # none in the last unit
+    out = subset_unit_scores(Y, S, P, units, select)
+    assert out["l_full"][0] == pytest.approx(l_full(Y[[1, 4, 5]], P[[1, 4, 5]]))
+    assert out["l_given_number"][1] == pytest.approx(l_given_number(Y[[12, 13, 17]], S[[12, 13, 17]]))
+    assert np.isnan(out["l_full"][2]) and np.isnan(out["l_given_number"][2])
