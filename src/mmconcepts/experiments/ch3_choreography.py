@@ -57,6 +57,10 @@ Choices (the thesis' where it says):
   *size* of the gain ``gain_given_number = l_given_number - l_full``: the thesis' gains
   (Table 3.2: 0.117 / 0.130 for NMF Frobenius, 0.116 / 0.105 for KL) say that most errors are
   in the number of gestures, not in which; we check the gain is at least half the thesis'.
+- Magnitude (the project's uniform rule for a number the thesis gives): NMF (Frobenius)
+  l_full at least 0.75 x the thesis' Table 3.2 value (0.854 with 16 labels, 0.625 with 47).
+- Spread: every score has its per-fold values as samples (leave-one-out: per example);
+  ``mean_threshold`` has the threshold each training fold chose.
 - ``chance.l_full`` predicts the most frequent training label set,
   ``chance.l_given_number`` is the expected score of a random ranking of the labels.
 """
@@ -190,14 +194,21 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
                 metrics[f"{nl}.chance.l_given_number"] = sc["l_given_number"] = float(np.mean(
                     [1.0 / comb(n_present, int(k)) for k in Y.sum(axis=1)]))
             metrics[f"{nl}.{name}.gain_given_number"] = sc["l_given_number"] - sc["l_full"]
-            if name != "chance":
-                for k, v in common.fold_samples(folds, Y, name).items():
+            per_fold = common.fold_samples(folds, Y, name)
+            if name == "chance":
+                # the most frequent training label set is fitted per fold: l_full has a spread; l_given_number is
+                # the analytic expectation of a random ranking (no spread), so the gain's spread is l_full's
+                samples[f"{nl}.chance.l_full"] = per_fold["l_full"]
+                samples[f"{nl}.chance.gain_given_number"] = [sc["l_given_number"] - f for f in per_fold["l_full"]]
+            else:
+                for k, v in per_fold.items():
                     samples[f"{nl}.{name}.{k}"] = v
                 samples[f"{nl}.{name}.gain_given_number"] = [
                     g - f for g, f in zip(samples[f"{nl}.{name}.l_given_number"], samples[f"{nl}.{name}.l_full"])]
-            thr = [f[name]["threshold"] for f in folds if "threshold" in f[name]]
-            if thr:
+            if "threshold" in folds[0][name]:  # the NMF learners: the threshold each training fold chose by CV
+                thr = common.fold_thresholds(folds, name)
                 metrics[f"{nl}.{name}.mean_threshold"] = float(np.mean(thr))
+                samples[f"{nl}.{name}.mean_threshold"] = thr
             rows.append([f"{nl} labels", name, sc["l_full"], reference.get(f"{nl}.{name}.l_full"),
                          sc["l_given_number"], reference.get(f"{nl}.{name}.l_given_number")])
     protocol = ("leave-one-out" if config.n_folds is None else f"{config.n_folds}-fold") if not unseen else \
@@ -289,6 +300,9 @@ register(Experiment(
               "47.nmf_frobenius.l_full > 47.svm.l_full"),
         Claim("With 16 labels NMF (Frobenius) is at least as good as the SVM on l_full (0.854 vs 0.818).",
               "16.nmf_frobenius.l_full >= 16.svm.l_full"),
+        Claim("NMF (Frobenius) reaches the thesis' magnitude on exact label-set reconstruction: l_full at least "
+              "three quarters of the thesis' 0.854 with 16 labels and of its 0.625 with 47 labels.",
+              "16.nmf_frobenius.l_full >= 0.75 * 0.854 and 47.nmf_frobenius.l_full >= 0.75 * 0.625"),
         Claim("The Frobenius NMF does better than the Kullback-Leibler NMF on both data sets and both scores.",
               "16.nmf_frobenius.l_full > 16.nmf_kl.l_full and 47.nmf_frobenius.l_full > 47.nmf_kl.l_full and "
               "16.nmf_frobenius.l_given_number > 16.nmf_kl.l_given_number and "
@@ -296,6 +310,11 @@ register(Experiment(
         Claim("Knowing the number of gestures helps substantially: for NMF (Frobenius) the gain "
               "l_given_number - l_full is at least half the thesis' (0.117 with 16 labels, 0.130 with 47).",
               "16.nmf_frobenius.gain_given_number >= 0.5 * 0.117 and 47.nmf_frobenius.gain_given_number >= 0.5 * 0.130"),
+        # The 16- and 47-label samples come from two different data sets. Under k folds they have the same
+        # length, so the bootstrap pairs them by fold index: an arbitrary coupling of independent folds (it adds
+        # the sample correlation of that arbitrary order, zero on average). Under leave-one-out their lengths
+        # differ (137 / 277) and they are resampled independently. Reported to the lead (issue 12: an explicit
+        # pairing unit per metric would be safer).
         Claim("The 47-label set is harder than the 16-label set.",
               "47.nmf_frobenius.l_full < 16.nmf_frobenius.l_full"),
         Claim("All learners are far above chance (at least 5 times the most-frequent-label-set score, and above 0.3).",
