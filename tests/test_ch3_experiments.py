@@ -72,8 +72,19 @@ def test_unseen_tiny(monkeypatch, tmp_path):
 
 @pytest.mark.slow
 def test_representations_tiny(monkeypatch, tmp_path):
-    m = _run(monkeypatch, tmp_path, "ch3_representations", "ch3-representations", bins=(4, 9), delays=(1, 5),
-             n_folds=2, n_components=30, max_iter=40, n_records=100)
+    record = _run(monkeypatch, tmp_path, "ch3_representations", "ch3-representations", record=True, bins=(4, 9),
+                  delays=(1, 5), n_folds=2, n_components=30, max_iter=40, n_records=100)
+    m, s = record["metrics"], record["samples"]
+    _bootstrap_decided(record)
+    for d in (3, 5):  # angles do not depend on the delay: the same folds, the same samples at every delay
+        assert s[f"angles.delay_{d}.l_single"] == s["angles.delay_1.l_single"]
+    for name in _claim_metrics("ch3-representations") - {"chance.l_single"}:
+        assert len(s[name]) == 2, name
+    for tag, b in (("small_bins", 4), ("large_bins", 9)):  # VQ = the mean of hard and soft, fixed in advance
+        assert m[f"{tag}.vq_minus_kde"] == pytest.approx(
+            (m[f"vq_hard.bins_{b}.l_single"] + m[f"vq_soft.bins_{b}.l_single"]) / 2 - m[f"kde.bins_{b}.l_single"])
+    for name in ("angles", "velocities", "separate", "joint"):  # the claims' delay: that of Table 3.2's features
+        assert m[f"{name}.small_delay.l_single"] == m[f"{name}.delay_3.l_single"]
     for name in ("kde", "vq_hard", "vq_soft"):
         for b in (4, 9):
             assert m[f"{name}.bins_{b}.l_single"] > 2 * m["chance.l_single"]
@@ -184,6 +195,12 @@ def _claim_metrics(exp_id):
     from mmconcepts.experiments.rules import parse_rule
 
     return {name for c in registry.get(exp_id).claims for name in parse_rule(c.rule).metrics}
+
+
+def test_chapter3_claims_read_no_oracle():
+    """No claim reads a maximum over choices made on the test data (best.*)."""
+    for exp_id in ("ch3-choreography", "ch3-unseen", "ch3-threshold", "ch3-combinations", "ch3-representations"):
+        assert not [m for m in _claim_metrics(exp_id) if ".best" in m], exp_id
 
 
 def test_threshold_claims_at_fixed_thresholds():
