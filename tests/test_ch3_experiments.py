@@ -287,3 +287,23 @@ def test_combination_subset_scores_by_hand(rng):
     assert out["l_full"][0] == pytest.approx(l_full(Y[[1, 4, 5]], P[[1, 4, 5]]))
     assert out["l_given_number"][1] == pytest.approx(l_given_number(Y[[12, 13, 17]], S[[12, 13, 17]]))
     assert np.isnan(out["l_full"][2]) and np.isnan(out["l_given_number"][2])
+
+
+@pytest.mark.slow
+def test_threshold_leave_one_out_gives_ten_blocks(tmp_path):
+    """Under leave-one-out (the full preset's protocol) every metric has one sample per block of examples."""
+    from mmconcepts.experiments import RunContext
+    from mmconcepts.experiments import ch3_threshold as mod
+    from mmconcepts.experiments import registry
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    config = mod.Config(n_folds=None, n_components=10, max_iter=20, inner_cv=2, n_records_partial=16,
+                        sensitivity=False)
+    result = mod.run(config, RunContext(cache_dir=tmp_path, workers=2, show_progress=False))
+    assert result.metrics["n_units"] == common.N_BLOCKS == 10
+    assert set(result.samples) == set(result.metrics) - {"n_units", "nmf_frobenius.best_threshold",
+                                                         "nmf_kl.best_threshold"}
+    assert all(len(v) == 10 for v in result.samples.values())
+    for claim in registry.get("ch3-threshold").claims:
+        verdict = claim_verdict(claim.rule, result.metrics, result.samples)
+        assert verdict.basis.startswith("t-calibrated paired bootstrap over 10 ")
