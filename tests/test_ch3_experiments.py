@@ -32,6 +32,10 @@ def test_choreography_tiny(monkeypatch, tmp_path):
     _bootstrap_decided(record)
     for name in _claim_metrics("ch3-choreography"):
         assert len(s[name]) == TINY["n_folds"], name  # chance.l_full included: it is fitted per fold
+    # the two label sets are different data: never paired fold by fold, though their samples have one length
+    units = record["sample_units"]
+    assert set(units) == set(s)
+    assert units["16.nmf_frobenius.l_full"] == units["16.svm.l_full"] != units["47.nmf_frobenius.l_full"]
     from mmconcepts.experiments import RunContext
     from mmconcepts.experiments import ch3_choreography as mod
 
@@ -214,6 +218,8 @@ def test_threshold_claims_at_fixed_thresholds():
                                                "nmf_frobenius.cv.l_full"}
     combos = [c.rule for c in registry.get("ch3-combinations").claims]
     assert not any("chance" in r for r in combos)  # 5 x a chance of ~1e-4 would hold for any learner
+    # unique combinations are unseen in training: the project's magnitude rule against Table 3.3 (47 labels)
+    assert combos == ["once.nmf_frobenius.l_given_number >= 0.75 * 0.653"]
 
 
 @pytest.mark.parametrize(("exp_id", "values"), [("ch3-choreography", (0.854, 0.625)), ("ch3-unseen", (0.568, 0.406))])

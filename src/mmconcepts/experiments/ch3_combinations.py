@@ -141,9 +141,10 @@ register(Experiment(
     run=run,
     reference={"fraction_seen_once": 0.6},
     claims=[
-        Claim("Choreographies whose combination is unique are still labelled (the learner captures the "
-              "combinatorial structure): l_given_number on them above 0.3.",
-              "once.nmf_frobenius.l_given_number > 0.3"),
+        Claim("Choreographies whose combination is unique (so never seen in training) are still labelled: the "
+              "learner captures the combinatorial structure. Their l_given_number reaches at least three quarters "
+              "of the thesis' on unseen combinations with 47 labels (Table 3.3: 0.653).",
+              "once.nmf_frobenius.l_given_number >= 0.75 * 0.653"),
     ],
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
