@@ -468,6 +468,9 @@ def test_ch5_tree_samples_per_block_behind_every_claim(monkeypatch, tmp_path, fa
         assert np.average(s[name], weights=sizes) == pytest.approx(m[name])
     assert m["exact.n_distances"] == m["n_leaves"] and s["exact.n_distances"] == [m["n_leaves"]] * 5
     assert res.sample_units == {name: "query blocks" for name in s}  # one unit: every search on the same blocks
+    # the thesis' ambiguities that decide a setting are in the notes, with the reading taken
+    assert any("Algorithm 1" in n and "centroid" in n for n in res.notes)
+    assert any("13 keywords" in n for n in res.notes)
     for v in _verdicts("ch5_tree", res):
         assert v.basis.startswith("t-calibrated paired bootstrap over 5 folds"), v.basis
 
@@ -508,3 +511,16 @@ def test_ch5_nmf_keywords_magnitude_claim_uses_the_uniform_rule():
     rules = _claims("ch5_nmf_keywords")
     assert "nmf.accuracy >= 0.75 * 0.916" in rules
     assert not any("abs(nmf.accuracy - 0.916)" in r for r in rules)
+
+
+def test_thesis_readings_are_in_the_notes(monkeypatch):
+    """The thesis' ambiguities that decide a setting are listed in the notes with the reading taken (issue 12)."""
+    from mmconcepts.experiments import _ch5_common as common
+
+    assert "13 keywords" in common.KEYWORDS_READING and "10 in section 6.5.2" in common.KEYWORDS_READING
+    import inspect
+
+    from mmconcepts.experiments import ch5_incremental, ch5_nmf_keywords, ch5_tree
+
+    for mod in (ch5_incremental, ch5_nmf_keywords, ch5_tree):
+        assert "common.KEYWORDS_READING" in inspect.getsource(mod.run), mod.__name__

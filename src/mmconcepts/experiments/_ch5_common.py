@@ -87,6 +87,15 @@ def _sizes(corpus) -> str:
             f"{len(corpus.keywords)} keywords{', %d files skipped' % len(corpus.skipped) if corpus.skipped else ''})")
 
 
+#: The thesis' ambiguity on the number of keywords, and the reading taken (issue 12, section 3).
+KEYWORDS_READING = (
+    "Reading of the thesis: Caregiver has 13 keywords in section 5.2.4 and appendix B.1, but 10 in section 6.5.2 "
+    "(speaker 1, 1000 utterances), which names them only through Table 5.1's examples. The generated corpus uses "
+    "the 10 keywords of section 6.5.2 (Angus, bath, book, bottle, car, daddy, mummy, nappy, shoe, telephone) for "
+    "both chapters; chance is then 0.1 (the thesis' footnote to Table 6.2). FSDD has its own 10 words, the digits."
+)
+
+
 def data_source_note(ctx: RunContext, corpus=None) -> str:
     """Which speech data the experiment ran on, with its sizes when ``corpus`` (the one used) is given."""
     source, size = data_source(ctx), _sizes(corpus)

@@ -214,7 +214,7 @@ def run(config: Config, ctx: RunContext) -> Result:
         sample_units=units,
         tables={"single_speaker": t_single, "multi_speaker": t_multi},
         figures={"fig5_3": fig3, "fig5_4": fig4},
-        notes=[common.data_source_note(ctx, corpus),
+        notes=[common.data_source_note(ctx, corpus), common.KEYWORDS_READING,
                f"{len(speakers)} speakers (sorted ids: {', '.join(speakers)}); per speaker {len(splits[speakers[0]][0])} training and "
                f"{len(splits[speakers[0]][1])} test utterances; sessions of {config.session} (single) and "
                f"{config.multi_session} (several speakers) utterances; {config.window_ms:g} ms windows, "

@@ -255,7 +255,7 @@ def run(config: Config, ctx: RunContext) -> Result:
                 "composed": Table("One or several keywords per utterance (section 5.4): mean over folds",
                                   ["score", "mean", "std over folds"], c_rows)},
         figures={"keywords": fig},
-        notes=[common.data_source_note(ctx, corpus),
+        notes=[common.data_source_note(ctx, corpus), common.KEYWORDS_READING,
                f"Speaker {spk} (first in sorted order): {len(y)} utterances, {len(keywords)} keywords; stratified "
                f"{n_folds}-fold cross-validation; codebooks, tree and dictionary fitted on each training fold only.",
                f"Several keywords: {len(Y)} utterances of {config.min_words}-{config.max_words} recordings of the "

@@ -254,6 +254,12 @@ def run(config: Config, ctx: RunContext) -> Result:
                "from other utterances. Times are wall-clock on this machine and include Python overhead for DTW.",
                "The thesis gives no numbers for this comparison; the claims are its qualitative statements, so "
                "there is no magnitude claim.",
+               "Reading of the thesis: Algorithm 1 joins a vector to a leaf when it is within r_max of 'the nearest "
+               "vector in current node', its prose (rule 2, a leaf is a hypersphere of radius r_max around its "
+               "centroid) when it is within r_max of the centroid. We follow the prose (ClusterTree: the centroid "
+               "at insertion time), which keeps leaves bounded and stores no vectors; the backtracking searches "
+               "are the two of the prose ('best_children', 'restart').",
+               common.KEYWORDS_READING,
                f"Spread: the {len(queries)} query windows are split into {n_blocks} blocks by the utterance they "
                f"come from (sizes {block_sizes.min()}-{block_sizes.max()} queries; the windows of one utterance "
                "overlap, so they stay in one block), the same blocks for every search. Each metric of a search "
