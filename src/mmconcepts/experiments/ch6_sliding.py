@@ -287,9 +287,8 @@ def _prepare(config: Config, ctx: RunContext, speech: dict, ims, c_loc: list, st
     if config.n_repeats == 1:
         # test folds by concept, drawn after every other draw of the splits stream (they change nothing else):
         # the test utterances (S -> I and the Fig. 6.9 probe) and the reference images (I -> S). Fold f of the
-        # utterances and fold f of the images are different examples, so S -> I and I -> S samples must not be
-        # paired: no claim compares them (same length, so the bootstrap would pair them; tell apart with sample
-        # units if a claim ever does)
+        # utterances and fold f of the images are different examples, so S -> I and I -> S samples are given
+        # different sample units (resampled independently, never paired)
         folds_test = stratified_folds(y[te], config.n_test_folds, frng)
         folds_image = stratified_folds(y_ref_img, config.n_test_folds, frng)
     else:  # one unit per repetition: all its test examples together
@@ -371,6 +370,11 @@ def run(config: Config, ctx: RunContext) -> Result:
         metrics[f"localisation.{name}"] = _nanmean(samples[f"localisation.{name}"])
     metrics["localisation.n_utterances"] = float(np.mean([p["n"] for p in probes]))
     units = (f"{config.n_test_folds} test folds" if R == 1 else f"{R} repetitions")
+    if R == 1:  # folds of the test utterances (S -> I, localisation) and of the reference images (I -> S)
+        sample_units = {name: "reference-image folds" if name.endswith(".i2s") else "test-utterance folds"
+                        for name in samples}
+    else:
+        sample_units = {name: "repetitions" for name in samples}
 
     err = {key: [np.nanstd(samples[f"{tag}.{key}"]) for tag in tags] for key in ("s2i", "i2s")}
     fig8 = Figure(figsize=(6, 4))
@@ -411,6 +415,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     return Result(
         metrics=metrics,
         samples=samples,
+        sample_units=sample_units,
         tables={"fig6_8": Table("Fig. 6.8: success against window width (every width; the claims use the fixed "
                                 f"width {widths[fixed_at]:g} s)",
                                 ["width (s)", "training windows", "S -> I", "I -> S"], rows)},
@@ -430,7 +435,9 @@ def run(config: Config, ctx: RunContext) -> Result:
                f"{widths[fixed_at]:g} s window overlaps the keyword in {metrics['localisation.peak_in_keyword']:.2f} "
                f"of them (chance {metrics['localisation.chance']:.2f}).",
                f"Uncertainty: every rate is the mean over {units}, with their values as samples (all widths and the "
-               "localisation on the same units, so compared pairwise). "
+               "localisation on the same units, so compared pairwise"
+               + ("; the S -> I folds are folds of test utterances, the I -> S folds folds of reference images, so "
+                  "the two are never paired). " if R == 1 else "). ")
                + (f"With one repetition (quick), the test utterances and the reference images are split into "
                   f"{config.n_test_folds} folds by concept and each fold is scored against references drawn from all "
                   "of them: the samples carry the uncertainty of the test sample, not that of the training stream "
