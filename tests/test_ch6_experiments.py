@@ -30,7 +30,7 @@ def _claims_decided_by_bootstrap(exp_id, res, n):
         assert not [x for x in names if x.startswith("best") or x.endswith(".max")], claim.rule  # no oracle
         for name in names - _NO_SAMPLES:
             assert len(res.samples[name]) == n, (claim.rule, name)
-        verdict = claim_verdict(claim.rule, res.metrics, res.samples)
+        verdict = claim_verdict(claim.rule, res.metrics, res.samples, units=res.sample_units)
         assert verdict.basis.startswith("t-calibrated paired bootstrap"), (claim.rule, verdict.basis)
         assert verdict.verdict in ("holds", "fails", "inconclusive")
 
@@ -177,6 +177,33 @@ def test_ch6_concepts_small(tiny_speech_corpus, tmp_path):
     _claims_decided_by_bootstrap("ch6-concepts", res, 3)
     notes = " ".join(res.notes)
     assert "13 or 10 keywords" in notes and "ambiguities of Fig. 6.10" in notes
+    # the repetitions run side by side in worker processes give the same numbers (own seeds, one thread each)
+    ctx2 = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False, workers=2)
+    again = run(dataclasses.replace(Config.quick(), n_motion=60, k=8, n_iter=30, n_repeats=3), ctx2)
+    for name in REPEATED:
+        assert again.samples[name] == pytest.approx(s[name], rel=1e-9, abs=1e-12), name
+
+
+def test_mutual_information_matrix_equals_sklearn(rng):
+    """The vectorised estimate equals sklearn's mutual_info_score pair by pair (in bits), constant columns too."""
+    from sklearn.metrics import mutual_info_score
+
+    from mmconcepts.experiments.ch6_concepts import mutual_information_matrix
+
+    y = rng.integers(0, 6, 120)
+    W = rng.random((120, 7)) ** 3
+    W[:, 0] = 2.0  # a constant coefficient: no information
+    W[:, 1] += (y == 4) * 1.5
+    for n_bins in (3, 10):
+        expected = np.zeros((6, 7))
+        for j in range(7):
+            col = W[:, j]
+            binned = np.digitize(col, np.linspace(col.min(), col.max(), n_bins + 1)[1:-1])
+            for c in range(6):
+                expected[c, j] = mutual_info_score(y == c, binned) / np.log(2)
+        got = mutual_information_matrix(y, W, n_bins)
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+        assert got[:, 0].max() == 0.0 and got[4, 1] > 0.3
 
 
 def test_concepts_repetition_by_hand(rng):
@@ -285,6 +312,10 @@ def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
     # the claims' width is the fixed one (0.5 s here), whatever width did best
     assert s["fixed_width.s2i"] == s["width_0_5.s2i"] and m["fixed_width.i2s"] == m["width_0_5.i2s"]
     assert len(set(s["width_0_2.s2i"])) > 1  # folds differ
+    # utterance folds and image folds are different examples: never paired
+    units = res.sample_units
+    assert units["fixed_width.s2i"] == units["localisation.peak_in_keyword"] == units["width_0_2.s2i"]
+    assert units["fixed_width.i2s"] == units["width_0_5.i2s"] != units["fixed_width.s2i"]
     _claims_decided_by_bootstrap("ch6-sliding", res, 3)
     notes = " ".join(res.notes)
     assert "13 or 10 keywords" in notes and "Fixed width" in notes and "cited as '??'" in notes
