@@ -7,6 +7,7 @@ import importlib
 
 import numpy as np
 import pytest
+from sklearn.exceptions import NotFittedError
 
 from conftest import real_data_path
 from mmconcepts.errors import DataError, ParameterError
@@ -53,7 +54,7 @@ def test_tree_voting_bad_input(rng):
         TreeVotingClassifier(1.0).fit(utts, tags[:4])
     with pytest.raises(ParameterError):
         TreeVotingClassifier(1.0, events="phonemes").fit(utts, tags)
-    with pytest.raises(DataError, match="not fitted"):
+    with pytest.raises(NotFittedError, match="not fitted"):
         TreeVotingClassifier(1.0).predict(utts)
 
 

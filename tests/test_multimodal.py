@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from sklearn.exceptions import NotFittedError
 import scipy.sparse as sp
 
 from mmconcepts.errors import DataError, DataFormatError, ParameterError, VersionMismatchError
@@ -163,7 +164,7 @@ def test_bad_input(rng):
         model.transform({"smell": mods["sound"]})
     with pytest.raises(DataError, match="fitted with 30"):
         model.transform({"sound": mods["sound"][:, :5]})
-    with pytest.raises(DataError, match="not fitted"):
+    with pytest.raises(NotFittedError, match="not fitted"):
         MultimodalNMF(3).transform({"sound": mods["sound"]})
     with pytest.raises(DataError, match="must differ"):
         crossmodal_distances(model, {"sound": mods["sound"]}, {"sound": mods["sound"]})

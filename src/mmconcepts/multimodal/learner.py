@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from sklearn.exceptions import NotFittedError
 
 from .. import __version__
 from .._validation import check_nonnegative_matrix
@@ -138,7 +139,7 @@ class MultimodalNMF:
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "components_"):
-            raise DataError("MultimodalNMF is not fitted yet; call fit first.")
+            raise NotFittedError("MultimodalNMF is not fitted yet; call fit first.")
 
     def _stack(self, X: dict[str, Any]) -> tuple[Any, np.ndarray]:
         """The weighted stacked matrix of the given modalities and its column indices."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Hashable, Sequence
 
 import numpy as np
+from sklearn.exceptions import NotFittedError
 
 from ..errors import DataError, ParameterError
 
@@ -116,7 +117,7 @@ class EventVoting:
 
     def _check_fitted(self) -> None:
         if not getattr(self, "classes_", None):
-            raise DataError("EventVoting has not seen any training utterance yet; call partial_fit first.")
+            raise NotFittedError("EventVoting has not seen any training utterance yet; call partial_fit first.")
 
     def decision_function(self, bags: Sequence[np.ndarray]) -> np.ndarray:
         """Summed votes ``sum_i q_i f_i^t w_i``, shape (n_utterances, n_tags)."""
@@ -254,7 +255,7 @@ class TreeVotingClassifier:
     def bags(self, utterances) -> list[np.ndarray]:
         """The bag of acoustic events of each utterance (retrieval only)."""
         if not hasattr(self, "tree_"):
-            raise DataError("TreeVotingClassifier is not fitted yet; call fit or partial_fit first.")
+            raise NotFittedError("TreeVotingClassifier is not fitted yet; call fit or partial_fit first.")
         utts = self._check(utterances)
         return [self._bag(self.tree_.predict(u)) if len(u) else np.zeros(0, np.int64) for u in utts]
 

@@ -22,6 +22,7 @@ import warnings
 from typing import Any, Sequence
 
 import numpy as np
+from sklearn.exceptions import NotFittedError
 
 from .._validation import check_positive_int, check_random_state, check_scalar
 from ..errors import ConvergenceWarning, ParameterError
@@ -219,7 +220,7 @@ class FactorialIRL:
     def reward_features(self, mdp: MDP) -> np.ndarray:
         """The learnt dictionary as reward features (S, A, k), for :class:`GradIRL` on new tasks."""
         if not hasattr(self, "components_"):
-            raise ParameterError("this FactorialIRL is not fitted yet; call fit first.")
+            raise NotFittedError("this FactorialIRL is not fitted yet; call fit first.")
         return component_features(mdp, self.components_, check_features(mdp, self.features))
 
     def transform(self, mdp: MDP, demonstrations: Sequence[Sequence[Any]], *, max_iter: int = 100) -> np.ndarray:

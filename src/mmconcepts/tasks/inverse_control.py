@@ -22,6 +22,7 @@ from typing import Any, Sequence
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import nnls
+from sklearn.exceptions import NotFittedError
 
 from .._validation import check_positive_int, check_random_state, check_scalar
 from ..errors import DataError, ParameterError
@@ -360,5 +361,5 @@ class FactorialInverseControl:
     def transform(self, trajectories: Sequence[Any]) -> np.ndarray:
         """Coefficients (n, K) of demonstrations on the learnt dictionary (eq. 4.6)."""
         if not hasattr(self, "components_"):
-            raise ParameterError("this FactorialInverseControl is not fitted yet; call fit first.")
+            raise NotFittedError("this FactorialInverseControl is not fitted yet; call fit first.")
         return self._coefs(self._designs(trajectories), self.components_)
