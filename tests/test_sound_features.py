@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from sklearn.exceptions import NotFittedError
 
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.sound.features import (
@@ -213,7 +214,7 @@ def test_voting_partial_fit_equals_fit_and_multi_tags(rng):
 
 
 def test_voting_bad_input():
-    with pytest.raises(DataError, match="not seen"):
+    with pytest.raises(NotFittedError, match="not seen"):
         EventVoting().predict([np.array([1])])
     with pytest.raises(DataError, match="negative"):
         EventVoting().fit([np.array([-1])], ["a"])
