@@ -7,7 +7,7 @@ full test set") and a rule that checks it from our numbers::
     0.8 <= 16.nmf_kl.l_full < 1 and abs(bins_20.l_single - 0.5) < 0.1
 
 A rule is a Python expression over metric names, evaluated without :func:`eval`: the
-metric names (``16.nmf_kl.l_full`` is no Python identifier) are replaced by placeholders,
+metric names (``16.nmf_kl.l_full`` is no Python identifier) are replaced by aliases,
 the text is parsed by :func:`ast.parse`, and only a whitelist of nodes is accepted and
 walked here:
 
@@ -108,7 +108,7 @@ class _Source:
     starts: list[int]  # offsets in text where a piece begins
     origins: list[int]  # the rule offset of each piece
     tokens: list[tuple[int, str]]  # (rule offset, token as written), in order
-    metrics: dict[str, str]  # placeholder -> metric name
+    metrics: dict[str, str]  # alias -> metric name
 
     def position(self, offset: int) -> int:
         """The rule offset of Python-text ``offset``."""
@@ -167,9 +167,9 @@ def _rewrite(rule: str, names: Collection[str] | None) -> _Source:
                 raise _unknown_metric(rule, word, names, start)
             src.tokens.append((start, word))
             if kind == "metric":
-                placeholder = metric_ids.setdefault(word, f"_m{len(metric_ids)}")
-                src.metrics[placeholder] = word
-                emit(placeholder, start)
+                alias = metric_ids.setdefault(word, f"_m{len(metric_ids)}")
+                src.metrics[alias] = word
+                emit(alias, start)
             elif kind == "number":
                 emit(repr(float(word)), start)
             else:
@@ -318,7 +318,7 @@ class Rule:
     text: str
     metrics: frozenset[str]
     _tree: ast.Expression
-    _placeholders: tuple[tuple[str, str], ...]  # (placeholder, metric name)
+    _aliases: tuple[tuple[str, str], ...]  # (alias, metric name)
 
     def evaluate(self, metrics: Mapping[str, float]) -> bool | None:
         """Evaluate the rule on ``metrics``.
@@ -338,11 +338,11 @@ class Rule:
         if missing:
             raise _unknown_metric(self.text, missing[0], list(metrics), self.text.find(missing[0]))
         values: dict[str, float] = {}
-        for placeholder, name in self._placeholders:
+        for alias, name in self._aliases:
             value = metrics[name]
             if value is None or math.isnan(float(value)):
                 return None
-            values[placeholder] = float(value)
+            values[alias] = float(value)
         try:
             return bool(_eval(self._tree.body, values))
         except _Undefined:
@@ -395,7 +395,7 @@ def parse_rule(rule: str, names: Collection[str] | None = None) -> Rule:
     if _check(tree.body, src) != "bool":
         raise _error(rule, "a rule must be true or false (use a comparison such as 'a > b'), but this one computes a number")
     return Rule(text=rule, metrics=frozenset(src.metrics.values()), _tree=tree,
-                _placeholders=tuple(src.metrics.items()))
+                _aliases=tuple(src.metrics.items()))
 
 
 def evaluate_rule(rule: str, metrics: Mapping[str, float]) -> bool | None:
