@@ -160,3 +160,206 @@ def check_subset_indices(indices_or_mask: Any, n: int) -> np.ndarray:
     if idx.size and (idx.min() < -n or idx.max() >= n):
         raise ParameterError(f"Indices must be in [-{n}, {n}); got min {idx.min()}, max {idx.max()}.")
     return idx.ravel()
+
+
+# ---------------------------------------------------------------------------------------------
+# Parameter constraints: each estimator (``_parameter_constraints``) and public function declares
+# its parameters once, as scikit-learn does, and :func:`validate_params` checks them with messages
+# that say what was expected, what came and how to fix it. Written here rather than imported from
+# ``sklearn.utils._param_validation`` because that module is private and its messages do not say
+# how to fix the value.
+
+
+class Interval:
+    """A numeric range: ``Interval("int", 1, None)`` is an int >= 1; ``Interval("real", 0, 1)`` [0, 1].
+
+    Parameters
+    ----------
+    kind : {"int", "real"}
+        "int" accepts integers only (not bool); "real" accepts any finite real number (ints too).
+    low, high : float or None
+        Bounds; None is unbounded.
+    closed : {"both", "left", "right", "neither"}, default="both"
+        Which bounds belong to the range.
+    """
+
+    def __init__(self, kind: str, low: float | None = None, high: float | None = None, *, closed: str = "both"):
+        if kind not in ("int", "real"):
+            raise ValueError(f"Interval kind must be 'int' or 'real'; got {kind!r}.")
+        if closed not in ("both", "left", "right", "neither"):
+            raise ValueError(f"closed must be 'both', 'left', 'right' or 'neither'; got {closed!r}.")
+        self.kind, self.low, self.high, self.closed = kind, low, high, closed
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        if isinstance(value, (bool, np.bool_)):
+            return False
+        if self.kind == "int":
+            if not isinstance(value, (numbers.Integral, np.integer)):
+                return False
+        elif not isinstance(value, numbers.Real) or not np.isfinite(value):
+            return False
+        left = self.closed in ("both", "left")
+        right = self.closed in ("both", "right")
+        if self.low is not None and (value < self.low or (not left and value == self.low)):
+            return False
+        if self.high is not None and (value > self.high or (not right and value == self.high)):
+            return False
+        return True
+
+    def __str__(self) -> str:
+        what = "an int" if self.kind == "int" else "a real number"
+        left = self.closed in ("both", "left")
+        right = self.closed in ("both", "right")
+        if self.low is not None and self.high is not None:
+            return f"{what} in {'[' if left else '('}{self.low:g}, {self.high:g}{']' if right else ')'}"
+        if self.low is not None:
+            return f"{what} {'>=' if left else '>'} {self.low:g}"
+        if self.high is not None:
+            return f"{what} {'<=' if right else '<'} {self.high:g}"
+        return what if self.kind == "int" else "a finite real number"
+
+
+class Options:
+    """One of a fixed set of values (strings, numbers, ...), compared with ``==``."""
+
+    def __init__(self, *values: Any):
+        self.values = tuple(values)
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        for v in self.values:
+            if v is None or isinstance(v, (bool, np.bool_)) or isinstance(value, (bool, np.bool_)):
+                if value is v or (isinstance(value, np.bool_) and isinstance(v, bool) and bool(value) is v):
+                    return True
+                continue
+            try:
+                if bool(value == v):
+                    return True
+            except (TypeError, ValueError):  # an array compared with a string, ...
+                continue
+        return False
+
+    def __str__(self) -> str:
+        return "one of " + ", ".join(repr(v) for v in self.values)
+
+
+class InstanceOf:
+    """An instance of the given type(s); ``description`` names it in messages."""
+
+    def __init__(self, *types: type, description: str | None = None):
+        self.types = types
+        self.description = description
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        return isinstance(value, self.types)
+
+    def __str__(self) -> str:
+        return self.description or "an instance of " + " or ".join(t.__name__ for t in self.types)
+
+
+class _Named:
+    """A constraint known by name: "boolean", "random_state", "callable", "array-like"."""
+
+    _DESCRIPTIONS = {
+        "boolean": "a bool",
+        "random_state": "an int >= 0, a numpy Generator or RandomState, or None",
+        "callable": "a callable",
+        "array-like": "an array-like",
+        "sparse matrix": "a scipy.sparse matrix",
+    }
+
+    def __init__(self, name: str):
+        if name not in self._DESCRIPTIONS:
+            raise ValueError(f"unknown constraint {name!r}; known: {sorted(self._DESCRIPTIONS)}.")
+        self.name = name
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        if self.name == "boolean":
+            return isinstance(value, (bool, np.bool_))
+        if self.name == "random_state":
+            return (value is None or isinstance(value, (np.random.Generator, np.random.RandomState))
+                    or (isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, bool)
+                        and value >= 0))
+        if self.name == "callable":
+            return callable(value)
+        if self.name == "sparse matrix":
+            return sp.issparse(value)
+        return (hasattr(value, "__array__") or hasattr(value, "__len__") or sp.issparse(value)) and not isinstance(
+            value, (str, bytes))
+
+    def __str__(self) -> str:
+        return self._DESCRIPTIONS[self.name]
+
+
+def _as_constraint(c: Any) -> Any:
+    if c is None:
+        return _NONE
+    if isinstance(c, str):
+        return _Named(c)
+    if isinstance(c, type):
+        return InstanceOf(c)
+    if not hasattr(c, "is_satisfied_by"):
+        raise TypeError(f"not a constraint: {c!r}")
+    return c
+
+
+class _NoneConstraint:
+    def is_satisfied_by(self, value: Any) -> bool:
+        return value is None
+
+    def __str__(self) -> str:
+        return "None"
+
+
+_NONE = _NoneConstraint()
+
+
+def describe_constraints(constraints: list) -> str:
+    """The constraints of one parameter in words: "an int >= 1 or None"."""
+    parts = [str(_as_constraint(c)) for c in constraints]
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " or " + parts[-1]
+
+
+def validate_params(params: Any, constraints: dict[str, list], *, owner: str | None = None,
+                    hints: dict[str, str] | None = None) -> None:
+    """Check every parameter named in ``constraints`` against its list of accepted forms.
+
+    Parameters
+    ----------
+    params : mapping or estimator
+        The values (an estimator's ``get_params(deep=False)`` is taken when it has one).
+    constraints : dict of str to list
+        Per parameter, the accepted forms; a value is valid when it satisfies any of them.
+        A form is None (the value None), a type (an instance of it), one of the strings
+        "boolean", "random_state", "callable", "array-like", "sparse matrix", or an
+        :class:`Interval`, :class:`Options` or :class:`InstanceOf`. The string "no_validation"
+        (instead of a list) skips the parameter.
+    owner : str, optional
+        Who takes the parameters (a class or function name), named in the message.
+    hints : dict of str to str, optional
+        How to fix a bad value of a parameter, appended to the message.
+
+    Raises
+    ------
+    ParameterError
+        "<owner>: <name> must be <expected>; got <value>. <hint>" for the first invalid parameter.
+    """
+    if hasattr(params, "get_params"):
+        owner = owner or type(params).__name__
+        params = params.get_params(deep=False)
+    for name, accepted in constraints.items():
+        if accepted == "no_validation" or name not in params:
+            continue
+        value = params[name]
+        if any(_as_constraint(c).is_satisfied_by(value) for c in accepted):
+            continue
+        got = repr(value) if isinstance(value, (numbers.Number, str, type(None), bool)) else (
+            f"{value!r} ({type(value).__name__})" if len(repr(value)) < 60 else f"a {type(value).__name__}")
+        msg = f"{name} must be {describe_constraints(accepted)}; got {got}."
+        if owner:
+            msg = f"{owner}: {msg}"
+        if hints and name in hints:
+            msg += " " + hints[name]
+        raise ParameterError(msg)
+
+
+__all__ += ["Interval", "Options", "InstanceOf", "validate_params", "describe_constraints"]
