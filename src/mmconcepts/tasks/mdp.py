@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validation import check_positive_int, check_random_state, check_scalar
+from .._validation import InstanceOf, Interval, check_random_state, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
 
 __all__ = [
@@ -42,6 +42,35 @@ __all__ = [
 
 GRID_MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])  # up, down, left, right (row, col)
 GRID_ACTION_NAMES = ("up", "down", "left", "right")
+
+# Parameters of the public functions, declared once and checked by one validate_params call at
+# their start (the private solvers under them, called in the learners' inner loops, do not check).
+# A stopping test "change < tol" can never be met with tol = 0, hence tol > 0 for the iterations.
+_MDP_CONSTRAINTS: dict[str, list] = {"discount": [Interval("real", 0, 1, closed="left")]}
+_TOL = [Interval("real", 0, None, closed="neither")]
+_SWEEPS = [Interval("int", 1, None)]
+_PARAMETER_CONSTRAINTS: dict[str, dict[str, list]] = {
+    "grid_world": {"size": [Interval("int", 2, None)], "success_prob": [Interval("real", 0, 1)],
+                   "random_includes_intended": ["boolean"]},
+    "value_iteration": {"tol": _TOL, "max_iter": _SWEEPS, "init": ["array-like", None]},
+    "policy_iteration": {"max_iter": _SWEEPS, "init": ["array-like", None]},
+    "soft_value_iteration": {"tol": _TOL, "max_iter": _SWEEPS, "init": ["array-like", None]},
+    "greedy_policy": {"tie_tol": [Interval("real", 0, None)]},
+    "boltzmann_policy": {"beta": [Interval("real", 0, None)]},
+    "sample_trajectories": {"n_trajectories": [Interval("int", 1, None)], "length": [Interval("int", 1, None)],
+                            "start": ["array-like", None], "random_state": ["random_state"]},
+}
+_HINTS = {
+    "max_iter": "Zero iterations leave no converged values to return; for one Bellman backup of given values "
+                "use q_values(mdp, values, rewards).",
+    "tol": "The loop stops when the largest change of the values falls below tol, which tol <= 0 never allows.",
+}
+
+
+def _check(function: str, mdp: Any, **params: Any) -> None:
+    """Check ``mdp`` and the options of a public function against ``_PARAMETER_CONSTRAINTS``."""
+    validate_params({"mdp": mdp, **params}, {"mdp": [InstanceOf(MDP, description="an MDP")],
+                                              **_PARAMETER_CONSTRAINTS[function]}, owner=function, hints=_HINTS)
 
 
 class MDP:
@@ -89,8 +118,10 @@ class MDP:
                 f"transitions[{a}, {s}, :].sum() = {sums[a, s]:.6g}. Normalise the rows "
                 "(P / P.sum(axis=2, keepdims=True)) or check the axis order (action, state, next state)."
             )
+        validate_params({"discount": discount}, _MDP_CONSTRAINTS, owner="MDP",
+                        hints={"discount": "Future rewards are worth gamma^t; gamma = 1 has no finite values."})
         self.transitions = P
-        self.discount = check_scalar(discount, "discount", low=0.0, high=1.0, high_inclusive=False)
+        self.discount = float(discount)
         self.rewards = None if rewards is None else check_rewards(self, rewards, allow_batch=False)
 
     @property
@@ -147,8 +178,10 @@ def grid_world(size: int = 10, *, success_prob: float = 0.7, discount: float = 0
     MDP
         With ``size**2`` states, 4 actions and no default reward.
     """
-    n = check_positive_int(size, "size", minimum=2)
-    p = check_scalar(success_prob, "success_prob", low=0.0, high=1.0)
+    validate_params({"size": size, "success_prob": success_prob, "random_includes_intended": random_includes_intended},
+                    _PARAMETER_CONSTRAINTS["grid_world"], owner="grid_world")
+    n = int(size)
+    p = float(success_prob)
     S = n * n
     P = np.zeros((4, S, S))
     for r in range(n):
@@ -238,7 +271,19 @@ def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_it
         Optimal values V*.
     Q : ndarray of shape (..., S, A)
         Optimal action values Q*, consistent with V (``V = Q.max(-1)``).
+
+    Raises
+    ------
+    ParameterError
+        If ``max_iter < 1`` (zero sweeps would leave no converged values to return; use
+        :func:`q_values` for one Bellman backup) or ``tol <= 0`` (never met).
     """
+    _check("value_iteration", mdp, tol=tol, max_iter=max_iter, init=init)
+    return _value_iteration(mdp, rewards, tol=tol, max_iter=max_iter, init=init)
+
+
+def _value_iteration(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_iter: int = 10_000, init: Any = None):
+    """:func:`value_iteration` without the parameter checks (for the learners' inner loops)."""
     batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     gamma = mdp.discount
@@ -251,7 +296,7 @@ def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_it
             break
     else:
         warnings.warn(f"value iteration stopped after max_iter={max_iter} sweeps with change {delta:.3g} > tol={tol:g}; "
-                      "raise max_iter or tol.", ConvergenceWarning, stacklevel=2)
+                      "raise max_iter or tol.", ConvergenceWarning, stacklevel=3)
     Qf = RT + gamma * (V @ Pf.T)
     Q = Qf.reshape(T, A, S).transpose(0, 2, 1)
     V = Q.max(axis=2)
@@ -287,7 +332,12 @@ def policy_iteration(mdp: MDP, rewards: Any = None, *, max_iter: int = 1000,
     -------
     V, Q : as :func:`value_iteration`.
     """
-    max_iter = check_positive_int(max_iter, "max_iter")
+    _check("policy_iteration", mdp, max_iter=max_iter, init=init)
+    return _policy_iteration(mdp, rewards, max_iter=max_iter, init=init)
+
+
+def _policy_iteration(mdp: MDP, rewards: Any, *, max_iter: int = 1000, init: Any = None):
+    """:func:`policy_iteration` without the parameter checks (for the learners' inner loops)."""
     batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     gamma = mdp.discount
@@ -319,7 +369,7 @@ def policy_iteration(mdp: MDP, rewards: Any = None, *, max_iter: int = 1000,
             break
     else:
         warnings.warn(f"policy iteration stopped after max_iter={max_iter} iterations with policies still changing.",
-                      ConvergenceWarning, stacklevel=2)
+                      ConvergenceWarning, stacklevel=3)
     Q = Q.transpose(0, 2, 1)
     V = Q.max(axis=2)
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
@@ -335,8 +385,15 @@ def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, m
     """Soft (maximum causal entropy) values: ``V(s) = log sum_a exp Q(s, a)``, batched.
 
     Used by the maximum-entropy IRL baseline (Ziebart et al. 2010; not in the thesis).
-    Returns ``(V, Q)`` with the shapes of :func:`value_iteration`.
+    Returns ``(V, Q)`` with the shapes of :func:`value_iteration`; the parameters and the
+    errors are those of :func:`value_iteration` (``max_iter >= 1``, ``tol > 0``).
     """
+    _check("soft_value_iteration", mdp, tol=tol, max_iter=max_iter, init=init)
+    return _soft_value_iteration(mdp, rewards, tol=tol, max_iter=max_iter, init=init)
+
+
+def _soft_value_iteration(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_iter: int = 10_000, init: Any = None):
+    """:func:`soft_value_iteration` without the parameter checks (for the learners' inner loops)."""
     batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     for _ in range(max_iter):
@@ -348,7 +405,7 @@ def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, m
             break
     else:
         warnings.warn(f"soft value iteration stopped after max_iter={max_iter} sweeps with change {delta:.3g}.",
-                      ConvergenceWarning, stacklevel=2)
+                      ConvergenceWarning, stacklevel=3)
     Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S).transpose(0, 2, 1)
     V = _logsumexp(Q, axis=2)
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
@@ -368,6 +425,12 @@ def greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
     -------
     pi : ndarray of shape (..., S, A)
     """
+    validate_params({"tie_tol": tie_tol}, _PARAMETER_CONSTRAINTS["greedy_policy"], owner="greedy_policy")
+    return _greedy_policy(Q, tie_tol=tie_tol)
+
+
+def _greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
+    """:func:`greedy_policy` without the parameter check."""
     Q = np.asarray(Q, dtype=float)
     best = Q.max(axis=-1, keepdims=True)
     mask = Q >= best - tie_tol * (1.0 + np.abs(best))
@@ -383,8 +446,13 @@ def boltzmann_policy(Q: Any, beta: float = 1.0) -> np.ndarray:
     beta : float, default=1.0
         Inverse temperature (nonnegative); beta -> inf gives the greedy policy.
     """
-    beta = check_scalar(beta, "beta", low=0.0)
-    Z = beta * np.asarray(Q, dtype=float)
+    validate_params({"beta": beta}, _PARAMETER_CONSTRAINTS["boltzmann_policy"], owner="boltzmann_policy")
+    return _boltzmann_policy(Q, beta)
+
+
+def _boltzmann_policy(Q: Any, beta: float) -> np.ndarray:
+    """:func:`boltzmann_policy` without the parameter check."""
+    Z = float(beta) * np.asarray(Q, dtype=float)
     Z = Z - Z.max(axis=-1, keepdims=True)
     E = np.exp(Z)
     return E / E.sum(axis=-1, keepdims=True)
@@ -488,12 +556,13 @@ def sample_trajectories(mdp: MDP, policy: Any, n_trajectories: int, length: int,
     -------
     list of ndarray of shape (length, 2)
     """
+    _check("sample_trajectories", mdp, n_trajectories=n_trajectories, length=length, start=start,
+           random_state=random_state)
     rng = check_random_state(random_state)
     pi = _check_policy(mdp, policy)
     if pi.ndim != 2:
         raise ParameterError(f"policy must have shape (n_states, n_actions) here; got {pi.shape}.")
-    n = check_positive_int(n_trajectories, "n_trajectories")
-    L = check_positive_int(length, "length")
+    n, L = int(n_trajectories), int(length)
     s = rng.integers(mdp.n_states, size=n) if start is None else np.asarray(start, dtype=int).copy()
     if s.shape != (n,):
         raise ParameterError(f"start must have shape ({n},); got {s.shape}.")
