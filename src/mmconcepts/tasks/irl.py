@@ -29,18 +29,20 @@ import warnings
 from typing import Any, Callable, Sequence
 
 import numpy as np
+from sklearn.base import BaseEstimator
 
-from .._validation import check_positive_int, check_scalar
+from .._persist import SaveLoadMixin
+from .._validation import InstanceOf, Interval, Options, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
 from .mdp import (
     MDP,
-    boltzmann_policy,
+    _boltzmann_policy,
+    _greedy_policy,
+    _policy_iteration,
+    _soft_value_iteration,
+    _value_iteration,
     check_trajectories,
-    greedy_policy,
     policy_transitions,
-    policy_iteration,
-    soft_value_iteration,
-    value_iteration,
 )
 
 __all__ = [
@@ -56,6 +58,28 @@ __all__ = [
     "MaxEntIRL",
     "check_task_demonstrations",
 ]
+
+# Parameters of the public functions, declared once and checked by one validate_params call at
+# their start; the learners' inner loops call the private twins (_gradirl_objective, ...), which
+# do not check. A stopping test "change < tol" can never be met with tol = 0, hence tol > 0 for the
+# fixed-point iterations; the descents stop on "relative decrease < tol", where tol = 0 means
+# "run max_iter steps".
+_MDP = [InstanceOf(MDP, description="an MDP")]
+_PARAMETER_CONSTRAINTS: dict[str, dict[str, list]] = {
+    "adjoint_gradient": {"mdp": _MDP, "method": [Options("auto", "solve", "iterate")],
+                         "tol": [Interval("real", 0, None, closed="neither")], "max_iter": [Interval("int", 1, None)]},
+    "q_gradient": {"mdp": _MDP, "method": [Options("solve", "iterate")],
+                   "tol": [Interval("real", 0, None, closed="neither")], "max_iter": [Interval("int", 1, None)]},
+    "gradirl_objective": {"mdp": _MDP, "beta": [Interval("real", 0, None)], "init": ["array-like", None],
+                          "return_values": ["boolean"], "method": [Options("auto", "solve", "iterate")]},
+    "maxent_objective": {"mdp": _MDP, "l2": [Interval("real", 0, None)], "init": ["array-like", None],
+                         "return_values": ["boolean"]},
+    "armijo_descent": {"fun": ["callable"], "max_iter": [Interval("int", 0, None)], "tol": [Interval("real", 0, None)],
+                       "step0": [Interval("real", 0, None, closed="neither")],
+                       "c": [Interval("real", 0, 1, closed="neither")],
+                       "shrink": [Interval("real", 0, 1, closed="neither")], "grow": [Interval("real", 1, None)],
+                       "max_backtracks": [Interval("int", 1, None)], "steps": ["array-like", None]},
+}
 
 
 def check_task_demonstrations(mdp: MDP, demonstrations: Any) -> list[list[np.ndarray]]:
@@ -145,6 +169,14 @@ def adjoint_gradient(mdp: MDP, g: np.ndarray, policy: np.ndarray, *, method: str
     iteration, one matrix product per sweep for all tasks) or 'auto' (solve when
     S <= 1500).
     """
+    validate_params(dict(mdp=mdp, method=method, tol=tol, max_iter=max_iter),
+                    _PARAMETER_CONSTRAINTS["adjoint_gradient"], owner="adjoint_gradient")
+    return _adjoint_gradient(mdp, g, policy, method=method, tol=tol, max_iter=max_iter)
+
+
+def _adjoint_gradient(mdp: MDP, g: np.ndarray, policy: np.ndarray, *, method: str = "auto",
+                      tol: float = 1e-12, max_iter: int = 10_000) -> np.ndarray:
+    """:func:`adjoint_gradient` without the parameter checks."""
     T, S, A = g.shape
     gamma = mdp.discount
     Pf = mdp.transitions.reshape(A * S, S)
@@ -155,7 +187,7 @@ def adjoint_gradient(mdp: MDP, g: np.ndarray, policy: np.ndarray, *, method: str
         Ppi = policy_transitions(mdp, policy)  # (T, S, S)
         M = np.eye(S) - gamma * np.swapaxes(Ppi, -1, -2)
         w = np.linalg.solve(M, c[..., None])[..., 0]
-    elif method == "iterate":
+    else:  # "iterate"
         w = c.copy()
         PT = mdp.transitions  # w_{k+1}(y) = c(y) + gamma sum_x P_pi[x, y] w_k(x)
         for _ in range(max_iter):
@@ -167,10 +199,8 @@ def adjoint_gradient(mdp: MDP, g: np.ndarray, policy: np.ndarray, *, method: str
                 break
         else:
             warnings.warn("adjoint fixed-point iteration did not converge; use method='solve'.",
-                          ConvergenceWarning, stacklevel=2)
+                          ConvergenceWarning, stacklevel=3)
         del PT
-    else:
-        raise ParameterError(f"method must be 'auto', 'solve' or 'iterate'; got {method!r}.")
     return g + gamma * policy * w[:, :, None]
 
 
@@ -193,6 +223,8 @@ def q_gradient(mdp: MDP, features: Any, policy: Any, *, method: str = "solve", t
     -------
     phi : ndarray of shape (S, A, d)
     """
+    validate_params(dict(mdp=mdp, method=method, tol=tol, max_iter=max_iter), _PARAMETER_CONSTRAINTS["q_gradient"],
+                    owner="q_gradient")
     S, A = mdp.n_states, mdp.n_actions
     F = check_features(mdp, features)
     if F is None:
@@ -203,7 +235,7 @@ def q_gradient(mdp: MDP, features: Any, policy: Any, *, method: str = "solve", t
     Ppi = policy_transitions(mdp, pi)
     if method == "solve":
         psi = np.linalg.solve(np.eye(S) - gamma * Ppi, Fpi)
-    elif method == "iterate":
+    else:  # "iterate"
         psi = Fpi.copy()
         for _ in range(max_iter):
             new = Fpi + gamma * Ppi @ psi
@@ -211,8 +243,6 @@ def q_gradient(mdp: MDP, features: Any, policy: Any, *, method: str = "solve", t
             psi = new
             if done:
                 break
-    else:
-        raise ParameterError(f"method must be 'solve' or 'iterate'; got {method!r}.")
     return F + gamma * np.einsum("ast,tj->saj", mdp.transitions, psi)
 
 
@@ -245,18 +275,28 @@ def gradirl_objective(mdp: MDP, theta: np.ndarray, mu: np.ndarray, pi_E: np.ndar
     grad : ndarray of shape (T, d)
     V : ndarray of shape (T, S), only with ``return_values=True``
     """
+    validate_params(dict(mdp=mdp, beta=beta, init=init, return_values=return_values, method=method),
+                    _PARAMETER_CONSTRAINTS["gradirl_objective"], owner="gradirl_objective")
+    return _gradirl_objective(mdp, theta, mu, pi_E, features=features, beta=beta, init=init,
+                              return_values=return_values, method=method)
+
+
+def _gradirl_objective(mdp: MDP, theta: np.ndarray, mu: np.ndarray, pi_E: np.ndarray, *,
+                       features: np.ndarray | None = None, beta: float = 1.0, init: np.ndarray | None = None,
+                       return_values: bool = False, method: str = "auto"):
+    """:func:`gradirl_objective` without the parameter checks (for the learners' inner loops)."""
     r = features_to_rewards(mdp, theta, features)
     # Q* exactly by policy iteration when the S x S solves are cheap (the same rule as the
     # adjoint's 'auto'): warm-started from the last values it needs 1-3 iterations where
     # value iteration needed about 200 sweeps (measured on the chapter-4 grid world).
     small = mdp.n_states <= 1500 if method == "auto" else method == "solve"
-    V, Q = policy_iteration(mdp, r, init=init) if small else value_iteration(mdp, r, init=init)
-    pib = boltzmann_policy(Q, beta)
+    V, Q = _policy_iteration(mdp, r, init=init) if small else _value_iteration(mdp, r, init=init)
+    pib = _boltzmann_policy(Q, beta)
     diff = pib - pi_E
     loss = (mu * (diff**2).sum(axis=2)).sum(axis=1)
     e = 2.0 * mu[:, :, None] * diff  # dJ/dpi
     g = beta * pib * (e - (e * pib).sum(axis=2, keepdims=True))  # dJ/dQ by eq. (2.33)
-    z = adjoint_gradient(mdp, g, greedy_policy(Q), method=method)
+    z = _adjoint_gradient(mdp, g, _greedy_policy(Q), method=method)
     grad = _pullback(features, z)
     return (loss, grad, V) if return_values else (loss, grad)
 
@@ -270,14 +310,22 @@ def maxent_objective(mdp: MDP, theta: np.ndarray, counts: np.ndarray, *, feature
     a baseline beyond the thesis). Batched: ``theta`` (T, d), ``counts`` (T, S, A).
     Returns ``(loss (T,), grad (T, d))``.
     """
+    validate_params(dict(mdp=mdp, l2=l2, init=init, return_values=return_values),
+                    _PARAMETER_CONSTRAINTS["maxent_objective"], owner="maxent_objective")
+    return _maxent_objective(mdp, theta, counts, features=features, l2=l2, init=init, return_values=return_values)
+
+
+def _maxent_objective(mdp: MDP, theta: np.ndarray, counts: np.ndarray, *, features: np.ndarray | None = None,
+                      l2: float = 0.0, init: np.ndarray | None = None, return_values: bool = False):
+    """:func:`maxent_objective` without the parameter checks (for the learners' inner loops)."""
     r = features_to_rewards(mdp, theta, features)
-    V, Q = soft_value_iteration(mdp, r, init=init)
+    V, Q = _soft_value_iteration(mdp, r, init=init)
     logpi = Q - V[:, :, None]
     pi = np.exp(logpi)
     n = counts.sum(axis=(1, 2))
     loss = -(counts * logpi).sum(axis=(1, 2)) / n + 0.5 * l2 * (theta**2).sum(axis=1)
     g = -(counts - counts.sum(axis=2, keepdims=True) * pi) / n[:, None, None]  # dL/dQ (V's derivative is pi)
-    z = adjoint_gradient(mdp, g, pi)
+    z = _adjoint_gradient(mdp, g, pi)
     grad = _pullback(features, z) + l2 * theta
     return (loss, grad, V) if return_values else (loss, grad)
 
@@ -299,7 +347,17 @@ def armijo_descent(fun: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.
     n_iter : int
     steps : ndarray (n,)
         Last step sizes (to warm start a later call).
+
+    Raises
+    ------
+    ParameterError
+        If an option is out of its range: ``max_iter >= 0`` (0 returns the start point),
+        ``tol >= 0``, ``step0 > 0``, ``0 < c < 1``, ``0 < shrink < 1``, ``grow >= 1``,
+        ``max_backtracks >= 1``.
     """
+    validate_params(dict(fun=fun, max_iter=max_iter, tol=tol, step0=step0, c=c, shrink=shrink, grow=grow,
+                         max_backtracks=max_backtracks, steps=steps), _PARAMETER_CONSTRAINTS["armijo_descent"],
+                    owner="armijo_descent")
     X = np.array(x0, dtype=float, copy=True)
     n = X.shape[0]
     rows = np.arange(n)
@@ -353,7 +411,15 @@ class _WarmVI:
         self.V = np.zeros((n_tasks, n_states))
 
 
-class GradIRL:
+_HINTS = {
+    "beta": "beta is the Boltzmann inverse temperature of eq. (2.32); at beta = 0 every policy is uniform and the "
+            "loss has no gradient.",
+    "tol": "A task stops when its relative loss decrease falls below tol; tol = 0 runs max_iter steps.",
+    "features": "Give an array of shape (n_states, n_actions, d), or None for tabular rewards.",
+}
+
+
+class GradIRL(SaveLoadMixin, BaseEstimator):
     """Flat gradient IRL (Neu and Szepesvari 2007; thesis section 2.2.3), one parameter per task.
 
     Minimises the policy-matching loss (2.30) of each task independently by gradient
@@ -365,13 +431,14 @@ class GradIRL:
     features : array-like of shape (S, A, d), optional
         Reward features; None means tabular rewards (d = S A).
     beta : float, default=1.0
-        Boltzmann inverse temperature (eq. 2.32).
+        Boltzmann inverse temperature (eq. 2.32), > 0.
     max_iter : int, default=100
-        Gradient steps per task.
+        Gradient steps per task, >= 1.
     tol : float, default=1e-6
-        Stop a task when its relative loss decrease is below ``tol``.
+        Stop a task when its relative loss decrease is below ``tol`` (>= 0; 0 runs
+        ``max_iter`` steps).
     step0 : float, default=1.0
-        Initial step size.
+        Initial step size, > 0.
 
     Attributes
     ----------
@@ -379,7 +446,22 @@ class GradIRL:
     rewards_ : ndarray of shape (n_tasks, S, A)
     loss_ : ndarray of shape (n_tasks,)
     n_iter_ : int
+
+    Notes
+    -----
+    A scikit-learn estimator (``get_params``, ``set_params``, ``clone``) whose ``fit`` takes
+    an :class:`~mmconcepts.tasks.MDP` and demonstrations instead of ``(X, y)``. ``save`` and
+    ``load`` keep the parameters and the learnt arrays above; the MDP is not part of the
+    model (pass it again where it is needed).
     """
+
+    _parameter_constraints: dict[str, list] = {
+        "features": ["array-like", None],
+        "beta": [Interval("real", 0, None, closed="neither")],
+        "max_iter": [Interval("int", 1, None)],
+        "tol": [Interval("real", 0, None)],
+        "step0": [Interval("real", 0, None, closed="neither")],
+    }
 
     def __init__(self, features: Any = None, *, beta: float = 1.0, max_iter: int = 100, tol: float = 1e-6,
                  step0: float = 1.0) -> None:
@@ -399,11 +481,18 @@ class GradIRL:
             (state, action) pairs; ``[trajectories]`` for a single task.
         theta0 : array-like of shape (n_tasks, d), optional
             Starting parameters (default zeros).
+
+        Raises
+        ------
+        ParameterError
+            If a parameter is out of its range, or ``mdp``, ``features`` or ``theta0`` do not fit.
+        DataError
+            If the demonstrations are malformed.
         """
+        validate_params(self, self._parameter_constraints, hints=_HINTS)
         if not isinstance(mdp, MDP):
             raise ParameterError(f"mdp must be an MDP; got {type(mdp).__name__}.")
-        beta = check_scalar(self.beta, "beta", low=0.0, low_inclusive=False)
-        max_iter = check_positive_int(self.max_iter, "max_iter")
+        beta = float(self.beta)
         F = check_features(mdp, self.features)
         demos = check_task_demonstrations(mdp, demonstrations)
         mu, pi_E = _stats(mdp, demos)
@@ -414,18 +503,18 @@ class GradIRL:
         warm = _WarmVI(len(demos), mdp.n_states)
 
         def fun(X, rows):
-            loss, grad, V = gradirl_objective(mdp, X, mu[rows], pi_E[rows], features=F, beta=beta,
-                                              init=warm.V[rows], return_values=True)
+            loss, grad, V = _gradirl_objective(mdp, X, mu[rows], pi_E[rows], features=F, beta=beta,
+                                               init=warm.V[rows], return_values=True)
             warm.V[rows] = V
             return loss, grad
 
-        self.theta_, self.loss_, self.n_iter_, _ = armijo_descent(fun, x0, max_iter=max_iter, tol=self.tol,
+        self.theta_, self.loss_, self.n_iter_, _ = armijo_descent(fun, x0, max_iter=int(self.max_iter), tol=self.tol,
                                                                    step0=self.step0)
         self.rewards_ = features_to_rewards(mdp, self.theta_, F)
         return self
 
 
-class MaxEntIRL:
+class MaxEntIRL(SaveLoadMixin, BaseEstimator):
     """Maximum (causal) entropy IRL, one tabular or linear reward per task (baseline beyond the thesis).
 
     Maximises the likelihood of the demonstrated actions under the soft-optimal policy
@@ -435,13 +524,30 @@ class MaxEntIRL:
     ----------
     features : array-like of shape (S, A, d), optional
     l2 : float, default=0.01
+        L2 penalty, >= 0.
     max_iter : int, default=100
+        Gradient steps per task, >= 1.
     tol : float, default=1e-6
+        As in :class:`GradIRL`.
+    step0 : float, default=1.0
+        Initial step size, > 0.
 
     Attributes
     ----------
     theta_, rewards_, loss_, n_iter_ : as in :class:`GradIRL`
+
+    Notes
+    -----
+    The estimator contract, ``save`` and ``load`` are those of :class:`GradIRL`.
     """
+
+    _parameter_constraints: dict[str, list] = {
+        "features": ["array-like", None],
+        "l2": [Interval("real", 0, None)],
+        "max_iter": [Interval("int", 1, None)],
+        "tol": [Interval("real", 0, None)],
+        "step0": [Interval("real", 0, None, closed="neither")],
+    }
 
     def __init__(self, features: Any = None, *, l2: float = 0.01, max_iter: int = 100, tol: float = 1e-6,
                  step0: float = 1.0) -> None:
@@ -453,7 +559,10 @@ class MaxEntIRL:
 
     def fit(self, mdp: MDP, demonstrations: Sequence[Sequence[Any]]) -> "MaxEntIRL":
         """Learn one reward per task from ``demonstrations`` (as in :meth:`GradIRL.fit`)."""
-        l2 = check_scalar(self.l2, "l2", low=0.0)
+        validate_params(self, self._parameter_constraints, hints=_HINTS)
+        if not isinstance(mdp, MDP):
+            raise ParameterError(f"mdp must be an MDP; got {type(mdp).__name__}.")
+        l2 = float(self.l2)
         F = check_features(mdp, self.features)
         demos = check_task_demonstrations(mdp, demonstrations)
         counts = np.zeros((len(demos), mdp.n_states, mdp.n_actions))
@@ -464,13 +573,12 @@ class MaxEntIRL:
         warm = _WarmVI(len(demos), mdp.n_states)
 
         def fun(X, rows):
-            loss, grad, V = maxent_objective(mdp, X, counts[rows], features=F, l2=l2, init=warm.V[rows],
-                                             return_values=True)
+            loss, grad, V = _maxent_objective(mdp, X, counts[rows], features=F, l2=l2, init=warm.V[rows],
+                                              return_values=True)
             warm.V[rows] = V
             return loss, grad
 
         self.theta_, self.loss_, self.n_iter_, _ = armijo_descent(
-            fun, np.zeros((len(demos), d)), max_iter=check_positive_int(self.max_iter, "max_iter"), tol=self.tol,
-            step0=self.step0)
+            fun, np.zeros((len(demos), d)), max_iter=int(self.max_iter), tol=self.tol, step0=self.step0)
         self.rewards_ = features_to_rewards(mdp, self.theta_, F)
         return self
