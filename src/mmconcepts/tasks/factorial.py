@@ -22,22 +22,28 @@ import warnings
 from typing import Any, Sequence
 
 import numpy as np
-from sklearn.exceptions import NotFittedError
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_positive_int, check_random_state, check_scalar
+from .._persist import SaveLoadMixin
+from .._validation import InstanceOf, Interval, Options, check_random_state, validate_params
 from ..errors import ConvergenceWarning, ParameterError
 from .irl import (
+    _HINTS as _IRL_HINTS,
     GradIRL,
+    _gradirl_objective,
     _stats,
     armijo_descent,
     check_features,
     check_task_demonstrations,
     features_to_rewards,
-    gradirl_objective,
 )
 from .mdp import MDP
 
 __all__ = ["FactorialIRL", "factorial_objective", "component_features"]
+
+_OBJECTIVE_CONSTRAINTS: dict[str, list] = {"mdp": [InstanceOf(MDP, description="an MDP")],
+                                           "beta": [Interval("real", 0, None)], "init": ["array-like", None]}
 
 
 def component_features(mdp: MDP, components: np.ndarray, features: np.ndarray | None = None) -> np.ndarray:
@@ -63,34 +69,35 @@ def factorial_objective(mdp: MDP, components: np.ndarray, coefficients: np.ndarr
     grad_components : ndarray of shape (k, d)
     grad_coefficients : ndarray of shape (n, k)
     """
+    validate_params(dict(mdp=mdp, beta=beta, init=init), _OBJECTIVE_CONSTRAINTS, owner="factorial_objective")
     theta = coefficients @ components
-    losses, G = gradirl_objective(mdp, theta, mu, pi_E, features=features, beta=beta, init=init)
+    losses, G = _gradirl_objective(mdp, theta, mu, pi_E, features=features, beta=beta, init=init)
     return float(losses.sum()), coefficients.T @ G, G @ components.T
 
 
-class FactorialIRL:
+class FactorialIRL(SaveLoadMixin, BaseEstimator):
     """Factorial IRL (thesis section 4.3.1): learn k primitive rewards from many tasks.
 
     Parameters
     ----------
     n_components : int, default=5
-        Dictionary size k.
+        Dictionary size k (>= 1, at most min(n_tasks, d)).
     features : array-like of shape (S, A, d), optional
         Base reward features; None means tabular rewards (d = S A).
     beta : float, default=1.0
-        Boltzmann inverse temperature (eq. 2.32).
+        Boltzmann inverse temperature (eq. 2.32), > 0.
     max_iter : int, default=30
-        Alternations (one H phase and one D phase each).
+        Alternations (one H phase and one D phase each), >= 0 (0 keeps the initialisation).
     inner_steps : int, default=5
-        Armijo gradient steps per phase.
+        Armijo gradient steps per phase, >= 1.
     tol : float, default=1e-4
-        Stop when an alternation lowers the cumulated loss by less than ``tol`` (relative).
+        Stop when an alternation lowers the cumulated loss by less than ``tol`` (relative; >= 0).
     init : {'pca', 'random'} or ndarray of shape (k, d), default='pca'
         'pca': flat GradIRL on every task, then the first k right singular vectors of the
         learnt parameters (an uncentred PCA, since theta = D h has no offset) as the
         initial dictionary, the projections as coefficients (section 4.3.1).
     flat_max_iter : int, default=100
-        Gradient steps of the flat learners used by ``init='pca'``.
+        Gradient steps of the flat learners used by ``init='pca'``, >= 1.
     random_state : int, Generator or None
         Used by ``init='random'``.
 
@@ -108,7 +115,33 @@ class FactorialIRL:
     loss_history_ : list of float
         Cumulated loss (4.8) after the initialisation and after each alternation.
     n_iter_ : int
+
+    Notes
+    -----
+    A scikit-learn estimator (``get_params``, ``set_params``, ``clone``) whose ``fit`` takes
+    an :class:`~mmconcepts.tasks.MDP` and demonstrations instead of ``(X, y)``. ``save`` and
+    ``load`` keep the parameters (a ``random_state`` generator is saved as None), the learnt
+    arrays above and the (n_states, n_actions) of the training MDP; the MDP itself is not
+    saved, so a loaded model's :meth:`reward_features` and :meth:`transform` take it as
+    before (an MDP of another size is refused).
     """
+
+    _parameter_constraints: dict[str, list] = {
+        "n_components": [Interval("int", 1, None)],
+        "features": ["array-like", None],
+        "beta": [Interval("real", 0, None, closed="neither")],
+        "max_iter": [Interval("int", 0, None)],
+        "inner_steps": [Interval("int", 1, None)],
+        "tol": [Interval("real", 0, None)],
+        "init": [Options("pca", "random"), "array-like"],
+        "flat_max_iter": [Interval("int", 1, None)],
+        "random_state": ["random_state"],
+    }
+    _hints = {**_IRL_HINTS,
+              "tol": "The learner stops when an alternation lowers the loss by less than tol (relative); tol = 0 runs "
+                     "max_iter alternations.",
+              "init": "An array has shape (n_components, d)."}
+    _persisted_private = ("_mdp_shape",)
 
     def __init__(self, n_components: int = 5, *, features: Any = None, beta: float = 1.0, max_iter: int = 30,
                  inner_steps: int = 5, tol: float = 1e-4, init: Any = "pca", flat_max_iter: int = 100,
@@ -133,12 +166,10 @@ class FactorialIRL:
         flat_theta : array-like of shape (n_tasks, d), optional
             Already learnt flat parameters for the PCA initialisation (skips refitting).
         """
+        validate_params(self, self._parameter_constraints, hints=self._hints)
         if not isinstance(mdp, MDP):
             raise ParameterError(f"mdp must be an MDP; got {type(mdp).__name__}.")
-        k = check_positive_int(self.n_components, "n_components")
-        beta = check_scalar(self.beta, "beta", low=0.0, low_inclusive=False)
-        max_iter = check_positive_int(self.max_iter, "max_iter", minimum=0)
-        inner = check_positive_int(self.inner_steps, "inner_steps")
+        k, beta, max_iter, inner = int(self.n_components), float(self.beta), int(self.max_iter), int(self.inner_steps)
         F = check_features(mdp, self.features)
         demos = check_task_demonstrations(mdp, demonstrations)
         n = len(demos)
@@ -162,32 +193,30 @@ class FactorialIRL:
             rng = check_random_state(self.random_state)
             D = rng.standard_normal((k, d)) / np.sqrt(d)
             flat_theta = None
-        elif not isinstance(self.init, str):
+        else:  # an array (validate_params allowed nothing else)
             D = np.asarray(self.init, dtype=float).copy()
             if D.shape != (k, d):
                 raise ParameterError(f"init array must have shape (n_components, d) = ({k}, {d}); got {D.shape}.")
-        else:
-            raise ParameterError(f"init must be 'pca', 'random' or an array of shape ({k}, {d}); got {self.init!r}.")
         self.init_components_ = D.copy()
         Hc = (flat_theta @ D.T) if flat_theta is not None else np.zeros((n, k))
         V_warm = np.zeros((n, mdp.n_states))
 
         def fun_h(X, rows):
-            loss, grad, V = gradirl_objective(mdp, X @ D, mu[rows], pi_E[rows], features=F, beta=beta,
-                                              init=V_warm[rows], return_values=True)
+            loss, grad, V = _gradirl_objective(mdp, X @ D, mu[rows], pi_E[rows], features=F, beta=beta,
+                                               init=V_warm[rows], return_values=True)
             V_warm[rows] = V
             return loss, grad @ D.T
 
         def fun_d(X, rows):
             Dx = X.reshape(k, d)
-            loss, grad, V = gradirl_objective(mdp, Hc @ Dx, mu, pi_E, features=F, beta=beta, init=V_warm,
-                                              return_values=True)
+            loss, grad, V = _gradirl_objective(mdp, Hc @ Dx, mu, pi_E, features=F, beta=beta, init=V_warm,
+                                               return_values=True)
             V_warm[:] = V
             return np.array([loss.sum()]), (Hc.T @ grad).reshape(1, -1)
 
         def total():
-            loss, _, V = gradirl_objective(mdp, Hc @ D, mu, pi_E, features=F, beta=beta, init=V_warm,
-                                           return_values=True)
+            loss, _, V = _gradirl_objective(mdp, Hc @ D, mu, pi_E, features=F, beta=beta, init=V_warm,
+                                            return_values=True)
             V_warm[:] = V
             return float(loss.sum())
 
@@ -218,9 +247,20 @@ class FactorialIRL:
         return self
 
     def reward_features(self, mdp: MDP) -> np.ndarray:
-        """The learnt dictionary as reward features (S, A, k), for :class:`GradIRL` on new tasks."""
-        if not hasattr(self, "components_"):
-            raise NotFittedError("this FactorialIRL is not fitted yet; call fit first.")
+        """The learnt dictionary as reward features (S, A, k), for :class:`GradIRL` on new tasks.
+
+        Raises
+        ------
+        NotFittedError
+            Before :meth:`fit`.
+        ParameterError
+            If ``mdp`` is not an MDP with the numbers of states and actions of the training MDP.
+        """
+        check_is_fitted(self)
+        if not isinstance(mdp, MDP) or (mdp.n_states, mdp.n_actions) != tuple(self._mdp_shape):
+            got = f"{mdp.n_states} states and {mdp.n_actions} actions" if isinstance(mdp, MDP) else type(mdp).__name__
+            raise ParameterError(f"mdp must be an MDP with the {self._mdp_shape[0]} states and {self._mdp_shape[1]} "
+                                 f"actions of the training MDP; got {got}.")
         return component_features(mdp, self.components_, check_features(mdp, self.features))
 
     def transform(self, mdp: MDP, demonstrations: Sequence[Sequence[Any]], *, max_iter: int = 100) -> np.ndarray:
