@@ -22,16 +22,29 @@ from typing import Any, Sequence
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import nnls
-from sklearn.exceptions import NotFittedError
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_positive_int, check_random_state, check_scalar
+from .._persist import SaveLoadMixin
+from .._validation import InstanceOf, Interval, Options, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 
 __all__ = ["RBFFeatures", "control_trajectories", "brillinger_regression", "FactorialInverseControl",
            "relative_l2_error"]
 
+_POSITIVE = [Interval("real", 0, None, closed="neither")]
+# Parameters of the public functions, declared once and checked by one validate_params call at their start.
+_PARAMETER_CONSTRAINTS: dict[str, dict[str, list]] = {
+    "RBFFeatures": {"grid_size": [Interval("int", 2, None)], "sigma": [*_POSITIVE, None]},
+    "control_trajectories": {"n_steps": [Interval("int", 1, None)], "lam": _POSITIVE, "dt": _POSITIVE,
+                             "settle_tol": [Interval("real", 0, None)], "method": [Options("euler", "ode")],
+                             "rtol": _POSITIVE, "atol": _POSITIVE},
+    "brillinger_regression": {"lam": _POSITIVE, "dt": _POSITIVE, "regression": [Options("lstsq", "ridge", "nnls")],
+                              "alpha": [Interval("real", 0, None)]},
+}
 
-class RBFFeatures:
+
+class RBFFeatures(SaveLoadMixin):
     """Gaussian radial basis features on a regular grid of [0, 1]^2 (section 4.2.2).
 
     ``phi_f(q) = exp(-|q - mu_f|^2 / (2 sigma^2)) / (2 pi sigma)``.
@@ -39,17 +52,56 @@ class RBFFeatures:
     Parameters
     ----------
     grid_size : int, default=5
-        Centres on a grid_size x grid_size grid (F = grid_size^2).
+        Centres on a grid_size x grid_size grid (F = grid_size^2), >= 2.
     sigma : float, optional
-        Width; default the grid spacing ``1 / (grid_size - 1)`` (the thesis does not give it).
+        Width (> 0); default the grid spacing ``1 / (grid_size - 1)`` (the thesis does not give it).
+
+    Attributes
+    ----------
+    sigma : float
+        The width in use (the grid spacing when the parameter is None).
+    centres : ndarray of shape (F, 2)
+        The centres, row-major over the grid (x varies fastest).
+
+    Notes
+    -----
+    A fixed feature map, not a learner: nothing is fitted from data, so it has no ``fit``
+    and is never "not fitted". Like scikit-learn's kernels it is a parameter object of the
+    learners that use it: ``get_params``/``set_params`` give and change its constructor
+    parameters (``get_params()["sigma"]`` is the parameter, None by default, while the
+    attribute ``sigma`` is the width in use), so that ``sklearn.base.clone`` of a
+    :class:`FactorialInverseControl` clones it and ``save``/``load`` store it by its
+    parameters.
     """
 
     def __init__(self, grid_size: int = 5, sigma: float | None = None) -> None:
-        g = check_positive_int(grid_size, "grid_size", minimum=2)
-        self.grid_size = g
-        self.sigma = 1.0 / (g - 1) if sigma is None else check_scalar(sigma, "sigma", low=0.0, low_inclusive=False)
+        validate_params({"grid_size": grid_size, "sigma": sigma}, _PARAMETER_CONSTRAINTS["RBFFeatures"],
+                        owner="RBFFeatures")
+        self.grid_size = grid_size
+        self._sigma_param = sigma
+        g = int(grid_size)
+        self.sigma = 1.0 / (g - 1) if sigma is None else float(sigma)
         u = np.linspace(0.0, 1.0, g)
         self.centres = np.array([(x, y) for y in u for x in u])
+
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """The constructor parameters ``{"grid_size": ..., "sigma": ...}`` (``deep`` has no effect)."""
+        return {"grid_size": self.grid_size, "sigma": self._sigma_param}
+
+    def set_params(self, **params: Any) -> "RBFFeatures":
+        """Change constructor parameters; the centres and the width are recomputed (and checked)."""
+        unknown = set(params) - {"grid_size", "sigma"}
+        if unknown:
+            raise ParameterError(f"RBFFeatures has no parameter {sorted(unknown)[0]!r}; its parameters are "
+                                 "'grid_size' and 'sigma'.")
+        self.__init__(**{**self.get_params(), **params})
+        return self
+
+    def __repr__(self) -> str:
+        return f"RBFFeatures(grid_size={self.grid_size!r}, sigma={self._sigma_param!r})"
+
+    def _is_fitted_for_save(self) -> bool:
+        return True  # nothing to fit: the parameters are the whole model
 
     @property
     def n_features(self) -> int:
@@ -105,11 +157,13 @@ def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_step
     -------
     trajectories : ndarray of shape (n, n_steps + 1, 2)
     """
+    validate_params(dict(n_steps=n_steps, lam=lam, dt=dt, settle_tol=settle_tol, method=method, rtol=rtol, atol=atol),
+                    _PARAMETER_CONSTRAINTS["control_trajectories"], owner="control_trajectories")
     B = np.atleast_2d(np.asarray(beta, dtype=float))
     q = np.atleast_2d(np.asarray(start, dtype=float)).copy()
     if B.shape[1] != features.n_features or q.shape != (B.shape[0], 2):
         raise ParameterError(f"beta must be (n, {features.n_features}) and start (n, 2); got {B.shape} and {q.shape}.")
-    T = check_positive_int(n_steps, "n_steps")
+    T = int(n_steps)
     if method == "ode":
         if settle_tol > 0:
             raise ParameterError("settle_tol applies to method='euler' only; pass settle_tol=0 with method='ode'.")
@@ -124,8 +178,6 @@ def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_step
         if not sol.success:  # pragma: no cover - smooth RBF dynamics do not fail
             raise ParameterError(f"integrating eq. (4.1) failed: {sol.message}")
         return sol.y.T.reshape(T + 1, n, 2).transpose(1, 0, 2)
-    if method != "euler":
-        raise ParameterError(f"method must be 'euler' or 'ode'; got {method!r}.")
     out = np.empty((q.shape[0], T + 1, 2))
     out[:, 0] = q
     moving = np.ones(q.shape[0], dtype=bool)
@@ -152,13 +204,12 @@ def _design(features: RBFFeatures, traj: np.ndarray, lam: float, dt: float) -> t
 
 
 def _regress(Phi: np.ndarray, Y: np.ndarray, regression: str, alpha: float) -> np.ndarray:
+    """Coefficients of ``Y ~ Phi b``; ``regression`` was checked by the caller."""
     if regression == "lstsq":  # eq. (4.3); minimum-norm solution when Phi^T Phi is singular
         return np.linalg.lstsq(Phi, Y, rcond=None)[0]
     if regression == "ridge":
         return np.linalg.solve(Phi.T @ Phi + alpha * np.eye(Phi.shape[1]), Phi.T @ Y)
-    if regression == "nnls":
-        return nnls(Phi, Y)[0]
-    raise ParameterError(f"regression must be 'lstsq', 'ridge' or 'nnls'; got {regression!r}.")
+    return nnls(Phi, Y)[0]  # "nnls"
 
 
 def brillinger_regression(features: RBFFeatures, trajectories: Any, *, lam: float = 1.0, dt: float = 0.01,
@@ -177,6 +228,8 @@ def brillinger_regression(features: RBFFeatures, trajectories: Any, *, lam: floa
     -------
     beta : ndarray of shape (F,)
     """
+    validate_params(dict(lam=lam, dt=dt, regression=regression, alpha=alpha),
+                    _PARAMETER_CONSTRAINTS["brillinger_regression"], owner="brillinger_regression")
     trajs = [trajectories] if np.ndim(trajectories) == 2 else list(trajectories)
     parts = [_design(features, t, lam, dt) for t in trajs]
     return _regress(np.concatenate([p[1] for p in parts]), np.concatenate([p[0] for p in parts]), regression, alpha)
@@ -189,24 +242,25 @@ def relative_l2_error(reference: Any, other: Any) -> np.ndarray:
     return np.sqrt(((a - b) ** 2).sum(axes) / (a**2).sum(axes))
 
 
-class FactorialInverseControl:
+class FactorialInverseControl(SaveLoadMixin, BaseEstimator):
     """Dictionary of primitive costs from mixed demonstrations (eq. 4.4-4.7).
 
     Parameters
     ----------
     n_components : int, default=6
+        Dictionary size K, >= 1.
     features : RBFFeatures, optional
         Default: the 5 x 5 grid.
     lam, dt : float
-        The agent's gain and time step of eq. (4.1).
+        The agent's gain and time step of eq. (4.1), both > 0.
     regression : {'lstsq', 'ridge', 'nnls'}, default='lstsq'
         Regression of the coefficients (eq. 4.6 is 'lstsq').
     alpha : float, default=1e-6
-        Ridge penalty.
+        Ridge penalty, >= 0.
     max_iter : int, default=100
-        Alternations (unsupervised) or gradient steps on D (supervised).
+        Alternations (unsupervised) or gradient steps on D (supervised), >= 1.
     d_steps : int, default=5
-        Gradient steps on D per alternation (exact line search: the loss is quadratic in D).
+        Gradient steps on D per alternation (exact line search: the loss is quadratic in D), >= 1.
     d_solver : {'steepest', 'cg'}, default='steepest'
         The gradient descent on D of eq. (4.7). 'steepest': steepest descent with exact
         line search (the loss is quadratic in D). 'cg': linear conjugate gradient on the
@@ -214,6 +268,7 @@ class FactorialInverseControl:
         in at most K F steps in exact arithmetic, where steepest descent crawls along the
         ill-conditioned directions (one demonstration excites few features).
     tol : float, default=1e-8
+        Stop when a step lowers the loss (4.5) by at most ``tol`` times its value (>= 0).
     random_state : int, Generator or None
         Random initial dictionary (both learners start from it).
 
@@ -226,7 +281,33 @@ class FactorialInverseControl:
         The random initial dictionary.
     loss_history_ : list of float
         Loss (4.5) after each alternation.
+    n_iter_ : int
+        Length of ``loss_history_``.
+
+    Notes
+    -----
+    A scikit-learn estimator (``get_params``, ``set_params``, ``clone``) whose input is a
+    list of trajectories of different lengths, not a 2-D array. ``save`` and ``load`` keep
+    the parameters (the :class:`RBFFeatures` by its parameters; a ``random_state``
+    generator is saved as None) and the learnt arrays above, so a loaded model's
+    :meth:`transform` gives the coefficients the saved one gave.
     """
+
+    _parameter_constraints: dict[str, list] = {
+        "n_components": [Interval("int", 1, None)],
+        "features": [None, InstanceOf(RBFFeatures)],
+        "lam": _POSITIVE,
+        "dt": _POSITIVE,
+        "regression": [Options("lstsq", "ridge", "nnls")],
+        "alpha": [Interval("real", 0, None)],
+        "max_iter": [Interval("int", 1, None)],
+        "d_steps": [Interval("int", 1, None)],
+        "d_solver": [Options("steepest", "cg")],
+        "tol": [Interval("real", 0, None)],
+        "random_state": ["random_state"],
+    }
+    _hints = {"d_solver": "'steepest' is steepest descent with exact line search, 'cg' linear conjugate gradient.",
+              "tol": "tol = 0 runs max_iter steps."}
 
     def __init__(self, n_components: int = 6, *, features: RBFFeatures | None = None, lam: float = 1.0,
                  dt: float = 0.01, regression: str = "lstsq", alpha: float = 1e-6, max_iter: int = 100,
@@ -322,11 +403,10 @@ class FactorialInverseControl:
             Known mixing coefficients (the supervised "dictionary from coefficients"
             learner): then only D is learnt, by gradient steps (4.7).
         """
-        K = check_positive_int(self.n_components, "n_components")
+        validate_params(self, self._parameter_constraints, hints=self._hints)
+        K, max_iter = int(self.n_components), int(self.max_iter)
         designs = self._designs(trajectories)
         F = self._feats().n_features
-        if self.d_solver not in ("steepest", "cg"):
-            raise ParameterError(f"d_solver must be 'steepest' or 'cg'; got {self.d_solver!r}.")
         d_step = self._d_steps if self.d_solver == "steepest" else self._cg_steps
         rng = check_random_state(self.random_state)
         D = rng.standard_normal((K, F))
@@ -337,7 +417,6 @@ class FactorialInverseControl:
             if A.shape != (len(designs), K):
                 raise ParameterError(f"coefficients must have shape (n_demos, n_components) = ({len(designs)}, {K}); "
                                      f"got {A.shape}.")
-            max_iter = check_positive_int(self.max_iter, "max_iter")
             if self.d_solver == "cg":  # one conjugate-gradient run: A is fixed, so conjugacy holds throughout
                 D = self._cg_steps(designs, D, A, max_iter, self.tol, history)
             else:
@@ -348,7 +427,7 @@ class FactorialInverseControl:
                         break
         else:
             A = self._coefs(designs, D)
-            for _ in range(check_positive_int(self.max_iter, "max_iter")):
+            for _ in range(max_iter):
                 D = d_step(designs, D, A, self.d_steps)
                 A = self._coefs(designs, D)
                 history.append(self._loss(designs, D, A))
@@ -359,7 +438,12 @@ class FactorialInverseControl:
         return self
 
     def transform(self, trajectories: Sequence[Any]) -> np.ndarray:
-        """Coefficients (n, K) of demonstrations on the learnt dictionary (eq. 4.6)."""
-        if not hasattr(self, "components_"):
-            raise NotFittedError("this FactorialInverseControl is not fitted yet; call fit first.")
+        """Coefficients (n, K) of demonstrations on the learnt dictionary (eq. 4.6).
+
+        Raises
+        ------
+        NotFittedError
+            Before :meth:`fit`.
+        """
+        check_is_fitted(self)
         return self._coefs(self._designs(trajectories), self.components_)
