@@ -542,3 +542,111 @@ def test_warnings_raised_in_worker_processes_are_recorded(toy, tmp_path):
         rec = run_experiment(exp, output=tmp_path, workers=2, progress=False)
     assert rec["metrics"]["s"] == 3.0
     assert sorted(rec["warnings"]) == ["RuntimeWarning: worker 1 skipped a file", "RuntimeWarning: worker 2 skipped a file"]
+
+
+# --------------------------------------------------------------------------- a config instead of a preset (issue 13)
+
+
+def test_run_with_a_config_object(toy, tmp_path):
+    out = tmp_path / "c"
+    record = run_experiment("toy-mean", config=toy.ToyConfig(n=50, n_chunks=2), output=out, progress=False)
+    stored = _strict_json(out / "toy-mean.json")
+    assert record.preset == stored["preset"] == "custom"  # no preset equals it
+    assert stored["config"] == {"n": 50, "n_chunks": 2, "sizes": [1, 2, 3], "seed": 0} and stored["seed"] == 0
+    assert record.metrics["n"] == 50.0 and toy.CALLS == [0]
+    run_experiment("toy-mean", config=toy.ToyConfig(n=50, n_chunks=2), output=out, progress=False)
+    assert toy.CALLS == [0]  # the same config: up to date
+    run_experiment("toy-mean", config=toy.ToyConfig(n=60, n_chunks=2), output=out, progress=False)
+    assert toy.CALLS == [0, 0] and _strict_json(out / "toy-mean.json")["config"]["n"] == 60
+    # a config equal to a preset is recorded under its name; seed= replaces the config's seed
+    assert run_experiment("toy-mean", config=toy.ToyConfig.full(), output=out, progress=False).preset == "full"
+    rec = run_experiment("toy-mean", config=toy.ToyConfig.quick(), seed=7, output=out, progress=False)
+    assert rec.preset == "quick" and rec.seed == 7 and rec.config["seed"] == 7 and toy.CALLS[-1] == 7
+    # the same record as the preset's: a run by preset name is up to date
+    n_calls = len(toy.CALLS)
+    assert run_experiment("toy-mean", preset="quick", seed=7, output=out, progress=False).started_at == rec.started_at
+    assert len(toy.CALLS) == n_calls
+
+
+def test_a_config_of_another_class_or_with_a_preset_is_refused(toy, tmp_path):
+    with pytest.raises(ParameterError, match=r"config must be a _toy_experiment\.ToyConfig.*got _toy_experiment"
+                                             r"\.SmallConfig"):
+        run_experiment("toy-mean", config=toy.SmallConfig(), output=tmp_path, progress=False)
+    with pytest.raises(ParameterError, match="a preset or a config, not both"):
+        run_experiment("toy-mean", preset="full", config=toy.ToyConfig(), output=tmp_path, progress=False)
+    with pytest.raises(ParameterError, match="seed"):
+        run_experiment("toy-mean", config=toy.ToyConfig(), seed=-2, output=tmp_path, progress=False)
+    assert toy.CALLS == [] and not (tmp_path / "toy-mean.json").exists()
+
+
+def test_returned_record_is_the_file_written(toy, tmp_path):
+    from mmconcepts.experiments import ResultRecord
+
+    record = run_experiment("toy-mean", output=tmp_path, progress=False)
+    text = (tmp_path / "toy-mean.json").read_text(encoding="utf-8")
+    assert isinstance(record, ResultRecord) and record.to_json() == text
+    assert load_record(tmp_path / "toy-mean.json").to_json() == text
+    assert record["metrics"] == record.metrics and record["claims"] == [c.to_dict() for c in record.claims]
+
+
+# --------------------------------------------------------------------------- compute and present (issue 13)
+
+
+def _compute(config, ctx):
+    return Result(metrics={"a": 1.0, "b": 2.0}, figure_data={"curve": [3.0, 1.0, 2.0]})
+
+
+def _present(result, config):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2, 2))
+    fig.subplots().plot(result.figure_data["curve"], label=f"a = {result.metrics['a']}")
+    return {"curve": fig}
+
+
+def test_compute_and_present_are_run_in_turn(registry, tmp_path):
+    exp = Experiment(id="x-split", title="t", thesis_ref="r", config_cls=_Cfg, compute=_compute, present=_present,
+                     claims=[Claim("a below b", "a < b")])
+    numbers = exp.compute(_Cfg(), RunContext(cache_dir=tmp_path, show_progress=False))
+    assert numbers.figures == {} and numbers.metrics == {"a": 1.0, "b": 2.0}  # nothing drawn
+    drawn = exp.run(_Cfg(), RunContext(cache_dir=tmp_path, show_progress=False))
+    assert set(drawn.figures) == {"curve"} and drawn.metrics == numbers.metrics
+    record = run_experiment(exp, output=tmp_path / "o", progress=False)
+    assert record.status == "ok" and record.figures == {"curve": "x-split/curve.png"}
+    assert (tmp_path / "o" / "x-split" / "curve.png").read_bytes()[:4] == b"\x89PNG"
+    assert "figure_data" not in (tmp_path / "o" / "x-split.json").read_text()  # never written
+    # an experiment without figures has no present
+    plain = Experiment(id="x-plain", title="t", thesis_ref="r", config_cls=_Cfg, compute=_compute)
+    assert plain.run(_Cfg(), RunContext(cache_dir=tmp_path, show_progress=False)).figures == {}
+
+
+def test_compute_that_draws_or_present_that_returns_no_figures_fails_the_run(registry, tmp_path):
+    def drawing(config, ctx):
+        return Result(metrics={"a": 1.0}, figures=_present(Result(metrics={"a": 1.0}, figure_data={"curve": [1]}),
+                                                            config))
+
+    exp = Experiment(id="x-draws", title="t", thesis_ref="r", config_cls=_Cfg, compute=drawing, present=_present)
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert record.status == "failed" and "compute() returned figures (curve)" in record.message
+    exp = Experiment(id="x-bad-present", title="t", thesis_ref="r", config_cls=_Cfg, compute=_compute,
+                     present=lambda result, config: ["not", "a", "dict"])
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert record.status == "failed" and "present() must return a dict of figures" in record.message
+    exp = Experiment(id="x-no-result", title="t", thesis_ref="r", config_cls=_Cfg, compute=lambda c, x: {"a": 1.0},
+                     present=_present)
+    record = run_experiment(exp, output=tmp_path, progress=False, raise_errors=False)
+    assert record.status == "failed" and "compute() must return a Result" in record.message
+
+
+@pytest.mark.parametrize("kwargs, fragment", [
+    ({"run": _noop, "compute": _compute}, "not both"),
+    ({}, "needs compute"),
+    ({"run": _noop, "present": _present}, "present goes with compute"),
+    ({"compute": 3}, "compute must be callable"),
+    ({"compute": _compute, "present": "draw"}, "present must be callable"),
+])
+def test_experiment_run_compute_present_combinations(kwargs, fragment):
+    with pytest.raises(ExperimentError, match=fragment):
+        Experiment(id="x-1", title="t", thesis_ref="r", config_cls=_Cfg, **kwargs)
+    legacy = Experiment(id="x-1", title="t", thesis_ref="r", config_cls=_Cfg, run=_noop)
+    assert legacy.compute is _noop and legacy.run is _noop and legacy.present is None

@@ -1,16 +1,17 @@
 """Experiments: one module per thesis table or figure, and the machinery to run them.
 
 An experiment (:class:`Experiment`) has a stable id, a frozen config dataclass with
-``quick()`` and ``full()`` presets and a seed, a ``run(config, ctx) -> Result`` function,
-the thesis' reference numbers, and claims whose rules are checked on our numbers.
+``quick()`` and ``full()`` presets and a seed, a ``compute(config, ctx) -> Result``
+function (the numbers) and a ``present(result, config) -> figures`` function (the
+figures), the thesis' reference numbers, and claims whose rules are checked on our numbers.
 Experiment modules register themselves when imported; the modules are listed in
 :data:`EXPERIMENT_MODULES` and imported on the first call of :func:`get` or
 :func:`all_experiments`.
 
 Run one with :func:`run_experiment` (``mmconcepts run ID``) or all with
-:func:`reproduce` (``mmconcepts reproduce``); results are JSON records plus PNG figures
-(see :mod:`mmconcepts.experiments.runner` for the record schema), turned into an HTML and
-Markdown report by :func:`mmconcepts.report.write_report`.
+:func:`reproduce` (``mmconcepts reproduce``); results are JSON records
+(:class:`ResultRecord`; see :mod:`mmconcepts.experiments.runner` for the schema) plus PNG
+figures, turned into an HTML and Markdown report by :func:`mmconcepts.report.write_report`.
 
 See :mod:`mmconcepts.experiments.base` for a complete example module.
 """
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 from .base import PRESETS, Claim, Experiment, ExperimentSkipped, Result, RunContext, Table
 from .registry import all_experiments, get, load_experiments, register, unregister
+from .record import ClaimRecord, ResultRecord
 from .rules import Rule, evaluate_rule, parse_rule
 from .runner import (
     RECORD_KEYS,
@@ -58,9 +60,11 @@ __all__ = [
     "RECORD_KEYS",
     "SCHEMA_VERSION",
     "Claim",
+    "ClaimRecord",
     "Experiment",
     "ExperimentSkipped",
     "Result",
+    "ResultRecord",
     "Rule",
     "RunContext",
     "Table",

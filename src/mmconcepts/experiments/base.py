@@ -1,9 +1,20 @@
 """The pieces an experiment is made of: Experiment, Claim, Result, Table, RunContext.
 
 An experiment reproduces one table or figure of the thesis. It has a stable id, a frozen
-dataclass config with ``quick()`` and ``full()`` presets and a ``seed`` field, a function
-``run(config, ctx) -> Result``, the thesis' reference numbers and its claims, each with a
-rule checked on our numbers (see :mod:`mmconcepts.experiments.rules`).
+dataclass config with ``quick()`` and ``full()`` presets and a ``seed`` field, the thesis'
+reference numbers and its claims, each with a rule checked on our numbers (see
+:mod:`mmconcepts.experiments.rules`), and two functions:
+
+- ``compute(config, ctx) -> Result``: the numbers. Everything the result record keeps
+  (metrics, their samples and units, tables, notes, extras) and, in
+  :attr:`Result.figure_data`, whatever else the figures are drawn from (curves, maps).
+  It draws nothing, so a test can check the numbers without matplotlib doing any work.
+- ``present(result, config) -> dict of Figure``: the presentation. It draws the figures
+  from the result alone (its metrics, tables and ``figure_data``) and computes nothing
+  that the record keeps; an experiment without figures has no ``present``.
+
+The runner calls ``compute`` and then ``present`` (:meth:`Experiment.run` does both);
+tests that check numbers call ``compute``.
 
 Example
 -------
@@ -35,24 +46,29 @@ A complete experiment module (``src/mmconcepts/experiments/ch2_example.py``)::
         return float(np.random.default_rng(seed).random())
 
 
-    def run(config: Config, ctx: RunContext) -> Result:
+    def compute(config: Config, ctx: RunContext) -> Result:
         seeds = np.random.SeedSequence(config.seed).generate_state(config.n_trials)
         scores = ctx.parallel(_trial, list(seeds), desc="trials")
-        fig = Figure()
-        fig.subplots().plot(scores)
         return Result(
             metrics={"score": float(np.mean(scores))},
+            samples={"score": scores},
             tables={"scores": Table("Per-trial scores", ["trial", "score"],
                                     [[i, s] for i, s in enumerate(scores)])},
-            figures={"scores": fig},
         )
 
 
-    register(Experiment(
+    def present(result: Result, config: Config) -> dict[str, Figure]:
+        fig = Figure()
+        fig.subplots().plot(result.samples["score"])
+        return {"scores": fig}
+
+
+    EXPERIMENT = register(Experiment(
         id="ch2-example", title="An example", thesis_ref="Section 2.1, Table 2.1",
-        config_cls=Config, run=run, reference={"score": 0.5},
+        config_cls=Config, compute=compute, present=present, reference={"score": 0.5},
         claims=[Claim("The score is about one half.", "abs(score - 0.5) < 0.1")],
     ))
+    run = EXPERIMENT.run                    # compute, then present: a Result with its figures
 """
 
 from __future__ import annotations
@@ -240,6 +256,10 @@ class Result:
         order); metrics with different units are resampled independently, even when their
         samples have the same length. A metric without an entry is paired with every other
         metric without one whose samples have the same length.
+    figure_data : dict
+        What an experiment's ``present`` draws beyond the metrics and tables (loss curves,
+        per-unit curves, value maps, ...), set by its ``compute``. Kept in memory only: the
+        runner never writes it to the record.
     """
 
     metrics: dict[str, float] = field(default_factory=dict)
@@ -249,6 +269,7 @@ class Result:
     extra: dict[str, Any] = field(default_factory=dict)
     samples: dict[str, list[float]] = field(default_factory=dict)
     sample_units: dict[str, str] = field(default_factory=dict)
+    figure_data: dict[str, Any] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Check names and types; raise :class:`ExperimentError` naming the culprit."""
@@ -270,6 +291,8 @@ class Result:
                 raise ExperimentError(f"figure {name!r} must be a matplotlib Figure; got {type(fig).__name__}.")
         if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
             raise ExperimentError("Result.notes must be a list of strings.")
+        if not isinstance(self.figure_data, Mapping):
+            raise ExperimentError(f"Result.figure_data must be a dict; got {type(self.figure_data).__name__}.")
         for name, values in self.samples.items():
             if name not in self.metrics:
                 raise ExperimentError(
@@ -417,6 +440,13 @@ class RunContext:
         )
 
 
+def check_seed(seed: Any) -> int:
+    """Return ``seed`` as an int, or raise :class:`ParameterError` if it is no non-negative int."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ParameterError(f"seed must be a non-negative int; got {seed!r}.")
+    return int(seed)
+
+
 def _check_config_cls(exp_id: str, config_cls: Any) -> None:
     if not (isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)):
         raise ExperimentError(f"experiment {exp_id!r}: config_cls must be a dataclass type; got {config_cls!r}.")
@@ -435,6 +465,11 @@ def _check_config_cls(exp_id: str, config_cls: Any) -> None:
 class Experiment:
     """One thesis table or figure, reproducible from the command line.
 
+    An experiment is given as ``compute`` (the numbers) and ``present`` (the figures), see
+    the module docstring; :attr:`run` is then both in turn. An experiment given as a single
+    ``run`` that computes and draws at once is still accepted (its ``compute`` is that
+    ``run``, and it has no ``present``).
+
     Parameters
     ----------
     id : str
@@ -446,10 +481,12 @@ class Experiment:
     config_cls : type
         A frozen dataclass with a ``seed: int`` field and classmethods ``quick()`` and
         ``full()`` returning the presets.
-    run : callable
-        ``run(config, ctx: RunContext) -> Result``; prints nothing.
+    run : callable, optional
+        ``run(config, ctx: RunContext) -> Result`` with its figures, for an experiment not
+        split into ``compute`` and ``present``; give either ``run`` or ``compute``. Prints
+        nothing.
     reference : mapping of str to float, optional
-        The thesis' values, by the metric names ``run`` reports.
+        The thesis' values, by the metric names ``compute`` reports.
     claims : sequence of Claim, optional
         The thesis' claims, each with a rule over metric names.
     datasets : tuple of str, optional
@@ -461,18 +498,35 @@ class Experiment:
     synthetic : bool, default=True
         Whether it also runs without real data, on generated stand-ins (its *synthetic
         variant*). An experiment that only exists on a real set sets this to False.
+    compute : callable, optional
+        ``compute(config, ctx: RunContext) -> Result``: every number of the result, no
+        figures (``Result.figures`` empty). Prints nothing.
+    present : callable, optional
+        ``present(result: Result, config) -> dict of str to Figure``: the figures, drawn
+        from what ``compute`` returned. Only with ``compute``; omitted when the experiment
+        has no figure.
+
+    Attributes
+    ----------
+    run : callable
+        ``run(config, ctx) -> Result``: ``compute`` and then ``present``, the figures in
+        ``Result.figures`` (the ``run`` given, for an experiment defined by one).
+    compute : callable
+        The ``compute`` given (the ``run`` given, for an experiment defined by one).
     """
 
     id: str
     title: str
     thesis_ref: str
     config_cls: type
-    run: Callable[[Any, RunContext], Result]
+    run: Callable[[Any, RunContext], Result] | None = None
     reference: Mapping[str, float] = field(default_factory=dict)
     claims: Sequence[Claim] = ()
     datasets: tuple[str, ...] = ()
     description: str = ""
     synthetic: bool = True
+    compute: Callable[[Any, RunContext], Result] | None = None
+    present: Callable[[Result, Any], Mapping[str, Figure]] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.id, str) or not _ID.fullmatch(self.id):
@@ -480,8 +534,7 @@ class Experiment:
                 f"experiment id {self.id!r} must be lowercase letters and digits joined by '-', e.g. 'ch2-nmf-recovery'."
             )
         _check_config_cls(self.id, self.config_cls)
-        if not callable(self.run):
-            raise ExperimentError(f"experiment {self.id!r}: run must be callable run(config, ctx) -> Result.")
+        self._check_functions()
         reference = {}
         for name, value in dict(self.reference).items():
             if not is_valid_metric_name(name):
@@ -503,6 +556,56 @@ class Experiment:
                 raise ExperimentError(f"experiment {self.id!r}: dataset name {name!r} must be a word ([A-Za-z0-9_.-]).")
         object.__setattr__(self, "datasets", datasets)
 
+    def _check_functions(self) -> None:
+        """Check run / compute / present and set ``run`` and ``compute`` (see the class docstring)."""
+        given = {name: getattr(self, name) for name in ("run", "compute", "present")}
+        for name, fn in given.items():
+            if fn is not None and not callable(fn):
+                signature = {"run": "run(config, ctx) -> Result", "compute": "compute(config, ctx) -> Result",
+                             "present": "present(result, config) -> figures"}[name]
+                raise ExperimentError(f"experiment {self.id!r}: {name} must be callable {signature}; got {fn!r}.")
+        if given["run"] is not None and given["compute"] is not None:
+            raise ExperimentError(
+                f"experiment {self.id!r}: give either run (numbers and figures at once) or compute (and present), "
+                "not both."
+            )
+        if given["run"] is None and given["compute"] is None:
+            raise ExperimentError(
+                f"experiment {self.id!r}: needs compute(config, ctx) -> Result (and present(result, config) -> "
+                "figures), or a run(config, ctx) -> Result that does both."
+            )
+        if given["run"] is not None:
+            if given["present"] is not None:
+                raise ExperimentError(f"experiment {self.id!r}: present goes with compute, not with run.")
+            object.__setattr__(self, "compute", given["run"])
+        else:
+            object.__setattr__(self, "run", self._compute_and_present)
+
+    def _compute_and_present(self, config: Any, ctx: RunContext) -> Result:
+        """Run ``compute``, then draw the figures with ``present``: the result with its figures.
+
+        Raises
+        ------
+        ExperimentError
+            If ``compute`` returns no :class:`Result` or draws figures itself, or
+            ``present`` returns no mapping of figures.
+        """
+        result = self.compute(config, ctx)  # type: ignore[misc]
+        if not isinstance(result, Result):
+            raise ExperimentError(f"{self.id}: compute() must return a Result; got {type(result).__name__}.")
+        if self.present is None:
+            return result
+        if result.figures:
+            raise ExperimentError(
+                f"{self.id}: compute() returned figures ({', '.join(result.figures)}); draw them in present(result, "
+                "config), from the numbers compute keeps in the result (figure_data for the rest)."
+            )
+        figures = self.present(result, config)
+        if not isinstance(figures, Mapping):
+            raise ExperimentError(f"{self.id}: present() must return a dict of figures; got {type(figures).__name__}.")
+        result.figures = dict(figures)
+        return result
+
     def make_config(self, preset: str = "quick", *, seed: int | None = None) -> Any:
         """Return the ``preset`` config, with ``seed`` replaced when given.
 
@@ -521,9 +624,7 @@ class Experiment:
                 f"{type(config).__name__}, not a {self.config_cls.__name__}."
             )
         if seed is not None:
-            if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-                raise ParameterError(f"seed must be a non-negative int; got {seed!r}.")
-            config = dataclasses.replace(config, seed=int(seed))
+            config = dataclasses.replace(config, seed=check_seed(seed))
         return config
 
     def __repr__(self) -> str:

@@ -7,7 +7,8 @@ A result record is a JSON object with a stable schema (``schema_version`` 2)::
     status          "ok" | "failed" | "skipped"
     message         why it failed or was skipped (null when ok)
     traceback       the traceback text of a failure (else null)
-    preset          "quick" | "full"         config (the dataclass as a dict), seed
+    preset          "quick" | "full" | "custom"  config (the dataclass as a dict), seed
+                    ("custom": a config given to run_experiment that is no preset)
     variant         "real" | "synthetic"     which data it ran on: the real sets found
                                              (data root or --data) or generated stand-ins
     data            name -> absolute path of each real set used (empty when synthetic)
@@ -40,18 +41,20 @@ generated data is ``<output>/<id>.synthetic.json``. Figures go to ``<output>/<id
 ``<output>/<id>.synthetic/``). Everything is written atomically (a temporary file in the
 same folder, then :func:`os.replace`), figures first, so a JSON file on disk always
 describes complete results. Schema-1 records (before variants and verdicts) are still read.
+
+In Python a record is a :class:`~mmconcepts.experiments.record.ResultRecord`, whose
+``to_json``/``from_json`` write and read this JSON (and which reads like its JSON dict:
+``record["status"]``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import enum
 import io
 import json
 import logging
 import math
-import numbers
 import os
 import platform
 import re
@@ -60,22 +63,24 @@ import time
 import traceback
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
-from pathlib import Path, PurePath
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from .. import __version__
 from .._fingerprint import code_fingerprint
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
-from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext
+from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext, Table, check_seed
+from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, to_jsonable
 from .registry import all_experiments, get
 from .uncertainty import claim_verdict, t_interval
 
 __all__ = [
     "SCHEMA_VERSION",
     "RECORD_KEYS",
+    "CUSTOM_PRESET",
+    "ResultRecord",
     "run_experiment",
     "reproduce",
     "parse_data_args",
@@ -89,99 +94,16 @@ __all__ = [
 
 logger = logging.getLogger("mmconcepts.experiments")
 
-#: Version of the result-record schema written by :func:`run_experiment`.
-SCHEMA_VERSION = 2
-
 #: The data variants of a run: on the real sets found, or on generated stand-ins.
 VARIANTS = ("real", "synthetic")
 
-#: Keys present in every result record, whatever its status.
-RECORD_KEYS = (
-    "schema_version",
-    "experiment",
-    "title",
-    "thesis_ref",
-    "status",
-    "message",
-    "traceback",
-    "preset",
-    "config",
-    "seed",
-    "variant",
-    "version",
-    "code",
-    "data",
-    "data_signature",
-    "metrics",
-    "intervals",
-    "samples",
-    "sample_units",
-    "reference",
-    "claims",
-    "tables",
-    "figures",
-    "notes",
-    "extra",
-    "warnings",
-    "elapsed_s",
-    "started_at",
-    "python",
-    "platform",
-)
+#: The ``preset`` of a record whose config was given to :func:`run_experiment` and is no preset.
+CUSTOM_PRESET = "custom"
 
 _DATA_NAME = re.compile(r"[A-Za-z0-9_.-]+\Z")
 
 
-# --------------------------------------------------------------------------- JSON
-
-
-def to_jsonable(obj: Any, *, where: str = "value") -> Any:
-    """Convert ``obj`` to plain JSON types.
-
-    Dataclasses become dicts, tuples and sets lists, numpy scalars and arrays Python
-    numbers and lists, paths strings; NaN and infinite floats become None (JSON null).
-
-    Raises
-    ------
-    ExperimentError
-        If something cannot be represented (the message says where).
-    """
-    if obj is None or isinstance(obj, (bool, str)):
-        return obj
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist(), where=where)
-    if isinstance(obj, np.generic):
-        return to_jsonable(obj.item(), where=where)
-    if isinstance(obj, numbers.Integral):
-        return int(obj)
-    if isinstance(obj, numbers.Real):
-        value = float(obj)
-        return value if math.isfinite(value) else None
-    if isinstance(obj, enum.Enum):
-        return to_jsonable(obj.value, where=where)
-    if isinstance(obj, PurePath):
-        return str(obj)
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: to_jsonable(getattr(obj, f.name), where=f"{where}.{f.name}") for f in dataclasses.fields(obj)}
-    if isinstance(obj, Mapping):
-        out = {}
-        for key, value in obj.items():
-            if not isinstance(key, (str, int, float, bool)) and not isinstance(key, np.generic):
-                raise ExperimentError(f"{where}: dictionary key {key!r} cannot be a JSON key; use strings.")
-            out[str(key)] = to_jsonable(value, where=f"{where}[{key!r}]")
-        return out
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v, where=f"{where}[{i}]") for i, v in enumerate(obj)]
-    if isinstance(obj, (set, frozenset)):
-        return [to_jsonable(v, where=where) for v in sorted(obj, key=repr)]
-    raise ExperimentError(
-        f"{where}: a {type(obj).__name__} value ({obj!r:.60}) cannot be stored in a JSON result; "
-        "convert it to numbers, strings, lists or dicts."
-    )
-
-
-def _dumps(record: Mapping[str, Any]) -> str:
-    return json.dumps(record, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+# --------------------------------------------------------------------------- files
 
 
 def _umask() -> int:
@@ -209,10 +131,12 @@ def _atomic_write(path: Path, data: bytes) -> None:
         raise
 
 
-def load_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+def load_record(path: str | os.PathLike[str]) -> ResultRecord | None:
     """Read a result record, or return None if ``path`` does not hold one.
 
-    Metric values stored as null are read back as NaN.
+    Metric values stored as null are read back as NaN; records of schema version 1 and
+    records without the keys added since are read with their defaults
+    (:meth:`ResultRecord.from_dict`).
 
     Parameters
     ----------
@@ -221,36 +145,18 @@ def load_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
 
     Returns
     -------
-    dict or None
+    ResultRecord or None
         The record; None when the file is not valid JSON, not a result record, or of a
         newer schema version.
     """
     path = Path(path)
     try:
-        obj = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        logger.debug("%s: not readable as JSON (%s)", path, exc)
-        return None
-    if not isinstance(obj, dict) or not {"schema_version", "experiment", "status"} <= obj.keys():
-        return None
-    if not isinstance(obj["schema_version"], int) or obj["schema_version"] > SCHEMA_VERSION:
-        logger.debug("%s: schema version %r is not supported", path, obj.get("schema_version"))
-        return None
-    metrics = obj.get("metrics") or {}
-    if not isinstance(metrics, dict):
-        return None
-    obj["metrics"] = {k: (math.nan if v is None else float(v)) for k, v in metrics.items()}
-    if obj["schema_version"] < 2:  # before variants, fingerprints and three-valued verdicts
-        obj.setdefault("variant", "real" if obj.get("data") else "synthetic")
-        obj.setdefault("code", None)
-        for claim in obj.get("claims") or []:
-            if isinstance(claim, dict):
-                claim.setdefault("verdict", {True: "holds", False: "fails"}.get(claim.get("holds"), "not evaluated"))
-    obj.setdefault("intervals", {})
-    obj.setdefault("samples", {})
-    obj.setdefault("sample_units", {})
-    obj.setdefault("warnings", [])
-    return obj
+        return ResultRecord.from_json(path.read_bytes())
+    except OSError as exc:
+        logger.debug("%s: not readable (%s)", path, exc)
+    except ExperimentError as exc:
+        logger.debug("%s: %s", path, exc)
+    return None
 
 
 # --------------------------------------------------------------------------- data
@@ -380,16 +286,15 @@ def record_path(output: str | os.PathLike[str], exp_id: str, *, secondary: bool 
 # --------------------------------------------------------------------------- running
 
 
-def _up_to_date(existing: Mapping[str, Any] | None, fresh: Mapping[str, Any], output: Path) -> bool:
-    if existing is None or existing.get("status") != "ok":
+def _up_to_date(existing: ResultRecord | None, fresh: ResultRecord, output: Path) -> bool:
+    if existing is None or existing.status != "ok":
         return False
-    if existing.get("schema_version") != SCHEMA_VERSION or existing.get("experiment") != fresh["experiment"]:
+    if existing.schema_version != SCHEMA_VERSION or existing.experiment != fresh.experiment:
         return False
     for key in ("config", "code", "data", "data_signature", "preset", "variant"):
-        if existing.get(key) != fresh[key]:
+        if getattr(existing, key) != getattr(fresh, key):
             return False
-    figures = existing.get("figures") or {}
-    return all((output / rel).is_file() for rel in figures.values())
+    return all((output / rel).is_file() for rel in existing.figures.values())
 
 
 def _close_figures(figures: Mapping[str, Any]) -> None:
@@ -425,10 +330,187 @@ def _resolve(exp_or_id: Experiment | str) -> Experiment:
     raise ExperimentError(f"expected an Experiment or an experiment id; got {type(exp_or_id).__name__}.")
 
 
+def _config_and_preset(exp: Experiment, preset: str | None, config: Any, seed: int | None) -> tuple[Any, str]:
+    """The config to run and the preset name recorded with it.
+
+    Without ``config``: the ``preset`` config (default quick). With ``config``: that config
+    (its seed replaced by ``seed`` when given), recorded as the preset it equals, if any,
+    else as :data:`CUSTOM_PRESET`.
+    """
+    if config is None:
+        preset = "quick" if preset is None else preset
+        return exp.make_config(preset, seed=seed), preset
+    if preset is not None:
+        raise ParameterError(
+            f"{exp.id}: give a preset or a config, not both (got preset={preset!r} and a "
+            f"{type(config).__name__}); a config given is recorded under the preset it equals, or as "
+            f"{CUSTOM_PRESET!r}."
+        )
+    if not isinstance(config, exp.config_cls):
+        raise ParameterError(
+            f"{exp.id}: config must be a {exp.config_cls.__module__}.{exp.config_cls.__qualname__} (the config "
+            f"class of {exp.id}); got {type(config).__module__}.{type(config).__qualname__}. Build it with "
+            f"dataclasses.replace({exp.config_cls.__name__}.quick(), ...)."
+        )
+    if seed is not None:
+        config = dataclasses.replace(config, seed=check_seed(seed))
+    name = next((p for p in PRESETS if exp.make_config(p, seed=check_seed(config.seed)) == config), CUSTOM_PRESET)
+    return config, name
+
+
+@dataclass(frozen=True)
+class _Target:
+    """On which data one run goes and where its record is written."""
+
+    variant: str  # "real" or "synthetic": the variant chosen
+    data: dict[str, Path]  # the real sets it runs on (empty on generated data)
+    json_path: Path
+    secondary: bool  # the run on generated data of an experiment that has real data
+    cannot_run: str | None  # why the chosen variant cannot run here (None: it can)
+
+    @property
+    def fig_dir(self) -> Path:
+        return self.json_path.with_suffix("")
+
+
+def _target(exp: Experiment, variant: str, data: Mapping[str, str | os.PathLike[str]] | None,
+            data_root: str | os.PathLike[str] | None, output: Path) -> _Target:
+    real_sets = resolve_data(exp, data, data_root)
+    chosen = ("real" if real_sets else "synthetic") if variant == "auto" else variant
+    exp_data = real_sets if chosen == "real" else {}
+    secondary = chosen == "synthetic" and bool(real_sets)
+    cannot_run = None
+    if chosen == "real" and not exp_data:
+        cannot_run = (f"no real data set of {', '.join(exp.datasets) or '(none declared)'} was found: "
+                      "give a data root (--data-root DIR) or --data NAME=PATH (see `mmconcepts data list`).")
+    elif chosen == "synthetic" and not exp.synthetic:
+        cannot_run = f"{exp.id} runs only on real data ({', '.join(exp.datasets)})."
+    return _Target(chosen, exp_data, record_path(output, exp.id, secondary=secondary), secondary, cannot_run)
+
+
+def _new_record(exp: Experiment, preset: str, config: Any, target: _Target) -> ResultRecord:
+    """The record of a run about to start: who, what, on which data; no results yet."""
+    return ResultRecord(
+        experiment=exp.id,
+        title=exp.title,
+        thesis_ref=exp.thesis_ref,
+        status="ok",
+        preset=preset,
+        config=json.loads(json.dumps(to_jsonable(config, where="config"), allow_nan=False)),
+        seed=to_jsonable(config.seed),
+        variant=target.variant,
+        version=__version__,
+        code=code_fingerprint(),
+        data={name: str(path) for name, path in sorted(target.data.items())},
+        data_signature={name: data_signature(path) for name, path in sorted(target.data.items())},
+        reference=dict(exp.reference),
+        claims=[ClaimRecord(text=c.text, rule=c.rule) for c in exp.claims],
+        elapsed_s=0.0,
+        started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        python=platform.python_version(),
+        platform=platform.platform(),
+    )
+
+
+def _run_recording_warnings(exp: Experiment, config: Any, ctx: RunContext, seen: list[str]) -> Any:
+    """``exp.run(config, ctx)``, adding the distinct warnings it raises to ``seen`` (then showing them)."""
+    with warnings.catch_warnings(record=True) as caught:  # filters still apply ("error" raises)
+        try:
+            result = exp.run(config, ctx)  # type: ignore[misc]
+        finally:
+            for w in caught:
+                text = f"{w.category.__name__}: {w.message}"
+                if text not in seen:
+                    seen.append(text)
+    for w in caught:  # shown as usual, after being recorded
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return result
+
+
+def _record_result(record: ResultRecord, exp: Experiment, result: Result) -> None:
+    """Put a validated result's numbers in ``record`` and decide its claims on them."""
+    metrics = {name: float(value) for name, value in result.metrics.items()}
+    samples = {name: [float(v) for v in values] for name, values in result.samples.items()}
+    for claim in record.claims:
+        verdict = claim_verdict(claim.rule, metrics, samples, units=result.sample_units)
+        claim.holds, claim.verdict, claim.support, claim.basis = (verdict.holds, verdict.verdict, verdict.support,
+                                                                  verdict.basis)
+    intervals = {}
+    for name, values in samples.items():
+        interval = t_interval(metrics[name], values)
+        if interval is not None:
+            intervals[name] = list(interval)
+    missing = sorted(set(exp.reference) - set(metrics))
+    if missing:
+        logger.warning("%s: reference values without a metric of ours: %s", exp.id, ", ".join(missing))
+    bad = sorted(k for k, v in metrics.items() if math.isinf(v))
+    if bad:
+        logger.warning("%s: infinite metric(s) stored as null: %s", exp.id, ", ".join(bad))
+    record.metrics = {name: value if math.isfinite(value) else math.nan for name, value in metrics.items()}
+    record.samples = to_jsonable(samples, where="samples")
+    record.sample_units = {str(k): str(v) for k, v in result.sample_units.items()}
+    record.intervals = to_jsonable(intervals, where="intervals")
+    record.tables = {str(name): Table.from_dict(to_jsonable(table.to_dict(), where=f"tables[{name!r}]"))
+                     for name, table in result.tables.items()}
+    record.notes = list(result.notes)
+    record.extra = to_jsonable(result.extra, where="extra")
+
+
+def _save_figures(figures: Mapping[str, Any], fig_dir: Path) -> dict[str, str]:
+    """Write each figure as ``<fig_dir>/<name>.png`` (atomically); return name -> path relative to the output."""
+    saved = {}
+    for name, fig in figures.items():
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+        _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
+        saved[name] = f"{fig_dir.name}/{name}.png"
+    return saved
+
+
+def _clear_results(record: ResultRecord) -> None:
+    """A run that did not finish has no numbers, figures or verdicts."""
+    record.metrics, record.intervals, record.samples, record.sample_units = {}, {}, {}, {}
+    record.tables, record.figures, record.notes, record.extra = {}, {}, [], {}
+    for claim in record.claims:
+        claim.holds, claim.verdict, claim.support, claim.basis = None, "not evaluated", None, ""
+
+
+def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord, target: _Target) -> Exception | None:
+    """Run the experiment and fill ``record`` (status, numbers, verdicts, figures written).
+
+    Returns the experiment's error when it failed (the record says so), else None.
+    """
+    result: Any = None
+    try:
+        if target.cannot_run is not None:
+            raise ExperimentSkipped(target.cannot_run)
+        result = _run_recording_warnings(exp, config, ctx, record.warnings)
+        if not isinstance(result, Result):
+            raise ExperimentError(f"{exp.id}: run() must return a Result; got {type(result).__name__}.")
+        result.validate()
+        _record_result(record, exp, result)
+        record.figures = _save_figures(result.figures, target.fig_dir)
+    except ExperimentSkipped as exc:
+        record.status, record.message = "skipped", str(exc)
+        logger.warning("%s: skipped: %s", exp.id, exc)
+    except Exception as exc:
+        record.status, record.message = "failed", f"{type(exc).__name__}: {exc}"
+        record.traceback = traceback.format_exc()
+        logger.error("%s: failed: %s", exp.id, record.message)
+        return exc
+    finally:
+        if isinstance(result, Result):
+            _close_figures(result.figures)
+        if record.status != "ok":
+            _clear_results(record)
+    return None
+
+
 def run_experiment(
     exp_or_id: Experiment | str,
     *,
-    preset: str = "quick",
+    preset: str | None = None,
+    config: Any = None,
     seed: int | None = None,
     output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
     data: Mapping[str, str | os.PathLike[str]] | None = None,
@@ -438,7 +520,7 @@ def run_experiment(
     force: bool = False,
     progress: bool = True,
     raise_errors: bool = True,
-) -> dict[str, Any]:
+) -> ResultRecord:
     """Run one experiment and write its record (see the module docstring) and figures.
 
     If the record file already holds a successful result for the same config, code
@@ -449,10 +531,15 @@ def run_experiment(
     ----------
     exp_or_id : Experiment or str
         The experiment or its registered id.
-    preset : {"quick", "full"}, default="quick"
-        Which config preset to run.
+    preset : {"quick", "full"}, optional
+        Which config preset to run (default quick). Not with ``config``.
+    config : instance of the experiment's config class, optional
+        The config to run instead of a preset, e.g.
+        ``dataclasses.replace(Config.quick(), n_folds=3)``. It is recorded like a preset's
+        (``config`` and ``seed``), under the name of the preset it equals, else
+        ``"custom"``.
     seed : int, optional
-        Replaces the preset's seed.
+        Replaces the preset's (or the config's) seed.
     output : str or path-like, default="results"
         Results folder (created if needed).
     data : mapping of str to path, optional
@@ -479,176 +566,62 @@ def run_experiment(
 
     Returns
     -------
-    dict
-        The result record (see the module docstring); ``record["status"]`` is ``"ok"``,
+    ResultRecord
+        The result record (see the module docstring); ``record.status`` is ``"ok"``,
         ``"skipped"`` (the experiment raised :class:`ExperimentSkipped`, or the variant
-        cannot run here) or ``"failed"``.
+        cannot run here) or ``"failed"``. It also reads as the JSON dict
+        (``record["status"]``).
 
     Raises
     ------
     ExperimentError
-        On an unknown id, a bad preset, variant or data argument, or (with
-        ``raise_errors``) the experiment's own error.
+        On an unknown id, a bad preset, config, variant or data argument (a
+        :class:`ParameterError` for a config of another class, or a preset and a config
+        both given), or (with ``raise_errors``) the experiment's own error.
     """
     exp = _resolve(exp_or_id)
     if variant not in ("auto", *VARIANTS):
         raise ParameterError(f"variant must be 'auto', 'real' or 'synthetic'; got {variant!r}.")
-    config = exp.make_config(preset, seed=seed)
+    config, preset = _config_and_preset(exp, preset, config, seed)
     check_data(data, [exp])
-    real_sets = resolve_data(exp, data, data_root)
-    chosen = ("real" if real_sets else "synthetic") if variant == "auto" else variant
-    exp_data = real_sets if chosen == "real" else {}
-    secondary = chosen == "synthetic" and bool(real_sets)
-
     output = Path(output)
-    json_path = record_path(output, exp.id, secondary=secondary)
-    fig_dir = json_path.with_suffix("")
-    config_json = json.loads(json.dumps(to_jsonable(config, where="config"), allow_nan=False))
-    record: dict[str, Any] = {
-        "schema_version": SCHEMA_VERSION,
-        "experiment": exp.id,
-        "title": exp.title,
-        "thesis_ref": exp.thesis_ref,
-        "status": "ok",
-        "message": None,
-        "traceback": None,
-        "preset": preset,
-        "config": config_json,
-        "seed": to_jsonable(config.seed),
-        "variant": chosen,
-        "version": __version__,
-        "code": code_fingerprint(),
-        "data": {name: str(path) for name, path in sorted(exp_data.items())},
-        "data_signature": {name: data_signature(path) for name, path in sorted(exp_data.items())},
-        "metrics": {},
-        "intervals": {},
-        "samples": {},
-        "sample_units": {},
-        "reference": dict(exp.reference),
-        "claims": [
-            {"text": c.text, "rule": c.rule, "holds": None, "verdict": "not evaluated", "support": None, "basis": ""}
-            for c in exp.claims
-        ],
-        "tables": {},
-        "figures": {},
-        "notes": [],
-        "extra": {},
-        "warnings": [],
-        "elapsed_s": 0.0,
-        "started_at": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-    }
-
+    target = _target(exp, variant, data, data_root, output)
+    record = _new_record(exp, preset, config, target)
     ctx = RunContext(
         workers=workers,
-        data=exp_data,
+        data=target.data,
         cache_dir=data_home(),
         logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"),
         show_progress=progress,
     )
-    if not force and json_path.exists():
-        existing = load_record(json_path)
-        if existing is not None and _up_to_date(existing, record, output):
-            logger.info("%s (%s data): skipped: up to date (%s)", exp.id, chosen, json_path)
-            return existing
 
-    cannot_run = None
-    if chosen == "real" and not exp_data:
-        cannot_run = (f"no real data set of {', '.join(exp.datasets) or '(none declared)'} was found: "
-                      "give a data root (--data-root DIR) or --data NAME=PATH (see `mmconcepts data list`).")
-    elif chosen == "synthetic" and not exp.synthetic:
-        cannot_run = f"{exp.id} runs only on real data ({', '.join(exp.datasets)})."
-    if cannot_run is not None and variant != "auto":
+    if not force and target.json_path.exists():
+        existing = load_record(target.json_path)
+        if existing is not None and _up_to_date(existing, record, output):
+            logger.info("%s (%s data): skipped: up to date (%s)", exp.id, target.variant, target.json_path)
+            return existing
+    if target.cannot_run is not None and variant != "auto":
         # an explicitly asked variant that cannot run here: say so, but never overwrite a record
-        logger.warning("%s: skipped: %s", exp.id, cannot_run)
-        record.update(status="skipped", message=cannot_run)
+        logger.warning("%s: skipped: %s", exp.id, target.cannot_run)
+        record.status, record.message = "skipped", target.cannot_run
         return record
 
     output.mkdir(parents=True, exist_ok=True)
-    if not secondary:  # a default run on generated data supersedes an older run on generated data
+    if not target.secondary:  # a default run on generated data supersedes an older run on generated data
         stale = record_path(output, exp.id, secondary=True)
-        if chosen == "synthetic" and stale.exists():
+        if target.variant == "synthetic" and stale.exists():
             stale.unlink()
             _remove_stale_figures(stale.with_suffix(""), ())
-    logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, chosen, preset, config.seed)
+    logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
     t0 = time.perf_counter()
-    result: Any = None
-    error: BaseException | None = None
-    try:
-        if cannot_run is not None:
-            raise ExperimentSkipped(cannot_run)
-        with warnings.catch_warnings(record=True) as caught:  # filters still apply ("error" raises)
-            try:
-                result = exp.run(config, ctx)
-            finally:
-                for w in caught:
-                    text = f"{w.category.__name__}: {w.message}"
-                    if text not in record["warnings"]:
-                        record["warnings"].append(text)
-        for w in caught:  # shown as usual, after being recorded
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        if not isinstance(result, Result):
-            raise ExperimentError(f"{exp.id}: run() must return a Result; got {type(result).__name__}.")
-        result.validate()
-        metrics = {name: float(value) for name, value in result.metrics.items()}
-        samples = {name: [float(v) for v in values] for name, values in result.samples.items()}
-        for claim in record["claims"]:
-            verdict = claim_verdict(claim["rule"], metrics, samples, units=result.sample_units)
-            claim.update(holds=verdict.holds, verdict=verdict.verdict, support=verdict.support, basis=verdict.basis)
-        intervals = {}
-        for name, values in samples.items():
-            interval = t_interval(metrics[name], values)
-            if interval is not None:
-                intervals[name] = list(interval)
-        missing = sorted(set(exp.reference) - set(metrics))
-        if missing:
-            logger.warning("%s: reference values without a metric of ours: %s", exp.id, ", ".join(missing))
-        bad = sorted(k for k, v in metrics.items() if math.isinf(v))
-        if bad:
-            logger.warning("%s: infinite metric(s) stored as null: %s", exp.id, ", ".join(bad))
-        record["metrics"] = to_jsonable(metrics, where="metrics")
-        record["samples"] = to_jsonable(samples, where="samples")
-        record["sample_units"] = {str(k): str(v) for k, v in result.sample_units.items()}
-        record["intervals"] = to_jsonable(intervals, where="intervals")
-        record["tables"] = {
-            str(name): to_jsonable(table.to_dict(), where=f"tables[{name!r}]") for name, table in result.tables.items()
-        }
-        record["notes"] = list(result.notes)
-        record["extra"] = to_jsonable(result.extra, where="extra")
-        for name, fig in result.figures.items():
-            buf = io.BytesIO()
-            fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-            _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
-            record["figures"][name] = f"{fig_dir.name}/{name}.png"
-    except ExperimentSkipped as exc:
-        record["status"] = "skipped"
-        record["message"] = str(exc)
-        logger.warning("%s: skipped: %s", exp.id, exc)
-    except Exception as exc:
-        error = exc
-        record["status"] = "failed"
-        record["message"] = f"{type(exc).__name__}: {exc}"
-        record["traceback"] = traceback.format_exc()
-        logger.error("%s: failed: %s", exp.id, record["message"])
-    finally:
-        if isinstance(result, Result):
-            _close_figures(result.figures)
-
-    if record["status"] != "ok":
-        for key, empty in (("metrics", {}), ("intervals", {}), ("samples", {}), ("sample_units", {}), ("tables", {}),
-                           ("figures", {}), ("notes", []), ("extra", {})):
-            record[key] = empty
-        for claim in record["claims"]:
-            claim.update(holds=None, verdict="not evaluated", support=None, basis="")
-    record["elapsed_s"] = round(time.perf_counter() - t0, 3)
-    _atomic_write(json_path, _dumps(record).encode("utf-8"))
-    _remove_stale_figures(fig_dir, (Path(p).name for p in record["figures"].values()))
-    if record["status"] == "ok":
-        logger.info("%s: done in %.1f s, wrote %s", exp.id, record["elapsed_s"], json_path)
+    error = _execute(exp, config, ctx, record, target)
+    record.elapsed_s = round(time.perf_counter() - t0, 3)
+    _atomic_write(target.json_path, record.to_json().encode("utf-8"))
+    _remove_stale_figures(target.fig_dir, (Path(p).name for p in record.figures.values()))
+    if record.status == "ok":
+        logger.info("%s: done in %.1f s, wrote %s", exp.id, record.elapsed_s, target.json_path)
     if error is not None and raise_errors:
         raise error
-    record["metrics"] = {k: (math.nan if v is None else float(v)) for k, v in record["metrics"].items()}
     return record
 
 
@@ -695,7 +668,7 @@ def reproduce(
 
     Returns
     -------
-    list of dict
+    list of ResultRecord
         One record per run, in the order run (the real-data run of an experiment first).
     """
     if preset not in PRESETS:
@@ -718,6 +691,6 @@ def reproduce(
                 logger.info("%s: removing %s (not part of this run)", exp.id, stale)
                 stale.unlink()
                 _remove_stale_figures(stale.with_suffix(""), ())
-    counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "failed", "skipped")}
+    counts = {s: sum(r.status == s for r in records) for s in ("ok", "failed", "skipped")}
     logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
     return records

@@ -11,6 +11,7 @@ from typing import Any
 
 from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
+from ..experiments.record import ResultRecord
 from ..experiments.runner import load_record
 from ..experiments.uncertainty import VERDICTS, claim_verdict
 
@@ -163,26 +164,23 @@ class ExperimentGroup:
         return columns, rows
 
 
-def _claims(record: dict[str, Any]) -> list[ClaimView]:
+def _claims(record: ResultRecord) -> list[ClaimView]:
     """The claims, re-decided from the stored metrics and samples."""
-    metrics = record.get("metrics") or {}
-    samples = record.get("samples") or {}
     views = []
-    for claim in record.get("claims") or []:
-        text, rule = str(claim.get("text", "")), str(claim.get("rule", ""))
-        if record.get("status") != "ok":
+    for claim in record.claims:
+        text, rule = str(claim.text), str(claim.rule)
+        if record.status != "ok":
             views.append(ClaimView(text, rule, None))
             continue
         try:
-            decided = claim_verdict(rule, metrics, samples, units=record.get("sample_units") or {})
+            decided = claim_verdict(rule, record.metrics, record.samples, units=record.sample_units)
         except ExperimentError as exc:
             views.append(ClaimView(text, rule, None, error=str(exc).splitlines()[0]))
             continue
-        stored = claim.get("verdict")
-        if stored is not None and stored != decided.verdict:
+        if claim.verdict != decided.verdict:
             logger.warning(
                 "%s: claim %r was stored as %r but its rule gives %r on the stored metrics; reporting %r",
-                record.get("experiment"), rule, stored, decided.verdict, decided.verdict,
+                record.experiment, rule, claim.verdict, decided.verdict, decided.verdict,
             )
         views.append(ClaimView(text, rule, decided.holds, decided.verdict, decided.basis))
     return views
@@ -195,65 +193,58 @@ def _with_interval(value: Any, interval: Any) -> str:
     return text
 
 
-def build_view(record: dict[str, Any], results_dir: Path, source: Path) -> ExperimentView:
+def build_view(record: ResultRecord, results_dir: Path, source: Path) -> ExperimentView:
     """Turn one result record into an :class:`ExperimentView`."""
-    metrics = record.get("metrics") or {}
-    reference = record.get("reference") or {}
+    metrics, reference, data, intervals = record.metrics, record.reference, record.data, record.intervals
     rows = [(name, format_number(value), format_number(reference.get(name))) for name, value in metrics.items()]
     rows += [(name, "", format_number(value)) for name, value in reference.items() if name not in metrics]
-    figures = []
-    for name, rel in (record.get("figures") or {}).items():
-        figures.append((str(name), str(rel), (results_dir / str(rel)).is_file()))
-    config = [(str(k), format_cell(v)) for k, v in (record.get("config") or {}).items()]
-    data = record.get("data") or {}
-    intervals = record.get("intervals") or {}
+    figures = [(str(name), str(rel), (results_dir / str(rel)).is_file()) for name, rel in record.figures.items()]
+    config = [(str(k), format_cell(v)) for k, v in record.config.items()]
     values = {name: _with_interval(value, intervals.get(name)) for name, value in metrics.items()}
     run_info = [
-        ("data", VARIANT_LABELS.get(str(record.get("variant")), str(record.get("variant", "")))),
-        ("preset", str(record.get("preset", ""))),
-        ("seed", format_cell(record.get("seed"))),
-        ("run time", format_duration(record.get("elapsed_s"))),
-        ("started at", str(record.get("started_at", ""))),
-        ("mmconcepts version", str(record.get("version", ""))),
-        ("code fingerprint", str(record.get("code") or "")),
-        ("python", str(record.get("python", ""))),
-        ("platform", str(record.get("platform", ""))),
+        ("data", VARIANT_LABELS.get(str(record.variant), str(record.variant))),
+        ("preset", str(record.preset)),
+        ("seed", format_cell(record.seed)),
+        ("run time", format_duration(record.elapsed_s)),
+        ("started at", str(record.started_at)),
+        ("mmconcepts version", str(record.version)),
+        ("code fingerprint", str(record.code or "")),
+        ("python", str(record.python)),
+        ("platform", str(record.platform)),
     ]
     run_info += [(f"data: {name}", str(path)) for name, path in data.items()]
-    tables = []
-    for name, table in (record.get("tables") or {}).items():
-        if isinstance(table, dict) and "columns" in table and "rows" in table:
-            tables.append(
-                {
-                    "name": str(name),
-                    "title": str(table.get("title") or name),
-                    "columns": [str(c) for c in table["columns"]],
-                    "rows": [[format_cell(c) for c in row] for row in table["rows"]],
-                    "note": str(table.get("note") or ""),
-                }
-            )
+    tables = [
+        {
+            "name": str(name),
+            "title": str(table.title or name),
+            "columns": [str(c) for c in table.columns],
+            "rows": [[format_cell(c) for c in row] for row in table.rows],
+            "note": str(table.note or ""),
+        }
+        for name, table in record.tables.items()
+    ]
     return ExperimentView(
-        id=str(record.get("experiment")),
-        title=str(record.get("title") or record.get("experiment")),
-        thesis_ref=str(record.get("thesis_ref") or ""),
-        status=str(record.get("status")),
-        message=record.get("message"),
-        traceback=record.get("traceback"),
+        id=str(record.experiment),
+        title=str(record.title or record.experiment),
+        thesis_ref=str(record.thesis_ref or ""),
+        status=str(record.status),
+        message=record.message,
+        traceback=record.traceback,
         metrics=rows,
         tables=tables,
         figures=figures,
         claims=_claims(record),
         config=config,
         run_info=run_info,
-        notes=[str(n) for n in record.get("notes") or []],
+        notes=[str(n) for n in record.notes],
         source=source.name,
-        elapsed=format_duration(record.get("elapsed_s")),
-        extra_keys=sorted(str(k) for k in (record.get("extra") or {})),
-        variant=str(record.get("variant") or ("real" if data else "synthetic")),
+        elapsed=format_duration(record.elapsed_s),
+        extra_keys=sorted(str(k) for k in record.extra),
+        variant=str(record.variant or ("real" if data else "synthetic")),
         data=[(str(k), str(v)) for k, v in data.items()],
         values=values,
-        warnings=[str(w) for w in record.get("warnings") or []],
-        stale=record.get("code") != code_fingerprint(),
+        warnings=[str(w) for w in record.warnings],
+        stale=record.code != code_fingerprint(),
     )
 
 
