@@ -10,7 +10,7 @@ import pytest
 import dataclasses
 
 from mmconcepts.experiments import RunContext, get, run_experiment
-from mmconcepts.experiments.ch2_nmf_recovery import Config, make_data, run, streams
+from mmconcepts.experiments.ch2_nmf_recovery import Config, compute, make_data, present, streams
 from mmconcepts.report import write_report
 
 
@@ -61,8 +61,9 @@ def test_no_stream_is_shared():
 
 
 def test_tiny_run_keeps_per_repeat_samples():
-    res = run(TINY, RunContext(show_progress=False))
+    res = compute(TINY, RunContext(show_progress=False))
     res.validate()
+    assert res.figures == {}  # numbers only
     for name in ("identifiable.beta_1.mu.distance", "nonidentifiable.median_distance", "random_dictionary.distance"):
         assert len(res.samples[name]) == TINY.n_repeats
         assert res.metrics[name] == pytest.approx(np.median(res.samples[name]))
@@ -73,7 +74,7 @@ def test_tiny_run_keeps_samples_behind_every_claim():
     from mmconcepts.experiments.rules import parse_rule
     from mmconcepts.experiments.uncertainty import claim_verdict
 
-    res = run(TINY, RunContext(show_progress=False))
+    res = compute(TINY, RunContext(show_progress=False))
     m, s = res.metrics, res.samples
     # the property check keeps its maximum, with one sample per MM run: 2 kinds x 2 repeats x 1 beta
     per_run = s["mu_mm.max_relative_increase"]
@@ -92,6 +93,19 @@ def test_tiny_run_keeps_samples_behind_every_claim():
             assert len(s[name]) >= 2, name
         v = claim_verdict(claim.rule, m, s, units=res.sample_units)
         assert v.basis.startswith("t-calibrated paired bootstrap"), (claim.rule, v.basis)
+
+
+def test_present_draws_the_computed_numbers():
+    res = compute(TINY, RunContext(show_progress=False))
+    figures = present(res, TINY)
+    assert set(figures) == {"loss_curves", "distances"}
+    curves = res.figure_data["loss_curves"]
+    assert [r["name"] for r in curves] == ["beta_1.mu"]  # the first identifiable repeat, one method per curve
+    line = figures["loss_curves"].axes[0].lines[0]
+    its, h = curves[0]["history"]
+    assert h[0] == 1.0 and line.get_ydata().tolist() == h and line.get_xdata().tolist() == [i + 1 for i in its]
+    bars = figures["distances"].axes[0].patches
+    assert [b.get_height() for b in bars] == [m for k, m in res.metrics.items() if k.endswith("beta_1.mu.distance")]
 
 
 def test_max_relative_increase_known_answer():

@@ -33,7 +33,7 @@ from ..nmf import beta_nmf, match_components
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run", "make_data", "streams"]
+__all__ = ["Config", "compute", "present", "run", "make_data", "streams"]
 
 KINDS = ("identifiable", "nonidentifiable")
 
@@ -155,7 +155,9 @@ def _one_run(task):
                 n_iter=res.n_iter)
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """The fits, distances and property check (no figures; ``figure_data["loss_curves"]``: the
+    first identifiable repeat's normalised loss histories, for :func:`present`)."""
     ss = streams(config)
     tasks = []
     for kind in KINDS:
@@ -221,34 +223,9 @@ def run(config: Config, ctx: RunContext) -> Result:
              f"Gamma noise {config.noise:.0%}, {config.max_iter} MU and {config.pg_max_iter} projected-gradient iterations.",
     )
 
-    fig_loss = Figure(figsize=(7, 4.5))
-    ax = fig_loss.subplots()
     first = [r for r in runs if r["kind"] == "identifiable" and r["repeat"] == 0]
-    for r in first:
-        its, h = r["history"]
-        ax.plot(np.asarray(its) + 1, h, label=r["name"], lw=1.2, ls="-" if r["solver"] == "mu" else "--")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("iteration + 1 (1 = initialisation)")
-    ax.set_ylabel("objective / initial objective")
-    ax.set_title("Loss curves on identifiable data (first repeat)")
-    ax.legend(fontsize=7, ncol=2)
-    fig_loss.tight_layout()
-
-    fig_dist = Figure(figsize=(7, 4))
-    ax = fig_dist.subplots()
-    names = [m[0] for m in _methods(config)]
-    x = np.arange(len(names))
-    ax.bar(x - 0.2, [metrics[f"identifiable.{n}.distance"] for n in names], 0.4, label="identifiable")
-    ax.bar(x + 0.2, [metrics[f"nonidentifiable.{n}.distance"] for n in names], 0.4, label="non-identifiable")
-    ax.axhline(metrics["random_dictionary.distance"], color="k", ls=":", label="random dictionary")
-    ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
-    ax.set_yscale("log")
-    ax.set_ylabel("matching distance to the true dictionary")
-    ax.legend(fontsize=8)
-    fig_dist.tight_layout()
-
-    return Result(metrics=metrics, tables={"recovery": table}, figures={"loss_curves": fig_loss, "distances": fig_dist},
+    return Result(metrics=metrics, tables={"recovery": table},
+                  figure_data={"loss_curves": [{k: r[k] for k in ("name", "solver", "history")} for r in first]},
                   samples=samples,
                   sample_units={name: "MM runs" if name == "mu_mm.max_relative_increase" else "repeats"
                                 for name in samples},
@@ -273,13 +250,46 @@ def run(config: Config, ctx: RunContext) -> Result:
                          "solvers' random_state."])
 
 
-register(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """The loss curves of the first identifiable repeat and the distances by method."""
+    metrics = result.metrics
+    fig_loss = Figure(figsize=(7, 4.5))
+    ax = fig_loss.subplots()
+    for r in result.figure_data["loss_curves"]:
+        its, h = r["history"]
+        ax.plot(np.asarray(its) + 1, h, label=r["name"], lw=1.2, ls="-" if r["solver"] == "mu" else "--")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("iteration + 1 (1 = initialisation)")
+    ax.set_ylabel("objective / initial objective")
+    ax.set_title("Loss curves on identifiable data (first repeat)")
+    ax.legend(fontsize=7, ncol=2)
+    fig_loss.tight_layout()
+
+    fig_dist = Figure(figsize=(7, 4))
+    ax = fig_dist.subplots()
+    names = [m[0] for m in _methods(config)]
+    x = np.arange(len(names))
+    ax.bar(x - 0.2, [metrics[f"identifiable.{n}.distance"] for n in names], 0.4, label="identifiable")
+    ax.bar(x + 0.2, [metrics[f"nonidentifiable.{n}.distance"] for n in names], 0.4, label="non-identifiable")
+    ax.axhline(metrics["random_dictionary.distance"], color="k", ls=":", label="random dictionary")
+    ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylabel("matching distance to the true dictionary")
+    ax.legend(fontsize=8)
+    fig_dist.tight_layout()
+
+    return {"loss_curves": fig_loss, "distances": fig_dist}
+
+
+EXPERIMENT = register(
     Experiment(
         id="ch2-nmf-recovery",
         title="Beta-NMF: monotone multiplicative updates and dictionary recovery",
         thesis_ref="Section 2.1 (eq. 2.2-2.19, Table 2.2), Appendix A.2",
         config_cls=Config,
-        run=run,
+        compute=compute,
+        present=present,
         reference={},
         claims=[
             Claim("The objective never increases under multiplicative updates with the MM exponent of Table 2.2 "
@@ -295,3 +305,6 @@ register(
         description=__doc__.split("\n\n")[0],
     )
 )
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run
