@@ -31,9 +31,9 @@ outside the grid fall in the edge bins).
 
 from __future__ import annotations
 
-import numbers
 import warnings
 from collections.abc import Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
@@ -41,7 +41,8 @@ from scipy.ndimage import gaussian_filter
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_random_state
+from .._persist import SaveLoadMixin
+from .._validation import Interval, Options, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 
 __all__ = ["MotionHistograms"]
@@ -55,7 +56,21 @@ def _sqdist(z: np.ndarray, cb: np.ndarray) -> np.ndarray:
     return (z * z).sum(1)[:, None] - 2 * z @ cb.T + (cb * cb).sum(1)[None, :]
 
 
-class MotionHistograms(TransformerMixin, BaseEstimator):
+class _IntPair:
+    """A pair (tuple or list of two) of ints >= ``low`` (a parameter constraint)."""
+
+    def __init__(self, low: int) -> None:
+        self.low = low
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        return (isinstance(value, (tuple, list)) and len(value) == 2
+                and all(Interval("int", self.low).is_satisfied_by(v) for v in value))
+
+    def __str__(self) -> str:
+        return f"a pair of ints >= {self.low}"
+
+
+class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """Concatenated per-dof histograms of angles and/or delayed velocities (Thesis 3.2).
 
     Parameters
@@ -116,7 +131,30 @@ class MotionHistograms(TransformerMixin, BaseEstimator):
     >>> X = [rng.normal(size=(100, 16)) for _ in range(5)]
     >>> MotionHistograms(n_bins=16).fit_transform(X).shape
     (5, 256)
+
+    A fitted object keeps its grids or codebooks in a file without pickle
+    (:meth:`save`, :meth:`load`).
     """
+
+    _parameter_constraints: ClassVar[dict] = {
+        "data": [Options(*_DATA)],
+        "method": [Options(*_METHODS)],
+        "n_bins": [Interval("int", 2), _IntPair(2)],
+        "delay": [Interval("int", 1)],
+        "smoothing": [Interval("real", 0)],
+        "range_quantile": [Interval("real", 0, 0.5, closed="left")],
+        "assignment": [Options(*_ASSIGN)],
+        "softness": [Interval("real", 0, None, closed="neither")],
+        "period": [Interval("real", 0, None, closed="neither"), None],
+        "max_fit_samples": [Interval("int", 1)],
+        "n_init": [Interval("int", 1)],
+        "random_state": ["random_state"],
+    }
+    _hints: ClassVar[dict] = {
+        "n_bins": "A pair (angle bins, velocity bins) is for data='joint' with method='kde' only.",
+        "smoothing": "It is in bins; 0 gives plain counts.",
+        "period": "Give 2 * pi for Euler angles, or None for angles that do not wrap.",
+    }
 
     def __init__(
         self,
@@ -149,34 +187,10 @@ class MotionHistograms(TransformerMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ checks
     def _check_params(self) -> None:
-        for name, value, choices in (("data", self.data, _DATA), ("method", self.method, _METHODS),
-                                     ("assignment", self.assignment, _ASSIGN)):
-            if value not in choices:
-                raise ParameterError(f"{name} must be one of {choices}; got {value!r}.")
-        if isinstance(self.delay, bool) or not isinstance(self.delay, numbers.Integral) or self.delay < 1:
-            raise ParameterError(f"delay must be an int >= 1; got {self.delay!r}.")
-        nb = self.n_bins
-        if isinstance(nb, (tuple, list)):
-            if not (self.method == "kde" and self.data == "joint"):
-                raise ParameterError("n_bins may be a pair only for data='joint' with method='kde'; give an int.")
-            if len(nb) != 2 or any(isinstance(b, bool) or not isinstance(b, numbers.Integral) or b < 2 for b in nb):
-                raise ParameterError(f"n_bins must be a pair of ints >= 2; got {nb!r}.")
-        elif isinstance(nb, bool) or not isinstance(nb, numbers.Integral) or nb < 2:
-            raise ParameterError(f"n_bins must be an int >= 2; got {nb!r}.")
-        if not isinstance(self.smoothing, numbers.Real) or self.smoothing < 0:
-            raise ParameterError(f"smoothing must be a real >= 0 (bins); got {self.smoothing!r}.")
-        rq = self.range_quantile
-        if isinstance(rq, bool) or not isinstance(rq, numbers.Real) or not 0 <= rq < 0.5:
-            raise ParameterError(f"range_quantile must be a real in [0, 0.5); got {rq!r}.")
-        if not isinstance(self.softness, numbers.Real) or self.softness <= 0:
-            raise ParameterError(f"softness must be a real > 0; got {self.softness!r}.")
-        if self.period is not None and (not isinstance(self.period, numbers.Real) or self.period <= 0):
-            raise ParameterError(f"period must be None or a positive real; got {self.period!r}.")
-        if isinstance(self.max_fit_samples, bool) or not isinstance(self.max_fit_samples, numbers.Integral) \
-                or self.max_fit_samples < 1:
-            raise ParameterError(f"max_fit_samples must be an int >= 1; got {self.max_fit_samples!r}.")
-        if isinstance(self.n_init, bool) or not isinstance(self.n_init, numbers.Integral) or self.n_init < 1:
-            raise ParameterError(f"n_init must be an int >= 1; got {self.n_init!r}.")
+        validate_params(self, self._parameter_constraints, hints=self._hints)
+        if isinstance(self.n_bins, (tuple, list)) and not (self.method == "kde" and self.data == "joint"):
+            raise ParameterError(
+                "MotionHistograms: n_bins may be a pair only for data='joint' with method='kde'; give an int.")
 
     def _check_X(self, X, *, fitted: bool) -> list[np.ndarray]:
         if isinstance(X, np.ndarray) and X.ndim == 2:
