@@ -40,7 +40,8 @@ representations with what scikit-image offers on small (96 x 96) images:
 Every descriptor set is a nonnegative histogram per image; with ``normalize="l1"``
 (default) each row sums to one (a row with no feature, e.g. no keypoint in a flat image,
 stays zero). Codebooks are learnt in ``fit`` on the training images only
-and ``transform`` reuses them. :class:`ImageFeatures` computes any subset of the six sets,
+and ``transform`` reuses them; a fitted transformer keeps them in a file without pickle
+(``save``, ``load``). :class:`ImageFeatures` computes any subset of the six sets,
 extracting superpixels and descriptors once per image.
 
 Decisions, and how they differ from the thesis:
@@ -67,14 +68,15 @@ import abc
 import math
 import numbers
 from collections.abc import Iterable, Sequence
-from typing import NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 from sklearn.base import BaseEstimator, TransformerMixin, clone
 from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_random_state
+from .._persist import SaveLoadMixin
+from .._validation import InstanceOf, Interval, Options, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 from .data import check_images
 
@@ -125,6 +127,52 @@ class LocalFeatures(NamedTuple):
     weights: np.ndarray
 
 
+# --------------------------------------------------------------------------- parameter constraints
+
+
+class _MultipleOf:
+    """An int >= ``low`` that is a multiple of ``step`` (a parameter constraint)."""
+
+    def __init__(self, step: int, low: int, why: str) -> None:
+        self.step, self.low, self.why = step, low, why
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        return Interval("int", self.low).is_satisfied_by(value) and value % self.step == 0
+
+    def __str__(self) -> str:
+        return f"an int >= {self.low} and a multiple of {self.step} ({self.why})"
+
+
+class _DescriptorNames:
+    """A descriptor-set name or a non-empty sequence of distinct names among :data:`DESCRIPTORS`."""
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        if not isinstance(value, (str, list, tuple, np.ndarray)):
+            return False
+        names = [value] if isinstance(value, str) else list(value)
+        return (bool(names) and all(isinstance(n, str) and n in DESCRIPTORS for n in names)
+                and len(set(names)) == len(names))
+
+    def __str__(self) -> str:
+        return f"a non-empty sequence of distinct names among {DESCRIPTORS}"
+
+
+#: Parameters of the public functions, checked by :func:`~mmconcepts._validation.validate_params`.
+_SUPERPIXEL_CONSTRAINTS: dict[str, list] = {
+    "n_segments": [Interval("int", 1)],
+    "compactness": [Interval("real", 0, None, closed="neither")],
+}
+_SIFT_CONSTRAINTS: dict[str, list] = {
+    "patch_size": [_MultipleOf(4, 4, "4 x 4 cells")],
+    "step": [Interval("int", 1)],
+    "contrast_threshold": [Interval("real", 0)],
+    "rotation_invariant": ["boolean"],
+}
+_TUPLE_CONSTRAINTS: dict[str, list] = {"order": [Options(2, 3)], "n_neighbors": [Interval("int", 1)]}
+_N_TUPLE_CONSTRAINTS: dict[str, list] = {"n_words": [Interval("int", 0)], "order": [Interval("int", 1)]}
+_STACK_CONSTRAINTS: dict[str, list] = {"weights": [dict, None]}
+
+
 # --------------------------------------------------------------------------- local features
 
 
@@ -151,6 +199,8 @@ def superpixel_colors(image: np.ndarray, *, n_segments: int = 50, compactness: f
     from skimage.color import rgb2hsv
     from skimage.segmentation import slic
 
+    validate_params({"n_segments": n_segments, "compactness": compactness}, _SUPERPIXEL_CONSTRAINTS,
+                    owner="superpixel_colors")
     seg = slic(image, n_segments=n_segments, compactness=compactness, start_label=0, channel_axis=-1)
     _, seg = np.unique(seg, return_inverse=True)  # consecutive labels
     seg = seg.reshape(image.shape[:2])
@@ -216,6 +266,8 @@ def dense_sift(
     """
     from skimage.color import rgb2gray
 
+    validate_params({"patch_size": patch_size, "step": step, "contrast_threshold": contrast_threshold,
+                     "rotation_invariant": rotation_invariant}, _SIFT_CONSTRAINTS, owner="dense_sift")
     gray = rgb2gray(image) if image.ndim == 3 else np.asarray(image, dtype=np.float64)
     H, W = gray.shape
     if patch_size > min(H, W):
@@ -348,6 +400,7 @@ def neighbour_tuples(positions: np.ndarray, *, order: int = 2, n_neighbors: int 
     ndarray of shape (n_tuples, order), int
         Distinct tuples of feature indices, each sorted, in lexicographic order.
     """
+    validate_params({"order": order, "n_neighbors": n_neighbors}, _TUPLE_CONSTRAINTS, owner="neighbour_tuples")
     pos = np.asarray(positions, dtype=np.float64)
     n = len(pos)
     k = min(n_neighbors, n - 1)
@@ -368,6 +421,7 @@ def neighbour_tuples(positions: np.ndarray, *, order: int = 2, n_neighbors: int 
 
 def n_tuple_columns(n_words: int, order: int) -> int:
     """Number of distinct unordered ``order``-tuples (multisets) of ``n_words`` words: C(K + order - 1, order)."""
+    validate_params({"n_words": n_words, "order": order}, _N_TUPLE_CONSTRAINTS, owner="n_tuple_columns")
     return math.comb(n_words + order - 1, order)
 
 
@@ -397,22 +451,19 @@ def tuple_columns(words: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- helpers
 
 
-def _check_int(value, name: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < minimum:
-        raise ParameterError(f"{name} must be an int >= {minimum}; got {value!r}.")
-    return int(value)
-
-
-def _check_real(value, name: str, *, low: float = 0.0, strict: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) \
-            or value < low or (strict and value == low):
-        raise ParameterError(f"{name} must be a real {'>' if strict else '>='} {low}; got {value!r}.")
+def _check_real(value, name: str, *, low: float = 0.0) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value < low:
+        raise ParameterError(f"{name} must be a real >= {low}; got {value!r}.")
     return float(value)
 
 
-def _check_normalize(value) -> None:
-    if value not in ("l1", None):
-        raise ParameterError(f"normalize must be 'l1' or None; got {value!r}.")
+#: Constraints shared by the bags of words (:class:`ColorHistograms`, :class:`KeypointBag`).
+_BAG_CONSTRAINTS: dict[str, list] = {
+    "normalize": [Options("l1", None)],
+    "max_fit_samples": [Interval("int", 1)],
+    "n_jobs": [Interval("int"), None],
+    "random_state": ["random_state"],
+}
 
 
 def _n_jobs_chunks(images: list[np.ndarray], func, n_jobs, **kwargs) -> list:
@@ -492,18 +543,21 @@ def _mid(words_list, positions_list, k: int, order: int, n_neighbors: int, norma
 # --------------------------------------------------------------------------- bags of words
 
 
-class _WordBag(TransformerMixin, BaseEstimator, abc.ABC):
-    """Shared machinery: local features -> k-means codebook -> histogram of words."""
+class _WordBag(SaveLoadMixin, TransformerMixin, BaseEstimator, abc.ABC):
+    """Shared machinery: local features -> k-means codebook -> histogram of words.
+
+    A fitted bag saves and loads its codebook without pickle (:meth:`save`, :meth:`load`).
+    """
 
     _what = "local features"
+    _parameter_constraints: ClassVar[dict] = {}
 
     @abc.abstractmethod
     def _n_codewords(self) -> int:
         """Size of the codebook."""
 
     def _check_params(self) -> None:
-        _check_normalize(self.normalize)
-        _check_int(self.max_fit_samples, "max_fit_samples", 1)
+        validate_params(self, self._parameter_constraints)
 
     def _min_size(self) -> int:
         return 2
@@ -619,6 +673,11 @@ class ColorHistograms(_WordBag):
 
     _what = "superpixel colours"
     _prefix = "color"
+    _parameter_constraints: ClassVar[dict] = {
+        "n_colors": [Interval("int", 2)],
+        **_SUPERPIXEL_CONSTRAINTS,
+        **_BAG_CONSTRAINTS,
+    }
 
     def __init__(self, *, n_colors: int = 64, n_segments: int = 50, compactness: float = 10.0,
                  normalize: str | None = "l1", max_fit_samples: int = 50000, n_jobs: int | None = 1,
@@ -633,12 +692,6 @@ class ColorHistograms(_WordBag):
 
     def _n_codewords(self) -> int:
         return int(self.n_colors)
-
-    def _check_params(self) -> None:
-        super()._check_params()
-        _check_int(self.n_colors, "n_colors", 2)
-        _check_int(self.n_segments, "n_segments", 1)
-        _check_real(self.compactness, "compactness", strict=True)
 
     def _local_function(self):
         return superpixel_colors, {"n_segments": int(self.n_segments), "compactness": float(self.compactness)}
@@ -681,6 +734,11 @@ class KeypointBag(_WordBag):
 
     _what = "keypoint descriptors"
     _prefix = "keypoint"
+    _parameter_constraints: ClassVar[dict] = {
+        "n_words": [Interval("int", 2)],
+        **_SIFT_CONSTRAINTS,
+        **_BAG_CONSTRAINTS,
+    }
 
     def __init__(self, *, n_words: int = 256, patch_size: int = 16, step: int = 8, contrast_threshold: float = 0.01,
                  rotation_invariant: bool = True, normalize: str | None = "l1", max_fit_samples: int = 50000,
@@ -698,17 +756,6 @@ class KeypointBag(_WordBag):
     def _n_codewords(self) -> int:
         return int(self.n_words)
 
-    def _check_params(self) -> None:
-        super()._check_params()
-        _check_int(self.n_words, "n_words", 2)
-        p = _check_int(self.patch_size, "patch_size", 4)
-        if p % 4:
-            raise ParameterError(f"patch_size must be a multiple of 4 (4 x 4 cells); got {p}.")
-        _check_int(self.step, "step", 1)
-        _check_real(self.contrast_threshold, "contrast_threshold")
-        if not isinstance(self.rotation_invariant, (bool, np.bool_)):
-            raise ParameterError(f"rotation_invariant must be True or False; got {self.rotation_invariant!r}.")
-
     def _min_size(self) -> int:
         return int(self.patch_size)
 
@@ -718,7 +765,7 @@ class KeypointBag(_WordBag):
                             "rotation_invariant": bool(self.rotation_invariant)}
 
 
-class MidFeatures(TransformerMixin, BaseEstimator):
+class MidFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """Histograms of pairs or triplets of neighbouring visual words (Thesis 6.5.3, "mid-features").
 
     The base bag (a :class:`ColorHistograms` or :class:`KeypointBag`, cloned and fitted
@@ -742,7 +789,19 @@ class MidFeatures(TransformerMixin, BaseEstimator):
     n_features_out_ : int
         ``K (K + 1) / 2`` for pairs, ``K (K + 1) (K + 2) / 6`` for triplets, K the base's
         codebook size.
+
+    Notes
+    -----
+    A fitted object saves and loads without pickle (:meth:`save`, :meth:`load`).
     """
+
+    _parameter_constraints: ClassVar[dict] = {
+        "base": [InstanceOf(_WordBag, description="a ColorHistograms or a KeypointBag"), None],
+        "order": [Options(2, 3)],
+        "n_neighbors": [Interval("int", 1)],
+        "normalize": [Options("l1", None)],
+    }
+    _hints: ClassVar[dict] = {"order": "2 counts pairs, 3 triplets."}
 
     def __init__(self, base=None, *, order: int = 2, n_neighbors: int = 4, normalize: str | None = "l1") -> None:
         self.base = base
@@ -751,12 +810,10 @@ class MidFeatures(TransformerMixin, BaseEstimator):
         self.normalize = normalize
 
     def _check_params(self) -> None:
-        if self.order not in (2, 3) or isinstance(self.order, bool):
-            raise ParameterError(f"order must be 2 (pairs) or 3 (triplets); got {self.order!r}.")
-        _check_int(self.n_neighbors, "n_neighbors", self.order - 1)
-        _check_normalize(self.normalize)
-        if self.base is not None and not isinstance(self.base, _WordBag):
-            raise ParameterError(f"base must be a ColorHistograms or a KeypointBag; got {type(self.base).__name__}.")
+        validate_params(self, self._parameter_constraints, hints=self._hints)
+        if self.order == 3 and self.n_neighbors < 2:
+            raise ParameterError(
+                f"MidFeatures: n_neighbors must be >= 2 for triplets (order=3); got {self.n_neighbors}.")
 
     def fit(self, images, y=None):
         """Fit the base codebook on training images."""
@@ -800,7 +857,7 @@ def _both(image, color_kw, kp_kw):
     return c, k
 
 
-class ImageFeatures(BaseEstimator):
+class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """Named descriptor sets of images, any subset of them (Thesis 6.5.3).
 
     ``transform`` returns a dict ``{name: matrix}`` so that an experiment can use each
@@ -846,6 +903,11 @@ class ImageFeatures(BaseEstimator):
     keypoints_ : KeypointBag or None
     n_features_out_ : dict of str to int
 
+    Notes
+    -----
+    A fitted object saves and loads its codebooks without pickle (:meth:`save`,
+    :meth:`load`).
+
     Examples
     --------
     >>> from mmconcepts.vision import make_objects                   # doctest: +SKIP
@@ -854,6 +916,16 @@ class ImageFeatures(BaseEstimator):
     >>> X = feats.transform(imgs)             # {"keypoints": ..., ...}  # doctest: +SKIP
     >>> Xall = stack_descriptors(X)                                  # doctest: +SKIP
     """
+
+    _parameter_constraints: ClassVar[dict] = {
+        "descriptors": [_DescriptorNames()],
+        "color": [InstanceOf(ColorHistograms), None],
+        "keypoints": [InstanceOf(KeypointBag), None],
+        "n_neighbors": [Interval("int", 2)],
+        "normalize": [Options("l1", None)],
+        "n_jobs": [Interval("int"), None],
+        "random_state": ["random_state"],
+    }
 
     def __init__(self, descriptors: Sequence[str] = THESIS_DESCRIPTORS, *, color: ColorHistograms | None = None,
                  keypoints: KeypointBag | None = None, n_neighbors: int = 4, normalize: str | None = "l1",
@@ -866,29 +938,10 @@ class ImageFeatures(BaseEstimator):
         self.n_jobs = n_jobs
         self.random_state = random_state
 
-    def _names(self) -> list[str]:
-        d = self.descriptors
-        if isinstance(d, str):
-            d = [d]
-        names = list(d)
-        if not names:
-            raise ParameterError(f"descriptors must name at least one of {DESCRIPTORS}.")
-        bad = [n for n in names if n not in DESCRIPTORS]
-        if bad:
-            raise ParameterError(f"Unknown descriptor set(s) {bad}; choose among {DESCRIPTORS}.")
-        if len(set(names)) != len(names):
-            raise ParameterError(f"descriptors must not repeat; got {names}.")
-        return names
-
     def _check_params(self) -> list[str]:
-        names = self._names()
-        _check_int(self.n_neighbors, "n_neighbors", 2)
-        _check_normalize(self.normalize)
-        for attr, cls in (("color", ColorHistograms), ("keypoints", KeypointBag)):
-            v = getattr(self, attr)
-            if v is not None and not isinstance(v, cls):
-                raise ParameterError(f"{attr} must be a {cls.__name__} or None; got {type(v).__name__}.")
-        return names
+        """Validate the parameters; the descriptor-set names, as a list."""
+        validate_params(self, self._parameter_constraints)
+        return [self.descriptors] if isinstance(self.descriptors, str) else list(self.descriptors)
 
     def _extract(self, ims, need_c: bool, need_k: bool, c_est, k_est):
         ckw = c_est._local_function()[1] if need_c else None
@@ -1001,6 +1054,13 @@ class ImageFeatures(BaseEstimator):
         c_loc, k_loc = self._extract(ims, need_c, need_k, self.color_, self.keypoints_)
         return self._compute(c_loc, k_loc)
 
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False  # a list of images, as the bags of words
+        tags.input_tags.three_d_array = True
+        tags.transformer_tags.preserves_dtype = []  # transform returns a dict of matrices
+        return tags
+
 
 def stack_descriptors(
     features: dict[str, np.ndarray | sp.spmatrix],
@@ -1024,6 +1084,7 @@ def stack_descriptors(
     -------
     csr_matrix of shape (n_images, sum of the sets' columns)
     """
+    validate_params({"weights": weights}, _STACK_CONSTRAINTS, owner="stack_descriptors")
     keys = list(features) if names is None else list(names)
     if not keys:
         raise ParameterError("names must hold at least one descriptor set.")
