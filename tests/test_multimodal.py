@@ -114,6 +114,18 @@ def test_pairwise_divergence_definitions(rng):
         pairwise_divergence(A, B, "manhattan")
 
 
+def test_dissimilarities_agree_with_scipy(rng):
+    """Cosine and Euclidean against scipy.spatial.distance, KL against scipy.stats.entropy."""
+    from scipy.spatial.distance import cdist
+    from scipy.stats import entropy
+
+    A, B = rng.random((4, 6)) + 0.01, rng.random((5, 6)) + 0.01
+    np.testing.assert_allclose(pairwise_divergence(A, B, "cosine"), cdist(A, B, "cosine"), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(pairwise_divergence(A, B, "euclidean"), cdist(A, B, "euclidean"), rtol=1e-10)
+    kl = np.array([[entropy(a, b) for b in B] for a in A])  # entropy normalises both to distributions
+    np.testing.assert_allclose(pairwise_divergence(A, B, "kl"), kl, rtol=1e-8)
+
+
 def test_matching_success_rate_by_hand():
     D = np.array([[0.0, 1.0, 2.0], [5.0, 1.0, 0.0]])
     assert matching_success_rate(D, ["a", "b"], ["a", "b", "c"]) == 0.5
@@ -127,8 +139,8 @@ def test_save_load_round_trip_without_pickle(rng, tmp_path):
     model = MultimodalNMF(4, random_state=0).fit(mods)
     path = model.save(tmp_path / "learner")
     assert path.suffix == ".npz"
-    with np.load(path, allow_pickle=False) as z:
-        assert set(z.files) == {"components", "header"}
+    with np.load(path, allow_pickle=False) as z:  # numbers and strings only, nothing to unpickle
+        assert "header" in z.files and all(z[k].dtype != object for k in z.files)
     loaded = MultimodalNMF.load(path)
     assert loaded.modalities_ == model.modalities_ and loaded.scales_ == model.scales_
     np.testing.assert_array_equal(loaded.transform({"sound": mods["sound"]}), model.transform({"sound": mods["sound"]}))

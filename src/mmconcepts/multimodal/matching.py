@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .._validation import check_random_state
-from ..errors import DataError, ParameterError
+from .._validation import Interval, Options, check_random_state, validate_params
+from ..errors import DataError
 from .learner import MultimodalNMF
 
 __all__ = ["METRICS", "SPACES", "pairwise_divergence", "crossmodal_distances", "matching_success_rate"]
@@ -36,6 +36,11 @@ __all__ = ["METRICS", "SPACES", "pairwise_divergence", "crossmodal_distances", "
 METRICS = ("idiv", "kl", "kl_reversed", "kl_symmetric", "euclidean", "cosine")
 SPACES = ("internal", "test", "reference")
 _EPS = 1e-12
+
+#: Parameters of the public functions, checked by :func:`~mmconcepts._validation.validate_params`.
+_PAIRWISE_CONSTRAINTS = {"metric": [Options(*METRICS)]}
+_CROSSMODAL_CONSTRAINTS = {"space": [Options(*SPACES)], "metric": [Options(*METRICS)]}
+_SUCCESS_RATE_CONSTRAINTS = {"n_draws": [Interval("int", 1)], "random_state": ["random_state"]}
 
 
 def _dense(X: Any) -> np.ndarray:
@@ -73,6 +78,7 @@ def pairwise_divergence(A: Any, B: Any, metric: str = "kl") -> np.ndarray:
     -------
     ndarray of shape (n_a, n_b)
     """
+    validate_params({"metric": metric}, _PAIRWISE_CONSTRAINTS, owner="pairwise_divergence")
     A, B = _dense(A), _dense(B)
     if A.ndim != 2 or B.ndim != 2 or A.shape[1] != B.shape[1]:
         raise DataError(f"A and B must be 2-D with the same number of columns; got {A.shape} and {B.shape}.")
@@ -87,11 +93,10 @@ def pairwise_divergence(A: Any, B: Any, metric: str = "kl") -> np.ndarray:
     if metric == "euclidean":
         sq = (A * A).sum(1)[:, None] + (B * B).sum(1)[None, :] - 2 * A @ B.T
         return np.sqrt(np.maximum(sq, 0.0))
-    if metric == "cosine":
-        na = np.linalg.norm(A, axis=1)[:, None]
-        nb = np.linalg.norm(B, axis=1)[None, :]
-        return 1.0 - (A @ B.T) / np.maximum(na * nb, _EPS)
-    raise ParameterError(f"metric must be one of {METRICS}; got {metric!r}.")
+    # "cosine", the last metric the constraints admit
+    na = np.linalg.norm(A, axis=1)[:, None]
+    nb = np.linalg.norm(B, axis=1)[None, :]
+    return 1.0 - (A @ B.T) / np.maximum(na * nb, _EPS)
 
 
 def _names(X: Mapping[str, Any], what: str) -> list[str]:
@@ -124,8 +129,7 @@ def crossmodal_distances(
     -------
     ndarray of shape (n_test, n_ref)
     """
-    if space not in SPACES:
-        raise ParameterError(f"space must be one of {SPACES}; got {space!r}.")
+    validate_params({"space": space, "metric": metric}, _CROSSMODAL_CONSTRAINTS, owner="crossmodal_distances")
     test_mods, ref_mods = _names(X_test, "X_test"), _names(X_ref, "X_ref")
     if set(test_mods) & set(ref_mods):
         raise DataError(f"test and reference modalities must differ; both have {sorted(set(test_mods) & set(ref_mods))}.")
@@ -169,6 +173,8 @@ def matching_success_rate(
     float
         The fraction of successes (chance is 1 / number of classes).
     """
+    validate_params({"n_draws": n_draws, "random_state": random_state}, _SUCCESS_RATE_CONSTRAINTS,
+                    owner="matching_success_rate")
     D = np.asarray(D, dtype=np.float64)
     y_test, y_ref = np.asarray(y_test), np.asarray(y_ref)
     if D.shape != (len(y_test), len(y_ref)):
