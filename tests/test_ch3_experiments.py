@@ -18,10 +18,12 @@ TINY = {"n_folds": 3, "n_components": 20, "max_iter": 40, "inner_cv": 2, "n_reco
 def _run(monkeypatch, tmp_path, module, exp_id, data=None, record=False, **tiny):
     mod = importlib.import_module(f"mmconcepts.experiments.{module}")
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
-    monkeypatch.setattr(mod.Config, "quick", classmethod(lambda cls: cls(**tiny)))
-    out = run_experiment(exp_id, preset="quick", output=tmp_path / "out", workers=2, progress=False, data=data)
-    assert out["status"] == "ok", out.get("message")
-    return out if record else out["metrics"]
+    out = run_experiment(exp_id, config=mod.Config(**tiny), output=tmp_path / "out", workers=2, progress=False,
+                         data=data)
+    assert out.status == "ok", out.message
+    assert out.preset == "custom" and out.config == {**out.config, **{k: list(v) if isinstance(v, tuple) else v
+                                                                       for k, v in tiny.items()}}
+    return out if record else out.metrics
 
 
 @pytest.mark.slow
@@ -175,7 +177,7 @@ def test_msr_skips_without_data(tmp_path):
     from mmconcepts.experiments import ch3_msr_action3d as mod
 
     with pytest.raises(ExperimentSkipped, match=r"--data-root DIR.*--data msr-action3d=DIR"):
-        mod.run(mod.Config.quick(), RunContext(cache_dir=tmp_path))
+        mod.compute(mod.Config.quick(), RunContext(cache_dir=tmp_path))
 
 
 def test_no_machine_paths_in_chapter3_code():
@@ -305,7 +307,7 @@ def test_threshold_leave_one_out_gives_ten_blocks(tmp_path):
 
     config = mod.Config(n_folds=None, n_components=10, max_iter=20, inner_cv=2, n_records_partial=16,
                         sensitivity=False)
-    result = mod.run(config, RunContext(cache_dir=tmp_path, workers=2, show_progress=False))
+    result = mod.compute(config, RunContext(cache_dir=tmp_path, workers=2, show_progress=False))
     assert result.metrics["n_units"] == common.N_BLOCKS == 10
     assert set(result.samples) == set(result.metrics) - {"n_units", "nmf_frobenius.best_threshold",
                                                          "nmf_kl.best_threshold"}

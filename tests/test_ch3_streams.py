@@ -55,7 +55,7 @@ def _capture(monkeypatch, tmp_path, module, streams, data=None, **tiny):
     config = dataclasses.replace(mod.Config.quick(), **tiny)
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False, data=data or {})
     with pytest.raises(_Stop):
-        mod.run(config, ctx)
+        mod.compute(config, ctx)
     return seen
 
 

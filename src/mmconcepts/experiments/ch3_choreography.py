@@ -78,7 +78,7 @@ from . import _ch3_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "evaluate_mixed", "run"]
+__all__ = ["Config", "compute", "evaluate_mixed", "present", "run", "score_figure", "score_table"]
 
 LEARNERS = ("nmf_frobenius", "nmf_kl", "svm", "svm_std", "chance")
 SENSITIVITY_LEARNERS = ("nmf_frobenius", "svm")
@@ -170,7 +170,19 @@ def _bar_figure(metrics: dict, reference: dict, rows: list[tuple[str, str]], tit
     return fig
 
 
+def plot_rows(learners) -> list[tuple[str, str]]:
+    """The (set, metric) bars of the score figure: every learner but chance, the SVMs without l_given_number."""
+    return [(nl, f"{n}.{s}") for nl in SUBSETS for n in learners if n != "chance"
+            for s in ("l_full", "l_given_number") if not (n.startswith("svm") and s == "l_given_number")]
+
+
+def score_figure(result: Result, *, learners, reference, title) -> Figure:
+    """Our scores beside the thesis' (the figure of Tables 3.2 and 3.3), from the metrics of :func:`score_table`."""
+    return _bar_figure(result.metrics, reference, plot_rows(learners), title)
+
+
 def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
+    """The scores of ``learners`` on both mixed sets (Table 3.2, or 3.3 with ``unseen``): numbers, no figure."""
     metrics: dict[str, float] = {}
     samples: dict[str, list[float]] = {}
     rows = []
@@ -261,13 +273,10 @@ def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:
         f"{metrics[f'{nl}.nmf_frobenius.l_full']:.3f} with {nl} labels, "
         f"{metrics[f'{nl}.nmf_frobenius.l_full'] / reference[f'{nl}.nmf_frobenius.l_full']:.2f} x the thesis' "
         f"{reference[f'{nl}.nmf_frobenius.l_full']}" for nl in SUBSETS) + ".")
-    plot_rows = [(nl, f"{n}.{s}") for nl in SUBSETS for n in learners if n != "chance"
-                 for s in ("l_full", "l_given_number") if not (n.startswith("svm") and s == "l_given_number")]
-    fig = _bar_figure(metrics, reference, plot_rows, title)
     # every sample belongs to the folds of one data set (its name starts with "16." or "47."): metrics of one set
     # are paired over its folds, the two sets are independent
     units = {name: f"folds of the {name.split('.', 1)[0]}-label set" for name in samples}
-    return Result(metrics=metrics, tables=tables, figures={"scores": fig}, sample_units=units,
+    return Result(metrics=metrics, tables=tables, sample_units=units,
                   notes=[common.data_source_note(ctx, used), note, magnitude,
                          "The SVM's l_given_number ranks its per-label decision values; the thesis gives none.",
                          "svm = the thesis' plain linear SVM on raw histograms; svm_std = the same on standardised "
@@ -290,17 +299,26 @@ REFERENCE = {
 }
 
 
-def run(config: Config, ctx: RunContext) -> Result:
-    return score_table(config, ctx, learners=LEARNERS, unseen=False, reference=REFERENCE,
-                       title="Table 3.2: label sets of new choreographies")
+TITLE = "Table 3.2: label sets of new choreographies"
 
 
-register(Experiment(
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Table 3.2's numbers (:func:`score_table`)."""
+    return score_table(config, ctx, learners=LEARNERS, unseen=False, reference=REFERENCE, title=TITLE)
+
+
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Our scores beside the thesis'."""
+    return {"scores": score_figure(result, learners=LEARNERS, reference=REFERENCE, title=TITLE)}
+
+
+EXPERIMENT = register(Experiment(
     id="ch3-choreography",
     title="Choreographies learnt from ambiguous label sets: NMF vs linear SVM",
     thesis_ref="Section 3.3, Table 3.2",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference=REFERENCE,
     claims=[
         Claim("With 47 labels NMF (Frobenius) beats the linear SVM on exact label-set reconstruction (0.625 vs 0.422).",
@@ -329,3 +347,6 @@ register(Experiment(
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

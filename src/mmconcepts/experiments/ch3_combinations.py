@@ -35,7 +35,7 @@ from .ch3_choreography import LEARNERS, evaluate_mixed
 from .ch3_choreography import Config as _BaseConfig
 from .registry import register
 
-__all__ = ["Config", "run", "subset_unit_scores"]
+__all__ = ["Config", "compute", "present", "run", "subset_unit_scores"]
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,9 @@ def subset_unit_scores(Y: np.ndarray, S: np.ndarray, P: np.ndarray, units: list[
     return out
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Frequencies of the combinations and NMF's success by frequency (no figure: :func:`present` draws Fig. 3.8
+    from the "distribution" table)."""
     Y, folds, arrays = evaluate_mixed(config, ctx, "47", learners=LEARNERS)
     groups = common.combination_ids(Y)
     count = Counter(groups.tolist())
@@ -101,21 +103,14 @@ def run(config: Config, ctx: RunContext) -> Result:
                                                                      for k in Y[sel].sum(axis=1)]))
             rows.append([tag, int(sel.sum()), metrics[f"{tag}.nmf_frobenius.l_full"],
                          metrics[f"{tag}.nmf_frobenius.l_given_number"]])
-    fig = Figure(figsize=(6, 4))
-    ax = fig.subplots()
     ks = np.arange(1, per_comb.max() + 1)
-    ax.bar(ks, [np.sum(occ == k) for k in ks])
-    ax.set_xlabel("times the example's combination of gestures appears in the data set")
-    ax.set_ylabel("number of examples")
-    ax.set_title(f"Fig. 3.8: {metrics['fraction_seen_once']:.0%} of the choreographies are unique")
-    fig.tight_layout()
     dist = Table("Examples by number of occurrences of their combination", ["occurrences", "examples", "combinations"],
                  [[int(k), int(np.sum(occ == k)), int(np.sum(per_comb == k))] for k in ks])
     succ = Table("NMF (Frobenius) success by frequency of the combination", ["combination", "examples", "l_full",
                                                                               "l_given_number"], rows)
     n_empty = {tag: int(np.isnan(samples.get(f"{tag}.nmf_frobenius.l_full", [np.nan] * len(units))).sum())
                for tag in ("once", "several")}
-    return Result(metrics=metrics, tables={"distribution": dist, "success": succ}, figures={"fig3_8": fig},
+    return Result(metrics=metrics, tables={"distribution": dist, "success": succ},
                   samples=samples,
                   notes=[common.data_source_note(ctx, arrays),
                          (f"Samples of once.* and several.*: the scores on each of {len(units)} units of test examples "
@@ -133,12 +128,26 @@ def run(config: Config, ctx: RunContext) -> Result:
                           "(that claim was dropped; once.chance.l_given_number is shown for description).")])
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 3.8: the examples by the number of times their combination appears (the "distribution" table)."""
+    rows = result.tables["distribution"].rows
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
+    ax.bar(np.array([r[0] for r in rows]), [r[1] for r in rows])
+    ax.set_xlabel("times the example's combination of gestures appears in the data set")
+    ax.set_ylabel("number of examples")
+    ax.set_title(f"Fig. 3.8: {result.metrics['fraction_seen_once']:.0%} of the choreographies are unique")
+    fig.tight_layout()
+    return {"fig3_8": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch3-combinations",
     title="Frequencies of gesture combinations in the full mixed set",
     thesis_ref="Section 3.3.4, Fig. 3.8",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={"fraction_seen_once": 0.6},
     claims=[
         Claim("Choreographies whose combination is unique (so never seen in training) are still labelled: the "
@@ -149,3 +158,6 @@ register(Experiment(
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

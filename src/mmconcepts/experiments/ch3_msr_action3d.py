@@ -42,7 +42,7 @@ from . import _ch3_common as common
 from .base import Claim, Experiment, ExperimentSkipped, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 SINGLE_REPS = {"angles_kde": {"data": "angles", "method": "kde", "n_bins": 15, "delay": 2},
                "joint_kde": {"data": "joint", "method": "kde", "n_bins": 15, "delay": 2},
@@ -78,7 +78,8 @@ def _folder(ctx: RunContext):
     return ctx.data["msr-action3d"]
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Single actions and arm + leg mixtures on MSR Action3D (no figure: :func:`present` draws the metrics)."""
     folder = _folder(ctx)
     t0 = time.perf_counter()
     st = common.streams(config.seed)
@@ -119,26 +120,13 @@ def run(config: Config, ctx: RunContext) -> Result:
     metrics["mixed.chance.l_given_number"] = 1.0 / comb(Y2.shape[1], 2)
     elapsed = time.perf_counter() - t0
 
-    fig = Figure(figsize=(7, 4))
-    ax1, ax2 = fig.subplots(1, 2)
     names = list(SINGLE_REPS)
-    ax1.bar(range(len(names)), [metrics[f"single.{n}.l_single"] for n in names])
-    ax1.axhline(metrics["single.chance.l_single"], color="k", ls=":")
-    ax1.set_xticks(range(len(names)), names, rotation=45, ha="right", fontsize=7)
-    ax1.set_ylabel("l_single")
-    ax1.set_title("single actions", fontsize=9)
-    keys = [f"{p}.{n}.{s}" for p in ("mixed", "unseen") for n in MIXED_LEARNERS for s in ("l_full", "l_given_number")]
-    ax2.bar(range(len(keys)), [metrics[k] for k in keys])
-    ax2.set_xticks(range(len(keys)), keys, rotation=60, ha="right", fontsize=6)
-    ax2.set_ylim(0, 1)
-    ax2.set_title("arms + legs mixtures", fontsize=9)
-    fig.tight_layout()
     t1 = Table("Single actions: l_single by representation", ["representation", "l_single"],
                [[n, metrics[f"single.{n}.l_single"]] for n in names] + [["chance", metrics["single.chance.l_single"]]])
     t2 = Table("Arm + leg mixtures from label sets", ["protocol", "learner", "l_full", "l_given_number"], rows,
                note=f"{len(Y2)} mixtures, {int(metrics['mixed.n_combinations'])} combinations, {Y2.shape[1]} labels; "
                     f"{config.n_folds_mixed} folds.")
-    return Result(metrics=metrics, tables={"single": t1, "mixed": t2}, figures={"msr": fig},
+    return Result(metrics=metrics, tables={"single": t1, "mixed": t2},
                   notes=[f"Data: MSR Action3D from {folder}. {single.description}; {mixed.description}. "
                          f"Run time {elapsed:.0f} s.",
                          ("Not a thesis experiment: no reference numbers; the claims are the thesis' chapter-3 "
@@ -153,12 +141,33 @@ def run(config: Config, ctx: RunContext) -> Result:
                   samples=samples)
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """l_single by representation (single actions) and the scores on the mixtures."""
+    metrics = result.metrics
+    fig = Figure(figsize=(7, 4))
+    names = list(SINGLE_REPS)
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.bar(range(len(names)), [metrics[f"single.{n}.l_single"] for n in names])
+    ax1.axhline(metrics["single.chance.l_single"], color="k", ls=":")
+    ax1.set_xticks(range(len(names)), names, rotation=45, ha="right", fontsize=7)
+    ax1.set_ylabel("l_single")
+    ax1.set_title("single actions", fontsize=9)
+    keys = [f"{p}.{n}.{s}" for p in ("mixed", "unseen") for n in MIXED_LEARNERS for s in ("l_full", "l_given_number")]
+    ax2.bar(range(len(keys)), [metrics[k] for k in keys])
+    ax2.set_xticks(range(len(keys)), keys, rotation=60, ha="right", fontsize=6)
+    ax2.set_ylim(0, 1)
+    ax2.set_title("arms + legs mixtures", fontsize=9)
+    fig.tight_layout()
+    return {"msr": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch3-msr-action3d",
     title="Chapter 3 on real Kinect skeletons: single actions and arm+leg mixtures (MSR Action3D)",
     thesis_ref="Section 3.3 (method), on MSR Action3D instead of Choreo1",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("The histogram representation suffices to classify single real actions far above chance.",
@@ -179,3 +188,6 @@ register(Experiment(
     synthetic=False,
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

@@ -56,7 +56,7 @@ from . import _ch3_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 METHODS = {"kde": {"method": "kde"}, "vq_hard": {"method": "vq", "assignment": "hard"},
            "vq_soft": {"method": "vq", "assignment": "soft"}}
@@ -86,7 +86,13 @@ class Config:
         return cls()
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def _fig6_delays(config: Config) -> tuple[int, ...]:
+    """The delays of Fig. 3.6: the config's and that of the bins (the claims read bins_delay)."""
+    return tuple(sorted(set(config.delays) | {config.bins_delay}))
+
+
+def compute(config: Config, ctx: RunContext) -> Result:
+    """l_single of every histogram setting (no figures: :func:`present` draws them from the metrics)."""
     t0 = time.perf_counter()
     st = common.streams(config.seed)
     arrays = common.subset_arrays(ctx, "primitive", seed=st.data, n_records=config.n_records)
@@ -101,7 +107,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     for name, kw in METHODS.items():
         for b in config.bins:
             settings.append((f"{name}.bins_{b}", dict(data="joint", n_bins=b, delay=config.bins_delay, **kw)))
-    fig6_delays = tuple(sorted(set(config.delays) | {config.bins_delay}))  # the claims read bins_delay
+    fig6_delays = _fig6_delays(config)
     for data in DATA:
         for d in (fig6_delays[:1] if data == "angles" else fig6_delays):
             settings.append((f"{data}.delay_{d}", {"data": data, "method": "kde", "n_bins": config.kde_bins, "delay": d}))
@@ -135,6 +141,27 @@ def run(config: Config, ctx: RunContext) -> Result:
         samples[f"{data}.best.l_single"] = samples[f"{data}.delay_{best}.l_single"]
     elapsed = time.perf_counter() - t0
 
+    t5 = Table("Fig. 3.5: l_single by histogram method and number of bins", ["bins"] + list(METHODS),
+               [[b] + [metrics[f"{m}.bins_{b}.l_single"] for m in METHODS] for b in config.bins])
+    t6 = Table("Fig. 3.6: l_single by histogrammed data and velocity delay", ["delay"] + list(DATA),
+               [[d] + [metrics[f"{m}.delay_{d}.l_single"] for m in DATA] for d in fig6_delays])
+    note = (f"{len(y)} single-gesture records ({n_short} left out: shorter than the longest delay + 1 frames), stratified {config.n_folds}-fold; NMF Frobenius k = {config.n_components}, "
+            f"{config.max_iter} MU iterations; run time {elapsed:.0f} s.")
+    return Result(metrics=metrics, tables={"fig3_5": t5, "fig3_6": t6},
+                  notes=[common.data_source_note(ctx, arrays), note,
+                         "The thesis gives these results as curves only (no numbers): the reference is empty.",
+                         "Per-fold l_single of every setting: the result's samples (angles: the same folds at every "
+                         "delay, since the delay does not enter angle histograms).",
+                         "Claims use settings fixed in advance: VQ is the mean of its hard and soft assignments (formerly "
+                         "the better of the two on the test folds), and Fig. 3.6 is compared at the delay of the Table "
+                         f"3.2 features ({config.bins_delay} frames, a small delay; formerly each representation's best "
+                         "delay on the test folds). <data>.best.l_single, the best over delays, is descriptive only."],
+                  samples=samples)
+
+
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 3.5 (KDE vs VQ against the number of bins) and Fig. 3.6 (what is histogrammed, against the delay)."""
+    metrics, fig6_delays = result.metrics, _fig6_delays(config)
     fig5 = Figure(figsize=(6, 4))
     ax = fig5.subplots()
     for name in METHODS:
@@ -155,30 +182,16 @@ def run(config: Config, ctx: RunContext) -> Result:
     ax.legend(fontsize=8)
     fig6.tight_layout()
 
-    t5 = Table("Fig. 3.5: l_single by histogram method and number of bins", ["bins"] + list(METHODS),
-               [[b] + [metrics[f"{m}.bins_{b}.l_single"] for m in METHODS] for b in config.bins])
-    t6 = Table("Fig. 3.6: l_single by histogrammed data and velocity delay", ["delay"] + list(DATA),
-               [[d] + [metrics[f"{m}.delay_{d}.l_single"] for m in DATA] for d in fig6_delays])
-    note = (f"{len(y)} single-gesture records ({n_short} left out: shorter than the longest delay + 1 frames), stratified {config.n_folds}-fold; NMF Frobenius k = {config.n_components}, "
-            f"{config.max_iter} MU iterations; run time {elapsed:.0f} s.")
-    return Result(metrics=metrics, tables={"fig3_5": t5, "fig3_6": t6}, figures={"fig3_5": fig5, "fig3_6": fig6},
-                  notes=[common.data_source_note(ctx, arrays), note,
-                         "The thesis gives these results as curves only (no numbers): the reference is empty.",
-                         "Per-fold l_single of every setting: the result's samples (angles: the same folds at every "
-                         "delay, since the delay does not enter angle histograms).",
-                         "Claims use settings fixed in advance: VQ is the mean of its hard and soft assignments (formerly "
-                         "the better of the two on the test folds), and Fig. 3.6 is compared at the delay of the Table "
-                         f"3.2 features ({config.bins_delay} frames, a small delay; formerly each representation's best "
-                         "delay on the test folds). <data>.best.l_single, the best over delays, is descriptive only."],
-                  samples=samples)
+    return {"fig3_5": fig5, "fig3_6": fig6}
 
 
-register(Experiment(
+EXPERIMENT = register(Experiment(
     id="ch3-representations",
     title="Motion representations for single-gesture classification: KDE vs VQ, angles vs velocities",
     thesis_ref="Section 3.3.4, Fig. 3.5 and 3.6",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("With few bins vector quantisation (mean of hard and soft assignment) beats KDE (Fig. 3.5).",
@@ -197,3 +210,6 @@ register(Experiment(
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

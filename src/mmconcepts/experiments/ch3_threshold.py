@@ -48,7 +48,8 @@ from .ch3_choreography import LEARNERS, evaluate_mixed
 from .ch3_choreography import Config as _BaseConfig
 from .registry import register
 
-__all__ = ["CENTRAL", "Config", "GRID", "HIGHEST", "LOWEST", "run", "threshold_metrics", "unit_curves"]
+__all__ = ["CENTRAL", "Config", "GRID", "HIGHEST", "LOWEST", "compute", "present", "run", "threshold_metrics",
+           "unit_curves"]
 
 GRID = np.round(np.arange(0.0, 1.0001, 0.025), 4)
 #: The fixed thresholds of the metrics: the extremes and the central range (inclusive).
@@ -129,7 +130,9 @@ def threshold_metrics(Y: np.ndarray, folds: list[dict], name: str, units: list[n
     return metrics, samples, curve, per_unit
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """The curves' statistics (no figure; ``figure_data``: each learner's pooled curve, per-unit curves and CV
+    threshold, and the number of units, for :func:`present`)."""
     Y, folds, arrays = evaluate_mixed(config, ctx, "16", learners=LEARNERS)
     n = len(Y)
     units = common.score_units(folds, common.streams(config.seed).splits)
@@ -143,21 +146,6 @@ def run(config: Config, ctx: RunContext) -> Result:
         out[name] = (curve, per_unit, m["cv_threshold"])
     metrics["n_units"] = float(len(units))
 
-    fig = Figure(figsize=(6, 4))
-    ax = fig.subplots()
-    ax.axvspan(*CENTRAL, color="0.92", label=f"central range {CENTRAL[0]}-{CENTRAL[1]}")
-    t = stats.t.ppf(0.975, len(units) - 1) if len(units) > 1 else np.nan
-    for name, (curve, per_unit, thr) in out.items():
-        line, = ax.plot(GRID, curve, label=name)
-        half = t * per_unit.std(axis=0, ddof=1) / np.sqrt(len(units)) if len(units) > 1 else np.zeros_like(curve)
-        ax.fill_between(GRID, curve - half, curve + half, color=line.get_color(), alpha=0.2, lw=0)
-        ax.axvline(thr, color=line.get_color(), ls="--", lw=1, label=f"{name}: CV threshold {thr:.2f}")
-    ax.set_xlabel("threshold eta")
-    ax.set_ylabel("l_full (16 labels)")
-    ax.set_ylim(0, 1)
-    ax.set_title("Fig. 3.7: l_full against the threshold (95 % band over the test units)")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
     table = Table("l_full against the threshold (16 labels)", ["threshold", "nmf_frobenius", "nmf_kl"],
                   [[float(g), float(out["nmf_frobenius"][0][i]), float(out["nmf_kl"][0][i])] for i, g in enumerate(GRID)])
     fro = out["nmf_frobenius"][0]
@@ -175,7 +163,8 @@ def run(config: Config, ctx: RunContext) -> Result:
                  f"(one example's curve is a 0/1 step)" if loo else
                  f"{protocol}: each fold's test examples")
     return Result(
-        metrics=metrics, tables={"curve": table}, figures={"fig3_7": fig}, samples=samples,
+        metrics=metrics, tables={"curve": table}, samples=samples,
+        figure_data={"curves": out, "n_units": len(units)},
         notes=[common.data_source_note(ctx, arrays),
                (f"Curve: test activations of the ch3-choreography protocol pooled over its folds. Samples: the same "
                 f"statistics on each of {len(units)} units of test examples ({unit_note}); every metric has one sample "
@@ -197,12 +186,34 @@ def run(config: Config, ctx: RunContext) -> Result:
                finding])
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 3.7: l_full against the threshold, with a 95 % band over the test units and the CV thresholds."""
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
+    ax.axvspan(*CENTRAL, color="0.92", label=f"central range {CENTRAL[0]}-{CENTRAL[1]}")
+    n_units = result.figure_data["n_units"]
+    t = stats.t.ppf(0.975, n_units - 1) if n_units > 1 else np.nan
+    for name, (curve, per_unit, thr) in result.figure_data["curves"].items():
+        line, = ax.plot(GRID, curve, label=name)
+        half = t * per_unit.std(axis=0, ddof=1) / np.sqrt(n_units) if n_units > 1 else np.zeros_like(curve)
+        ax.fill_between(GRID, curve - half, curve + half, color=line.get_color(), alpha=0.2, lw=0)
+        ax.axvline(thr, color=line.get_color(), ls="--", lw=1, label=f"{name}: CV threshold {thr:.2f}")
+    ax.set_xlabel("threshold eta")
+    ax.set_ylabel("l_full (16 labels)")
+    ax.set_ylim(0, 1)
+    ax.set_title("Fig. 3.7: l_full against the threshold (95 % band over the test units)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return {"fig3_7": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch3-threshold",
     title="Exact label-set reconstruction against the threshold",
     thesis_ref="Section 3.3.4, Fig. 3.7",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("Extreme thresholds lead to worse performance (Fig. 3.7): l_full at eta = 0.05 and at eta = 0.95 is "
@@ -219,3 +230,6 @@ register(Experiment(
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

@@ -26,12 +26,14 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from matplotlib.figure import Figure
+
 from .base import Claim, Experiment, Result, RunContext
 from .ch3_choreography import Config as _BaseConfig
-from .ch3_choreography import score_table
+from .ch3_choreography import score_figure, score_table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 LEARNERS = ("nmf_frobenius", "svm", "svm_std", "chance")
 
@@ -54,17 +56,26 @@ REFERENCE = {
 }
 
 
-def run(config: Config, ctx: RunContext) -> Result:
-    return score_table(config, ctx, learners=LEARNERS, unseen=True, reference=REFERENCE,
-                       title="Table 3.3: label sets of choreographies showing unseen combinations")
+TITLE = "Table 3.3: label sets of choreographies showing unseen combinations"
 
 
-register(Experiment(
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Table 3.3's numbers (:func:`~mmconcepts.experiments.ch3_choreography.score_table` on unseen combinations)."""
+    return score_table(config, ctx, learners=LEARNERS, unseen=True, reference=REFERENCE, title=TITLE)
+
+
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Our scores beside the thesis'."""
+    return {"scores": score_figure(result, learners=LEARNERS, reference=REFERENCE, title=TITLE)}
+
+
+EXPERIMENT = register(Experiment(
     id="ch3-unseen",
     title="Unseen combinations of gestures: NMF vs linear SVM",
     thesis_ref="Section 3.3.4, Table 3.3",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference=REFERENCE,
     claims=[
         Claim("On unseen combinations with 47 labels NMF (Frobenius) beats the SVM (0.406 vs 0.206).",
@@ -84,3 +95,6 @@ register(Experiment(
     datasets=("choreo1", "msr-action3d"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run
