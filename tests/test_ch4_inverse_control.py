@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from mmconcepts.experiments import RunContext
-from mmconcepts.experiments.ch4_inverse_control import Config, _matched_error, make_data, mixing_error, run, streams
+from mmconcepts.experiments.ch4_inverse_control import (Config, _matched_error, compute, make_data, mixing_error, run,
+                                                         streams)
 from mmconcepts.tasks import FactorialInverseControl, RBFFeatures
 
 TINY = dataclasses.replace(Config.quick(), n_train=30, n_test=6, n_steps=30, max_iter=3,
@@ -89,14 +90,14 @@ def test_learner_children_do_not_depend_on_what_was_spawned_before():
 
 def test_same_config_same_numbers_with_one_or_two_workers():
     cfg = dataclasses.replace(TINY, n_repeats=2)
-    a = run(cfg, RunContext(show_progress=False, workers=1)).metrics
-    b = run(cfg, RunContext(show_progress=False, workers=2)).metrics
+    a = compute(cfg, RunContext(show_progress=False, workers=1)).metrics
+    b = compute(cfg, RunContext(show_progress=False, workers=2)).metrics
     assert a == b
 
 
 def test_learners_do_not_start_at_the_true_dictionary():
     # regression: the true dictionary and the learners' initial one used to be the same draw of default_rng(seed)
-    res = run(dataclasses.replace(TINY, supervised_max_iter=1, sensor_noise=0.0), RunContext(show_progress=False))
+    res = compute(dataclasses.replace(TINY, supervised_max_iter=1, sensor_noise=0.0), RunContext(show_progress=False))
     m = res.metrics
     assert m["supervised.initial_dictionary_rel_error"] > 0.5
     assert m["unsupervised.initial_dictionary_mixing_rel_error"] > 0.5
@@ -111,8 +112,8 @@ def test_learners_do_not_start_at_the_true_dictionary():
 
 def test_changing_the_learner_seed_changes_only_the_learners():
     ctx = RunContext(show_progress=False)
-    a = run(TINY, ctx).metrics
-    b = run(dataclasses.replace(TINY, learner_seed=99), ctx).metrics
+    a = compute(TINY, ctx).metrics
+    b = compute(dataclasses.replace(TINY, learner_seed=99), ctx).metrics
     for name in ("flat.train.rel_l2", "flat.test.rel_l2", "flat.new_start.rel_l2"):  # data only: no learner seed
         assert a[name] == b[name]
     assert a["supervised.initial_dictionary_rel_error"] != b["supervised.initial_dictionary_rel_error"]
@@ -120,7 +121,7 @@ def test_changing_the_learner_seed_changes_only_the_learners():
 
 
 def test_repetitions_give_samples():
-    res = run(dataclasses.replace(TINY, n_repeats=2), RunContext(show_progress=False))
+    res = compute(dataclasses.replace(TINY, n_repeats=2), RunContext(show_progress=False))
     res.validate()
     assert len(res.samples["supervised.train.rel_l2"]) == 2
     assert res.metrics["supervised.train.rel_l2"] == pytest.approx(np.mean(res.samples["supervised.train.rel_l2"]))
@@ -148,14 +149,14 @@ def test_small_run(dynamics):
     assert set(res.figures) == {"fig4_1_dictionaries", "fig4_3_trajectories"}
     if dynamics == "euler":
         assert 1e-6 < m["supervised.dictionary_rel_error"] < 0.5
-        noisier = run(dataclasses.replace(cfg, sensor_noise=1e-2), RunContext(show_progress=False)).metrics
+        noisier = compute(dataclasses.replace(cfg, sensor_noise=1e-2), RunContext(show_progress=False)).metrics
         assert noisier["supervised.dictionary_rel_error"] > m["supervised.dictionary_rel_error"]  # noise reaches it
 
 
 @pytest.mark.slow
 def test_sensitivity_table_has_stable_names():
     cfg = dataclasses.replace(TINY, sensitivity=True)
-    res = run(cfg, RunContext(show_progress=False))
+    res = compute(cfg, RunContext(show_progress=False))
     rows = res.tables["sensitivity"].rows
     assert len(rows) == 7 and rows[0][:2] == ["euler", 1e-4]  # the default first
     for label in ("euler.noise_1e_4", "euler.noise_0", "ode.noise_1e_3", "euler.noise_1e_4.steepest_200"):
@@ -167,4 +168,4 @@ def test_sensitivity_table_has_stable_names():
 
 def test_unknown_dynamics_is_refused():
     with pytest.raises(ValueError, match="dynamics"):
-        run(dataclasses.replace(Config.quick(), dynamics="rk4"), RunContext(show_progress=False))
+        compute(dataclasses.replace(Config.quick(), dynamics="rk4"), RunContext(show_progress=False))

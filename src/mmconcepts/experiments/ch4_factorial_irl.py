@@ -41,7 +41,7 @@ from ..tasks import (
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run", "make_tasks", "score_rewards"]
+__all__ = ["Config", "compute", "present", "run", "make_tasks", "score_rewards"]
 
 TRAIN_LEARNERS = ("flat", "factorial", "flat_pca", "flat_gt", "maxent")
 TRANSFER_LEARNERS = ("flat", "factorial", "flat_pca", "flat_gt", "flat_examples", "maxent")
@@ -192,7 +192,9 @@ def _vmap(ax, values, n, title, demo=None):
     return img
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """The fitted points and their deviations (no figures; ``figure_data``: every point's scores and the default
+    point's dictionaries, test rewards and demonstrations, for :func:`present`)."""
     N0, m0 = config.n_tasks, config.n_demos
     jobs = {(m0, N0): (config, m0, N0, True)}
     for m in config.demos_curve:
@@ -252,6 +254,46 @@ def run(config: Config, ctx: RunContext) -> Result:
                                          tasks_pts, "transfer", ("factorial", "flat_pca"), "N"),
     }
 
+    fd = default["figure_data"]
+    notes = [
+        "The thesis gives curves, not numbers, for section 4.3.2; the reference dict is empty.",
+        "Primitive rewards are i.i.d. standard normal over the 400 state-action pairs; tasks mix 2-3 primitives "
+        "with weights in [0.5, 1.5]; experts are greedy on their optimal Q-values. These choices are ours: the "
+        "thesis does not describe how its random dictionary and mixtures were drawn.",
+        f"Learners use a Boltzmann inverse temperature beta = {config.beta}, {config.flat_max_iter} Armijo gradient "
+        f"steps for flat learners, and {config.factorial_max_iter} alternations of {config.inner_steps} steps on H "
+        "and on D for the factorial learner (PCA initialisation, uncentred). The maximum-entropy baseline (L2 = 0.01) "
+        "is not in the thesis.",
+        f"Factorial learner at the default point: {default['factorial_iterations']} alternations, "
+        f"{'converged' if default['factorial_converged'] else 'stopped at max_iter before the tolerance'} "
+        f"(relative loss decrease in the last alternation: {default['factorial_last_rel_decrease']:.3g}; "
+        "tol = 1e-4, at most factorial_max_iter alternations). Measured when this limit was set: 32 alternations "
+        "(9.5 s) at the quick default point, 83 (61 s) at the full one.",
+        "Spread: the experiment has one world and one draw of tasks; each mean deviation keeps its per-task values "
+        "as samples (the report's 95 % interval and the claims' paired bootstrap are over tasks: learners are "
+        "compared on the same tasks; tasks_curve.*.advantage: per-task flat minus factorial deviation). The "
+        "uncertainty of the world and primitive draw itself is not covered (one seed).",
+        "Random streams: SeedSequence(seed) children draw the primitive rewards, the training tasks and their "
+        "demonstrations, the test tasks and the 15 example tasks of flat_examples independently. The learners "
+        "draw nothing (PCA initialisation, deterministic gradient steps), so no seed reaches them.",
+        "Claims audited for identities and diverging baselines: none found; every claim compares learners "
+        "scored on the same tasks by eq. (4.11), whose deviations are bounded by the random policy's "
+        "(normalised deviation 1).",
+        "Seconds per fitted point: " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
+                                                 for r in results.values()),
+    ]
+    return Result(metrics=metrics, tables=tables, notes=notes, samples=samples,
+                  extra={"loss_history": list(map(float, fd["loss_history"]))},
+                  figure_data={"points": results, "default": fd})
+
+
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 4.5 and 4.6 (the curves over demonstrations and tasks), Fig. 4.4 (the dictionaries' optimal values) and
+    Fig. 4.7 (value functions of new tasks)."""
+    metrics, results = result.metrics, result.figure_data["points"]
+    N0, m0 = config.n_tasks, config.n_demos
+    demo_pts = sorted(k for k in results if k[1] == N0)
+    tasks_pts = sorted(k for k in results if k[0] == m0)
     figures = {}
     flat_tr = metrics["transfer.flat.deviation"]
     fig = Figure(figsize=(10, 4))
@@ -286,7 +328,7 @@ def run(config: Config, ctx: RunContext) -> Result:
     figures["fig4_6_transfer_curves"] = fig
 
     mdp = grid_world(config.grid_size, success_prob=config.success_prob, discount=config.discount)
-    fd = default["figure_data"]
+    fd = result.figure_data["default"]
     n = config.grid_size
     k = config.n_primitives
     fig = Figure(figsize=(2 * k, 4.4))
@@ -314,44 +356,17 @@ def run(config: Config, ctx: RunContext) -> Result:
     fig.tight_layout()
     figures["fig4_7_value_functions"] = fig
 
-    notes = [
-        "The thesis gives curves, not numbers, for section 4.3.2; the reference dict is empty.",
-        "Primitive rewards are i.i.d. standard normal over the 400 state-action pairs; tasks mix 2-3 primitives "
-        "with weights in [0.5, 1.5]; experts are greedy on their optimal Q-values. These choices are ours: the "
-        "thesis does not describe how its random dictionary and mixtures were drawn.",
-        f"Learners use a Boltzmann inverse temperature beta = {config.beta}, {config.flat_max_iter} Armijo gradient "
-        f"steps for flat learners, and {config.factorial_max_iter} alternations of {config.inner_steps} steps on H "
-        "and on D for the factorial learner (PCA initialisation, uncentred). The maximum-entropy baseline (L2 = 0.01) "
-        "is not in the thesis.",
-        f"Factorial learner at the default point: {default['factorial_iterations']} alternations, "
-        f"{'converged' if default['factorial_converged'] else 'stopped at max_iter before the tolerance'} "
-        f"(relative loss decrease in the last alternation: {default['factorial_last_rel_decrease']:.3g}; "
-        "tol = 1e-4, at most factorial_max_iter alternations). Measured when this limit was set: 32 alternations "
-        "(9.5 s) at the quick default point, 83 (61 s) at the full one.",
-        "Spread: the experiment has one world and one draw of tasks; each mean deviation keeps its per-task values "
-        "as samples (the report's 95 % interval and the claims' paired bootstrap are over tasks: learners are "
-        "compared on the same tasks; tasks_curve.*.advantage: per-task flat minus factorial deviation). The "
-        "uncertainty of the world and primitive draw itself is not covered (one seed).",
-        "Random streams: SeedSequence(seed) children draw the primitive rewards, the training tasks and their "
-        "demonstrations, the test tasks and the 15 example tasks of flat_examples independently. The learners "
-        "draw nothing (PCA initialisation, deterministic gradient steps), so no seed reaches them.",
-        "Claims audited for identities and diverging baselines: none found; every claim compares learners "
-        "scored on the same tasks by eq. (4.11), whose deviations are bounded by the random policy's "
-        "(normalised deviation 1).",
-        "Seconds per fitted point: " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
-                                                 for r in results.values()),
-    ]
-    return Result(metrics=metrics, tables=tables, figures=figures, notes=notes, samples=samples,
-                  extra={"loss_history": list(map(float, fd["loss_history"]))})
+    return figures
 
 
-register(
+EXPERIMENT = register(
     Experiment(
         id="ch4-factorial-irl",
         title="Factorial inverse reinforcement learning on a grid world",
         thesis_ref="Section 4.3 (eq. 4.8-4.11, Fig 4.4-4.7)",
         config_cls=Config,
-        run=run,
+        compute=compute,
+        present=present,
         reference={},
         claims=[
             Claim("The factorial learner beats the flat learner on the training tasks, and its advantage grows "
@@ -372,3 +387,6 @@ register(
         description=__doc__.split("\n\n")[0],
     )
 )
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

@@ -54,7 +54,7 @@ from ..tasks import FactorialInverseControl, RBFFeatures, brillinger_regression,
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run", "streams", "make_data", "mixing_error"]
+__all__ = ["Config", "compute", "present", "run", "streams", "make_data", "mixing_error"]
 
 LEARNERS = ("flat", "supervised", "unsupervised")
 #: thesis section 4.2.2: mean relative L2 error of the supervised learner on train and test tasks
@@ -292,7 +292,9 @@ def _sensitivity_cell(job) -> dict[str, float]:
             if f"supervised.{k}" in SENSITIVITY_METRICS}
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """The errors of every repetition and sensitivity cell (no figures; ``figure_data["trajectories"]``: the first
+    repetition's dictionaries and a test task's trajectories, for :func:`present`)."""
     if config.dynamics not in ("euler", "ode"):
         raise ValueError(f"dynamics must be 'euler' or 'ode'; got {config.dynamics!r}")
     if config.d_solver not in ("cg", "steepest"):
@@ -300,7 +302,6 @@ def run(config: Config, ctx: RunContext) -> Result:
     if config.n_repeats < 1:
         raise ValueError(f"n_repeats must be at least 1; got {config.n_repeats!r}")
     feats = RBFFeatures(config.grid_size)
-    K = config.n_primitives
     ss = streams(config)
     jobs = [("repeat", (config, s)) for s in ss]
     if config.sensitivity:
@@ -338,8 +339,6 @@ def run(config: Config, ctx: RunContext) -> Result:
                  "regresses on its discrete form. The thesis states neither a sensor noise nor a step count for "
                  "its gradient descent on D.")
 
-    fig_data = outs[0]["figure"]
-    figures = _figures(feats, K, fig_data)
     thesis_order = "below 10 x the thesis' numbers"
     notes = [
         f"RBF width sigma = {feats.sigma:g} (grid spacing), lambda = {config.lam}, dt = {config.dt}, "
@@ -410,13 +409,18 @@ def run(config: Config, ctx: RunContext) -> Result:
             "issue and section 4.2.1; the encoder argument of the module docstring); conjugate gradient replaced "
             "steepest descent after we saw that the latter had not converged: both minimise eq. (4.5), and a "
             "converged fit is what the thesis' numbers describe.")
-    return Result(metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  samples=samples)
+    return Result(metrics=metrics, tables=tables, notes=notes, samples=samples,
+                  figure_data={"trajectories": outs[0]["figure"]})
 
 
 def _job(job):
     kind, payload = job
     return _repeat(payload) if kind == "repeat" else _sensitivity_cell(payload)
+
+
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 4.1 (primitive costs: true, supervised, unsupervised) and Fig. 4.2-4.3 (a test task imitated)."""
+    return _figures(RBFFeatures(config.grid_size), config.n_primitives, result.figure_data["trajectories"])
 
 
 def _figures(feats: RBFFeatures, K: int, fd: dict) -> dict[str, Figure]:
@@ -450,13 +454,14 @@ def _figures(feats: RBFFeatures, K: int, fd: dict) -> dict[str, Figure]:
     return {"fig4_1_dictionaries": fig1, "fig4_3_trajectories": fig3}
 
 
-register(
+EXPERIMENT = register(
     Experiment(
         id="ch4-inverse-control",
         title="Factorial inverse feedback control: a dictionary of primitive costs",
         thesis_ref="Section 4.2 (eq. 4.1-4.7, Fig 4.1-4.3)",
         config_cls=Config,
-        run=run,
+        compute=compute,
+        present=present,
         reference={"supervised.train.rel_l2": 0.001127, "supervised.test.rel_l2": 0.002675},
         claims=[
             Claim("The supervised learner (dictionary from coefficients) reproduces demonstrated trajectories "
@@ -483,3 +488,6 @@ register(
         description=__doc__.split("\n\n")[0],
     )
 )
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run
