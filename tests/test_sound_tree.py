@@ -401,15 +401,3 @@ def test_accepts_lists_float32_and_pickles(built):
     np.testing.assert_array_equal(clone.predict(X[:100]), tree.predict(X[:100]))
     clone.partial_fit(X[:50])  # a restored tree keeps growing
     assert clone.n_samples_seen_ == len(X) + 50
-
-
-@pytest.mark.slow
-def test_sklearn_estimator_checks():
-    from sklearn.utils.estimator_checks import check_estimator
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        results = check_estimator(ClusterTree(0.5, random_state=0), on_fail=None)
-    failed = [(r["check_name"], repr(r["exception"])[:200]) for r in results if r["status"] == "failed"]
-    assert failed == []
-    assert sum(r["status"] == "passed" for r in results) > 30

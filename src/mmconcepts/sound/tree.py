@@ -53,10 +53,11 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from sklearn.base import BaseEstimator, ClusterMixin
-from sklearn.exceptions import NotFittedError
+from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_positive_int, check_random_state, check_scalar
-from ..errors import DataError, ParameterError
+from .._persist import SaveLoadMixin
+from .._validation import Interval, Options, check_random_state, validate_params
+from ..errors import DataError, DataFormatError, ParameterError
 
 __all__ = ["SEARCHES", "ClusterTree"]
 
@@ -478,7 +479,7 @@ def _apply_split(father, labels, k, parent, child, nchild, sums, count, center, 
 
 
 # --------------------------------------------------------------------------- the estimator
-class ClusterTree(ClusterMixin, BaseEstimator):
+class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
     """Incremental hierarchical clustering of sound windows into acoustic events (Thesis 5.2.3).
 
     Leaves ("primitive clusters", the acoustic events) are balls of radius ``r_max``
@@ -574,6 +575,11 @@ class ClusterTree(ClusterMixin, BaseEstimator):
 
     Notes
     -----
+    *Saving.* A fitted tree saves and loads without pickle (:meth:`save`, :meth:`load`):
+    its nodes are stored as arrays (parents, children, sums, counts, centroids) with the
+    state of its random generator, so a loaded tree answers queries as the saved one and
+    keeps growing as it would have. A tree with a callable ``metric`` cannot be saved.
+
     *Radius.* A vector joins a leaf when its distance to the leaf's centroid *at the time
     of insertion* (before the vector is added) is at most ``r_max`` (thesis rule 2).
     Centroids then move as vectors arrive, so an early vector may later be farther than
@@ -636,27 +642,40 @@ class ClusterTree(ClusterMixin, BaseEstimator):
         self.restart_priority = restart_priority
         self.random_state = random_state
 
+    _parameter_constraints = {
+        "r_max": [Interval("real", 0, None, closed="neither")],
+        "n_max": [Interval("int", 1, None)],
+        "k": [Interval("int", 2, None)],
+        "metric": [Options("euclidean", "dtw"), "callable"],
+        "search": [Options(*SEARCHES)],
+        "backtrack": [Interval("int", 1, None), None],
+        "restart_priority": [Options("path", "sibling")],
+        "random_state": ["random_state"],
+    }
+    _HINTS = {
+        "r_max": "Choose it from the distribution of nearest-neighbour distances of the windows.",
+        "metric": "A callable takes (query, candidates) and returns one distance per candidate.",
+        "backtrack": "Use None for the default of the search.",
+    }
+
     # ------------------------------------------------------------------ validation
     def _check_params(self) -> None:
-        check_scalar(self.r_max, "r_max", low=0.0, low_inclusive=False)
-        k = check_positive_int(self.k, "k", minimum=2)
-        n_max = check_positive_int(self.n_max, "n_max", minimum=1)
-        if n_max < k + 1:
+        validate_params(self, self._parameter_constraints, hints=self._HINTS)
+        if self.n_max < self.k + 1:
             raise ParameterError(
-                f"n_max must be at least k + 1 = {k + 1} (a node with n_max children is split into k "
-                f"nodes, which must be fewer than n_max); got n_max={n_max}, k={k}."
+                f"ClusterTree: n_max must be at least k + 1 = {self.k + 1} (a node with n_max children is split "
+                f"into k nodes, which must be fewer than n_max); got n_max={self.n_max}, k={self.k}."
             )
-        if not (callable(self.metric) or self.metric in ("euclidean", "dtw")):
-            raise ParameterError(f"metric must be 'euclidean', 'dtw' or a callable; got {self.metric!r}.")
-        self._resolve_search(self.search, self.backtrack)
-        if self.restart_priority not in ("path", "sibling"):
-            raise ParameterError(f"restart_priority must be 'path' or 'sibling'; got {self.restart_priority!r}.")
 
-    @staticmethod
-    def _resolve_search(search: Any, backtrack: Any) -> tuple[str, int]:
-        if not isinstance(search, str) or search not in SEARCHES:
-            raise ParameterError(f"search must be one of {sorted(SEARCHES)}; got {search!r}.")
-        b = DEFAULT_BACKTRACK[search] if backtrack is None else check_positive_int(backtrack, "backtrack")
+    def _resolve_search(self, search: Any, backtrack: Any) -> tuple[str, int]:
+        """The search and its backtracking parameter ``b`` (the search's default for None)."""
+        b = DEFAULT_BACKTRACK.get(search) if isinstance(search, str) and backtrack is None else backtrack
+        if not (isinstance(search, str) and search in SEARCHES and type(b) is int and b >= 1):
+            # only unusual values reach the full check (query is called once per window)
+            validate_params({"search": search, "backtrack": backtrack},
+                            {n: self._parameter_constraints[n] for n in ("search", "backtrack")},
+                            owner=type(self).__name__, hints=self._HINTS)
+            b = int(b)
         return search, b
 
     def _check_items(self, X: Any, name: str, *, single: bool) -> np.ndarray:
@@ -718,16 +737,15 @@ class ClusterTree(ClusterMixin, BaseEstimator):
             raise DataError(f"{name} contains {n_bad} NaN or infinite value(s); remove or impute them first.")
         return X
 
+    def __sklearn_is_fitted__(self) -> bool:
+        return getattr(self, "_parent", None) is not None and self._n_leaves > 0
+
     def _check_fitted(self) -> None:
-        if getattr(self, "_parent", None) is None or self._n_leaves == 0:
-            raise NotFittedError(
-                f"This {type(self).__name__} instance holds no vector yet. Call 'fit', 'partial_fit' or "
-                "'insert' first."
-            )
+        check_is_fitted(self, msg="This %(name)s instance holds no vector yet. Call 'fit', 'partial_fit' or "
+                                  "'insert' first.")
 
     # ------------------------------------------------------------------ storage
     def _reset(self, item_shape: tuple) -> None:
-        self._check_params()
         self._k = int(self.k)
         self._n_max = int(self.n_max)
         self._r_max = float(self.r_max)
@@ -747,6 +765,45 @@ class ClusterTree(ClusterMixin, BaseEstimator):
         self._node_of_leaf = np.full(cap, -1, dtype=np.int64)
         self._n_nodes = 1  # the root, node 0, internal, with no child yet
         self._n_leaves = 0
+
+    # The arrays that hold the nodes (row i: node i), saved cut to the nodes in use.
+    _NODE_ARRAYS = ("_parent", "_child", "_nchild", "_sums", "_count", "_center", "_leaf_of")
+
+    def _get_state(self) -> dict[str, Any]:
+        """The fitted state for :meth:`save`: the node arrays cut to the nodes in use, the
+        sizes frozen at the first fit, and the random generator's state (splits to come)."""
+        n = self._n_nodes
+        state = super()._get_state()
+        state["nodes"] = {name[1:]: getattr(self, name)[:n].copy() for name in self._NODE_ARRAYS}
+        state["nodes"]["node_of_leaf"] = self._node_of_leaf[: self._n_leaves].copy()
+        state["sizes"] = {"k": self._k, "n_max": self._n_max, "r_max": self._r_max}
+        state["rng"] = self._rng.bit_generator.state
+        return state
+
+    def _set_state(self, state: dict[str, Any]) -> None:
+        """Restore what :meth:`_get_state` returned (arrays are given spare capacity again)."""
+        state = dict(state)
+        nodes, sizes, rng_state = state.pop("nodes"), state.pop("sizes"), state.pop("rng")
+        super()._set_state(state)
+        self.item_shape_ = tuple(int(s) for s in self.item_shape_)
+        self._k, self._n_max, self._r_max = int(sizes["k"]), int(sizes["n_max"]), float(sizes["r_max"])
+        bit_generator = getattr(np.random, str(rng_state.get("bit_generator")), None)
+        if not (isinstance(bit_generator, type) and issubclass(bit_generator, np.random.BitGenerator)):
+            raise DataFormatError(f"ClusterTree: unknown random bit generator {rng_state.get('bit_generator')!r}.")
+        bg = bit_generator()
+        bg.state = rng_state
+        self._rng = np.random.Generator(bg)
+        n, n_leaves = nodes["parent"].shape[0], nodes["node_of_leaf"].shape[0]
+        cap = max(64, n)
+        fills = {"parent": -1, "child": -1, "nchild": 0, "sums": 0.0, "count": 0, "center": 0.0, "leaf_of": -1}
+        for name in self._NODE_ARRAYS:
+            a = np.asarray(nodes[name[1:]])
+            full = np.full((cap,) + a.shape[1:], fills[name[1:]], dtype=a.dtype)
+            full[:n] = a
+            setattr(self, name, full)
+        self._node_of_leaf = np.full(cap, -1, dtype=np.int64)
+        self._node_of_leaf[:n_leaves] = nodes["node_of_leaf"]
+        self._n_nodes, self._n_leaves = n, n_leaves
 
     def _ensure_capacity(self, extra: int) -> None:
         cap = self._parent.shape[0]
@@ -911,16 +968,20 @@ class ClusterTree(ClusterMixin, BaseEstimator):
         -------
         self
         """
+        self._check_params()
         self._parent = None
         for name in ("item_shape_", "labels_"):
             self.__dict__.pop(name, None)
-        return self.partial_fit(X)
+        X = self._check_items(X, "X", single=False)
+        self._reset(X.shape[1:])
+        self._insert_items(X)
+        return self
 
     def partial_fit(self, X: Any, y: Any = None) -> ClusterTree:
         """Insert the items of ``X`` in order (thesis Algorithm 1), growing the tree.
 
-        The first call on a fresh estimator validates the parameters and fixes the item
-        shape. ``labels_`` receives the leaf ids of this call's items.
+        Every call validates the parameters; the first call on a fresh estimator fixes the
+        item shape. ``labels_`` receives the leaf ids of this call's items.
 
         Parameters
         ----------
@@ -931,13 +992,18 @@ class ClusterTree(ClusterMixin, BaseEstimator):
         -------
         self
         """
+        self._check_params()
         if getattr(self, "_parent", None) is None:
-            self._check_params()
             self.__dict__.pop("item_shape_", None)
             X = self._check_items(X, "X", single=False)
             self._reset(X.shape[1:])
         else:
             X = self._check_items(X, "X", single=False)
+        self._insert_items(X)
+        return self
+
+    def _insert_items(self, X: np.ndarray) -> None:
+        """Insert the checked items ``X`` in order; ``labels_`` receives their leaf ids."""
         out = np.full(X.shape[0], -1, dtype=np.int64)
         if self.metric == "euclidean":
             Xf = X.reshape(X.shape[0], -1)
@@ -956,7 +1022,6 @@ class ClusterTree(ClusterMixin, BaseEstimator):
             self._insert_generic(X, out)
         self.n_samples_seen_ += X.shape[0]
         self.labels_ = out
-        return self
 
     def insert(self, x: Any) -> int:
         """Insert one item (thesis Algorithm 1) and return the id of the leaf it ended in.
@@ -978,7 +1043,7 @@ class ClusterTree(ClusterMixin, BaseEstimator):
         else:
             x = self._check_items(x, "x", single=True)
         labels = self.__dict__.get("labels_")
-        self.partial_fit(x[None])
+        self._insert_items(x[None])
         leaf = int(self.labels_[0])
         if labels is None:  # insert() leaves labels_ as it was (it is not a partial_fit call)
             del self.labels_
