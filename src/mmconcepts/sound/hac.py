@@ -15,19 +15,60 @@ words is the sum of their HACs up to the few pairs that straddle the boundary.
 from __future__ import annotations
 
 import numbers
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.cluster import KMeans
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_random_state
-from ..errors import DataError, ParameterError
+from .._persist import SaveLoadMixin
+from .._validation import Interval, check_random_state, validate_params
+from ..errors import DataError
 from .features import delta
 
 __all__ = ["HAC", "cooccurrence_counts"]
+
+
+class _PositiveInts:
+    """A constraint: a tuple or list (or 1-D array) of ints >= 1, of a given length or non-empty."""
+
+    def __init__(self, length: int | None, description: str):
+        self.length = length
+        self.description = description
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        if not isinstance(value, (tuple, list, np.ndarray)) or np.ndim(value) != 1:
+            return False
+        n_ok = len(value) == self.length if self.length is not None else len(value) > 0
+        if not n_ok:
+            return False
+        return all(isinstance(v, (numbers.Integral, np.integer)) and not isinstance(v, (bool, np.bool_)) and v >= 1
+                   for v in value)
+
+    def __str__(self) -> str:
+        return self.description
+
+
+_COOCCURRENCE_CONSTRAINTS = {"n_events": [Interval("int", 1, None)], "lag": [Interval("int", 1, None)]}
+
+
+def _kmeans_from_centers(centers: np.ndarray) -> KMeans:
+    """A fitted KMeans whose ``predict`` assigns to ``centers``, as the KMeans that found them did.
+
+    The fit only sets the fitted attributes ``predict`` reads; it moves the centres by
+    rounding (KMeans centres the data), so the saved centres are put back afterwards.
+    """
+    km = KMeans(n_clusters=centers.shape[0], init=centers, n_init=1, max_iter=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # coinciding centres
+        km.fit(centers)
+    km.cluster_centers_ = centers
+    return km
 
 
 def cooccurrence_counts(
@@ -49,8 +90,7 @@ def cooccurrence_counts(
     csr_matrix of shape (len(events), n_events ** 2), int64 counts
         Column ``a * n_events + b`` counts the pairs ``(a, b)``.
     """
-    if lag < 1:
-        raise ParameterError(f"lag must be >= 1; got {lag}.")
+    validate_params({"n_events": n_events, "lag": lag}, _COOCCURRENCE_CONSTRAINTS, owner="cooccurrence_counts")
     rows, cols = [], []
     for i, e in enumerate(events):
         e = np.asarray(e, dtype=np.int64)
@@ -67,7 +107,7 @@ def cooccurrence_counts(
     return sp.csr_matrix((counts, (uniq // width, uniq % width)), shape=(n, width), dtype=np.int64)
 
 
-class HAC(TransformerMixin, BaseEstimator):
+class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """Histograms of acoustic co-occurrences as a scikit-learn transformer (Thesis 5.3).
 
     Input is a list of MFCC sequences (one (n_frames, n_mfcc) array per utterance, see
@@ -102,9 +142,31 @@ class HAC(TransformerMixin, BaseEstimator):
     n_mfcc_ : int
     n_features_out_ : int
         ``len(lags) * sum(k_s ** 2)``.
+
+    Notes
+    -----
+    The input is a list of sequences of different lengths (or a 3-D array of equal-length
+    ones), not one 2-D array, so scikit-learn's estimator checks, which feed 2-D arrays,
+    are skipped (the ``two_d_array`` input tag is False, ``three_d_array`` True);
+    ``tests/test_contract_sound.py`` runs the ones that apply on sequences. A single 2-D
+    array is refused: it is one utterance, not a list of them. A fitted HAC saves and
+    loads without pickle (:meth:`save`, :meth:`load`).
     """
 
     _STREAMS = ("static", "delta", "delta2")
+
+    _parameter_constraints = {
+        "n_clusters": [_PositiveInts(3, "three ints >= 1 (static, delta, delta-delta)")],
+        "lags": [_PositiveInts(None, "a non-empty tuple of ints >= 1")],
+        "standardize": ["boolean"],
+        "max_fit_frames": [Interval("int", 1, None)],
+        "max_iter": [Interval("int", 1, None)],
+        "random_state": ["random_state"],
+    }
+    _HINTS = {
+        "n_clusters": "Give the codebook sizes of the three streams, e.g. (150, 150, 100) as in the thesis.",
+        "lags": "Give the co-occurrence delays in frames, e.g. (2, 5) as in the thesis.",
+    }
 
     def __init__(
         self,
@@ -123,19 +185,13 @@ class HAC(TransformerMixin, BaseEstimator):
         self.max_iter = max_iter
         self.random_state = random_state
 
-    # -- validation ---------------------------------------------------------------------
-    def _check_params(self) -> None:
-        nc = tuple(self.n_clusters)
-        if len(nc) != 3 or not all(isinstance(k, numbers.Integral) and k >= 1 for k in nc):
-            raise ParameterError(
-                f"n_clusters must be three positive ints (static, delta, delta-delta); got {self.n_clusters!r}."
-            )
-        lags = tuple(self.lags)
-        if not lags or not all(isinstance(l, numbers.Integral) and l >= 1 for l in lags):
-            raise ParameterError(f"lags must be a non-empty tuple of ints >= 1; got {self.lags!r}.")
-        if not isinstance(self.max_fit_frames, numbers.Integral) or self.max_fit_frames < 1:
-            raise ParameterError(f"max_fit_frames must be a positive int; got {self.max_fit_frames!r}.")
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False  # a list of (n_frames, n_mfcc) sequences of different lengths
+        tags.input_tags.three_d_array = True
+        return tags
 
+    # -- validation ---------------------------------------------------------------------
     def _check_X(self, X, *, fitted: bool) -> list[np.ndarray]:
         if isinstance(X, np.ndarray) and X.ndim == 2:
             raise DataError(
@@ -163,7 +219,7 @@ class HAC(TransformerMixin, BaseEstimator):
     # -- fit / transform ----------------------------------------------------------------
     def fit(self, X: Sequence[np.ndarray], y=None) -> HAC:
         """Learn the three codebooks on training MFCC sequences."""
-        self._check_params()
+        validate_params(self, self._parameter_constraints, hints=self._HINTS)
         seqs = self._check_X(X, fitted=False)
         rng = check_random_state(self.random_state)
         self.n_mfcc_ = seqs[0].shape[1]
@@ -194,6 +250,10 @@ class HAC(TransformerMixin, BaseEstimator):
             self._kmeans.append(km)
         self.n_features_out_ = len(tuple(self.lags)) * sum(int(k) ** 2 for k in self.n_clusters)
         return self
+
+    def _set_state(self, state: dict[str, Any]) -> None:
+        super()._set_state(state)
+        self._kmeans = [_kmeans_from_centers(c) for c in self.codebooks_]
 
     def events(self, X: Sequence[np.ndarray]) -> list[list[np.ndarray]]:
         """The three event streams of each utterance: ``[[static, delta, delta2], ...]``."""
