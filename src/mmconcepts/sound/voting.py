@@ -14,18 +14,34 @@ event appearing ``q_i`` times in a query utterance votes ``V_i = q_i f_i^t w_i``
 from __future__ import annotations
 
 from collections.abc import Hashable, Sequence
+from typing import Any
 
 import numpy as np
-from sklearn.exceptions import NotFittedError
+from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.utils.validation import check_is_fitted
 
-from ..errors import DataError, ParameterError
+from .._persist import SaveLoadMixin
+from .._validation import Interval, Options, validate_params
+from ..errors import DataError
+from .tree import SEARCHES, ClusterTree
 
-__all__ = ["EventVoting"]
+__all__ = ["EventVoting", "TreeVotingClassifier"]
 
 _WEIGHTINGS = ("tfidf", "uniform")
 
 
-class EventVoting:
+def _sequence_input_tags(tags: Any) -> Any:
+    """Tags of a learner whose X is a list of variable-length arrays, not one 2-D array.
+
+    scikit-learn's estimator checks feed 2-D arrays of numbers; with ``two_d_array`` False
+    they skip every check but cloning, with a ``SkipTestWarning`` that names the input tags.
+    The checks that still apply are run on sequences in ``tests/test_contract_sound.py``.
+    """
+    tags.input_tags.two_d_array = False
+    return tags
+
+
+class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     """Incremental tag voting over bags of discrete acoustic events (Thesis 5.2.3).
 
     Parameters
@@ -41,14 +57,33 @@ class EventVoting:
         ``n_{i,t}`` (events seen in training, indexed by their id).
     tag_counts_ : ndarray of shape (n_tags,)
         ``n_t``.
+
+    Notes
+    -----
+    The input is a list of bags (1-D integer arrays of different lengths), not a 2-D
+    array, so scikit-learn's estimator checks, which feed 2-D arrays, are skipped (the
+    ``two_d_array`` input tag is False); ``tests/test_contract_sound.py`` runs the ones
+    that apply on bags. A fitted model saves and loads without pickle (:meth:`save`,
+    :meth:`load`) when its tags are strings, numbers or tuples of them.
     """
+
+    _parameter_constraints = {"weighting": [Options(*_WEIGHTINGS)]}
 
     def __init__(self, *, weighting: str = "tfidf") -> None:
         self.weighting = weighting
 
+    def __sklearn_tags__(self):
+        return _sequence_input_tags(super().__sklearn_tags__())
+
+    def __sklearn_is_fitted__(self) -> bool:
+        # fitted once a training utterance has been seen (partial_fit on no utterance is not enough)
+        return bool(getattr(self, "classes_", None))
+
+    def _check_params(self) -> None:
+        validate_params(self, self._parameter_constraints,
+                        hints={"weighting": "'tfidf' weighs events by eq. (5.1); 'uniform' gives every event 1."})
+
     def _init(self) -> None:
-        if self.weighting not in _WEIGHTINGS:
-            raise ParameterError(f"weighting must be one of {_WEIGHTINGS}; got {self.weighting!r}.")
         self.classes_: list[Hashable] = []
         self._index: dict[Hashable, int] = {}
         self.counts_ = np.zeros((0, 0), dtype=np.int64)
@@ -79,8 +114,12 @@ class EventVoting:
 
         A tag is any hashable; a tuple, list or set of tags marks an utterance with several.
         """
+        self._check_params()
         if not hasattr(self, "classes_"):
             self._init()
+        return self._count(bags, tags)
+
+    def _count(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
         if len(bags) != len(tags):
             raise DataError(f"got {len(bags)} bags but {len(tags)} tag entries.")
         for j, (bag, tag) in enumerate(zip(bags, tags)):
@@ -101,8 +140,9 @@ class EventVoting:
 
     def fit(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
         """Forget everything, then :meth:`partial_fit`."""
+        self._check_params()
         self._init()
-        return self.partial_fit(bags, tags)
+        return self._count(bags, tags)
 
     def weights(self) -> np.ndarray:
         """The event weights ``w_i`` (eq. 5.1), shape (n_events,)."""
@@ -116,8 +156,12 @@ class EventVoting:
             return np.where(n_tags_with > 0, np.log(n_tags / np.maximum(n_tags_with, 1)), 0.0)
 
     def _check_fitted(self) -> None:
-        if not getattr(self, "classes_", None):
-            raise NotFittedError("EventVoting has not seen any training utterance yet; call partial_fit first.")
+        check_is_fitted(self, msg="EventVoting has not seen any training utterance yet; call fit or partial_fit "
+                                  "first.")
+
+    def _set_state(self, state: dict[str, Any]) -> None:
+        super()._set_state(state)
+        self._index = {t: i for i, t in enumerate(self.classes_)}
 
     def decision_function(self, bags: Sequence[np.ndarray]) -> np.ndarray:
         """Summed votes ``sum_i q_i f_i^t w_i``, shape (n_utterances, n_tags)."""
@@ -151,7 +195,7 @@ class EventVoting:
         return float(np.mean(ok)) if ok else float("nan")
 
 
-class TreeVotingClassifier:
+class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     """The keyword recogniser of Thesis section 5.2.3: cluster tree + TF-IDF voting.
 
     Each utterance is a set of fixed-length MFCC windows (the local descriptors,
@@ -164,7 +208,7 @@ class TreeVotingClassifier:
 
     Parameters
     ----------
-    r_max : float
+    r_max : float > 0
         Radius of the primitive clusters (leaves), in the metric's units.
     n_max : int, optional
         Maximum number of children of a node (the tree's default when None).
@@ -189,7 +233,29 @@ class TreeVotingClassifier:
     ----------
     tree_ : ClusterTree
     voting_ : EventVoting
+    classes_ : list
+        The tags, in order of first appearance (those of ``voting_``).
+
+    Notes
+    -----
+    The input is a list of utterances, each an array of windows, whose numbers of windows
+    differ, so scikit-learn's estimator checks, which feed one 2-D array, are skipped (the
+    ``two_d_array`` input tag is False); ``tests/test_contract_sound.py`` runs the ones
+    that apply on utterances. A fitted model saves and loads without pickle (:meth:`save`,
+    :meth:`load`; not with a callable ``metric``).
     """
+
+    _parameter_constraints = {
+        "r_max": [Interval("real", 0, None, closed="neither")],
+        "n_max": [Interval("int", 1, None), None],
+        "k": [Interval("int", 2, None), None],
+        "metric": [Options("dtw", "euclidean"), "callable"],
+        "search": [Options(*SEARCHES)],
+        "backtrack": [Interval("int", 1, None), None],
+        "events": [Options("leaves", "nodes")],
+        "weighting": [Options(*_WEIGHTINGS)],
+        "random_state": ["random_state"],
+    }
 
     def __init__(self, r_max: float, *, n_max: int | None = None, k: int | None = None, metric="dtw",
                  search: str = "restart", backtrack: int | None = None, events: str = "leaves",
@@ -204,14 +270,24 @@ class TreeVotingClassifier:
         self.weighting = weighting
         self.random_state = random_state
 
-    def _init(self) -> None:
-        from .tree import ClusterTree
+    def __sklearn_tags__(self):
+        return _sequence_input_tags(super().__sklearn_tags__())
 
-        if self.events not in ("leaves", "nodes"):
-            raise ParameterError(f"events must be 'leaves' or 'nodes'; got {self.events!r}.")
+    def __sklearn_is_fitted__(self) -> bool:
+        # fitted once a training utterance has been counted
+        return hasattr(self, "tree_") and hasattr(self, "voting_") and self.voting_.__sklearn_is_fitted__()
+
+    def _check_params(self) -> None:
+        validate_params(self, self._parameter_constraints, hints={
+            "r_max": "Choose it from the nearest-neighbour distances between windows of different utterances.",
+            "events": "'leaves' votes with the leaves only, 'nodes' with every node from the root to the leaf.",
+        })
+
+    def _init(self) -> None:
         kw = {name: getattr(self, name) for name in ("n_max", "k", "backtrack") if getattr(self, name) is not None}
-        self.tree_ = ClusterTree(self.r_max, metric=self.metric, search=self.search,
-                                 random_state=self.random_state, **kw)
+        tree = ClusterTree(self.r_max, metric=self.metric, search=self.search, random_state=self.random_state, **kw)
+        tree._check_params()  # what the table cannot say (n_max >= k + 1), before anything is learnt
+        self.tree_ = tree
         self.voting_ = EventVoting(weighting=self.weighting)
 
     def _bag(self, leaves: np.ndarray) -> np.ndarray:
@@ -235,8 +311,12 @@ class TreeVotingClassifier:
 
     def partial_fit(self, utterances, tags) -> TreeVotingClassifier:
         """Insert the windows of each utterance into the tree, then count its events for its tag(s)."""
+        self._check_params()
         if not hasattr(self, "tree_"):
             self._init()
+        return self._learn(utterances, tags)
+
+    def _learn(self, utterances, tags) -> TreeVotingClassifier:
         utts = self._check(utterances, tags)
         bags = []
         for u in utts:
@@ -249,13 +329,14 @@ class TreeVotingClassifier:
         return self
 
     def fit(self, utterances, tags) -> TreeVotingClassifier:
+        """Forget everything, then :meth:`partial_fit`."""
+        self._check_params()
         self._init()
-        return self.partial_fit(utterances, tags)
+        return self._learn(utterances, tags)
 
     def bags(self, utterances) -> list[np.ndarray]:
         """The bag of acoustic events of each utterance (retrieval only)."""
-        if not hasattr(self, "tree_"):
-            raise NotFittedError("TreeVotingClassifier is not fitted yet; call fit or partial_fit first.")
+        check_is_fitted(self, msg="TreeVotingClassifier is not fitted yet; call fit or partial_fit first.")
         utts = self._check(utterances)
         return [self._bag(self.tree_.predict(u)) if len(u) else np.zeros(0, np.int64) for u in utts]
 
@@ -266,6 +347,7 @@ class TreeVotingClassifier:
 
     @property
     def classes_(self) -> list:
+        check_is_fitted(self, msg="TreeVotingClassifier is not fitted yet; call fit or partial_fit first.")
         return self.voting_.classes_
 
     def predict(self, utterances) -> list:
