@@ -60,14 +60,14 @@ the tests and the benchmark.
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Sequence
 from typing import Any
 
 import numba as nb
 import numpy as np
 
-from ..errors import DataError, ParameterError
+from .._validation import Interval, Options, validate_params
+from ..errors import DataError
 
 __all__ = ["dtw", "dtw_distance_matrix", "dtw_one_to_many"]
 
@@ -433,34 +433,30 @@ def _fixed_serial(q, X, radius, squared, out):  # pragma: no cover - compiled
 # --------------------------------------------------------------------------------------
 
 
-def _check_local(local: Any) -> bool:
-    """Return True for 'sqeuclidean', False for 'euclidean'."""
-    if not isinstance(local, str) or local not in _LOCALS:
-        raise ParameterError(f"local must be one of {_LOCALS}; got {local!r}.")
-    return local == "sqeuclidean"
+#: The parameters of the public functions, checked by :func:`mmconcepts._validation.validate_params`.
+_PARAMETER_CONSTRAINTS = {
+    "window": [None, Interval("int", 0, None)],
+    "local": [Options(*_LOCALS)],
+    "n_jobs": [None, Interval("int", 1, None), Interval("int", None, -1)],
+}
+_HINTS = {
+    "window": "It is a Sakoe-Chiba radius in frames; None means no window.",
+    "n_jobs": "-1 uses all numba threads, -2 all but one, ...",
+}
 
 
-def _check_window(window: Any) -> int:
-    """Sakoe-Chiba radius as an int >= 0, or -1 for no window."""
-    if window is None:
-        return -1
-    if isinstance(window, bool) or not isinstance(window, (numbers.Integral, np.integer)):
-        raise ParameterError(
-            f"window must be None or an int >= 0 (a Sakoe-Chiba radius in frames); got {window!r}."
-        )
-    if window < 0:
-        raise ParameterError(f"window must be None or an int >= 0 (a Sakoe-Chiba radius in frames); got {window}.")
-    return min(int(window), 2**40)  # any window longer than the sequences is no window
+def _check_params(owner: str, window: Any, local: Any, n_jobs: Any = None) -> tuple[bool, int]:
+    """Validate the options; return (squared local cost, Sakoe-Chiba radius or -1 for none)."""
+    validate_params({"window": window, "local": local, "n_jobs": n_jobs}, _PARAMETER_CONSTRAINTS, owner=owner,
+                    hints=_HINTS)
+    radius = -1 if window is None else min(int(window), 2**40)  # a window longer than the sequences is no window
+    return local == "sqeuclidean", radius
 
 
 def _n_threads(n_jobs: Any) -> int:
     """Number of numba threads for ``n_jobs`` (None: numba's current setting)."""
     if n_jobs is None:
         return nb.get_num_threads()
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, (numbers.Integral, np.integer)) or n_jobs == 0:
-        raise ParameterError(
-            f"n_jobs must be None, a positive int or a negative int (-1: all threads); got {n_jobs!r}."
-        )
     max_threads = nb.config.NUMBA_NUM_THREADS
     if n_jobs < 0:
         return max(1, max_threads + 1 + int(n_jobs))
@@ -679,8 +675,7 @@ def dtw(a: ArrayLike, b: ArrayLike, *, window: int | None = None, local: str = "
     >>> dtw(a, b)
     0.0
     """
-    squared = _check_local(local)
-    radius = _check_window(window)
+    squared, radius = _check_params("dtw", window, local)
     a = _check_sequence(a, "a", check_finite=False)
     b = _check_sequence(b, "b", check_finite=False)
     if a.shape[1] != b.shape[1]:
@@ -737,9 +732,7 @@ def dtw_distance_matrix(
     ParameterError
         If ``window``, ``local`` or ``n_jobs`` is not allowed.
     """
-    squared = _check_local(local)
-    radius = _check_window(window)
-    _n_threads(n_jobs)  # check it now, even if the problem turns out small
+    squared, radius = _check_params("dtw_distance_matrix", window, local, n_jobs)
     PX = _pack(X, "X")
     if Y is None:
         return _run(PX, PX, True, radius, squared, n_jobs)
@@ -793,10 +786,10 @@ def dtw_one_to_many(
     ParameterError
         If ``window``, ``local`` or ``n_jobs`` is not allowed.
     """
-    squared = _check_local(local)
-    radius = _check_window(window)
-    if n_jobs is not None:
-        _n_threads(n_jobs)
+    if window is None and n_jobs is None and isinstance(local, str) and local == "euclidean":
+        squared, radius = False, -1  # the defaults, as the cluster tree calls it: nothing to check
+    else:
+        squared, radius = _check_params("dtw_one_to_many", window, local, n_jobs)
     q = _check_sequence(query, "query", check_finite=False)
     X = candidates
     if (

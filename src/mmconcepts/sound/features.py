@@ -11,11 +11,11 @@ The computation itself is librosa's (:func:`librosa.feature.mfcc`).
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .._validation import InstanceOf, Interval, validate_params
 from ..errors import DataError, ParameterError
 
 __all__ = [
@@ -27,6 +27,29 @@ __all__ = [
     "sliding_windows",
     "mfcc_windows",
 ]
+
+
+_MFCC_CONSTRAINTS = {
+    "sr": [Interval("int", 1, None)],
+    "n_mfcc": [Interval("int", 1, None)],
+    "win_ms": [Interval("real", 0, None, closed="neither")],
+    "hop_ms": [Interval("real", 0, None, closed="neither")],
+    "n_mels": [Interval("int", 1, None)],
+    "fmin": [Interval("real", 0, None)],
+    "fmax": [Interval("real", 0, None, closed="neither"), None],
+    "window": [InstanceOf(str, tuple, description="a scipy.signal.get_window name or (name, parameter) tuple")],
+    "top_db": [Interval("real", 0, None), None],
+    "lifter": [Interval("real", 0, None)],
+}
+
+#: The parameters of the window functions below.
+_WINDOW_CONSTRAINTS = {
+    "duration_ms": [Interval("real", 0, None, closed="neither")],
+    "hop_ms": [Interval("real", 0, None, closed="neither")],
+    "width": [Interval("int", 1, None)],
+    "shift": [Interval("int", 1, None), None],
+    "window_ms": [Interval("real", 0, None, closed="neither")],
+}
 
 
 @dataclass(frozen=True)
@@ -69,17 +92,11 @@ class MFCCConfig:
     lifter: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("sr", "n_mfcc", "n_mels"):
-            v = getattr(self, name)
-            if not isinstance(v, numbers.Integral) or v < 1:
-                raise ParameterError(f"MFCCConfig.{name} must be a positive int; got {v!r}.")
+        validate_params(asdict(self), _MFCC_CONSTRAINTS, owner="MFCCConfig")
         if self.n_mfcc > self.n_mels:
             raise ParameterError(
-                f"MFCCConfig.n_mfcc ({self.n_mfcc}) cannot exceed n_mels ({self.n_mels})."
-            )
-        if not (self.win_ms > 0 and self.hop_ms > 0):
-            raise ParameterError(
-                f"MFCCConfig.win_ms and hop_ms must be > 0; got {self.win_ms}, {self.hop_ms}."
+                f"MFCCConfig: n_mfcc ({self.n_mfcc}) cannot exceed n_mels ({self.n_mels}); lower n_mfcc or raise "
+                "n_mels."
             )
         fmax = self.sr / 2 if self.fmax is None else self.fmax
         if not 0 <= self.fmin < fmax <= self.sr / 2:
@@ -199,8 +216,7 @@ def add_deltas(x: np.ndarray) -> np.ndarray:
 
 def window_frames(duration_ms: float, hop_ms: float = 10.0) -> int:
     """Number of MFCC frames in a window of ``duration_ms`` (at least 1)."""
-    if duration_ms <= 0 or hop_ms <= 0:
-        raise ParameterError(f"durations must be > 0; got {duration_ms} ms window, {hop_ms} ms hop.")
+    validate_params({"duration_ms": duration_ms, "hop_ms": hop_ms}, _WINDOW_CONSTRAINTS, owner="window_frames")
     return max(1, int(round(duration_ms / hop_ms)))
 
 
@@ -224,11 +240,8 @@ def sliding_windows(seq: np.ndarray, width: int, shift: int | None = None) -> np
     seq = np.asarray(seq)
     if seq.ndim != 2:
         raise DataError(f"seq must be (n_frames, d); got shape {seq.shape}.")
-    if not isinstance(width, numbers.Integral) or width < 1:
-        raise ParameterError(f"width must be a positive int; got {width!r}.")
+    validate_params({"width": width, "shift": shift}, _WINDOW_CONSTRAINTS, owner="sliding_windows")
     shift = max(1, int(round(width / 3))) if shift is None else shift
-    if not isinstance(shift, numbers.Integral) or shift < 1:
-        raise ParameterError(f"shift must be a positive int; got {shift!r}.")
     n, d = seq.shape
     if n < width:
         return np.empty((0, width, d), dtype=seq.dtype)
@@ -259,7 +272,8 @@ def mfcc_windows(
     ndarray of shape (n_windows, width, n_mfcc)
     """
     config = MFCCConfig() if config is None else config
-    if not 0 < shift <= 1:
-        raise ParameterError(f"shift is a fraction of the window in (0, 1]; got {shift}.")
+    validate_params({"window_ms": window_ms, "shift": shift},
+                    {"window_ms": _WINDOW_CONSTRAINTS["window_ms"], "shift": [Interval("real", 0, 1, closed="right")]},
+                    owner="mfcc_windows", hints={"shift": "It is a fraction of the window length."})
     width = window_frames(window_ms, config.hop_ms)
     return sliding_windows(mfcc(y, config), width, max(1, int(round(width * shift))))
