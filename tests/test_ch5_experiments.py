@@ -93,11 +93,11 @@ def test_ch5_incremental_small(tiny_corpus, tmp_path):
 
 @pytest.mark.slow
 def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
-    from mmconcepts.experiments.ch5_nmf_keywords import Config, run
+    from mmconcepts.experiments.ch5_nmf_keywords import Config, compute, present
 
     cfg = dataclasses.replace(Config.quick(), n_folds=3, n_components=12, max_iter=40, n_composed_per_fold=10,
                               threshold_cv=2)
-    res = run(cfg, ctx_for(tiny_corpus, tmp_path))
+    res = compute(cfg, ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
     assert m["n_utterances"] == 50 and m["n_folds"] == 3
@@ -110,14 +110,18 @@ def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
         assert name == "chance.accuracy" or len(res.samples[name]) == 3, name
     for v in _verdicts("ch5_nmf_keywords", res):
         assert v.basis.startswith("t-calibrated paired bootstrap over 3 folds"), v.basis
+    # the figure draws the per-keyword table: one bar per keyword and system
+    ax = present(res, cfg)["keywords"].axes[0]
+    rows = res.tables["per_keyword"].rows[:-1]
+    assert [b.get_height() for b in ax.patches] == [r[2] for r in rows] + [r[3] for r in rows]
 
 
 @pytest.mark.slow
 def test_ch5_tree_small(tiny_corpus, tmp_path):
-    from mmconcepts.experiments.ch5_tree import Config, run
+    from mmconcepts.experiments.ch5_tree import Config, compute
 
     cfg = dataclasses.replace(Config.quick(), n_train_utterances=40, n_queries=150)
-    res = run(cfg, ctx_for(tiny_corpus, tmp_path))
+    res = compute(cfg, ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
     assert m["exact.n_distances"] == m["n_leaves"]
@@ -223,7 +227,7 @@ def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams, **tiny):
     ctx = _SpyContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False)
     ctx.stop_at = stop_at
     with pytest.raises(_Stop):
-        mod.run(dataclasses.replace(mod.Config.quick(), **tiny), ctx)
+        mod.compute(dataclasses.replace(mod.Config.quick(), **tiny), ctx)
     return _SpyContext.seen
 
 
@@ -279,7 +283,7 @@ def test_ch5_tree_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
         monkeypatch.setattr(common, "streams", lambda seed: s)
         ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache", show_progress=False)
         with pytest.raises(_Stop):
-            ch5_tree.run(dataclasses.replace(ch5_tree.Config.quick(), n_train_utterances=40), ctx)
+            ch5_tree.compute(dataclasses.replace(ch5_tree.Config.quick(), n_train_utterances=40), ctx)
         return dict(seen)
 
     a, learner, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(splits=55))
@@ -354,10 +358,10 @@ def real_fsdd_subset(tmp_path):
 
 
 def test_ch5_incremental_on_real_voices(real_fsdd_subset, tmp_path):
-    from mmconcepts.experiments.ch5_incremental import Config, run
+    from mmconcepts.experiments.ch5_incremental import Config, compute
 
     cfg = dataclasses.replace(Config.quick(), n_train=40, n_test=20, session=20, multi_session=40)
-    res = run(cfg, RunContext(data={"fsdd": real_fsdd_subset}, cache_dir=tmp_path / "cache", show_progress=False))
+    res = compute(cfg, RunContext(data={"fsdd": real_fsdd_subset}, cache_dir=tmp_path / "cache", show_progress=False))
     res.validate()
     m = res.metrics
     assert m["chance.accuracy"] == pytest.approx(0.1)
@@ -453,7 +457,7 @@ def test_ch5_tree_samples_per_block_behind_every_claim(monkeypatch, tmp_path, fa
         return out
 
     monkeypatch.setattr(ch5_tree, "_plan", spy)
-    res = ch5_tree.run(cfg, RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
+    res = ch5_tree.compute(cfg, RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
     res.validate()
     m, s, block = res.metrics, res.samples, seen["block"]
     assert block.shape == (60,) and set(block.tolist()) == set(range(5))
@@ -477,11 +481,11 @@ def test_ch5_tree_samples_per_block_behind_every_claim(monkeypatch, tmp_path, fa
 
 
 def test_ch5_incremental_final_accuracies_keep_one_hit_per_test_utterance(tmp_path, rng):
-    from mmconcepts.experiments.ch5_incremental import Config, run
+    from mmconcepts.experiments.ch5_incremental import Config, compute
 
     fsdd = _fake_fsdd(tmp_path / "fsdd", rng, speakers=("amy", "bob", "cy"), per_digit=3)
     cfg = dataclasses.replace(Config.quick(), n_train=10, n_test=10, session=5, multi_session=10)
-    res = run(cfg, RunContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
+    res = compute(cfg, RunContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
     res.validate()
     m, s = res.metrics, res.samples
     multi = s["multi_speaker.final_accuracy"]
@@ -524,4 +528,4 @@ def test_thesis_readings_are_in_the_notes(monkeypatch):
     from mmconcepts.experiments import ch5_incremental, ch5_nmf_keywords, ch5_tree
 
     for mod in (ch5_incremental, ch5_nmf_keywords, ch5_tree):
-        assert "common.KEYWORDS_READING" in inspect.getsource(mod.run), mod.__name__
+        assert "common.KEYWORDS_READING" in inspect.getsource(mod.compute), mod.__name__

@@ -37,7 +37,7 @@ from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 
 @dataclass(frozen=True)
@@ -96,7 +96,9 @@ def _learn(task: dict) -> dict:
             "n_leaves": int(voter.tree_.n_leaves_), "r_max": float(voter.r_max)}
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """The learners' accuracy curves and final scores (no figures; ``figure_data``: the curves, the speakers and
+    where each speaker's training utterances end, for :func:`present`)."""
     corpus = common.load_corpus(ctx, n_per_speaker=config.n_per_speaker)
     y_all = common.keyword_targets(corpus)
     spk_all = common.speaker_ids(corpus)
@@ -175,31 +177,6 @@ def run(config: Config, ctx: RunContext) -> Result:
                     ["training utterances", "all"] + [f"speaker {j}" for j in range(1, len(speakers) + 1)],
                     [[n, multi["accuracy"][k]] + [multi["per_group"][k][s] for s in speakers]
                      for k, n in enumerate(multi["seen"])])
-    fig3 = Figure(figsize=(6, 4))
-    ax = fig3.subplots()
-    for j, r in enumerate(single, 1):
-        ax.plot(r["seen"], r["accuracy"], marker="o", label=f"speaker {j}")
-    ax.axhline(chance, color="k", ls=":", label="chance")
-    ax.set_xlabel("training utterances")
-    ax.set_ylabel("test accuracy")
-    ax.set_ylim(0, 1)
-    ax.set_title("Fig. 5.3: single-speaker incremental learning")
-    ax.legend(fontsize=7)
-    fig3.tight_layout()
-    fig4 = Figure(figsize=(6, 4))
-    ax = fig4.subplots()
-    ax.plot(multi["seen"], multi["accuracy"], "k-o", label="all speakers")
-    for j, s in enumerate(speakers, 1):
-        ax.plot(multi["seen"], [p[s] for p in multi["per_group"]], marker=".", label=f"speaker {j}")
-    for e in ends[:-1]:
-        ax.axvline(e, color="grey", lw=0.8, ls="--")
-    ax.axhline(chance, color="k", ls=":")
-    ax.set_xlabel("training utterances (speakers in sequence)")
-    ax.set_ylabel("test accuracy")
-    ax.set_ylim(0, 1)
-    ax.set_title("Fig. 5.4: several speakers")
-    ax.legend(fontsize=7)
-    fig4.tight_layout()
     samples = {"single_speaker.final_accuracy": finals, "single_speaker.first_session_accuracy": firsts, **hit_samples}
     if gains:
         samples.update({"multi_speaker.new_speaker_before": befores, "multi_speaker.new_speaker_after": afters,
@@ -213,7 +190,9 @@ def run(config: Config, ctx: RunContext) -> Result:
         samples=samples,
         sample_units=units,
         tables={"single_speaker": t_single, "multi_speaker": t_multi},
-        figures={"fig5_3": fig3, "fig5_4": fig4},
+        figure_data={"single": [{"seen": r["seen"], "accuracy": r["accuracy"]} for r in single],
+                     "multi": {key: multi[key] for key in ("seen", "accuracy", "per_group")},
+                     "speakers": speakers, "ends": ends},
         notes=[common.data_source_note(ctx, corpus), common.KEYWORDS_READING,
                f"{len(speakers)} speakers (sorted ids: {', '.join(speakers)}); per speaker {len(splits[speakers[0]][0])} training and "
                f"{len(splits[speakers[0]][1])} test utterances; sessions of {config.session} (single) and "
@@ -239,12 +218,46 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 5.3 (one learner per speaker) and Fig. 5.4 (one learner, speakers in sequence)."""
+    fd = result.figure_data
+    single, multi, speakers, ends = fd["single"], fd["multi"], fd["speakers"], fd["ends"]
+    chance = result.metrics["chance.accuracy"]
+    fig3 = Figure(figsize=(6, 4))
+    ax = fig3.subplots()
+    for j, r in enumerate(single, 1):
+        ax.plot(r["seen"], r["accuracy"], marker="o", label=f"speaker {j}")
+    ax.axhline(chance, color="k", ls=":", label="chance")
+    ax.set_xlabel("training utterances")
+    ax.set_ylabel("test accuracy")
+    ax.set_ylim(0, 1)
+    ax.set_title("Fig. 5.3: single-speaker incremental learning")
+    ax.legend(fontsize=7)
+    fig3.tight_layout()
+    fig4 = Figure(figsize=(6, 4))
+    ax = fig4.subplots()
+    ax.plot(multi["seen"], multi["accuracy"], "k-o", label="all speakers")
+    for j, s in enumerate(speakers, 1):
+        ax.plot(multi["seen"], [p[s] for p in multi["per_group"]], marker=".", label=f"speaker {j}")
+    for e in ends[:-1]:
+        ax.axvline(e, color="grey", lw=0.8, ls="--")
+    ax.axhline(chance, color="k", ls=":")
+    ax.set_xlabel("training utterances (speakers in sequence)")
+    ax.set_ylabel("test accuracy")
+    ax.set_ylim(0, 1)
+    ax.set_title("Fig. 5.4: several speakers")
+    ax.legend(fontsize=7)
+    fig4.tight_layout()
+    return {"fig5_3": fig3, "fig5_4": fig4}
+
+
+EXPERIMENT = register(Experiment(
     id="ch5-incremental",
     title="Incremental keyword learning with the cluster tree and TF-IDF voting",
     thesis_ref="Section 5.2.4, Fig. 5.3 and 5.4",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("Keywords are recognised far above chance after training on one speaker (Fig. 5.3).",
@@ -259,3 +272,6 @@ register(Experiment(
     datasets=("acorns", "fsdd", "audio"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

@@ -56,7 +56,7 @@ from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 
 @dataclass(frozen=True)
@@ -163,7 +163,8 @@ def _plan(config: Config, y: np.ndarray, s: common.Streams) -> list[tuple[np.nda
     return list(StratifiedKFold(n_folds, shuffle=True, random_state=s.splits).split(np.zeros(len(y)), y))
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Recognition rates per fold and per keyword (no figure: :func:`present` draws the "per_keyword" table)."""
     corpus = common.load_corpus(ctx, n_per_speaker=config.n_per_speaker)
     speakers = common.speaker_ids(corpus)
     order = sorted(set(speakers))
@@ -234,18 +235,6 @@ def run(config: Config, ctx: RunContext) -> Result:
     rows.append(["all", len(y), metrics["nmf.accuracy"], metrics["voting.accuracy"]])
     c_rows = [[name, metrics[f"composed.{name}"], float(np.std(samples[f"composed.{name}"]))]
               for name in folds[0]["composed"]]
-    fig = Figure(figsize=(7, 3.5))
-    ax = fig.subplots()
-    x = np.arange(len(keywords))
-    ax.bar(x - 0.2, [r[2] for r in rows[:-1]], 0.4, label=f"HAC + NMF ({metrics['nmf.accuracy']:.2f})")
-    ax.bar(x + 0.2, [r[3] for r in rows[:-1]], 0.4, label=f"tree + voting ({metrics['voting.accuracy']:.2f})")
-    ax.axhline(chance, color="k", ls=":", label="chance")
-    ax.set_xticks(x, keywords, rotation=30, fontsize=8)
-    ax.set_ylabel("recognition rate")
-    ax.set_ylim(0, 1)
-    ax.set_title(f"Keyword recognition, speaker {spk}, {n_folds}-fold CV")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
     return Result(
         metrics=metrics,
         samples=samples,
@@ -254,7 +243,7 @@ def run(config: Config, ctx: RunContext) -> Result:
                                      ["keyword", "n", "nmf", "voting"], rows),
                 "composed": Table("One or several keywords per utterance (section 5.4): mean over folds",
                                   ["score", "mean", "std over folds"], c_rows)},
-        figures={"keywords": fig},
+        figure_data={"speaker": spk},
         notes=[common.data_source_note(ctx, corpus), common.KEYWORDS_READING,
                f"Speaker {spk} (first in sorted order): {len(y)} utterances, {len(keywords)} keywords; stratified "
                f"{n_folds}-fold cross-validation; codebooks, tree and dictionary fitted on each training fold only.",
@@ -283,12 +272,33 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Recognition rate per keyword of the two systems."""
+    metrics, rows = result.metrics, result.tables["per_keyword"].rows
+    keywords, chance = [r[0] for r in rows[:-1]], metrics["chance.accuracy"]
+    spk, n_folds = result.figure_data["speaker"], int(metrics["n_folds"])
+    fig = Figure(figsize=(7, 3.5))
+    ax = fig.subplots()
+    x = np.arange(len(keywords))
+    ax.bar(x - 0.2, [r[2] for r in rows[:-1]], 0.4, label=f"HAC + NMF ({metrics['nmf.accuracy']:.2f})")
+    ax.bar(x + 0.2, [r[3] for r in rows[:-1]], 0.4, label=f"tree + voting ({metrics['voting.accuracy']:.2f})")
+    ax.axhline(chance, color="k", ls=":", label="chance")
+    ax.set_xticks(x, keywords, rotation=30, fontsize=8)
+    ax.set_ylabel("recognition rate")
+    ax.set_ylim(0, 1)
+    ax.set_title(f"Keyword recognition, speaker {spk}, {n_folds}-fold CV")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return {"keywords": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch5-nmf-keywords",
     title="Keyword recognition: HAC + NMF beside cluster-tree voting, one or several keywords per utterance",
     thesis_ref="Sections 5.3-5.4 (protocol of Table 6.4, S+L -> L)",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={"nmf.accuracy": 0.916},
     claims=[
         Claim("Weak supervision by keyword tags is enough for NMF on HAC to recognise keywords far above chance.",
@@ -310,3 +320,6 @@ register(Experiment(
     datasets=("acorns", "fsdd", "audio"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

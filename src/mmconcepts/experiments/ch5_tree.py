@@ -37,7 +37,7 @@ from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 SEARCHES = (("greedy", 1), ("best_children", 2), ("best_children", 3),
             ("restart", 2), ("restart", 4), ("restart", 8), ("restart", 12), ("restart", 16), ("restart", 24))
@@ -162,7 +162,9 @@ def _build_tree(ctx: RunContext, windows: list[np.ndarray], train: np.ndarray, c
     return tree, r_max, time.perf_counter() - t0
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Recall, cost and time of every search against exact search (no figure: :func:`present` draws the
+    metrics)."""
     corpus = common.load_corpus(ctx, n_per_speaker=config.n_per_speaker)
     windows = common.corpus_windows(ctx, corpus, MFCCConfig(n_mfcc=config.n_mfcc), window_ms=config.window_ms)
     s = common.streams(config.seed)
@@ -224,20 +226,6 @@ def run(config: Config, ctx: RunContext) -> Result:
                                 samples["exact.n_distances"][k])
         for k in range(n_blocks)]
 
-    fig = Figure(figsize=(6, 4))
-    ax = fig.subplots()
-    for search, marker in (("restart", "o"), ("best_children", "s"), ("greedy", "^")):
-        pts = [(metrics[f"{_key(m, b)}.n_distances"], metrics[f"{_key(m, b)}.recall"]) for m, b in SEARCHES if m == search]
-        xs, ys = zip(*sorted(pts))
-        ax.plot(xs, ys, marker=marker, label=search)
-    ax.axvline(metrics["exact.n_distances"], color="k", ls=":", label="exact search cost")
-    ax.set_xscale("log")
-    ax.set_xlabel("distance evaluations per query")
-    ax.set_ylabel("recall@1 (exact nearest leaf found)")
-    ax.set_ylim(0, 1.02)
-    ax.set_title(f"Cluster tree search, {tree.n_leaves_} leaves ({config.metric.upper()})")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
     return Result(
         metrics=metrics,
         samples=samples,
@@ -245,7 +233,6 @@ def run(config: Config, ctx: RunContext) -> Result:
         tables={"searches": Table("Searches against exact search",
                                   ["search", "b", "recall@1", "distances per query", "ms per query",
                                    "mean excess distance"], rows)},
-        figures={"tree_search": fig},
         notes=[common.data_source_note(ctx, corpus),
                "On FSDD each utterance is one digit word said alone; the tree is built from the windows of "
                "utterances of every speaker, and queried with windows of other utterances.",
@@ -279,12 +266,33 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Recall against the number of distance evaluations, by search."""
+    metrics = result.metrics
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
+    for search, marker in (("restart", "o"), ("best_children", "s"), ("greedy", "^")):
+        pts = [(metrics[f"{_key(m, b)}.n_distances"], metrics[f"{_key(m, b)}.recall"]) for m, b in SEARCHES if m == search]
+        xs, ys = zip(*sorted(pts))
+        ax.plot(xs, ys, marker=marker, label=search)
+    ax.axvline(metrics["exact.n_distances"], color="k", ls=":", label="exact search cost")
+    ax.set_xscale("log")
+    ax.set_xlabel("distance evaluations per query")
+    ax.set_ylabel("recall@1 (exact nearest leaf found)")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(f"Cluster tree search, {int(metrics['n_leaves'])} leaves ({config.metric.upper()})")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return {"tree_search": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch5-tree",
     title="Backtracking searches in the incremental cluster tree",
     thesis_ref="Section 5.2.3 (Algorithm 1, two backtracking searches)",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("Backtracking minimises the impact of the tree's approximation: with b = 4 restarts the search "
@@ -300,3 +308,6 @@ register(Experiment(
     datasets=("acorns", "fsdd", "audio"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run
