@@ -256,6 +256,19 @@ class InstanceOf:
         return self.description or "an instance of " + " or ".join(t.__name__ for t in self.types)
 
 
+class HasMethods:
+    """An object with the given methods (a scikit-learn splitter: ``HasMethods("split")``)."""
+
+    def __init__(self, *methods: str):
+        self.methods = methods
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        return all(callable(getattr(value, m, None)) for m in self.methods)
+
+    def __str__(self) -> str:
+        return "an object with " + " and ".join(f"a {m}() method" for m in self.methods)
+
+
 class _Named:
     """A constraint known by name: "boolean", "random_state", "callable", "array-like"."""
 
@@ -362,4 +375,4 @@ def validate_params(params: Any, constraints: dict[str, list], *, owner: str | N
         raise ParameterError(msg)
 
 
-__all__ += ["Interval", "Options", "InstanceOf", "validate_params", "describe_constraints"]
+__all__ += ["Interval", "Options", "InstanceOf", "HasMethods", "validate_params", "describe_constraints"]

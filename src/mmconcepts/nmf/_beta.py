@@ -47,6 +47,23 @@ def resolve_beta(beta: Any) -> float:
     return float(beta)
 
 
+class BetaLoss:
+    """Constraint form of a ``beta_loss`` parameter: a finite real number or a name (any case).
+
+    Used in the constraints tables (:func:`mmconcepts._validation.validate_params`).
+    """
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        try:
+            resolve_beta(value)
+        except ParameterError:
+            return False
+        return True
+
+    def __str__(self) -> str:
+        return f"a finite real number or one of {sorted(_BETA_ALIASES)}"
+
+
 def mm_exponent(beta: float) -> float:
     """The maximization-minimization exponent gamma(beta) of thesis Table 2.2.
 

@@ -9,13 +9,14 @@ import scipy.sparse as sp
 from sklearn.base import BaseEstimator, ClassNamePrefixFeaturesOutMixin, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
-from .._validation import check_positive_int, check_random_state, check_scalar
+from .._persist import SaveLoadMixin
+from .._validation import Interval, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
 from ._init import initialize
 from ._problem import Problem
 from ._solver import (
-    UPDATE_RULES,
+    BETA_NMF_CONSTRAINTS,
     _resolve_penalties,
     beta_nmf,
     constant_coefficients,
@@ -59,7 +60,7 @@ def resolve_features(features: Any, n_features: int, name: str = "features") -> 
     return idx
 
 
-class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
+class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
     """Beta-divergence nonnegative matrix factorization, X ~ W @ H (thesis section 2.1).
 
     X is (n_samples, n_features); the dictionary ``components_`` (H) is
@@ -115,6 +116,9 @@ class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
     n_steps_ : int
         Number of :meth:`partial_fit` calls since the last :meth:`fit`.
 
+    A fitted model saves to one ``.npz`` without pickle (:meth:`save`, :meth:`load`),
+    with the statistics :meth:`partial_fit` carries between batches.
+
     Examples
     --------
     >>> import numpy as np
@@ -127,6 +131,15 @@ class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
     >>> model.inverse_transform(W, features=[5, 6, 7]).shape   # reconstruct the others
     (20, 3)
     """
+
+    _parameter_constraints: dict = {
+        **{name: BETA_NMF_CONSTRAINTS[name] for name in (
+            "n_components", "beta_loss", "solver", "update_rule", "init", "max_iter", "tol", "alpha_W", "alpha_H",
+            "l1_ratio", "sparseness_W", "sparseness_H", "loss_every", "random_state")},
+        "forget_factor": [Interval("real", 0, 1)],
+        "transform_max_iter": [Interval("int", 0), None],
+    }
+    _persisted_private = ("_stats",)
 
     def __init__(
         self,
@@ -212,6 +225,7 @@ class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
 
     def fit_transform(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> np.ndarray:
         """Learn the dictionary and return the coefficients W of X, shape (n_samples, n_components)."""
+        validate_params(self, self._parameter_constraints)
         res = beta_nmf(
             X,
             self.n_components,
@@ -264,18 +278,17 @@ class NMF(ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
         with ``solver='mu'``. partial_fit always uses multiplicative updates, whatever
         ``solver`` says; ``tol`` is not used (each call runs ``max_iter`` iterations).
         """
+        validate_params(self, self._parameter_constraints)
         if self.sparseness_W is not None or self.sparseness_H is not None:
             raise ParameterError("partial_fit does not support Hoyer sparseness constraints; use fit.")
         beta = resolve_beta(self.beta_loss)
-        if self.update_rule not in UPDATE_RULES:
-            raise ParameterError(f"update_rule must be one of {UPDATE_RULES}; got {self.update_rule!r}.")
-        rho = check_scalar(self.forget_factor, "forget_factor", low=0.0, high=1.0)
-        max_iter = check_positive_int(self.max_iter, "max_iter", minimum=0)
+        rho = float(self.forget_factor)
+        max_iter = int(self.max_iter)
         Xv, maskv = validate_data(X, mask)
         check_beta_zeros(Xv, beta, maskv)
         n, m = Xv.shape
         if not hasattr(self, "components_"):
-            k = check_positive_int(self.n_components if self.n_components is not None else min(n, m), "n_components")
+            k = int(self.n_components if self.n_components is not None else min(n, m))
             init = self.init or ("nndsvda" if k <= min(n, m) else "random")
             W, H = initialize(Xv, k, init, check_random_state(self.random_state), mask=maskv)
             self.n_steps_ = 0

@@ -9,14 +9,20 @@ from typing import Any, Literal
 import numpy as np
 import scipy.sparse as sp
 
-from .._validation import check_nonnegative_matrix, check_positive_int, check_random_state, check_scalar
+from .._validation import (
+    Interval,
+    Options,
+    check_nonnegative_matrix,
+    check_random_state,
+    validate_params,
+)
 from ..errors import ConvergenceWarning, DataError, ParameterError
-from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
+from ._beta import EPSILON, BetaLoss, check_beta_zeros, mm_exponent, resolve_beta
 from ._init import INITS, initialize
 from ._problem import Problem, Side
 from .sparseness import l1_for_sparseness, project_hoyer
 
-__all__ = ["beta_nmf", "NMFResult", "SOLVERS"]
+__all__ = ["beta_nmf", "BETA_NMF_CONSTRAINTS", "NMFResult", "SOLVERS"]
 
 SOLVERS = ("mu", "pg")
 UPDATE_RULES = ("mm", "heuristic")
@@ -192,19 +198,14 @@ def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: floa
 
 
 def _resolve_penalties(alpha_W, alpha_H, l1_ratio, n_samples, n_features):
-    alpha_W = check_scalar(alpha_W, "alpha_W", low=0.0)
-    alpha_H = alpha_W if isinstance(alpha_H, str) and alpha_H == "same" else check_scalar(alpha_H, "alpha_H", low=0.0)
-    l1_ratio = check_scalar(l1_ratio, "l1_ratio", low=0.0, high=1.0)
+    # validated by the caller's constraints table (BETA_NMF_CONSTRAINTS)
+    alpha_W = float(alpha_W)
+    alpha_H = alpha_W if isinstance(alpha_H, str) and alpha_H == "same" else float(alpha_H)
+    l1_ratio = float(l1_ratio)
     # Scaled as scikit-learn: the penalty on W grows with n_features, the one on H with n_samples.
     pen_W = _Penalty(l1=n_features * alpha_W * l1_ratio, l2=n_features * alpha_W * (1 - l1_ratio))
     pen_H = _Penalty(l1=n_samples * alpha_H * l1_ratio, l2=n_samples * alpha_H * (1 - l1_ratio))
     return pen_W, pen_H
-
-
-def _check_sparseness(value, name):
-    if value is None:
-        return None
-    return check_scalar(value, name, low=0.0, high=1.0)
 
 
 def check_mask(mask: Any, shape: tuple[int, int], name: str = "mask"):
@@ -267,6 +268,26 @@ def _check_factor(A: Any, shape: tuple[int, int], name: str, dtype) -> np.ndarra
     if A.shape != shape:
         raise DataError(f"{name} must have shape {shape}; got {A.shape}.")
     return np.array(A, dtype=dtype, copy=True)
+
+
+#: The parameters of :func:`beta_nmf`, declared once (the estimators built on it reuse the entries).
+BETA_NMF_CONSTRAINTS: dict[str, list] = {
+    "n_components": [Interval("int", 1), None],
+    "beta_loss": [BetaLoss()],
+    "solver": [Options(*SOLVERS)],
+    "update_rule": [Options(*UPDATE_RULES)],
+    "init": [Options(*INITS), None],
+    "update_H": ["boolean"],
+    "max_iter": [Interval("int", 0)],
+    "tol": [Interval("real", 0)],
+    "alpha_W": [Interval("real", 0)],
+    "alpha_H": [Interval("real", 0), Options("same")],
+    "l1_ratio": [Interval("real", 0, 1)],
+    "sparseness_W": [Interval("real", 0, 1), None],
+    "sparseness_H": [Interval("real", 0, 1), None],
+    "loss_every": [Interval("int", 1)],
+    "random_state": ["random_state"],
+}
 
 
 def beta_nmf(
@@ -364,16 +385,15 @@ def beta_nmf(
     ParameterError
         An unknown solver, init or update rule, or a value out of range.
     """
+    validate_params(
+        dict(n_components=n_components, beta_loss=beta_loss, solver=solver, update_rule=update_rule, init=init,
+             update_H=update_H, max_iter=max_iter, tol=tol, alpha_W=alpha_W, alpha_H=alpha_H, l1_ratio=l1_ratio,
+             sparseness_W=sparseness_W, sparseness_H=sparseness_H, loss_every=loss_every, random_state=random_state),
+        BETA_NMF_CONSTRAINTS, owner="beta_nmf")
     beta = resolve_beta(beta_loss)
-    if solver not in SOLVERS:
-        raise ParameterError(f"solver must be one of {SOLVERS}; got {solver!r}.")
-    if update_rule not in UPDATE_RULES:
-        raise ParameterError(f"update_rule must be one of {UPDATE_RULES}; got {update_rule!r}.")
-    max_iter = check_positive_int(max_iter, "max_iter", minimum=0)
-    tol = check_scalar(tol, "tol", low=0.0)
-    loss_every = check_positive_int(loss_every, "loss_every")
-    sparseness_W = _check_sparseness(sparseness_W, "sparseness_W")
-    sparseness_H = _check_sparseness(sparseness_H, "sparseness_H")
+    max_iter, loss_every, tol = int(max_iter), int(loss_every), float(tol)
+    sparseness_W = None if sparseness_W is None else float(sparseness_W)
+    sparseness_H = None if sparseness_H is None else float(sparseness_H)
 
     X, mask = validate_data(X, mask)
     check_beta_zeros(X, beta, mask)
@@ -382,7 +402,7 @@ def beta_nmf(
 
     if n_components is None:
         n_components = H.shape[0] if H is not None else (W.shape[1] if W is not None else min(n, m))
-    k = check_positive_int(n_components, "n_components")
+    k = int(n_components)
 
     if not update_H:
         if H is None:
@@ -400,8 +420,6 @@ def beta_nmf(
     else:
         if init is None:
             init = "nndsvda" if k <= min(n, m) else "random"
-        if init not in INITS:
-            raise ParameterError(f"init must be one of {INITS} or None; got {init!r}.")
         W, H = initialize(X, k, init, check_random_state(random_state), mask=mask)
 
     pen_W, pen_H = _resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)

@@ -42,14 +42,18 @@ from sklearn.model_selection import KFold
 from sklearn.utils.multiclass import type_of_target
 from sklearn.utils.validation import check_is_fitted
 
+from .._persist import SaveLoadMixin
 from .._validation import (
+    HasMethods,
+    Interval,
+    Options,
     check_nonnegative_matrix,
-    check_positive_int,
     check_random_state,
-    check_scalar,
+    validate_params,
 )
 from ..errors import DataError, ParameterError
 from ._estimator import NMF
+from ._solver import BETA_NMF_CONSTRAINTS
 from .scores import l_full_curve
 
 __all__ = ["DEFAULT_THRESHOLD_GRID", "LabelNMF", "make_svm_baseline"]
@@ -89,7 +93,7 @@ def _check_label_matrix(Y: Any, n_samples: int | None = None) -> np.ndarray:
     return Y.astype(np.float64)
 
 
-class LabelNMF(ClassNamePrefixFeaturesOutMixin, ClassifierMixin, TransformerMixin, BaseEstimator):
+class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, TransformerMixin, BaseEstimator):
     """Multi-label classification from label sets by NMF on stacked [features, labels].
 
     Thesis sections 3.3.2 (choreographies: motion + gesture labels) and 5.4 (utterances:
@@ -209,6 +213,19 @@ class LabelNMF(ClassNamePrefixFeaturesOutMixin, ClassifierMixin, TransformerMixi
     (60, 4)
     """
 
+    _parameter_constraints: dict = {
+        "n_components": [Interval("int", 1)],
+        **{name: BETA_NMF_CONSTRAINTS[name] for name in (
+            "beta_loss", "max_iter", "tol", "init", "solver", "update_rule", "random_state")},
+        "label_weight": [Interval("real", 0, None, closed="neither"), Options("l1")],
+        "threshold": [Interval("real"), Options("cv")],
+        "threshold_grid": ["array-like", None],
+        "cv": [Interval("int", 2), HasMethods("split")],
+        "transform_max_iter": [Interval("int", 0), None],
+        "n_jobs": [Interval("int"), None],
+    }
+    _persisted_private = ("_single_label",)
+
     def __init__(
         self,
         n_components: int = 150,
@@ -257,17 +274,8 @@ class LabelNMF(ClassNamePrefixFeaturesOutMixin, ClassifierMixin, TransformerMixi
 
     # ------------------------------------------------------------------ fitting
     def _check_params(self) -> None:
-        check_positive_int(self.n_components, "n_components")
-        if isinstance(self.label_weight, str):
-            if self.label_weight != "l1":
-                raise ParameterError(f"label_weight must be 'l1' or a float > 0; got {self.label_weight!r}.")
-        else:
-            check_scalar(self.label_weight, "label_weight", low=0.0, low_inclusive=False)
-        if isinstance(self.threshold, str):
-            if self.threshold != "cv":
-                raise ParameterError(f"threshold must be 'cv' or a float; got {self.threshold!r}.")
-        else:
-            check_scalar(self.threshold, "threshold")
+        validate_params(self, self._parameter_constraints,
+                        hints={"cv": "Give a number of folds or a splitter such as sklearn's KFold."})
         from ._beta import resolve_beta
 
         if resolve_beta(self.beta_loss) <= 0:
@@ -395,14 +403,12 @@ class LabelNMF(ClassNamePrefixFeaturesOutMixin, ClassifierMixin, TransformerMixi
 
     def _splitter(self, n: int, split_seed: int):
         if isinstance(self.cv, (numbers.Integral, np.integer)) and not isinstance(self.cv, bool):
-            k = check_positive_int(self.cv, "cv", minimum=2)
+            k = int(self.cv)
             if k > n:
                 raise ParameterError(f"cv={k} folds need at least {k} training samples; got {n}. Lower cv.")
             splitter = KFold(k, shuffle=True, random_state=split_seed)
-        elif hasattr(self.cv, "split"):
+        else:  # a splitter (validated by the constraints table)
             splitter = self.cv
-        else:
-            raise ParameterError(f"cv must be an int >= 2 or a scikit-learn splitter; got {self.cv!r}.")
         self._grid()  # validated before any fit too
         return splitter
 
@@ -535,6 +541,14 @@ def _fold_curve(inner: LabelNMF, X, Y: np.ndarray, train, val, seed: int, grid: 
     return l_full_curve(Y[val], model.decision_function(X[val]), grid)
 
 
+_SVM_BASELINE_CONSTRAINTS: dict = {
+    "C": [Interval("real", 0, None, closed="neither")],
+    "max_iter": [Interval("int", 1)],
+    "scale": ["boolean"],
+    "random_state": ["random_state"],
+}
+
+
 def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, scale: bool = True, random_state: Any = None):
     """The thesis' baseline: one linear SVM per label (thesis section 3.3.4, Tables 3.2, 3.3).
 
@@ -566,8 +580,8 @@ def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, scale: bool = Tr
     from sklearn.multiclass import OneVsRestClassifier
     from sklearn.svm import LinearSVC
 
-    C = check_scalar(C, "C", low=0.0, low_inclusive=False)
-    max_iter = check_positive_int(max_iter, "max_iter")
+    validate_params(dict(C=C, max_iter=max_iter, scale=scale, random_state=random_state),
+                    _SVM_BASELINE_CONSTRAINTS, owner="make_svm_baseline")
     seed = int(check_random_state(random_state).integers(0, 2**31 - 1))
     svm = LinearSVC(C=C, max_iter=max_iter, random_state=seed)
     if scale:
