@@ -20,28 +20,27 @@ and :meth:`MultimodalNMF.reconstruct` gives the expected perception in any modal
 
 from __future__ import annotations
 
-import json
-import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
-from sklearn.exceptions import NotFittedError
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.utils.validation import check_is_fitted
 
-from .. import __version__
-from .._validation import check_nonnegative_matrix
-from ..errors import DataError, DataFormatError, ParameterError, VersionMismatchError
+from .._persist import SaveLoadMixin
+from .._validation import Interval, Options, check_nonnegative_matrix, validate_params
+from ..errors import DataError, DataFormatError
 from ..nmf import NMF
 
 __all__ = ["MultimodalNMF", "FORMAT_VERSION"]
 
-#: Version of the save format written by :meth:`MultimodalNMF.save`.
-FORMAT_VERSION = 1
+#: Version of the save format written by :meth:`MultimodalNMF.save` (version 1 files still load).
+FORMAT_VERSION = 2
 
 
-class MultimodalNMF:
+class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """NMF over any number of named modalities (Thesis section 6.4).
 
     Parameters
@@ -60,7 +59,7 @@ class MultimodalNMF:
         "l1": each modality is divided by its average L1 norm over the training examples
         (the same factor is applied at transform and undone at reconstruction); None
         keeps the data as given.
-    init : str, default="random"
+    init : {"random", "nndsvd", "nndsvda", "nndsvdar"} or None, default="random"
         Initialization of the factorization (see :func:`mmconcepts.nmf.beta_nmf`). Random
         (seeded) factors scaled to the data, as in the thesis' experiments; "nndsvda"
         costs a truncated SVD of the stacked matrix (about 5 s for 900 x 110 000 HAC
@@ -76,10 +75,31 @@ class MultimodalNMF:
         ``s_m``, the average L1 norm of each modality on the training data (1 when
         ``normalize`` is None).
     components_ : ndarray of shape (n_components, sum of n_features)
-        The multimodal dictionary H.
+        The multimodal dictionary H (the same array as ``nmf_.components_``).
     nmf_ : NMF
         The underlying factorization.
+
+    Notes
+    -----
+    X is a mapping of modality names to matrices, not one 2-D array, so scikit-learn's
+    ``check_estimator`` cannot run on this learner; it is still a scikit-learn estimator
+    (``clone``, ``get_params``/``set_params``, ``NotFittedError``). :meth:`save` writes
+    format version 2 (the inner :class:`~mmconcepts.nmf.NMF` saved as a nested model);
+    :meth:`load` also reads the version-1 files of earlier mmconcepts (the dictionary and
+    a header with the modalities, their widths and scales).
     """
+
+    _parameter_constraints: ClassVar[dict] = {
+        "n_components": [Interval("int", 1)],  # NMF's None (min(n_samples, n_features)) is not offered
+        **{name: NMF._parameter_constraints[name]
+           for name in ("beta_loss", "max_iter", "transform_max_iter", "tol", "random_state")},
+        "normalize": [Options("l1", None)],
+        "init": [Options("random", "nndsvd", "nndsvda", "nndsvdar"), None],  # no 'custom': fit takes no factors
+    }
+    _hints: ClassVar[dict] = {
+        "init": "'custom' is not available: MultimodalNMF.fit takes no starting factors.",
+    }
+    _save_format_version: ClassVar[int] = FORMAT_VERSION
 
     def __init__(
         self,
@@ -101,6 +121,14 @@ class MultimodalNMF:
         self.normalize = normalize
         self.init = init
         self.random_state = random_state
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False  # X is a mapping of modality names to matrices
+        tags.input_tags.dict = True
+        tags.input_tags.sparse = True
+        tags.input_tags.positive_only = True
+        return tags
 
     # ------------------------------------------------------------------ helpers
     def _nmf(self) -> NMF:
@@ -137,37 +165,41 @@ class MultimodalNMF:
             out[name] = Xm
         return out
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "components_"):
-            raise NotFittedError("MultimodalNMF is not fitted yet; call fit first.")
+    @staticmethod
+    def _columns(modalities: Sequence[str], n_features: Mapping[str, int]) -> dict[str, slice]:
+        """The columns of each modality in the stacked matrix, in the order of ``modalities``."""
+        out, start = {}, 0
+        for name in modalities:
+            out[name] = slice(start, start + int(n_features[name]))
+            start += int(n_features[name])
+        return out
 
-    def _stack(self, X: dict[str, Any]) -> tuple[Any, np.ndarray]:
-        """The weighted stacked matrix of the given modalities and its column indices."""
+    @staticmethod
+    def _stack(X: Mapping[str, Any], modalities: Sequence[str], n_features: Mapping[str, int],
+               scales: Mapping[str, float]) -> tuple[Any, np.ndarray]:
+        """The weighted stacked matrix of the given modalities and its columns in the full dictionary."""
+        columns = MultimodalNMF._columns(modalities, n_features)
         blocks, cols = [], []
-        for name in self.modalities_:
+        for name in modalities:
             if name not in X:
                 continue
             Xm = X[name]
-            if Xm.shape[1] != self.n_features_[name]:
+            if Xm.shape[1] != n_features[name]:
                 raise DataError(
-                    f"modality {name!r} has {Xm.shape[1]} features; the learner was fitted with {self.n_features_[name]}."
+                    f"modality {name!r} has {Xm.shape[1]} features; the learner was fitted with {n_features[name]}."
                 )
-            blocks.append(Xm * (1.0 / self.scales_[name]))
-            cols.append(np.arange(*self._slices[name].indices(self.components_.shape[1])))
+            blocks.append(Xm * (1.0 / scales[name]))
+            cols.append(np.arange(columns[name].start, columns[name].stop))
         if any(sp.issparse(b) for b in blocks):
             stacked = sp.hstack([sp.csr_matrix(b) for b in blocks], format="csr")
         else:
             stacked = np.hstack(blocks)
         return stacked, np.concatenate(cols)
 
-    def _set_layout(self, names: Sequence[str], widths: Sequence[int]) -> None:
-        self.modalities_ = list(names)
-        self.n_features_ = {n: int(w) for n, w in zip(names, widths)}
-        self._slices = {}
-        start = 0
-        for n, w in zip(names, widths):
-            self._slices[n] = slice(start, start + int(w))
-            start += int(w)
+    def _slice(self, modality: str) -> slice:
+        if modality not in self.n_features_:
+            raise DataError(f"unknown modality {modality!r}; the learner knows {self.modalities_}.")
+        return self._columns(self.modalities_, self.n_features_)[modality]
 
     # ------------------------------------------------------------------ API
     def fit(self, X: Mapping[str, Any], y: Any = None) -> MultimodalNMF:
@@ -178,16 +210,23 @@ class MultimodalNMF:
         X : mapping of str to {array-like, sparse matrix} of shape (n_samples, n_features_m)
             One nonnegative matrix per modality, rows aligned (row i of every modality is
             example i).
+        y : ignored
+
+        Returns
+        -------
+        self
         """
         self.fit_transform(X)
         return self
 
     def fit_transform(self, X: Mapping[str, Any], y: Any = None) -> np.ndarray:
-        """Fit, and return the internal representations of the training examples."""
-        if self.normalize not in ("l1", None):
-            raise ParameterError(f"normalize must be 'l1' or None; got {self.normalize!r}.")
-        if not isinstance(self.n_components, numbers.Integral) or self.n_components < 1:
-            raise ParameterError(f"n_components must be a positive int; got {self.n_components!r}.")
+        """Fit, and return the internal representations of the training examples.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_components)
+        """
+        validate_params(self, self._parameter_constraints, hints=self._hints)
         mods = self._check_modalities(X)
         scales = {}
         for name, Xm in mods.items():
@@ -195,13 +234,14 @@ class MultimodalNMF:
             if not l1 > 0:
                 raise DataError(f"modality {name!r} is all zeros on the training data; it cannot be normalised.")
             scales[name] = float(l1)
-        self.scales_ = scales
-        self._set_layout(list(mods), [Xm.shape[1] for Xm in mods.values()])
-        self.components_ = np.zeros((self.n_components, sum(self.n_features_.values())))  # for _stack's widths
-        stacked, _ = self._stack(mods)
-        self.nmf_ = self._nmf()
-        W = self.nmf_.fit_transform(stacked)
-        self.components_ = self.nmf_.components_
+        names = list(mods)
+        n_features = {name: int(Xm.shape[1]) for name, Xm in mods.items()}
+        stacked, _ = self._stack(mods, names, n_features, scales)
+        nmf = self._nmf()
+        W = nmf.fit_transform(stacked)
+        self.modalities_, self.n_features_, self.scales_ = names, n_features, scales
+        self.nmf_ = nmf
+        self.components_ = nmf.components_
         return W
 
     def transform(self, X: Mapping[str, Any]) -> np.ndarray:
@@ -216,13 +256,13 @@ class MultimodalNMF:
         -------
         ndarray of shape (n_samples, n_components)
         """
-        self._check_fitted()
+        check_is_fitted(self)
         if isinstance(X, Mapping):
             unknown = [k for k in X if k not in self.modalities_]
             if unknown:
                 raise DataError(f"unknown modality {unknown[0]!r}; the learner knows {self.modalities_}.")
         mods = self._check_modalities(X)
-        stacked, cols = self._stack(mods)
+        stacked, cols = self._stack(mods, self.modalities_, self.n_features_, self.scales_)
         return self.nmf_.transform(stacked, features=cols)
 
     def reconstruct(self, W: Any, modality: str | Sequence[str]) -> np.ndarray:
@@ -233,88 +273,55 @@ class MultimodalNMF:
         W : array-like of shape (n_samples, n_components)
         modality : str or sequence of str
             One modality, or several (their reconstructions side by side).
+
+        Returns
+        -------
+        ndarray of shape (n_samples, sum of the modalities' n_features)
         """
-        self._check_fitted()
+        check_is_fitted(self)
         names = [modality] if isinstance(modality, str) else list(modality)
         W = np.asarray(W, dtype=np.float64)
         if W.ndim != 2 or W.shape[1] != self.components_.shape[0]:
             raise DataError(f"W must be (n_samples, {self.components_.shape[0]}); got shape {W.shape}.")
         out = []
         for name in names:
-            if name not in self._slices:
-                raise DataError(f"unknown modality {name!r}; the learner knows {self.modalities_}.")
-            out.append(W @ self.components_[:, self._slices[name]] * self.scales_[name])
+            out.append(W @ self.components_[:, self._slice(name)] * self.scales_[name])
         return np.hstack(out)
 
     def component_slice(self, modality: str) -> slice:
         """Columns of ``components_`` belonging to ``modality``."""
-        self._check_fitted()
-        if modality not in self._slices:
-            raise DataError(f"unknown modality {modality!r}; the learner knows {self.modalities_}.")
-        return self._slices[modality]
-
-    def get_params(self, deep: bool = True) -> dict:
-        return {k: getattr(self, k) for k in (
-            "n_components", "beta_loss", "max_iter", "transform_max_iter", "tol", "normalize", "init", "random_state")}
+        check_is_fitted(self)
+        return self._slice(modality)
 
     # ------------------------------------------------------------------ persistence
-    def save(self, path: str | Path) -> Path:
-        """Save to ``path`` (a ``.npz`` holding the dictionary and a JSON header); no pickle.
+    def _get_state(self) -> dict[str, Any]:
+        state = super()._get_state()
+        state.pop("components_", None)  # the same array as nmf_.components_, saved once with nmf_
+        return state
 
-        The write is atomic (a temporary file renamed into place).
-        """
-        self._check_fitted()
-        path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_suffix(".npz")
-        params = self.get_params()
-        if not isinstance(params["random_state"], (int, type(None))):
-            params["random_state"] = None
-        header = {
-            "format": "mmconcepts.MultimodalNMF",
-            "format_version": FORMAT_VERSION,
-            "mmconcepts_version": __version__,
-            "params": params,
-            "modalities": self.modalities_,
-            "n_features": self.n_features_,
-            "scales": self.scales_,
-        }
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, components=self.components_, header=np.array(json.dumps(header)))
-        tmp.replace(path)
-        return path
+    def _set_state(self, state: dict[str, Any]) -> None:
+        super()._set_state(state)
+        self.components_ = self.nmf_.components_
 
     @classmethod
-    def load(cls, path: str | Path) -> MultimodalNMF:
-        """Load a learner written by :meth:`save`.
-
-        Raises
-        ------
-        DataFormatError
-            If the file is not a saved MultimodalNMF or is corrupt.
-        VersionMismatchError
-            If it was written in another save-format version.
-        """
-        path = Path(path)
+    def _load_other_version(cls, path: Path, header: dict, z: Any) -> MultimodalNMF:
+        """Read a version-1 file: ``components`` and a header with modalities, n_features, scales."""
+        if header.get("format_version") != 1:
+            return super()._load_other_version(path, header, z)
         try:
-            with np.load(path, allow_pickle=False) as z:
-                header = json.loads(str(z["header"]))
-                components = np.asarray(z["components"], dtype=np.float64)
-        except (OSError, ValueError, KeyError) as e:
-            raise DataFormatError(f"{path}: not a saved MultimodalNMF ({e}).") from None
-        if header.get("format") != "mmconcepts.MultimodalNMF":
-            raise DataFormatError(f"{path}: not a saved MultimodalNMF (format {header.get('format')!r}).")
-        if header.get("format_version") != FORMAT_VERSION:
-            raise VersionMismatchError(
-                f"{path}: saved with format version {header.get('format_version')} "
-                f"(mmconcepts {header.get('mmconcepts_version')}); this mmconcepts reads version {FORMAT_VERSION}."
-            )
-        model = cls(**header["params"])
-        model._set_layout(header["modalities"], [header["n_features"][m] for m in header["modalities"]])
-        model.scales_ = {k: float(v) for k, v in header["scales"].items()}
-        if components.shape != (model.n_components, sum(model.n_features_.values())):
+            components = np.asarray(z["components"], dtype=np.float64)
+            model = cls(**header["params"])
+            names = list(header["modalities"])
+            n_features = {m: int(header["n_features"][m]) for m in names}
+            scales = {m: float(header["scales"][m]) for m in names}
+        except (KeyError, TypeError, ValueError) as e:
+            raise DataFormatError(f"{path}: a corrupt saved MultimodalNMF ({type(e).__name__}: {e}).") from None
+        if components.shape != (model.n_components, sum(n_features.values())):
             raise DataFormatError(f"{path}: dictionary of shape {components.shape} does not match its header.")
-        model.nmf_ = model._nmf()
-        model.nmf_._set_fitted(components, None)
-        model.components_ = components
+        # A version-1 file holds only the inner NMF's dictionary: the NMF is restored from
+        # the part of a saved NMF's state that its transform uses (dictionary and shape).
+        nmf = model._nmf()
+        nmf._set_state({"components_": components, "n_components_": components.shape[0],
+                        "n_features_in_": components.shape[1]})
+        model._set_state({"modalities_": names, "n_features_": n_features, "scales_": scales, "nmf_": nmf})
         return model
