@@ -38,7 +38,8 @@ def _claims_decided_by_bootstrap(exp_id, res, n):
 @pytest.mark.slow
 def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
     from mmconcepts.experiments import _ch6_common as common
-    from mmconcepts.experiments.ch6_motion_sound import Config, run_labels, run_motion_sound, run_symbolic
+    from mmconcepts.experiments.ch6_motion_sound import (Config, compute_labels, compute_motion_sound,
+                                                         compute_symbolic, present_motion_sound)
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_motion=60, n_folds=2, k=12, n_iter=30)
@@ -46,17 +47,20 @@ def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
     # pairing by concept: each utterance's motion has the gesture its keyword maps to
     assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 50
     assert sorted(data["mapping"].values()) == sorted(set(data["mapping"].values()))  # a bijection
-    res = run_motion_sound(cfg, ctx)
+    res = compute_motion_sound(cfg, ctx)
     res.validate()
+    bars = present_motion_sound(res, cfg)["table6_2"].axes[0].patches  # sound -> motion: 3 spaces x 4 metrics
+    assert [b.get_height() for b in bars][:3] == [res.metrics[f"sound2motion.{sp}.kl"]
+                                                   for sp in ("internal", "motion", "sound")]
     m = res.metrics
     keys = [k for k in m if k.count(".") == 2 and not k.endswith("_std") and not k.startswith("shuffled")]
     assert len(keys) == 24  # 2 directions x 3 spaces x 4 metrics (KL = I-divergence, KL normalised, Eucl., cos.)
     assert all(0.0 <= m[k] <= 1.0 for k in keys)
     assert m["sound2motion.internal.cosine"] > m["shuffled.sound2motion.internal.cosine"]
     # the other two reuse the cached folds
-    sym = run_symbolic(cfg, ctx).metrics
+    sym = compute_symbolic(cfg, ctx).metrics
     assert sym["without_labels.sound2motion.internal.cosine"] == m["sound2motion.internal.cosine"]
-    lab = run_labels(cfg, ctx).metrics
+    lab = compute_labels(cfg, ctx).metrics
     for k in ("sound_labels.s2l", "motion_labels.m2l", "all.s2l", "all.m2l", "all.sm2l"):
         assert 0.0 <= lab[k] <= 1.0 and np.isfinite(lab[f"{k}_std"])
     assert lab["motion_labels.m2l"] > 2 * lab["chance"]
@@ -67,8 +71,8 @@ def test_ch6_motion_sound_symbolic_labels_small(tiny_speech_corpus, tmp_path):
     assert s["shuffled.mean"] == pytest.approx([np.mean([s[k][f] for k in shuffled]) for f in range(2)])
     assert m["shuffled.mean"] == pytest.approx(np.mean([m[k] for k in shuffled]))
     assert s["shuffled.max"] == s[max(shuffled, key=lambda k: m[k])]
-    for exp_id, run_fn in (("ch6-motion-sound", run_motion_sound), ("ch6-symbolic", run_symbolic),
-                           ("ch6-labels", run_labels)):
+    for exp_id, run_fn in (("ch6-motion-sound", compute_motion_sound), ("ch6-symbolic", compute_symbolic),
+                           ("ch6-labels", compute_labels)):
         result = res if exp_id == "ch6-motion-sound" else run_fn(cfg, ctx)
         _claims_decided_by_bootstrap(exp_id, result, 2)
         notes = " ".join(result.notes)
@@ -103,11 +107,11 @@ def test_magnitude_claims_against_tables_6_2_to_6_4(exp_id, names):
 
 @pytest.mark.slow
 def test_ch6_image_features_small(tiny_speech_corpus, tmp_path):
-    from mmconcepts.experiments.ch6_image_features import SETS, Config, run
+    from mmconcepts.experiments.ch6_image_features import SETS, Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_views=6, n_repeats=2, k=12, n_iter=30)
-    res = run(cfg, ctx)
+    res = compute(cfg, ctx)
     res.validate()
     m, s = res.metrics, res.samples
     for name in SETS:
@@ -156,10 +160,10 @@ def test_mutual_information_matrix_by_construction(rng):
 
 @pytest.mark.slow
 def test_ch6_concepts_small(tiny_speech_corpus, tmp_path):
-    from mmconcepts.experiments.ch6_concepts import REPEATED, Config, run
+    from mmconcepts.experiments.ch6_concepts import REPEATED, Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
-    res = run(dataclasses.replace(Config.quick(), n_motion=60, k=8, n_iter=30, n_repeats=3), ctx)
+    res = compute(dataclasses.replace(Config.quick(), n_motion=60, k=8, n_iter=30, n_repeats=3), ctx)
     res.validate()
     m, s = res.metrics, res.samples
     assert m["n_concepts"] == 10 and 0 <= m["n_specialised"] <= 8
@@ -179,7 +183,7 @@ def test_ch6_concepts_small(tiny_speech_corpus, tmp_path):
     assert "13 or 10 keywords" in notes and "ambiguities of Fig. 6.10" in notes
     # the repetitions run side by side in worker processes give the same numbers (own seeds, one thread each)
     ctx2 = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False, workers=2)
-    again = run(dataclasses.replace(Config.quick(), n_motion=60, k=8, n_iter=30, n_repeats=3), ctx2)
+    again = compute(dataclasses.replace(Config.quick(), n_motion=60, k=8, n_iter=30, n_repeats=3), ctx2)
     for name in REPEATED:
         assert again.samples[name] == pytest.approx(s[name], rel=1e-9, abs=1e-12), name
 
@@ -324,12 +328,12 @@ def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
 @pytest.mark.slow
 def test_ch6_sliding_repetitions_small(tiny_speech_corpus, tmp_path):
     """With several repetitions, every rate keeps one value per repetition (the whole protocol again)."""
-    from mmconcepts.experiments.ch6_sliding import Config, run
+    from mmconcepts.experiments.ch6_sliding import Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_views=6, widths=(0.5,), k=8, n_iter=20, fixed_width=0.5,
                               n_repeats=2)
-    res = run(cfg, ctx)
+    res = compute(cfg, ctx)
     res.validate()
     for key in ("width_0_5.s2i", "fixed_width.s2i", "localisation.peak_in_keyword", "localisation.chance"):
         assert len(res.samples[key]) == 2, key
@@ -340,11 +344,11 @@ def test_ch6_sliding_repetitions_small(tiny_speech_corpus, tmp_path):
 
 def test_sliding_fixed_width_must_be_a_width(tmp_path):
     from mmconcepts.errors import ParameterError
-    from mmconcepts.experiments.ch6_sliding import Config, run
+    from mmconcepts.experiments.ch6_sliding import Config, compute
 
     cfg = dataclasses.replace(Config.quick(), widths=(0.1, 1.0), fixed_width=0.3)
     with pytest.raises(ParameterError, match="fixed_width must be one of the widths"):
-        run(cfg, RunContext(cache_dir=tmp_path, show_progress=False))
+        compute(cfg, RunContext(cache_dir=tmp_path, show_progress=False))
 
 
 def test_sliding_fold_rates_by_hand(rng):
@@ -480,10 +484,10 @@ def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
 
 @pytest.mark.slow
 def test_ch6_labels_on_real_voices_and_motion(tmp_path):
-    from mmconcepts.experiments.ch6_motion_sound import Config, run_labels
+    from mmconcepts.experiments.ch6_motion_sound import Config, compute_labels
 
     ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
-    res = run_labels(dataclasses.replace(Config.quick(), n_per_speaker=100, n_folds=2, k=12, n_iter=30), ctx)
+    res = compute_labels(dataclasses.replace(Config.quick(), n_per_speaker=100, n_folds=2, k=12, n_iter=30), ctx)
     assert "Free Spoken Digit" in res.notes[0] and "MSR Action3D" in res.notes[0]
     assert res.metrics["motion_labels.m2l"] > 2 * res.metrics["chance"]
     assert res.metrics["sound_labels.s2l"] > 2 * res.metrics["chance"]
@@ -491,11 +495,11 @@ def test_ch6_labels_on_real_voices_and_motion(tmp_path):
 
 @pytest.mark.slow
 def test_ch6_sliding_on_real_words_and_objects(tmp_path):
-    from mmconcepts.experiments.ch6_sliding import Config, run
+    from mmconcepts.experiments.ch6_sliding import Config, compute
 
     ctx = _real_ctx(tmp_path, "fsdd", "eth80")
     cfg = dataclasses.replace(Config.quick(), n_per_speaker=100, widths=(0.2, 0.5), k=12, n_iter=30, fixed_width=0.2)
-    res = run(cfg, ctx)
+    res = compute(cfg, ctx)
     res.validate()
     m = res.metrics
     assert m["localisation.n_utterances"] == 20  # every test recording, flanked by 1-3 others

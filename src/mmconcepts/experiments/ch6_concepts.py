@@ -39,7 +39,7 @@ from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run", "mutual_information_matrix", "REPEATED"]
+__all__ = ["Config", "compute", "present", "run", "mutual_information_matrix", "REPEATED"]
 
 
 @dataclass(frozen=True)
@@ -156,7 +156,9 @@ def _fit_repetition(task: dict) -> tuple[dict, dict, dict]:
     return _repetition(task["y"], W, task["n_bins"], task["control_seed"])
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Mutual information and specialisation over the repetitions (no figure; ``figure_data``: the first
+    repetition's mutual-information matrix and matching order, and the keywords, for :func:`present`)."""
     st = common.streams(config.seed)
     data = common.load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, seeds=st)
     y = data["y"]
@@ -181,16 +183,6 @@ def run(config: Config, ctx: RunContext) -> Result:
     samples = {name: [v[name] for v in per_rep] for name in REPEATED}
     res = reps[0][0]  # the figure and the matching table show the first repetition
     keywords = data["keywords"]
-    mi_sorted = res["mi"][:, res["order"]]
-    fig = Figure(figsize=(7, 4))
-    ax = fig.subplots()
-    im = ax.imshow(mi_sorted, aspect="auto", cmap="viridis")
-    ax.set_yticks(range(len(keywords)), keywords, fontsize=8)
-    ax.set_xticks(range(len(res["order"])), [str(j) for j in res["order"]], fontsize=7)
-    ax.set_xlabel("internal coefficient (matched ones first)")
-    ax.set_title(f"Fig. 6.10: mutual information (bits), k = {config.k}, repetition 1 of {config.n_repeats}")
-    fig.colorbar(im, ax=ax)
-    fig.tight_layout()
     rows = [[keywords[r], int(c), float(res["mi"][r, c]), float(f)]
             for r, c, f in sorted(zip(res["rows"], res["cols"], res["fraction"]), key=lambda t: -t[2])]
     rep_rows = [[r + 1] + [v[name] for name in REPEATED] for r, v in enumerate(per_rep)]
@@ -202,7 +194,7 @@ def run(config: Config, ctx: RunContext) -> Result:
                                   rows),
                 "repetitions": Table("Per repetition (NMF initialisation; shuffled control with its own permutation)",
                                      ["repetition"] + list(REPEATED), rep_rows)},
-        figures={"fig6_10": fig},
+        figure_data={"mi": res["mi"], "order": res["order"], "keywords": keywords},
         notes=[common.data_source_note(ctx, data["speech"], data["motion"]),
                f"{len(y)} sound-motion pairs of speaker {data['speaker']} (all used for training); k = {config.k}, "
                f"{config.n_iter} iterations; coefficients discretised into {config.n_bins} equal-width bins. "
@@ -221,12 +213,30 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 6.10: mutual information between concepts and coefficients (first repetition), matched ones first."""
+    res = result.figure_data  # the first repetition's matrix and matching order
+    keywords = res["keywords"]
+    mi_sorted = res["mi"][:, res["order"]]
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
+    im = ax.imshow(mi_sorted, aspect="auto", cmap="viridis")
+    ax.set_yticks(range(len(keywords)), keywords, fontsize=8)
+    ax.set_xticks(range(len(res["order"])), [str(j) for j in res["order"]], fontsize=7)
+    ax.set_xlabel("internal coefficient (matched ones first)")
+    ax.set_title(f"Fig. 6.10: mutual information (bits), k = {config.k}, repetition 1 of {config.n_repeats}")
+    fig.colorbar(im, ax=ax)
+    fig.tight_layout()
+    return {"fig6_10": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch6-concepts",
     title="Specialisation of internal coefficients on concepts (mutual information)",
     thesis_ref="Section 6.6.3, Fig. 6.10",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("Some coefficients are highly specialised: at least one captures more than half of a concept's entropy "
@@ -241,3 +251,6 @@ register(Experiment(
     datasets=("fsdd", "msr-action3d", "acorns", "audio", "choreo2"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

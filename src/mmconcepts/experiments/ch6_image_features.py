@@ -35,7 +35,7 @@ from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run", "SETS"]
+__all__ = ["Config", "compute", "present", "run", "SETS"]
 
 SETS = ("keypoints", "keypoint_pairs", "color", "color_pairs", "color_triplets", "all")
 SPLIT = (0.6, 0.2, 0.2)  # training, test, reference
@@ -101,7 +101,8 @@ def _repeat(task: dict) -> dict:
     return out
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Success rates by descriptor set over the repetitions (no figure: :func:`present` draws the metrics)."""
     st = common.streams(config.seed)
     speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
     keywords, y, mfcc = speech["keywords"], speech["y"], speech["mfcc"]
@@ -146,25 +147,11 @@ def run(config: Config, ctx: RunContext) -> Result:
         samples[f"best_single.{key}"] = list(samples[f"{top}.{key}"])
     best = max(singles, key=lambda s: metrics[f"{s}.both"])
     rows = [[s, metrics[f"{s}.i2s"], metrics[f"{s}.i2s_std"], metrics[f"{s}.s2i"], metrics[f"{s}.s2i_std"]] for s in SETS]
-    fig = Figure(figsize=(7, 3.5))
-    ax = fig.subplots()
-    x = np.arange(len(SETS))
-    for j, key in enumerate(("i2s", "s2i")):
-        ax.bar(x + (j - 0.5) * 0.4, [metrics[f"{s}.{key}"] for s in SETS], 0.4,
-               yerr=[metrics[f"{s}.{key}_std"] for s in SETS], label={"i2s": "I -> S", "s2i": "S -> I"}[key])
-    ax.axhline(metrics["chance"], color="k", ls=":", label="chance")
-    ax.set_xticks(x, SETS, rotation=20, fontsize=8)
-    ax.set_ylabel("success rate")
-    ax.set_ylim(0, 1)
-    ax.set_title("Fig. 6.4: image descriptor sets")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
     return Result(
         metrics=metrics,
         samples=samples,
         tables={"fig6_4": Table("Fig. 6.4: success rates by image descriptor set",
                                 ["descriptors", "I -> S", "std", "S -> I", "std"], rows)},
-        figures={"fig6_4": fig},
         notes=[_data_note(ctx, speech, ims),
                f"Speaker {speech['speaker']}: {len(y)} utterances paired with views of {len(keywords)} objects; "
                f"{config.n_repeats} repetitions; in each, the utterances and each object's views are split 60/20/20 "
@@ -187,12 +174,32 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 6.4: success rates by image descriptor set, in both directions."""
+    metrics = result.metrics
+    fig = Figure(figsize=(7, 3.5))
+    ax = fig.subplots()
+    x = np.arange(len(SETS))
+    for j, key in enumerate(("i2s", "s2i")):
+        ax.bar(x + (j - 0.5) * 0.4, [metrics[f"{s}.{key}"] for s in SETS], 0.4,
+               yerr=[metrics[f"{s}.{key}_std"] for s in SETS], label={"i2s": "I -> S", "s2i": "S -> I"}[key])
+    ax.axhline(metrics["chance"], color="k", ls=":", label="chance")
+    ax.set_xticks(x, SETS, rotation=20, fontsize=8)
+    ax.set_ylabel("success rate")
+    ax.set_ylim(0, 1)
+    ax.set_title("Fig. 6.4: image descriptor sets")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return {"fig6_4": fig}
+
+
+EXPERIMENT = register(Experiment(
     id="ch6-image-features",
     title="Image <-> sound associations by image descriptor set",
     thesis_ref="Section 6.6.1, Fig. 6.4",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("Every image descriptor set supports the association with sound, in both directions, above chance.",
@@ -212,3 +219,6 @@ register(Experiment(
     datasets=("fsdd", "eth80", "acorns", "audio", "images"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

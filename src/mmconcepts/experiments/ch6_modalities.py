@@ -39,7 +39,7 @@ from .base import Claim, Experiment, Result, RunContext, Table
 
 from .registry import register
 
-__all__ = ["Config", "run"]
+__all__ = ["Config", "compute", "present", "run"]
 
 MODS = ("S", "M", "I")
 SPLIT = (0.6, 0.2, 0.2)  # training, test, reference
@@ -136,7 +136,9 @@ def _repeat(task: dict) -> dict:
     return out
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Success rates of every setup over the repetitions (no figures; ``figure_data["repetitions"]``: each
+    repetition's rates, for :func:`present`'s box plots)."""
     st = common.streams(config.seed)
     speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
     motion = common.load_motion(ctx, n_motion=config.n_motion)
@@ -187,38 +189,14 @@ def run(config: Config, ctx: RunContext) -> Result:
 
     setups = _setups()
     rows = [[t, te, rf, metrics[_key(t, te, rf)], metrics[f"{_key(t, te, rf)}_std"]] for t, te, rf in setups]
-    fig = Figure(figsize=(9, 4))
-    ax = fig.subplots()
-    labels_ = [f"{te}->{rf}\n({t})" for t, te, rf in setups]
-    ax.boxplot([[r[_key(*s)] for r in reps] for s in setups])
-    ax.set_xticks(range(1, len(setups) + 1), labels_, fontsize=6)
-    ax.axhline(metrics["chance"], color="k", ls=":")
-    ax.set_ylabel("success rate")
-    ax.set_ylim(0, 1)
-    ax.set_title(f"Fig. 6.5, 6.7: {config.n_repeats} repetitions with random associations (training modalities in "
-                 "brackets)")
-    fig.tight_layout()
-    fig6 = Figure(figsize=(6, 4))
-    ax = fig6.subplots()
     ks = list(config.k_sweep)
-    for which in ("two", "three"):
-        ax.errorbar(ks, [metrics[f"k_{k}.{which}"] for k in ks], yerr=[metrics[f"k_{k}.{which}_std"] for k in ks],
-                    marker="o", capsize=3, label=f"{which} modalities in training")
-    ax.axhline(metrics["chance"], color="k", ls=":")
-    ax.set_xscale("log")
-    ax.set_xlabel("number of atoms k")
-    ax.set_ylabel("mean one-to-one success rate")
-    ax.set_ylim(0, 1)
-    ax.set_title("Fig. 6.6: effect of k")
-    ax.legend(fontsize=7)
-    fig6.tight_layout()
     return Result(
         metrics=metrics,
         samples=samples,
         tables={"setups": Table("Fig. 6.5, 6.7: success rates", ["training", "test", "reference", "mean", "std"], rows),
                 "k_sweep": Table("Fig. 6.6: mean one-to-one success against k", ["k", "two modalities", "three modalities"],
                                  [[k, metrics[f"k_{k}.two"], metrics[f"k_{k}.three"]] for k in ks])},
-        figures={"fig6_5_6_7": fig, "fig6_6": fig6},
+        figure_data={"repetitions": reps},
         notes=[common.data_source_note(ctx, speech, motion) + " " + common.image_note(ctx, ims)
                + " Images represented by their colour descriptors.",
                f"{len(y)} examples (speaker {speech['speaker']}); {config.n_repeats} repetitions, each with new random "
@@ -248,12 +226,44 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 6.5 and 6.7 (box plots of every setup over the repetitions) and Fig. 6.6 (the effect of k)."""
+    metrics, reps, setups = result.metrics, result.figure_data["repetitions"], _setups()
+    fig = Figure(figsize=(9, 4))
+    ax = fig.subplots()
+    labels_ = [f"{te}->{rf}\n({t})" for t, te, rf in setups]
+    ax.boxplot([[r[_key(*s)] for r in reps] for s in setups])
+    ax.set_xticks(range(1, len(setups) + 1), labels_, fontsize=6)
+    ax.axhline(metrics["chance"], color="k", ls=":")
+    ax.set_ylabel("success rate")
+    ax.set_ylim(0, 1)
+    ax.set_title(f"Fig. 6.5, 6.7: {config.n_repeats} repetitions with random associations (training modalities in "
+                 "brackets)")
+    fig.tight_layout()
+    fig6 = Figure(figsize=(6, 4))
+    ax = fig6.subplots()
+    ks = list(config.k_sweep)
+    for which in ("two", "three"):
+        ax.errorbar(ks, [metrics[f"k_{k}.{which}"] for k in ks], yerr=[metrics[f"k_{k}.{which}_std"] for k in ks],
+                    marker="o", capsize=3, label=f"{which} modalities in training")
+    ax.axhline(metrics["chance"], color="k", ls=":")
+    ax.set_xscale("log")
+    ax.set_xlabel("number of atoms k")
+    ax.set_ylabel("mean one-to-one success rate")
+    ax.set_ylim(0, 1)
+    ax.set_title("Fig. 6.6: effect of k")
+    ax.legend(fontsize=7)
+    fig6.tight_layout()
+    return {"fig6_5_6_7": fig, "fig6_6": fig6}
+
+
+EXPERIMENT = register(Experiment(
     id="ch6-modalities",
     title="Two and three modalities: one-to-one, two-to-one and one-to-two matching",
     thesis_ref="Section 6.6.1, Fig. 6.5, 6.6 (effect of k) and 6.7",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("The semantic concepts are learnt when three modalities are present: every setup (one-to-one, "
@@ -265,3 +275,6 @@ register(Experiment(
     datasets=("fsdd", "msr-action3d", "eth80", "acorns", "audio", "choreo2", "images"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run

@@ -35,7 +35,8 @@ from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run_motion_sound", "run_symbolic", "run_labels"]
+__all__ = ["Config", "compute_motion_sound", "present_motion_sound", "run_motion_sound", "compute_symbolic",
+           "present_symbolic", "run_symbolic", "compute_labels", "run_labels"]
 
 DIRECTIONS = ("sound2motion", "motion2sound")
 METRICS = tuple(common.METRIC_NAMES)  # kl (I-divergence), kl_normalised, euclidean, cosine
@@ -171,7 +172,8 @@ def _figure(metrics: dict, prefix: str, title: str) -> Figure:
     return fig
 
 
-def run_motion_sound(config: Config, ctx: RunContext) -> Result:
+def compute_motion_sound(config: Config, ctx: RunContext) -> Result:
+    """Table 6.2's success rates and the shuffled control (no figure: :func:`present_motion_sound`)."""
     data, folds = common.evaluate(ctx, config)
     shuffled_keys = _matching_keys("shuffled.")
     metrics = common.summarise(folds, _matching_keys() + shuffled_keys)
@@ -188,12 +190,16 @@ def run_motion_sound(config: Config, ctx: RunContext) -> Result:
     return Result(metrics=metrics,
                   tables={"table6_2": _table(metrics, "", "Table 6.2: motion <-> sound, success rates"),
                           "shuffled": _table(metrics, "shuffled.", "Control: shuffled training pairs")},
-                  figures={"table6_2": _figure(metrics, "", "Table 6.2 (red: shuffled control, dotted: chance)")},
                   notes=_notes(ctx, data, folds, config) + [_best_note(metrics), _magnitude_note(metrics, TABLE_6_2),
                                                             f"shuffled.max ({top.removeprefix('shuffled.')}) is the "
                                                             "best of the control's 24 comparisons, a descriptive "
                                                             "maximum chosen on the test folds: no claim uses it."],
                   samples=samples)
+
+
+def present_motion_sound(result: Result, config: Config) -> dict[str, Figure]:
+    """Table 6.2 as bars, with the shuffled control and chance."""
+    return {"table6_2": _figure(result.metrics, "", "Table 6.2 (red: shuffled control, dotted: chance)")}
 
 
 def _best_note(metrics: dict) -> str:
@@ -206,7 +212,8 @@ def _best_note(metrics: dict) -> str:
     return "Best comparison: " + "; ".join(parts) + " (thesis: internal space, cosine, in both directions)."
 
 
-def run_symbolic(config: Config, ctx: RunContext) -> Result:
+def compute_symbolic(config: Config, ctx: RunContext) -> Result:
+    """Table 6.3's success rates, beside Table 6.2's (no figure: :func:`present_symbolic`)."""
     data, folds = common.evaluate(ctx, config)
     keys = _matching_keys("symbolic.") + _matching_keys()
     m = common.summarise(folds, keys)
@@ -217,17 +224,22 @@ def run_symbolic(config: Config, ctx: RunContext) -> Result:
     return Result(metrics=metrics,
                   tables={"table6_3": _table(metrics, "", "Table 6.3: motion <-> sound with labels in training"),
                           "without_labels": _table(metrics, "without_labels.", "Table 6.2 again (no labels)")},
-                  figures={"table6_3": _figure(metrics, "", "Table 6.3 (dotted: chance)")},
                   notes=_notes(ctx, data, folds, config) + [_magnitude_note(metrics, TABLE_6_3)],
                   samples={**common.fold_samples(folds, metrics, lambda k: f"without_labels.{k}"),
                            **common.fold_samples(folds, metrics, lambda k: k.removeprefix("symbolic.")
                                                  if k.startswith("symbolic.") else None)})
 
 
+def present_symbolic(result: Result, config: Config) -> dict[str, Figure]:
+    """Table 6.3 as bars, with chance."""
+    return {"table6_3": _figure(result.metrics, "", "Table 6.3 (dotted: chance)")}
+
+
 LABEL_KEYS = ("sound_labels.s2l", "motion_labels.m2l", "all.s2l", "all.m2l", "all.sm2l")
 
 
-def run_labels(config: Config, ctx: RunContext) -> Result:
+def compute_labels(config: Config, ctx: RunContext) -> Result:
+    """Table 6.4's label recognition rates (no figure)."""
     data, folds = common.evaluate(ctx, config)
     metrics = common.summarise(folds, LABEL_KEYS)
     metrics["chance"] = 1.0 / len(data["keywords"])
@@ -244,12 +256,13 @@ def run_labels(config: Config, ctx: RunContext) -> Result:
 
 _DATASETS = ("fsdd", "msr-action3d", "acorns", "audio", "choreo2")
 
-register(Experiment(
+MOTION_SOUND = register(Experiment(
     id="ch6-motion-sound",
     title="Learning motion <-> sound associations",
     thesis_ref="Section 6.6.1, Table 6.2",
     config_cls=Config,
-    run=run_motion_sound,
+    compute=compute_motion_sound,
+    present=present_motion_sound,
     reference=TABLE_6_2,
     claims=[
         Claim("Associations between sounds and motions are learnt: compared in the internal space, both directions "
@@ -273,12 +286,13 @@ register(Experiment(
     description="Cross-modal matching between spoken keywords and gestures (Table 6.2).",
 ))
 
-register(Experiment(
+SYMBOLIC = register(Experiment(
     id="ch6-symbolic",
     title="Motion <-> sound associations with a symbolic modality in training",
     thesis_ref="Section 6.6.1, Table 6.3",
     config_cls=Config,
-    run=run_symbolic,
+    compute=compute_symbolic,
+    present=present_symbolic,
     reference=TABLE_6_3,
     claims=[
         Claim("With labels in training, sounds and motions are still matched far above chance in the internal space.",
@@ -296,12 +310,12 @@ register(Experiment(
     description="Cross-modal matching with labels in training (Table 6.3).",
 ))
 
-register(Experiment(
+LABELS = register(Experiment(
     id="ch6-labels",
     title="Label recognition from sound, motion, or both",
     thesis_ref="Section 6.6.1, Table 6.4",
     config_cls=Config,
-    run=run_labels,
+    compute=compute_labels,
     reference=TABLE_6_4,
     claims=[
         Claim("Labels are recognised far above chance from sound alone and from motion alone.",
@@ -320,3 +334,6 @@ register(Experiment(
     datasets=_DATASETS,
     description="Symbolic labels reconstructed from sound and/or motion (Table 6.4).",
 ))
+
+#: ``compute`` and then ``present`` of each experiment: the result with its figures.
+run_motion_sound, run_symbolic, run_labels = MOTION_SOUND.run, SYMBOLIC.run, LABELS.run

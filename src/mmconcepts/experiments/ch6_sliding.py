@@ -57,7 +57,8 @@ from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .registry import register
 
-__all__ = ["Config", "run", "stream_windows", "compose_test_utterances", "stratified_folds", "repetition_streams"]
+__all__ = ["Config", "compute", "present", "run", "stream_windows", "compose_test_utterances", "stratified_folds",
+           "repetition_streams"]
 
 
 @dataclass(frozen=True)
@@ -319,7 +320,15 @@ def _units(values: list[list[float]]) -> list[float]:
     return [_nanmean(v) for v in values]
 
 
-def run(config: Config, ctx: RunContext) -> Result:
+def _tags(widths) -> list[str]:
+    """The metric prefix of each window width: ``width_0_3`` for 0.3 s."""
+    return [f"width_{w:g}".replace(".", "_") for w in widths]
+
+
+def compute(config: Config, ctx: RunContext) -> Result:
+    """Success against the window width and the localisation probe (no figures; ``figure_data``: the first
+    repetition's probe traces and texts, the fixed width's index and the units of the spread, for
+    :func:`present`)."""
     st = common.streams(config.seed)
     widths = list(config.widths)
     if not any(np.isclose(w, config.fixed_width) for w in widths):
@@ -349,7 +358,7 @@ def run(config: Config, ctx: RunContext) -> Result:
             o.pop("model", None)
     metrics: dict[str, float] = {"chance": 1.0 / len(keywords)}
     samples: dict[str, list[float]] = {}
-    tags = [f"width_{w:g}".replace(".", "_") for w in widths]
+    tags = _tags(widths)
     for j, tag in enumerate(tags):
         for key in ("s2i", "i2s"):
             samples[f"{tag}.{key}"] = _units([out[j][key] for out in outs])
@@ -376,37 +385,6 @@ def run(config: Config, ctx: RunContext) -> Result:
     else:
         sample_units = {name: "repetitions" for name in samples}
 
-    err = {key: [np.nanstd(samples[f"{tag}.{key}"]) for tag in tags] for key in ("s2i", "i2s")}
-    fig8 = Figure(figsize=(6, 4))
-    ax = fig8.subplots()
-    ax.errorbar(widths, [metrics[f"{tag}.s2i"] for tag in tags], yerr=err["s2i"], fmt="o-", capsize=3,
-                label="S -> I")
-    ax.errorbar(widths, [metrics[f"{tag}.i2s"] for tag in tags], yerr=err["i2s"], fmt="s-", capsize=3,
-                label="I -> S")
-    ax.axhline(metrics["chance"], color="k", ls=":", label="chance")
-    ax.axvline(widths[fixed_at], color="grey", ls="--", lw=1, label="fixed width (claims)")
-    ax.set_xscale("log")
-    ax.set_xlabel("window width (s)")
-    ax.set_ylabel("success rate (full utterances vs single images)")
-    ax.set_ylim(0, 1)
-    ax.set_title(f"Fig. 6.8: learning from sliding windows (mean +- std over {units})", fontsize=9)
-    ax.legend(fontsize=7)
-    fig8.tight_layout()
-    fig9 = Figure(figsize=(8, 6))
-    axes = fig9.subplots(3, 2).ravel()
-    probe, y_probe, texts = probes[0], reps[0]["probe_input"][1], reps[0]["texts"]
-    shown = [int(np.flatnonzero(y_probe == c)[0]) for c in np.unique(y_probe)][:6]  # six different concepts
-    for ax, i in zip(axes, shown):
-        (t, sim, span), text = probe["traces"][i], texts[i]
-        ax.plot(t, sim, "-")
-        if np.isfinite(span).all():
-            ax.axvspan(span[0], span[1], color="orange", alpha=0.3)
-        ax.set_title(text, fontsize=7)
-        ax.set_ylim(0, 1)
-        ax.tick_params(labelsize=6)
-    fig9.suptitle(f"Fig. 6.9: similarity to the concept's image along test utterances (keyword shaded, "
-                  f"{widths[fixed_at]:g} s windows, plotted at their start)", fontsize=8)
-    fig9.tight_layout()
     rows = [[w, metrics[f"{tag}.n_windows"], metrics[f"{tag}.s2i"], metrics[f"{tag}.i2s"]]
             for w, tag in zip(widths, tags)]
     rep0 = reps[0]
@@ -419,7 +397,8 @@ def run(config: Config, ctx: RunContext) -> Result:
         tables={"fig6_8": Table("Fig. 6.8: success against window width (every width; the claims use the fixed "
                                 f"width {widths[fixed_at]:g} s)",
                                 ["width (s)", "training windows", "S -> I", "I -> S"], rows)},
-        figures={"fig6_8": fig8, "fig6_9": fig9},
+        figure_data={"probe": probes[0], "y_probe": reps[0]["probe_input"][1], "texts": reps[0]["texts"],
+                     "fixed_at": fixed_at, "units": units},
         notes=[common.image_note(ctx, ims) + " " + common.speech_note(ctx, speech),
                f"Speaker {speech['speaker']}: a stream of {len(rep0['tr'])} training utterances ({total:.0f} s), "
                f"{config.frame_rate:g} image frames per second; windows shifted by {config.shift:g} of their width; "
@@ -462,12 +441,52 @@ def run(config: Config, ctx: RunContext) -> Result:
     )
 
 
-register(Experiment(
+def present(result: Result, config: Config) -> dict[str, Figure]:
+    """Fig. 6.8 (success against the window width) and Fig. 6.9 (similarity along test utterances)."""
+    metrics, samples, fd = result.metrics, result.samples, result.figure_data
+    widths = list(config.widths)
+    tags, fixed_at, units = _tags(widths), fd["fixed_at"], fd["units"]
+    err = {key: [np.nanstd(samples[f"{tag}.{key}"]) for tag in tags] for key in ("s2i", "i2s")}
+    fig8 = Figure(figsize=(6, 4))
+    ax = fig8.subplots()
+    ax.errorbar(widths, [metrics[f"{tag}.s2i"] for tag in tags], yerr=err["s2i"], fmt="o-", capsize=3,
+                label="S -> I")
+    ax.errorbar(widths, [metrics[f"{tag}.i2s"] for tag in tags], yerr=err["i2s"], fmt="s-", capsize=3,
+                label="I -> S")
+    ax.axhline(metrics["chance"], color="k", ls=":", label="chance")
+    ax.axvline(widths[fixed_at], color="grey", ls="--", lw=1, label="fixed width (claims)")
+    ax.set_xscale("log")
+    ax.set_xlabel("window width (s)")
+    ax.set_ylabel("success rate (full utterances vs single images)")
+    ax.set_ylim(0, 1)
+    ax.set_title(f"Fig. 6.8: learning from sliding windows (mean +- std over {units})", fontsize=9)
+    ax.legend(fontsize=7)
+    fig8.tight_layout()
+    fig9 = Figure(figsize=(8, 6))
+    axes = fig9.subplots(3, 2).ravel()
+    probe, y_probe, texts = fd["probe"], fd["y_probe"], fd["texts"]
+    shown = [int(np.flatnonzero(y_probe == c)[0]) for c in np.unique(y_probe)][:6]  # six different concepts
+    for ax, i in zip(axes, shown):
+        (t, sim, span), text = probe["traces"][i], texts[i]
+        ax.plot(t, sim, "-")
+        if np.isfinite(span).all():
+            ax.axvspan(span[0], span[1], color="orange", alpha=0.3)
+        ax.set_title(text, fontsize=7)
+        ax.set_ylim(0, 1)
+        ax.tick_params(labelsize=6)
+    fig9.suptitle(f"Fig. 6.9: similarity to the concept's image along test utterances (keyword shaded, "
+                  f"{widths[fixed_at]:g} s windows, plotted at their start)", fontsize=8)
+    fig9.tight_layout()
+    return {"fig6_8": fig8, "fig6_9": fig9}
+
+
+EXPERIMENT = register(Experiment(
     id="ch6-sliding",
     title="Learning from sliding windows of a simulated video stream",
     thesis_ref="Section 6.6.2, Fig. 6.8 and 6.9",
     config_cls=Config,
-    run=run,
+    compute=compute,
+    present=present,
     reference={},
     claims=[
         Claim("The learner copes with the ambiguity of sliding windows: learnt from windows of a fixed width (0.3 s, "
@@ -480,3 +499,6 @@ register(Experiment(
     datasets=("fsdd", "eth80", "acorns", "audio", "images"),
     description=__doc__.split("\n\n")[0],
 ))
+
+#: ``compute`` and then ``present``: the result with its figures.
+run = EXPERIMENT.run
