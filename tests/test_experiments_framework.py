@@ -650,3 +650,18 @@ def test_experiment_run_compute_present_combinations(kwargs, fragment):
         Experiment(id="x-1", title="t", thesis_ref="r", config_cls=_Cfg, **kwargs)
     legacy = Experiment(id="x-1", title="t", thesis_ref="r", config_cls=_Cfg, run=_noop)
     assert legacy.compute is _noop and legacy.run is _noop and legacy.present is None
+
+
+def test_every_registered_experiment_computes_and_presents_apart():
+    """The pattern of issue 13 everywhere: numbers from compute, figures from present (none for a table alone)."""
+    import importlib
+
+    import mmconcepts.experiments as experiments
+
+    exps = [obj for name in experiments.EXPERIMENT_MODULES for obj in vars(importlib.import_module(name)).values()
+            if isinstance(obj, Experiment)]
+    assert len(exps) >= 19
+    for exp in exps:
+        assert exp.compute is not exp.run and exp.compute.__module__.startswith("mmconcepts.experiments."), exp.id
+        assert exp.run == exp._compute_and_present, exp.id
+        assert (exp.present is None) == (exp.id == "ch6-labels"), exp.id  # Table 6.4 has no figure
