@@ -100,7 +100,7 @@ def test_present_draws_the_computed_numbers():
     figures = present(res, TINY)
     assert set(figures) == {"loss_curves", "distances"}
     curves = res.figure_data["loss_curves"]
-    assert [r["name"] for r in curves] == ["beta_1.mu"]  # the first identifiable repeat, one method per curve
+    assert [(r["kind"], r["repeat"], r["name"]) for r in curves] == [("identifiable", 0, "beta_1.mu")]
     line = figures["loss_curves"].axes[0].lines[0]
     its, h = curves[0]["history"]
     assert h[0] == 1.0 and line.get_ydata().tolist() == h and line.get_xdata().tolist() == [i + 1 for i in its]

@@ -225,7 +225,8 @@ def compute(config: Config, ctx: RunContext) -> Result:
 
     first = [r for r in runs if r["kind"] == "identifiable" and r["repeat"] == 0]
     return Result(metrics=metrics, tables={"recovery": table},
-                  figure_data={"loss_curves": [{k: r[k] for k in ("name", "solver", "history")} for r in first]},
+                  figure_data={"loss_curves": [{k: r[k] for k in ("kind", "repeat", "name", "solver", "history")}
+                                               for r in first]},
                   samples=samples,
                   sample_units={name: "MM runs" if name == "mu_mm.max_relative_increase" else "repeats"
                                 for name in samples},
