@@ -92,6 +92,36 @@ def test_evaluate_folds_caches_and_pools(rng, tmp_path):
     assert score > 0.75  # two well separated classes
 
 
+def test_an_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, monkeypatch):
+    """Each fold is cached as it ends: a run stopped at the third fold resumes from there."""
+    angles = [rng.normal(size=(20, 3)) + (i % 2) for i in range(12)]
+    Y = np.eye(2)[np.arange(12) % 2]
+    splits = common.kfold_splits(12, 4, seed=0)
+    args = dict(features={"data": "joint", "method": "kde", "n_bins": 5, "delay": 1}, learners=("chance",),
+                params={}, seed=0, single=True)
+    real_fold, calls = common._fold, []
+
+    def stop_at_third(task):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real_fold(task)
+
+    monkeypatch.setattr(common, "_fold", stop_at_third)
+    ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
+    with pytest.raises(KeyboardInterrupt):
+        common.evaluate_folds(ctx, angles, Y, splits, **args)
+    assert len(list((tmp_path / "ch3-folds").glob("*.pkl"))) == 2
+    calls.clear()
+    monkeypatch.setattr(common, "_fold", lambda task: (calls.append(1), real_fold(task))[1])
+    resumed = common.evaluate_folds(ctx, angles, Y, splits, **args)
+    assert len(calls) == 2 and len(resumed) == 4
+    fresh = common.evaluate_folds(RunContext(workers=1, cache_dir=tmp_path / "b", show_progress=False), angles, Y,
+                                  splits, **args)
+    for a, b in zip(resumed, fresh):
+        np.testing.assert_array_equal(a["chance"]["scores"], b["chance"]["scores"])
+
+
 # --------------------------------------------------------------------------- real data: MSR Action3D subsets
 def test_data_priority_choreo1_then_msr_then_synthetic(tmp_path):
     assert common.data_kind(RunContext(cache_dir=tmp_path)) == "synthetic"

@@ -376,6 +376,11 @@ def test_context_parallel_keeps_order(tmp_path):
     pooled = RunContext(workers=2, cache_dir=tmp_path, show_progress=False).parallel(abs, [-3, 2, -1, 5])
     assert serial == [x * x for x in items]
     assert pooled == [3, 2, 1, 5]
+    for workers in (1, 2):  # on_result sees each result, in order, as it comes back
+        seen = []
+        ctx = RunContext(workers=workers, cache_dir=tmp_path, show_progress=False)
+        assert ctx.parallel(abs, [-3, 2, -1, 5], on_result=lambda i, r: seen.append((i, r))) == [3, 2, 1, 5]
+        assert seen == [(0, 3), (1, 2), (2, 1), (3, 5)]
 
 
 def test_context_validates_workers_and_requires_data(tmp_path):

@@ -475,12 +475,14 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
             todo.append(((j, i), {"angles": angles, "Y": Y, "train": np.asarray(tr), "test": np.asarray(te), "features": feats,
                                       "learners": tuple(learners), "params": params, "seed": fold_seed, "single": single}))
             keys.append(key)
-    done = ctx.parallel(_fold, [t for _, t in todo], desc=desc)
-    for ((j, i), _), key, res in zip(todo, keys, done):
+    def keep(t: int, res: dict) -> None:  # cached as each fold ends, so an interrupted run resumes per fold
+        j, i = todo[t][0]
         results[j][i] = res
-        tmp = key.with_suffix(f".{os.getpid()}.tmp")
+        tmp = keys[t].with_suffix(f".{os.getpid()}.tmp")
         tmp.write_bytes(pickle.dumps(res))
-        os.replace(tmp, key)
+        os.replace(tmp, keys[t])
+
+    ctx.parallel(_fold, [t for _, t in todo], desc=desc, on_result=keep)
     if not many:
         return results[0]  # type: ignore[return-value]
     return results  # type: ignore[return-value]

@@ -392,7 +392,8 @@ class RunContext:
 
         return tqdm(iterable, total=total, desc=desc, disable=not _progress_enabled(self.show_progress), leave=False)
 
-    def parallel(self, fn: Callable[[_T], _R], items: Iterable[_T], *, desc: str | None = None) -> list[_R]:
+    def parallel(self, fn: Callable[[_T], _R], items: Iterable[_T], *, desc: str | None = None,
+                 on_result: Callable[[int, _R], None] | None = None) -> list[_R]:
         """Return ``[fn(item) for item in items]``, computed over :attr:`workers` processes.
 
         With ``workers == 1`` this is a plain loop in this process. Otherwise joblib's
@@ -408,19 +409,29 @@ class RunContext:
         items : iterable
         desc : str, optional
             Progress-bar label.
+        on_result : callable, optional
+            ``on_result(i, result)`` is called as soon as item ``i``'s result is back, in
+            order, before the next one is awaited (e.g. to cache it, so that an interrupted
+            run keeps what it has computed).
         """
         items = list(items)
+        out: list[_R] = []
         if self.workers == 1 or len(items) <= 1:
-            return [fn(item) for item in self.progress(items, total=len(items), desc=desc)]
+            for item in self.progress(items, total=len(items), desc=desc):
+                out.append(fn(item))
+                if on_result is not None:
+                    on_result(len(out) - 1, out[-1])
+            return out
         from joblib import Parallel, delayed
 
         n_jobs = min(self.workers, len(items))
         gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_WarningsCarried(fn))(item) for item in items)
-        out = []
         for result, caught in self.progress(gen, total=len(items), desc=desc):
             for category, message, filename, lineno in caught:
                 warnings.warn_explicit(message, category, filename, lineno)
             out.append(result)
+            if on_result is not None:
+                on_result(len(out) - 1, result)
         return out
 
     def require_data(self, name: str, *, hint: str = "") -> Path:
