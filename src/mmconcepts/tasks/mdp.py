@@ -20,6 +20,7 @@ import warnings
 from typing import Any
 
 import numpy as np
+from scipy.special import logsumexp
 
 from .._validation import InstanceOf, Interval, check_random_state, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
@@ -375,11 +376,6 @@ def _policy_iteration(mdp: MDP, rewards: Any, *, max_iter: int = 1000, init: Any
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
 
 
-def _logsumexp(Q: np.ndarray, axis: int) -> np.ndarray:
-    m = Q.max(axis=axis, keepdims=True)
-    return (m + np.log(np.exp(Q - m).sum(axis=axis, keepdims=True))).squeeze(axis)
-
-
 def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_iter: int = 10_000,
                          init: Any = None) -> tuple[np.ndarray, np.ndarray]:
     """Soft (maximum causal entropy) values: ``V(s) = log sum_a exp Q(s, a)``, batched.
@@ -398,7 +394,7 @@ def _soft_value_iteration(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_ite
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     for _ in range(max_iter):
         Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S)
-        V_new = _logsumexp(Q, axis=1)
+        V_new = logsumexp(Q, axis=1)
         delta = np.abs(V_new - V).max() if T else 0.0
         V = V_new
         if delta < tol:
@@ -407,7 +403,7 @@ def _soft_value_iteration(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_ite
         warnings.warn(f"soft value iteration stopped after max_iter={max_iter} sweeps with change {delta:.3g}.",
                       ConvergenceWarning, stacklevel=3)
     Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S).transpose(0, 2, 1)
-    V = _logsumexp(Q, axis=2)
+    V = logsumexp(Q, axis=2)
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
 
 
