@@ -408,3 +408,26 @@ def test_sklearn_estimator_checks(estimator):
     failed = [(r["check_name"], str(r["exception"])[:200]) for r in results if r["status"] == "failed"]
     assert failed == []
     assert sum(r["status"] == "passed" for r in results) > 40
+
+
+def test_stopping_rule_waits_for_a_finite_objective():
+    """KL against a dictionary column of denormal size overflows the first objective to inf.
+
+    The rule used to divide by that infinite reference (stopping at the second finite check,
+    wherever the fit was) and warn about inf - inf; it now takes the first finite error as the
+    reference, so the fit runs to the tolerance.
+    """
+    import warnings
+
+    rng = np.random.default_rng(0)
+    X = rng.random((30, 12)) + 0.1
+    W0, H0 = rng.random((30, 3)) + 0.1, rng.random((3, 12)) + 0.1
+    H0[:, 0] = 1e-320
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning from inf - inf
+        res = beta_nmf(X, 3, beta_loss=1, W=W0, H=H0, init="custom", max_iter=500, tol=1e-4)
+    assert res.loss_history[0] == np.inf and np.isfinite(res.loss_history[1:]).all()
+    assert res.converged and res.n_iter > 30
+    errs = np.sqrt(2 * res.loss_history[1:])
+    # it stopped where scikit-learn's rule says, measured from the first finite error
+    assert (errs[-2] - errs[-1]) / errs[0] < 1e-4 <= (errs[-3] - errs[-2]) / errs[0]

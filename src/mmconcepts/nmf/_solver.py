@@ -463,7 +463,9 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
     """Alternate W and H updates; record the objective every ``loss_every`` iterations."""
     f0 = sol.objective(W, Ht)
     hist, its = [f0], [0]
-    # Stopping rule of scikit-learn, on the error sqrt(2 * objective).
+    # Stopping rule of scikit-learn, on the error sqrt(2 * objective). An objective that
+    # overflows (KL against a dictionary column of denormal size) cannot measure progress:
+    # the rule waits for finite errors and takes the first one as its reference.
     err0 = np.sqrt(2.0 * max(f0, 0.0))
     prev = err0
     converged = False
@@ -477,7 +479,9 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
             hist.append(f)
             its.append(n_iter)
             err = np.sqrt(2.0 * max(f, 0.0))
-            if tol > 0 and err0 > 0 and (prev - err) / err0 < tol:
+            if not np.isfinite(err0):
+                err0 = err
+            elif tol > 0 and err0 > 0 and np.isfinite(prev) and (prev - err) / err0 < tol:
                 converged = True
                 break
             prev = err
