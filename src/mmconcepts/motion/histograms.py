@@ -39,6 +39,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.ndimage import gaussian_filter
 from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.metrics.pairwise import euclidean_distances
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
@@ -50,10 +51,6 @@ __all__ = ["MotionHistograms"]
 _DATA = ("angles", "velocities", "separate", "joint")
 _METHODS = ("kde", "vq")
 _ASSIGN = ("hard", "soft")
-
-
-def _sqdist(z: np.ndarray, cb: np.ndarray) -> np.ndarray:
-    return (z * z).sum(1)[:, None] - 2 * z @ cb.T + (cb * cb).sum(1)[None, :]
 
 
 class _IntPair:
@@ -306,7 +303,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 cb = self._kmeans(z, k, rng)
                 scales.append(s)
                 self.codebooks_.append(cb)
-                dist = np.sqrt(np.maximum(_sqdist(z, cb), 0.0).min(axis=1))
+                dist = np.sqrt(euclidean_distances(z, cb, squared=True).min(axis=1))
                 med = float(np.median(dist))
                 self.soft_scales_.append(med if med > 1e-12 else 1.0)
             self.scales_ = np.asarray(scales)
@@ -325,10 +322,10 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 cb, lab = kmeans2(z, k, iter=50, minit="++", seed=int(rng.integers(2**31 - 1)))
             counts = np.bincount(lab, minlength=k)
             if (counts == 0).any():  # put empty centroids on the worst-fitted samples
-                d = np.maximum(_sqdist(z, cb), 0.0).min(axis=1)
+                d = euclidean_distances(z, cb, squared=True).min(axis=1)
                 far = np.argsort(d)[::-1]
                 cb[counts == 0] = z[far[: int((counts == 0).sum())]]
-            inertia = float(np.maximum(_sqdist(z, cb), 0.0).min(axis=1).sum())
+            inertia = float(euclidean_distances(z, cb, squared=True).min(axis=1).sum())
             if inertia < best_inertia:
                 best, best_inertia = cb, inertia
         return best
@@ -376,7 +373,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
     def _vq(self, c, rec, n_rec, counts, j) -> np.ndarray:
         z = c / self.scales_[j]
         cb = self.codebooks_[j]
-        d2 = np.maximum(_sqdist(z, cb), 0.0)
+        d2 = euclidean_distances(z, cb, squared=True)
         k = cb.shape[0]
         if self.assignment == "hard":
             lab = d2.argmin(axis=1)

@@ -72,7 +72,9 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.ndimage import map_coordinates
 from sklearn.base import BaseEstimator, TransformerMixin, clone
+from sklearn.metrics.pairwise import euclidean_distances
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
@@ -326,17 +328,6 @@ def _finish_sift(desc, contrast, contrast_threshold, Y0, X0, patch_size) -> Loca
     return LocalFeatures(desc, pos, np.ones(len(Y0)))
 
 
-def _bilinear(img: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Bilinear interpolation of ``img`` at (y, x), coordinates clamped to the image (edge values)."""
-    H, W = img.shape
-    y, x = np.clip(y, 0, H - 1), np.clip(x, 0, W - 1)
-    y0, x0 = np.minimum(y.astype(np.int64), H - 2), np.minimum(x.astype(np.int64), W - 2)
-    dy, dx = y - y0, x - x0
-    f = img.ravel()
-    i = y0 * W + x0
-    return (f[i] * (1 - dx) + f[i + 1] * dx) * (1 - dy) + (f[i + W] * (1 - dx) + f[i + W + 1] * dx) * dy
-
-
 def _rotated_sift(gx, gy, mag, ang, patch_size: int, step: int, contrast_threshold: float) -> LocalFeatures:
     """Dense SIFT in each patch's dominant-orientation frame (see :func:`dense_sift`)."""
     H, W = mag.shape
@@ -366,7 +357,7 @@ def _rotated_sift(gx, gy, mag, ang, patch_size: int, step: int, contrast_thresho
     u, v = (U - (P - 1) / 2)[None, :], (V - (P - 1) / 2)[None, :]
     cy, cx = (Y0 + (P - 1) / 2)[:, None], (X0 + (P - 1) / 2)[:, None]
     xs, ys = cx + c * u - s * v, cy + s * u + c * v
-    g = _bilinear(gx + 1j * gy, ys, xs)
+    g = map_coordinates(gx + 1j * gy, [ys, xs], order=1, mode="nearest")  # bilinear, edge values outside
     mg = np.abs(g) * gw[None, :]  # a rotation keeps the norm and shifts the angle by -theta
     b = ((np.angle(g) - theta[:, None]) % (2 * np.pi)) * (_N_ORIENT / (2 * np.pi))
     lo = np.floor(b).astype(np.int64) % _N_ORIENT
@@ -481,10 +472,6 @@ def _apply_chunk(func, images, kwargs):
     return [func(im, **kwargs) for im in images]
 
 
-def _sqdist(x: np.ndarray, cb: np.ndarray) -> np.ndarray:
-    return np.maximum((x * x).sum(1)[:, None] - 2 * x @ cb.T + (cb * cb).sum(1)[None, :], 0.0)
-
-
 def _fit_codebook(vectors: np.ndarray, k: int, max_samples: int, rng: np.random.Generator, what: str) -> np.ndarray:
     """k-means codebook (k-means++ seeding, mini-batch k-means) of at most ``max_samples`` vectors."""
     from sklearn.cluster import MiniBatchKMeans
@@ -507,7 +494,7 @@ def _fit_codebook(vectors: np.ndarray, k: int, max_samples: int, rng: np.random.
 def _quantize(vectors: np.ndarray, codebook: np.ndarray) -> np.ndarray:
     if len(vectors) == 0:
         return np.zeros(0, dtype=np.int64)
-    return _sqdist(vectors, codebook).argmin(axis=1)
+    return euclidean_distances(vectors, codebook, squared=True).argmin(axis=1)
 
 
 def _bag(words_list: Sequence[np.ndarray], weights_list: Sequence[np.ndarray], k: int, normalize) -> np.ndarray:
