@@ -104,15 +104,6 @@ def test_batched_equals_per_task(rng, world):
         np.testing.assert_allclose(Vp[i], policy_evaluation(world, pis[i], R[i]), atol=1e-10)
 
 
-def test_policies_sum_to_one(rng):
-    Q = rng.standard_normal((3, 10, 4)) * 50
-    Q[0, 0] = 1.0  # all tied
-    for pi in (greedy_policy(Q), boltzmann_policy(Q, 0.3), boltzmann_policy(Q, 100.0)):
-        np.testing.assert_allclose(pi.sum(axis=-1), 1.0)
-        assert (pi >= 0).all()
-    np.testing.assert_allclose(greedy_policy(Q)[0, 0], 0.25)
-
-
 def test_sampled_trajectories_follow_the_world(rng, world):
     V, Q = value_iteration(world, rng.standard_normal((25, 4)))
     trajs = sample_trajectories(world, greedy_policy(Q), 50, 8, random_state=rng)

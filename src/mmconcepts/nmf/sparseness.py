@@ -86,7 +86,9 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
         a = float(w @ w)
         b = 2.0 * float(w @ v)
         c = float(v @ v) - l2sq
-        if a <= 1e-300:  # v is the midpoint: move along any zero-sum direction of the free entries
+        # v is the midpoint (up to rounding, which leaves w a noise vector of arbitrary sum):
+        # move along a zero-sum direction of the free entries
+        if a <= 1e-24 * float(v @ v):
             free = np.flatnonzero(~zero)
             w = np.zeros(n)
             w[free] = -1.0 / n_free
