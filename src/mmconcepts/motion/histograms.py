@@ -89,9 +89,9 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
         The KDE grid of each axis spans the ``range_quantile`` and ``1 - range_quantile``
         quantiles of the training values (0: minimum to maximum); values beyond fall in the
         edge bins. Delayed velocities have heavy tails (a tracking glitch makes one huge
-        difference): on the synthetic single-primitive Choreo1 set (delay 3, 15 bins, no
-        smoothing), the two fullest bins of each degree of freedom held 90 % of its velocity
-        samples with the minimum-maximum range, 62 % with the default.
+        difference): with the minimum-maximum range a few outliers stretch the grid and
+        most samples fall in its central bins; the quantile range spreads them over the
+        grid (a measurement is in ``benchmarks/README.md``).
     assignment : {"hard", "soft"}, default="hard"
         Vector-quantisation assignment.
     softness : float, default=1.0

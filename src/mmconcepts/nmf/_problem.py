@@ -87,8 +87,9 @@ class Side:
 
         The I-divergence numerator with the ratio never held whole: each block of rows of the
         product is computed, divided into X and multiplied by its factor while it is still in
-        cache (blocks of about 4 MB). Same operations and results as the unblocked form; about
-        15 % faster here on 2000 x 1000, where the product and X together overflow the cache.
+        cache (blocks of about 4 MB). Same operations and results as the unblocked form;
+        faster when the product and X together overflow the cache (``benchmarks/README.md``,
+        dense KL).
         """
         X = self.X
         n, m = X.shape

@@ -46,15 +46,15 @@ extracting superpixels and descriptors once per image.
 
 Decisions, and how they differ from the thesis:
 
-- Dense SIFT instead of SURF. scikit-image has no SURF; its SIFT detector finds 6 to 50
-  keypoints on a 96 x 96 ETH-80 image (median about 25) and takes about 70 ms per image,
-  which makes both the bags and the neighbourhoods thin and the extraction slow.
-  A dense grid (at most 121 patches of 16 x 16 pixels with the defaults, flat ones left
-  out) covers every image evenly. The descriptor is written here because
-  :func:`skimage.feature.hog` and :func:`skimage.feature.daisy` cost about 20 ms per
-  image on the same grid and are upright only; this one costs 2 ms upright, 8 ms
-  rotation invariant. The default is rotation invariant, as SURF; on ETH-80 (objects
-  mostly upright) the upright descriptors recognise objects about as well.
+- Dense SIFT instead of SURF. scikit-image has no SURF; its SIFT detector finds few
+  keypoints on the small ETH-80 images and is slow, which makes both the bags and the
+  neighbourhoods thin and the extraction slow. A dense grid (at most 121 patches of
+  16 x 16 pixels with the defaults, flat ones left out) covers every image evenly. The
+  descriptor is written here because :func:`skimage.feature.hog` and
+  :func:`skimage.feature.daisy` are upright only and slower on the same grid (the
+  measurements are in ``benchmarks/README.md``). The default is rotation invariant, as
+  SURF; on ETH-80 (objects mostly upright) the upright descriptors recognise objects
+  about as well.
 - Codebooks are batch k-means codebooks, not the thesis' incrementally grown
   dictionaries, and mid-features are counted as word pairs / triplets rather than
   quantised as concatenated feature vectors.
@@ -242,8 +242,8 @@ def dense_sift(
     of the gradient images) in a frame turned by that angle, gradients expressed in that
     frame. Without it (upright, as U-SURF), cells are summed directly, on a regular grid
     when ``step`` is a multiple of the cell side, else with an integral image. Written
-    here because scikit-image has no dense SIFT: its ``hog`` and ``daisy`` cost about
-    20 ms per 96 x 96 image on the same grid (upright only), this 1 to 4 ms.
+    here because scikit-image has no dense SIFT: its ``hog`` and ``daisy`` are upright
+    only and slower on the same grid (timings in ``benchmarks/README.md``).
 
     Parameters
     ----------
