@@ -1,4 +1,8 @@
-"""Dynamic time warping (mmconcepts.sound.dtw, Thesis section 5.2.3)."""
+"""Dynamic time warping (mmconcepts.sound.dtw, Thesis section 5.2.3).
+
+Symmetry, zero self-distance, the bounds and the window's monotonicity are property tests
+in ``tests/test_sound_properties.py``.
+"""
 
 from __future__ import annotations
 
@@ -84,22 +88,6 @@ def test_sqeuclidean_equals_dtaidistance(rng, window):
         # dtaidistance counts the diagonal in its window: its window=w is our window=w - 1
         theirs = dtw_ndim.distance(a, b, window=None if window is None else window + 1)
         assert dtw(a, b, window=window, local="sqeuclidean") == pytest.approx(theirs, rel=1e-12, abs=1e-12)
-
-
-def test_identical_sequences_are_at_distance_zero(rng):
-    a = rng.standard_normal((12, 5))
-    for local in LOCALS:
-        assert dtw(a, a, local=local) == 0.0
-        assert dtw(a, a.copy(), window=0, local=local) == 0.0
-
-
-def test_symmetric_and_nonnegative(rng):
-    for a, b in zip(random_sequences(rng, 10), random_sequences(rng, 10)):
-        for local in LOCALS:
-            for window in (None, 1):
-                ab = dtw(a, b, local=local, window=window)
-                assert ab >= 0.0
-                assert ab == dtw(b, a, local=local, window=window)  # bit for bit
 
 
 def test_time_stretched_copy_is_closer_than_euclidean_alignment():

@@ -1,4 +1,9 @@
-"""The incremental hierarchical cluster tree (Thesis section 5.2.3, Algorithms 1-2)."""
+"""The incremental hierarchical cluster tree (Thesis section 5.2.3, Algorithms 1-2).
+
+The structural rules after random insertions and the agreement of the compiled kernels
+(Euclidean and DTW) with the Python path of a callable metric are property tests in
+``tests/test_sound_properties.py``.
+"""
 
 from __future__ import annotations
 
@@ -21,10 +26,6 @@ def clustered(rng, n, d=6, n_centers=40, spread=0.3):
     return centers[rng.integers(n_centers, size=n)] + spread * rng.normal(size=(n, d))
 
 
-def euclid(q, C):
-    return np.sqrt(((C - q) ** 2).reshape(C.shape[0], -1).sum(axis=1))
-
-
 def cityblock(q, C):
     return np.abs(C - q).reshape(C.shape[0], -1).sum(axis=1)
 
@@ -36,49 +37,7 @@ def built(rng):
     return tree, X
 
 
-def members(tree, n_nodes):
-    """For every node, the indices of the inserted vectors below it (from labels_ and ancestors)."""
-    below = [[] for _ in range(n_nodes)]
-    for leaf in range(tree.n_leaves_):
-        idx = np.flatnonzero(tree.labels_ == leaf)
-        for node in tree.ancestors(leaf):
-            below[node].append(idx)
-    return [np.concatenate(b) if b else np.empty(0, dtype=int) for b in below]
-
-
 # --------------------------------------------------------------------------- structure
-@pytest.mark.parametrize("n_max, k", [(6, 2), (7, 3), (24, 12)])
-def test_invariants_after_random_insertions(rng, n_max, k):
-    X = clustered(rng, 3000)
-    tree = ClusterTree(0.6, n_max=n_max, k=k, random_state=1).fit(X)
-    n = tree.n_nodes_
-    assert tree.n_leaves_ > 100 and n > tree.n_leaves_ + 20  # many splits happened
-    parents = tree.node_parents_
-    leaf_of = tree.node_leaf_ids_
-    assert parents[0] == -1 and (parents[1:] >= 0).all()
-    for node in range(n):
-        kids = tree.children(node)
-        assert len(kids) < n_max  # rule 3, after every insertion completed
-        assert (parents[kids] == node).all()
-        if leaf_of[node] >= 0:
-            assert len(kids) == 0
-        elif len(kids):  # children are all leaves or all internal nodes
-            assert len(set(leaf_of[kids] >= 0)) == 1
-            if leaf_of[kids[0]] < 0:
-                assert len(kids) <= k  # a split node keeps its (at most) k new children
-        else:
-            assert node == 0  # only the root of an empty tree has no child
-    # every node's centroid is the mean of the vectors below it (rule 3)
-    below = members(tree, n)
-    centers, sizes = tree.node_centers_, tree.node_sizes_
-    for node in range(n):
-        assert sizes[node] == len(below[node]) > 0
-        np.testing.assert_allclose(centers[node], X[below[node]].mean(axis=0), rtol=1e-10, atol=1e-10)
-    assert tree.leaf_sizes_.sum() == len(X) == sizes[0]
-    np.testing.assert_array_equal(np.sort(np.unique(tree.labels_)), np.arange(tree.n_leaves_))
-    np.testing.assert_array_equal(tree.leaf_centers_, centers[tree.leaf_node_ids_])
-
-
 def test_radius_rule_against_centroid_at_insertion(rng):
     """A vector joins the greedy-nearest leaf iff within r_max of its centroid *before* it is added;
     otherwise it creates a new leaf under that leaf's father."""
@@ -243,20 +202,6 @@ def test_predict_does_not_insert(built):
 
 
 # --------------------------------------------------------------------------- metrics and items
-def test_callable_euclidean_matches_the_compiled_path(rng):
-    X = clustered(rng, 1500)
-    a = ClusterTree(0.6, n_max=6, k=3, random_state=2).fit(X)
-    b = ClusterTree(0.6, n_max=6, k=3, metric=euclid, random_state=2).fit(X)
-    np.testing.assert_array_equal(a.labels_, b.labels_)
-    np.testing.assert_array_equal(a.node_parents_, b.node_parents_)
-    Q = clustered(rng, 100)
-    for search in ("greedy", "best_children", "restart", "exact"):
-        ra, rb = a.query_batch(Q, search=search, backtrack=3), b.query_batch(Q, search=search, backtrack=3)
-        np.testing.assert_array_equal(ra[0], rb[0])
-        np.testing.assert_allclose(ra[1], rb[1], rtol=1e-10)
-        np.testing.assert_array_equal(ra[2], rb[2])
-
-
 def test_other_callable_metric(rng):
     X = clustered(rng, 800)
     tree = ClusterTree(1.0, n_max=6, k=2, metric=cityblock, random_state=0).fit(X)

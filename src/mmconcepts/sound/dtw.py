@@ -98,7 +98,10 @@ _PARALLEL_MIN_CELLS = 100_000
 # No fastmath: the +inf boundary of the DP must survive, and reassociating the d-term sums
 # would make a distance depend on the kernel that computed it. FMA contraction is not
 # enabled either, so results are reproducible across machines with and without FMA.
-_OPTS = dict(nogil=True, cache=True, error_model="numpy")
+# ``fastmath=False`` is written out: a kernel that does not set it inherits the fastmath
+# flags of a compiled caller (numba's flag inheritance), and the cluster tree's kernels,
+# which call :func:`_dtw_to_rows`, are compiled with fastmath.
+_OPTS = dict(nogil=True, cache=True, error_model="numpy", fastmath=False)
 
 
 # --------------------------------------------------------------------------------------
@@ -426,6 +429,26 @@ def _fixed_serial(q, X, radius, squared, out):  # pragma: no cover - compiled
     _units(q, a_off, B, b_off, np.empty(0), g_off, lengths, np.zeros(1, dtype=np.int64), np.arange(n),
            symmetric, radius, squared, np.int64(0), U, out)
     return -1
+
+
+@nb.njit(**_OPTS)
+def _dtw_to_rows(q, T, R, ids, buf, out):  # pragma: no cover - compiled
+    """out[j] = DTW between the window ``q`` and the window in row ``ids[j]`` of ``R``.
+
+    The compiled path of the cluster tree (:class:`~mmconcepts.sound.tree.ClusterTree` with
+    ``metric="dtw"``): ``q`` (T d,) and the rows of ``R`` (n_rows, T d) are flattened (T, d)
+    windows; the local cost is Euclidean, without window (the defaults of
+    :func:`dtw_one_to_many`, whose values these are, bit for bit: the same lane kernel).
+    ``buf`` is a work array of at least ``len(ids) * R.shape[1]`` values.
+    """
+    m = ids.shape[0]
+    D = R.shape[1]
+    d = D // T
+    for j in range(m):
+        r = ids[j]
+        for t in range(D):
+            buf[j * D + t] = R[r, t]
+    _fixed_serial(q.reshape((T, d)), buf[: m * D].reshape((m, T, d)), np.int64(-1), m < 0, out[:m].reshape((1, m)))
 
 
 # --------------------------------------------------------------------------------------

@@ -26,10 +26,14 @@ as branch-and-bound; by default the margins are summed along the path from the r
 every leaf (the reference). Every search reports how many distances it evaluated.
 
 Everything lives in flat, growable numpy arrays (parent, fixed-width children table,
-sums and counts of the vectors below every node, cached centroids); with the Euclidean
-metric, insertion and every search run in numba kernels written here by hand (no
-maintained library implements this tree: scikit-learn's trees are static and FLANN's
-hierarchical k-means tree is not incremental).
+sums and counts of the vectors below every node, cached centroids); with either built-in
+metric, insertion and every search run in one set of numba kernels written here by hand
+(no maintained library implements this tree: scikit-learn's trees are static and FLANN's
+hierarchical k-means tree is not incremental). For ``metric="dtw"`` the kernels call the
+compiled DTW of :mod:`mmconcepts.sound.dtw` (the lane kernel of
+:func:`~mmconcepts.sound.dtw.dtw_one_to_many`, same values bit for bit). Only a user's
+callable metric runs in Python (``ClusterTree._insert_generic`` and ``_search_generic``,
+the same algorithm, which the tests use as the reference of the kernels).
 
 Identifiers
 -----------
@@ -58,6 +62,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._persist import SaveLoadMixin
 from .._validation import Interval, Options, check_random_state, validate_params
 from ..errors import DataError, DataFormatError, ParameterError
+from .dtw import _dtw_to_rows
 
 __all__ = ["SEARCHES", "ClusterTree"]
 
@@ -74,6 +79,16 @@ _KMEANS_MAX_ITER = 100
 # Same options as nmf/_kernels.py: reassociation lets LLVM vectorise the distance loops.
 _OPTS = {"nogil": True, "cache": True, "fastmath": {"reassoc", "contract"}, "error_model": "numpy"}
 
+# Metric codes of the kernels (user callables run in Python, see ClusterTree._search_generic).
+# The kernels' numba cache (cache=True) holds the compiled DTW of dtw.py they call, and numba
+# invalidates a cache only when its own source file changes: after editing the kernels of
+# dtw.py, touch this file (or delete its cache files in __pycache__).
+_EUCLIDEAN, _DTW = 0, 1
+_METRIC_CODES = {"euclidean": _EUCLIDEAN, "dtw": _DTW}
+
+# Leaves compared with the query per DTW call of the exhaustive search.
+_EXACT_CHUNK = 256
+
 
 # --------------------------------------------------------------------------- numba kernels
 @nb.njit(**_OPTS)
@@ -87,43 +102,6 @@ def _dist(center, i, q):  # pragma: no cover - compiled
 
 
 @nb.njit(**_OPTS)
-def _heap_push(hp, hn, size, p, n):  # pragma: no cover - compiled
-    """Push (priority p, node n) on the binary min-heap (hp, hn) of ``size`` items."""
-    i = size
-    hp[i] = p
-    hn[i] = n
-    while i > 0:
-        par = (i - 1) >> 1
-        if hp[par] <= hp[i]:
-            break
-        hp[par], hp[i] = hp[i], hp[par]
-        hn[par], hn[i] = hn[i], hn[par]
-        i = par
-    return size + 1
-
-
-@nb.njit(**_OPTS)
-def _heap_pop(hp, hn, size):  # pragma: no cover - compiled
-    """Drop the top of the heap (read hn[0] first); return the new size."""
-    size -= 1
-    hp[0] = hp[size]
-    hn[0] = hn[size]
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= size:
-            break
-        if c + 1 < size and hp[c + 1] < hp[c]:
-            c += 1
-        if hp[i] <= hp[c]:
-            break
-        hp[c], hp[i] = hp[i], hp[c]
-        hn[c], hn[i] = hn[i], hn[c]
-        i = c
-    return size
-
-
-@nb.njit(**_OPTS)
 def _dist2(center, i, q):  # pragma: no cover - compiled
     """Squared Euclidean distance between row ``i`` of ``center`` and ``q``."""
     s = 0.0
@@ -134,42 +112,142 @@ def _dist2(center, i, q):  # pragma: no cover - compiled
 
 
 @nb.njit(**_OPTS)
-def _scan_leaves(center, child, node, m, q, best, best2):  # pragma: no cover - compiled
-    """Nearest of the ``m`` leaf children of ``node`` if nearer than ``best``: (best, best squared distance)."""
-    for j in range(m):
-        c = child[node, j]
-        d2 = _dist2(center, c, q)
-        if d2 < best2:
-            best2 = d2
-            best = c
-    return best, best2
+def _node_dists(metric, T, center, ids, q, cand, dbuf):  # pragma: no cover - compiled
+    """dbuf[j] = d(q, centroid of node ids[j]) for every j: Euclidean (metric 0) or DTW on
+    (T, d) windows (metric 1, :func:`mmconcepts.sound.dtw._dtw_to_rows`; ``cand`` is its
+    work buffer)."""
+    if metric == _EUCLIDEAN:
+        for j in range(ids.shape[0]):
+            dbuf[j] = _dist(center, ids[j], q)
+    else:
+        _dtw_to_rows(q, T, center, ids, cand, dbuf)
+
+
+@nb.njit(nogil=True, cache=True, error_model="numpy")  # no fastmath: the rounding of the reference
+def _margin(base, d, d_min):  # pragma: no cover - compiled
+    """Priority of a skipped sibling: ``base + (d - d_min)``, rounded as written."""
+    return base + (d - d_min)
 
 
 @nb.njit(**_OPTS)
-def _search_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves, hp, hn,
-                dbuf):  # pragma: no cover - compiled
+def _heap_less(hp, hs, i, j):  # pragma: no cover - compiled
+    """Entry i before entry j: smaller priority, then earlier push (as heapq on (priority, seq))."""
+    return hp[i] < hp[j] or (hp[i] == hp[j] and hs[i] < hs[j])
+
+
+@nb.njit(**_OPTS)
+def _heap_push(hp, hn, hs, size, p, n, s):  # pragma: no cover - compiled
+    """Push (priority p, node n, push number s) on the binary min-heap (hp, hn, hs) of ``size`` items."""
+    i = size
+    hp[i] = p
+    hn[i] = n
+    hs[i] = s
+    while i > 0:
+        par = (i - 1) >> 1
+        if not _heap_less(hp, hs, i, par):
+            break
+        hp[par], hp[i] = hp[i], hp[par]
+        hn[par], hn[i] = hn[i], hn[par]
+        hs[par], hs[i] = hs[i], hs[par]
+        i = par
+    return size + 1
+
+
+@nb.njit(**_OPTS)
+def _heap_pop(hp, hn, hs, size):  # pragma: no cover - compiled
+    """Drop the top of the heap (read hn[0] first); return the new size."""
+    size -= 1
+    hp[0] = hp[size]
+    hn[0] = hn[size]
+    hs[0] = hs[size]
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= size:
+            break
+        if c + 1 < size and _heap_less(hp, hs, c + 1, c):
+            c += 1
+        if not _heap_less(hp, hs, c, i):
+            break
+        hp[c], hp[i] = hp[i], hp[c]
+        hn[c], hn[i] = hn[i], hn[c]
+        hs[c], hs[i] = hs[i], hs[c]
+        i = c
+    return size
+
+
+@nb.njit(**_OPTS)
+def _scan_leaves(metric, T, center, child, node, m, q, best, best_key, cand, dbuf):  # pragma: no cover - compiled
+    """Nearest of the ``m`` leaf children of ``node`` if nearer than ``best``: (best, its key).
+
+    The key is the squared distance for the Euclidean metric, the distance for DTW.
+    """
+    if metric == _EUCLIDEAN:
+        for j in range(m):
+            c = child[node, j]
+            d2 = _dist2(center, c, q)
+            if d2 < best_key:
+                best_key = d2
+                best = c
+        return best, best_key
+    _node_dists(metric, T, center, child[node, :m], q, cand, dbuf)
+    for j in range(m):
+        if dbuf[j] < best_key:
+            best_key = dbuf[j]
+            best = child[node, j]
+    return best, best_key
+
+
+@nb.njit(**_OPTS)
+def _argmin(dbuf, m):  # pragma: no cover - compiled
+    """(first index of the smallest of dbuf[:m], that value); (0, inf) if none is < inf."""
+    jm = 0
+    dm = np.inf
+    for j in range(m):
+        if dbuf[j] < dm:
+            dm = dbuf[j]
+            jm = j
+    return jm, dm
+
+
+@nb.njit(**_OPTS)
+def _search_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves, hp,
+                hn, hs, dbuf, cand):  # pragma: no cover - compiled
     """Nearest leaf of ``q``: returns (leaf node id, distance, distance evaluations).
 
-    mode 0 greedy descent, 1 best-children backtracking (b children per node), 2 restart
+    ``metric`` 0 is Euclidean on the flattened items, 1 DTW on (T, d) windows. mode 0
+    greedy descent, 1 best-children backtracking (b children per node), 2 restart
     backtracking (b descents; a skipped sibling's priority is its margin over the chosen
     child, plus, if ``path_priority``, the priority of the node the descent started
-    from), 3 exhaustive. hp, hn (>= n_nodes) and dbuf (>= n_max) are work buffers. The
-    node id is -1 for an empty tree and -2 if ``q`` holds NaN or infinite values.
+    from; ties go to the sibling skipped first), 3 exhaustive. hp, hn, hs (>= n_nodes + 1)
+    and dbuf (>= n_max, and >= the exhaustive chunk for DTW) are work buffers, cand the
+    DTW's (see :func:`_work_buffers`). The node id is -1 for an empty tree and -2 if ``q``
+    holds NaN or infinite values.
     """
     for t in range(q.shape[0]):
         if not np.isfinite(q[t]):
             return -2, np.nan, 0
+    euclid = metric == _EUCLIDEAN
     best = -1
-    best2 = np.inf
+    best_key = np.inf
     n_eval = 0
     if mode == 3:
-        for leaf in range(n_leaves):
-            node = node_of_leaf[leaf]
-            d2 = _dist2(center, node, q)
-            if d2 < best2:
-                best2 = d2
-                best = node
-        return best, np.sqrt(best2), n_leaves
+        if euclid:
+            for leaf in range(n_leaves):
+                node = node_of_leaf[leaf]
+                d2 = _dist2(center, node, q)
+                if d2 < best_key:
+                    best_key = d2
+                    best = node
+            return best, np.sqrt(best_key), n_leaves
+        for l0 in range(0, n_leaves, _EXACT_CHUNK):
+            ids = node_of_leaf[l0 : min(n_leaves, l0 + _EXACT_CHUNK)]
+            _node_dists(metric, T, center, ids, q, cand, dbuf)
+            for j in range(ids.shape[0]):
+                if dbuf[j] < best_key:
+                    best_key = dbuf[j]
+                    best = ids[j]
+        return best, best_key, n_leaves
     if nchild[0] == 0:
         return best, np.inf, n_eval
     if mode == 1:
@@ -180,79 +258,74 @@ def _search_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_
             node = hn[top]
             m = nchild[node]
             if leaf_of[child[node, 0]] >= 0:
-                best, best2 = _scan_leaves(center, child, node, m, q, best, best2)
+                best, best_key = _scan_leaves(metric, T, center, child, node, m, q, best, best_key, cand, dbuf)
                 n_eval += m
                 continue
-            for j in range(m):
-                dbuf[j] = _dist(center, child[node, j], q)
+            _node_dists(metric, T, center, child[node, :m], q, cand, dbuf)
             n_eval += m
-            for _ in range(min(b, m)):
-                jm = 0
-                dm = np.inf
-                for j in range(m):
-                    if dbuf[j] < dm:
-                        dm = dbuf[j]
-                        jm = j
+            for _ in range(min(b, m)):  # the b nearest, nearest pushed first (explored last)
+                jm, _dm = _argmin(dbuf, m)
                 hn[top] = child[node, jm]
                 top += 1
                 dbuf[jm] = np.inf
-        return best, np.sqrt(best2), n_eval
+        return best, (np.sqrt(best_key) if euclid else best_key), n_eval
     n_desc = 1 if mode == 0 else b
-    size = _heap_push(hp, hn, 0, 0.0, 0)
+    size = _heap_push(hp, hn, hs, 0, 0.0, 0, 0)
+    n_push = 1
     descents = 0
     while descents < n_desc and size > 0:
         node = hn[0]
         base = hp[0] if path_priority else 0.0
-        size = _heap_pop(hp, hn, size)
+        size = _heap_pop(hp, hn, hs, size)
         descents += 1
         while True:
             m = nchild[node]
             if m == 0:
                 break
             if leaf_of[child[node, 0]] >= 0:
-                best, best2 = _scan_leaves(center, child, node, m, q, best, best2)
+                best, best_key = _scan_leaves(metric, T, center, child, node, m, q, best, best_key, cand, dbuf)
                 n_eval += m
                 break
-            jm = 0
-            dm = np.inf
-            for j in range(m):
-                d = _dist(center, child[node, j], q)
-                dbuf[j] = d
-                if d < dm:
-                    dm = d
-                    jm = j
+            _node_dists(metric, T, center, child[node, :m], q, cand, dbuf)
+            jm, dm = _argmin(dbuf, m)
             n_eval += m
             if n_desc > 1:
                 # Memorise the skipped siblings with how much farther they were than the
                 # chosen child (thesis section 5.2.3, second backtracking method).
                 for j in range(m):
                     if j != jm:
-                        size = _heap_push(hp, hn, size, base + dbuf[j] - dm, child[node, j])
+                        size = _heap_push(hp, hn, hs, size, _margin(base, dbuf[j], dm), child[node, j], n_push)
+                        n_push += 1
             node = child[node, jm]
-    return best, np.sqrt(best2), n_eval
+    return best, (np.sqrt(best_key) if euclid else best_key), n_eval
 
 
 @nb.njit(**_OPTS)
-def _query_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes,
+def _work_buffers(metric, n_nodes, n_max, D):  # pragma: no cover - compiled
+    """The work buffers of :func:`_search_one` and :func:`_insert_batch`: hp, hn, hs, dbuf, cand."""
+    rows = n_max if metric == _EUCLIDEAN else max(n_max, _EXACT_CHUNK)
+    cand = np.empty(rows * D if metric != _EUCLIDEAN else 0)
+    return (np.empty(n_nodes + 1), np.empty(n_nodes + 1, dtype=np.int64), np.empty(n_nodes + 1, dtype=np.int64),
+            np.empty(rows), cand)
+
+
+@nb.njit(**_OPTS)
+def _query_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes,
                n_leaves):  # pragma: no cover - compiled
     """:func:`_search_one` with its own work buffers (so concurrent queries are safe)."""
-    hp = np.empty(n_nodes + 1 if mode == 2 else 1, dtype=np.float64)
-    hn = np.empty(n_nodes + 1, dtype=np.int64)
-    dbuf = np.empty(child.shape[1], dtype=np.float64)
-    return _search_one(q, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves, hp, hn,
-                       dbuf)
+    hp, hn, hs, dbuf, cand = _work_buffers(metric, n_nodes, child.shape[1], q.shape[0])
+    return _search_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves,
+                       hp, hn, hs, dbuf, cand)
 
 
 @nb.njit(**_OPTS)
-def _search_batch(Q, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes, n_leaves,
-                  out_node, out_d, out_n):  # pragma: no cover - compiled
+def _search_batch(Q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes,
+                  n_leaves, out_node, out_d, out_n):  # pragma: no cover - compiled
     """:func:`_search_one` for every row of ``Q``."""
-    hp = np.empty(n_nodes + 1, dtype=np.float64)
-    hn = np.empty(n_nodes + 1, dtype=np.int64)
-    dbuf = np.empty(child.shape[1], dtype=np.float64)
+    hp, hn, hs, dbuf, cand = _work_buffers(metric, n_nodes, child.shape[1], Q.shape[1])
     for i in range(Q.shape[0]):
-        node, d, n = _search_one(Q[i], mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves,
-                                 hp, hn, dbuf)
+        node, d, n = _search_one(Q[i], metric, T, mode, b, path_priority, center, child, nchild, leaf_of,
+                                 node_of_leaf, n_leaves, hp, hn, hs, dbuf, cand)
         out_node[i] = node
         out_d[i] = d
         out_n[i] = n
@@ -289,36 +362,34 @@ def _new_leaf(father, x, parent, child, nchild, sums, count, center, leaf_of, no
 
 
 @nb.njit(**_OPTS)
-def _insert_batch(X, start, r_max, n_max, parent, child, nchild, sums, count, center, leaf_of,
+def _insert_batch(X, start, metric, T, r_max, n_max, parent, child, nchild, sums, count, center, leaf_of,
                   node_of_leaf, n_nodes, n_leaves, out):  # pragma: no cover - compiled
-    """Thesis Algorithm 1 for rows ``start, start + 1, ...`` of ``X`` (Euclidean metric).
+    """Thesis Algorithm 1 for rows ``start, start + 1, ...`` of ``X`` (metric as :func:`_search_one`).
 
     Stops after a row that leaves a node with ``n_max`` children (the caller splits it)
     or before a row when the arrays are full. Returns (next row, n_nodes, n_leaves,
     node to split or -1); ``out[i]`` receives the leaf id of row ``i``.
     """
     cap = parent.shape[0]
+    _hp, _hn, _hs, dbuf, cand = _work_buffers(metric, 0, child.shape[1], X.shape[1])
     for i in range(start, X.shape[0]):
         if n_nodes + 1 > cap:
             return i, n_nodes, n_leaves, -1
         x = X[i]
         node = 0
         while nchild[node] > 0 and leaf_of[child[node, 0]] < 0:
-            jm = 0
-            dm = np.inf
-            for j in range(nchild[node]):
-                d = _dist(center, child[node, j], x)
-                if d < dm:
-                    dm = d
-                    jm = j
+            m = nchild[node]
+            _node_dists(metric, T, center, child[node, :m], x, cand, dbuf)
+            jm, _dm = _argmin(dbuf, m)
             node = child[node, jm]
         best = -1
         dm = np.inf
-        for j in range(nchild[node]):
-            d = _dist(center, child[node, j], x)
-            if d < dm:
-                dm = d
-                best = child[node, j]
+        m = nchild[node]
+        if m > 0:
+            _node_dists(metric, T, center, child[node, :m], x, cand, dbuf)
+            jm, dm = _argmin(dbuf, m)
+            if dm < np.inf:
+                best = child[node, jm]
         if best >= 0 and dm <= r_max:
             _add_path(best, x, parent, sums, count, center)
             out[i] = leaf_of[best]
@@ -512,10 +583,11 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         (24, 12) and 155-160 for (32, 16): wide, shallow trees (k = n_max / 2, depth 6
         instead of 26 for (10, 2)) misroute less; the gain levels off after (24, 12).
     metric : {"euclidean", "dtw"} or callable, default="euclidean"
-        Distance between windows. "euclidean" works on the flattened windows and runs in
-        compiled kernels; "dtw" is :func:`mmconcepts.sound.dtw.dtw_one_to_many` on
-        (T, d) windows, as in the thesis; a callable ``metric(query, candidates) -> (n,)``
-        receives one item and an (n, *item_shape) stack of centroids.
+        Distance between windows. "euclidean" works on the flattened windows; "dtw" is
+        :func:`mmconcepts.sound.dtw.dtw_one_to_many`'s distance (Euclidean frame cost,
+        no window) on (T, d) windows, as in the thesis; both run in compiled kernels. A
+        callable ``metric(query, candidates) -> (n,)`` receives one item and an
+        (n, *item_shape) stack of centroids, and runs in Python.
     search : {"greedy", "best_children", "restart", "exact"}, default="restart"
         Default retrieval strategy of :meth:`query` and :meth:`predict` (insertion always
         uses the greedy descent of thesis Algorithm 1). "restart" is the thesis' second
@@ -772,8 +844,10 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
     def _get_state(self) -> dict[str, Any]:
         """The fitted state for :meth:`save`: the node arrays cut to the nodes in use, the
         sizes frozen at the first fit, and the random generator's state (splits to come)."""
-        n = self._n_nodes
         state = super()._get_state()
+        if getattr(self, "_parent", None) is None:  # an unfitted tree (the parameter of a TreeVotingClassifier)
+            return state
+        n = self._n_nodes
         state["nodes"] = {name[1:]: getattr(self, name)[:n].copy() for name in self._NODE_ARRAYS}
         state["nodes"]["node_of_leaf"] = self._node_of_leaf[: self._n_leaves].copy()
         state["sizes"] = {"k": self._k, "n_max": self._n_max, "r_max": self._r_max}
@@ -783,6 +857,9 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
     def _set_state(self, state: dict[str, Any]) -> None:
         """Restore what :meth:`_get_state` returned (arrays are given spare capacity again)."""
         state = dict(state)
+        if "nodes" not in state:  # saved unfitted
+            super()._set_state(state)
+            return
         nodes, sizes, rng_state = state.pop("nodes"), state.pop("sizes"), state.pop("rng")
         super()._set_state(state)
         self.item_shape_ = tuple(int(s) for s in self.item_shape_)
@@ -844,15 +921,13 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
                          self._center, self._leaf_of, self._n_nodes)
         )
 
-    # ------------------------------------------------------------------ generic metric
-    def _metric_fn(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-        if callable(self.metric):
-            return self.metric
-        if self.metric == "dtw":
-            from .dtw import dtw_one_to_many  # lazy: dtw is only needed for this metric
+    # ------------------------------------------------------------------ callable metric
+    def _metric_code(self) -> int | None:
+        """The kernels' code of a built-in metric; None for a callable (the Python path)."""
+        return None if callable(self.metric) else _METRIC_CODES[self.metric]
 
-            return dtw_one_to_many
-        return lambda q, C: np.sqrt(((C - q) ** 2).reshape(C.shape[0], -1).sum(axis=1))
+    def _metric_fn(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        return self.metric
 
     def _distances(self, fn, q_item: np.ndarray, ids: np.ndarray) -> np.ndarray:
         cands = self._center[ids].reshape((ids.shape[0],) + self.item_shape_)
@@ -866,7 +941,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         return d
 
     def _insert_generic(self, X: np.ndarray, out: np.ndarray) -> None:
-        """Thesis Algorithm 1, one item at a time, with a Python-level metric."""
+        """Thesis Algorithm 1, one item at a time, with a callable metric (:func:`_insert_batch` in Python)."""
         fn = self._metric_fn()
         child, nchild, leaf_of = self._child, self._nchild, self._leaf_of
         for i in range(X.shape[0]):
@@ -896,7 +971,8 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
                 self._split(node)
 
     def _search_generic(self, q: np.ndarray, mode: int, b: int) -> tuple[int, float, int]:
-        """Python twin of :func:`_search_one` for non-Euclidean metrics."""
+        """:func:`_search_one` in Python, for a callable metric (ties of the "restart" queue go to the
+        sibling skipped first, as in the kernel)."""
         fn = self._metric_fn()
         child, nchild, leaf_of = self._child, self._nchild, self._leaf_of
         best, best_d, n_eval = -1, np.inf, 0
@@ -1005,15 +1081,16 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
     def _insert_items(self, X: np.ndarray) -> None:
         """Insert the checked items ``X`` in order; ``labels_`` receives their leaf ids."""
         out = np.full(X.shape[0], -1, dtype=np.int64)
-        if self.metric == "euclidean":
+        metric = self._metric_code()
+        if metric is not None:
             Xf = X.reshape(X.shape[0], -1)
             i = 0
             while i < Xf.shape[0]:
                 self._ensure_capacity(min(Xf.shape[0] - i, 4096) + 1)
                 i, n_nodes, n_leaves, split = _insert_batch(
-                    Xf, i, self._r_max, self._n_max, self._parent, self._child, self._nchild, self._sums,
-                    self._count, self._center, self._leaf_of, self._node_of_leaf, self._n_nodes, self._n_leaves,
-                    out,
+                    Xf, i, metric, self.item_shape_[0], self._r_max, self._n_max, self._parent, self._child,
+                    self._nchild, self._sums, self._count, self._center, self._leaf_of, self._node_of_leaf,
+                    self._n_nodes, self._n_leaves, out,
                 )
                 self._n_nodes, self._n_leaves = int(n_nodes), int(n_leaves)
                 if split >= 0:
@@ -1086,10 +1163,11 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         node = np.empty(n, dtype=np.int64)
         dist = np.empty(n)
         n_eval = np.empty(n, dtype=np.int64)
-        if self.metric == "euclidean":
-            _search_batch(X.reshape(n, -1), mode, b, self.restart_priority == "path", self._center, self._child,
-                          self._nchild, self._leaf_of, self._node_of_leaf, self._n_nodes, self._n_leaves, node, dist,
-                          n_eval)
+        metric = self._metric_code()
+        if metric is not None:
+            _search_batch(X.reshape(n, -1), metric, self.item_shape_[0], mode, b, self.restart_priority == "path",
+                          self._center, self._child, self._nchild, self._leaf_of, self._node_of_leaf, self._n_nodes,
+                          self._n_leaves, node, dist, n_eval)
         else:
             for i in range(n):
                 node[i], dist[i], n_eval[i] = self._search_generic(X[i], mode, b)
@@ -1122,12 +1200,13 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
                 backtrack = self.backtrack
         search, b = self._resolve_search(search, backtrack)
         mode = SEARCHES[search]
-        if self.metric == "euclidean":
+        metric = self._metric_code()
+        if metric is not None:
             if not (type(x) is np.ndarray and x.dtype == np.float64 and x.shape == self.item_shape_):
                 x = self._check_items(x, "x", single=True)  # the fast path leaves the NaN check to the kernel
-            node, d, n = _query_one(x.reshape(-1), mode, b, self.restart_priority == "path", self._center,
-                                    self._child, self._nchild, self._leaf_of, self._node_of_leaf, self._n_nodes,
-                                    self._n_leaves)
+            node, d, n = _query_one(np.ascontiguousarray(x).reshape(-1), metric, self.item_shape_[0], mode, b,
+                                    self.restart_priority == "path", self._center, self._child, self._nchild,
+                                    self._leaf_of, self._node_of_leaf, self._n_nodes, self._n_leaves)
             if node == -2:
                 self._check_items(x, "x", single=True)  # raises the DataError that names the problem
         else:
