@@ -46,6 +46,24 @@ def test_delta_of_a_ramp_is_constant_inside_and_zero_of_a_constant():
     assert np.allclose(delta(np.full((7, 2), 3.0)), 0.0)
 
 
+def test_delta_is_ten_times_librosas_with_edge_replication(rng):
+    """Ours is the operator as the thesis writes it; librosa divides by sum(n^2) = 10 (width 5).
+    Kept, not replaced by librosa.feature.delta: dividing by 10 (100 for delta-delta) changes the
+    HAC features' last bits, which the standardised k-means of HAC would see (see the note in
+    :func:`mmconcepts.sound.features.delta`). librosa's default mode "interp" also differs at the
+    two first and last frames (a polynomial fit instead of edge replication)."""
+    import librosa
+
+    x = rng.normal(size=(40, 6))
+    theirs = librosa.feature.delta(x, width=5, order=1, axis=0, mode="nearest")
+    np.testing.assert_allclose(delta(x), 10.0 * theirs, rtol=1e-12, atol=1e-12)
+    theirs2 = librosa.feature.delta(theirs, width=5, order=1, axis=0, mode="nearest")
+    np.testing.assert_allclose(delta(delta(x)), 100.0 * theirs2, rtol=1e-12, atol=1e-11)
+    interp = librosa.feature.delta(x, width=5, order=1, axis=0)  # librosa's default
+    np.testing.assert_allclose(delta(x)[2:-2], 10.0 * interp[2:-2], rtol=1e-12, atol=1e-12)
+    assert not np.allclose(delta(x)[:2], 10.0 * interp[:2])
+
+
 def test_add_deltas_stacks_three_streams(rng):
     x = rng.normal(size=(20, 22))
     s = add_deltas(x)
@@ -63,6 +81,43 @@ def test_mfcc_shape_frames_and_determinism():
     assert m.shape == (expected_frames, 22)
     assert m.dtype == np.float32
     np.testing.assert_array_equal(m, mfcc(y, cfg))
+
+
+def htk_mel_filterbank(sr, n_fft, n_mels, fmin, fmax):
+    """Triangular filters equally spaced on the HTK mel scale, mel(f) = 2595 log10(1 + f / 700),
+    each of unit area (Slaney normalisation), written from the formula."""
+    mel = lambda f: 2595.0 * np.log10(1.0 + f / 700.0)  # noqa: E731
+    hz = lambda m: 700.0 * (10.0 ** (m / 2595.0) - 1.0)  # noqa: E731
+    edges = hz(np.linspace(mel(fmin), mel(fmax), n_mels + 2))
+    freqs = np.fft.rfftfreq(n_fft, 1.0 / sr)
+    rising = (freqs[None] - edges[:-2, None]) / (edges[1:-1] - edges[:-2])[:, None]
+    falling = (edges[2:, None] - freqs[None]) / (edges[2:] - edges[1:-1])[:, None]
+    return np.maximum(0.0, np.minimum(rising, falling)) * (2.0 / (edges[2:] - edges[:-2]))[:, None]
+
+
+def test_mfcc_uses_the_htk_mel_scale():
+    """MFCC = DCT-II (orthonormal) of the dB energies of HTK-mel filters on the power spectrum of
+    Hamming-windowed, uncentred frames, computed here from the formulas (Thesis section 5.2.3)."""
+    import scipy.fft
+    import scipy.signal
+
+    cfg = MFCCConfig(n_mfcc=13)
+    t = np.arange(8000) / cfg.sr
+    y = (0.3 * np.sin(2 * np.pi * 300 * t) + 0.2 * np.sin(2 * np.pi * 2300 * t * (1 + t))
+         + 0.01 * np.random.default_rng(0).normal(size=t.size)).astype(np.float32)
+    window = np.zeros(cfg.n_fft)
+    off = (cfg.n_fft - cfg.win_length) // 2
+    window[off : off + cfg.win_length] = scipy.signal.get_window("hamming", cfg.win_length, fftbins=True)
+    n_frames = 1 + (y.size - cfg.n_fft) // cfg.hop_length
+    frames = np.stack([y[i * cfg.hop_length : i * cfg.hop_length + cfg.n_fft] for i in range(n_frames)])
+    power = np.abs(np.fft.rfft(frames.astype(np.float64) * window, axis=1)) ** 2
+    energies = power @ htk_mel_filterbank(cfg.sr, cfg.n_fft, cfg.n_mels, 0.0, cfg.sr / 2).T
+    db = 10.0 * np.log10(np.maximum(energies, 1e-10))
+    db = np.maximum(db, db.max() - cfg.top_db)
+    expected = scipy.fft.dct(db, type=2, norm="ortho", axis=1)[:, : cfg.n_mfcc]
+    got = mfcc(y, cfg)
+    assert got.shape == expected.shape
+    np.testing.assert_allclose(got, expected, rtol=0, atol=2e-3 * np.abs(expected).max())
 
 
 def test_mfcc_separates_different_sounds():

@@ -189,7 +189,13 @@ def delta(x: np.ndarray) -> np.ndarray:
     .. math:: \\Delta x_t = 2 x_{t+2} + x_{t+1} - x_{t-1} - 2 x_{t-2}
 
     with edge replication (``x_i = x_1`` for ``i <= 0`` and ``x_i = x_T`` for ``i > T``).
-    Unlike librosa's ``delta`` there is no division by 10: this is the operator as written.
+    This is ``10 * librosa.feature.delta(x, width=5, order=1, axis=0, mode="nearest")``
+    (librosa divides by :math:`\\sum_n n^2 = 10`; its default ``mode="interp"`` also
+    differs on the first and last two frames). It is kept rather than replaced by librosa's:
+    the division changes the last bits of the delta streams (of about 95 % of the
+    standardised values on random frames), which the k-means codebooks of
+    :class:`~mmconcepts.sound.hac.HAC` are fitted on, and the experiments' numbers must not
+    move; ``tests/test_sound_features.py`` checks the factor.
 
     Parameters
     ----------
