@@ -47,11 +47,11 @@ def test_hoyer_projection_is_idempotent(x, sparseness, l2):
 @_SETTINGS
 @given(x=vectors, l2=st.floats(0.1, 10.0))
 def test_hoyer_projection_at_sparseness_zero_is_the_constant_vector(x, l2):
-    """Sparseness 0: the only feasible vector is constant. It is reached through the root of
-    a quadratic whose constant term is a rounding error (sqrt(eps) conditioning), hence the
-    looser tolerance; the property tests above keep sparseness >= 0.01."""
+    """Sparseness 0: the only feasible vector is constant (returned directly: the general
+    step would reach it through the root of a quadratic whose constant term is a rounding
+    error, with sqrt(eps) accuracy)."""
     p = project_hoyer(x, l1_for_sparseness(0.0, x.size, l2), l2)
-    np.testing.assert_allclose(p, l2 / np.sqrt(x.size), rtol=1e-4)
+    np.testing.assert_allclose(p, l2 / np.sqrt(x.size), rtol=1e-12)
 
 
 @_SETTINGS

@@ -76,6 +76,8 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
         raise ParameterError(
             f"no vector of length {n} has L1={l1:g} and L2={l2:g}: need l2 <= l1 <= sqrt(n) * l2."
         )
+    if l1 >= np.sqrt(n) * l2 * (1 - 1e-12):  # sparseness 0: the constant vector is the only feasible one
+        return np.full(n, l1 / n)
     l2sq = l2 * l2
     v = x + (l1 - x.sum()) / n
     zero = np.zeros(n, dtype=bool)
