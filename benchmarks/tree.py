@@ -278,6 +278,7 @@ def run_dtw(args, W, Wq):
         if abs(tree.n_leaves_ - args.dtw_leaves) <= 0.03 * args.dtw_leaves:
             break
         lo, hi = (r, hi) if tree.n_leaves_ > args.dtw_leaves else (lo, r)
+    compiled_vs_python(tree, Wt, Wq, r, kw, dtw_one_to_many)
     C = tree.leaf_centers_
     truth = np.array([np.argmin(dtw_one_to_many(q, C)) for q in Wq])
     print(f"\nDTW: {len(Wt)} windows, r_max={r:.3f}, {tree.n_leaves_} leaves, {tree.n_nodes_} nodes, "
@@ -307,6 +308,40 @@ def run_dtw(args, W, Wq):
                          "distances_per_query": evals})
         print(f"| {m} | {1e3 * med[m]:.2f} | {ref / med[m]:.1f}x | {recall:.3f} | {evals:.0f} |", flush=True)
     return rows
+
+
+def compiled_vs_python(tree, Wt, Wq, r, kw, dtw_one_to_many):
+    """metric="dtw" (numba kernels calling the compiled DTW) against the same DTW through a
+    callable metric (the Python path, which "dtw" took before issue 13): build and query
+    times, and a check that both give the same tree and answers, bit for bit."""
+    python_kw = {**kw, "metric": lambda q, C: dtw_one_to_many(q, C)}
+    builds = {"compiled": [], "python": []}
+    for _ in range(3):
+        for name, params in (("compiled", kw), ("python", python_kw)):
+            t = time.perf_counter()
+            built = ClusterTree(r, random_state=0, **params).fit(Wt)
+            builds[name].append(time.perf_counter() - t)
+            if name == "python":
+                py_tree = built
+    assert np.array_equal(py_tree.node_centers_, tree.node_centers_) and np.array_equal(py_tree.labels_, tree.labels_)
+    print(f"\nDTW tree build, {len(Wt)} windows (median of 3): compiled {min(builds['compiled']):.2f} s, "
+          f"Python path {min(builds['python']):.2f} s, ratio {np.median(builds['python']) / np.median(builds['compiled']):.1f}x")
+    print("| search | compiled ms/query | Python path ms/query | ratio | same answers |")
+    print("|---|---|---|---|---|")
+    for s, b in (("greedy", None), ("restart", 4), ("restart", 12), ("exact", None)):
+        times = {"compiled": [], "python": []}
+        for _ in range(3):
+            for name, t_ in (("compiled", tree), ("python", py_tree)):
+                t = time.perf_counter()
+                out = t_.query_batch(Wq, search=s, backtrack=b)
+                times[name].append((time.perf_counter() - t) / len(Wq))
+                if name == "compiled":
+                    got = out
+                else:
+                    same = all(np.array_equal(x, y) for x, y in zip(got, out))
+        c, p = 1e3 * np.median(times["compiled"]), 1e3 * np.median(times["python"])
+        label = s if b is None else f"{s} b={b}"
+        print(f"| {label} | {c:.3f} | {p:.3f} | {p / c:.1f}x | {same} |", flush=True)
 
 
 if __name__ == "__main__":
