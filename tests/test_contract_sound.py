@@ -88,10 +88,11 @@ CASES = [
     Case("HAC", lambda: HAC(n_clusters=(3, 3, 2), lags=(1, 3), max_iter=20, random_state=0),
          lambda rng: (mfcc_sequences(rng), None), "transform", _with_nan),
     Case("EventVoting", lambda: EventVoting(), event_bags, "decision_function"),
-    Case("TreeVotingClassifier", lambda: TreeVotingClassifier(1.5, n_max=4, k=2, random_state=0),
+    Case("TreeVotingClassifier",
+         lambda: TreeVotingClassifier(ClusterTree(1.5, n_max=4, k=2, metric="dtw", random_state=0)),
          window_utterances, "decision_function", _with_nan),
     Case("TreeVotingClassifier-euclidean",
-         lambda: TreeVotingClassifier(1.5, n_max=4, k=2, metric="euclidean", events="nodes", random_state=0),
+         lambda: TreeVotingClassifier(ClusterTree(1.5, n_max=4, k=2, random_state=0), events="nodes"),
          window_utterances, "decision_function", _with_nan),
 ]
 CASE_IDS = [c.name for c in CASES]
@@ -104,7 +105,7 @@ DATA_FREE_CHECKS = [
     "check_get_params_invariance", "check_set_params", "check_mixin_order", "check_valid_tag_types",
     "check_estimator_tags_renamed", "check_estimators_unfitted",
 ]
-SEQUENCE_LEARNERS = [HAC(), EventVoting(), TreeVotingClassifier(1.0)]
+SEQUENCE_LEARNERS = [HAC(), EventVoting(), TreeVotingClassifier(ClusterTree(1.0))]
 
 
 # --------------------------------------------------------------------------- scikit-learn's checks
@@ -196,8 +197,8 @@ def test_nan_in_fit_or_output_input_raises_data_error(case, rng):
         case.out(est, case.nan_input(X))
 
 
-@pytest.mark.parametrize("make, query", [(EventVoting, np.array([0, 1])), (lambda: TreeVotingClassifier(1.0),
-                                                                          np.ones((2, 3, 1)))],
+@pytest.mark.parametrize("make, query", [(EventVoting, np.array([0, 1])),
+                                         (lambda: TreeVotingClassifier(ClusterTree(1.0)), np.ones((2, 3, 1)))],
                          ids=["EventVoting", "TreeVotingClassifier"])
 def test_a_learner_that_has_seen_no_utterance_is_not_fitted(make, query):
     est = make().partial_fit([], [])
@@ -210,10 +211,15 @@ def test_clone_gives_an_unfitted_copy_with_the_same_parameters(case, rng):
     X, y = case.data(rng)
     est = case.fit(case.make(), X, y)
     copy = clone(est)
-    assert copy.get_params() == est.get_params()
+    assert _params(copy) == _params(est)
     with pytest.raises(NotFittedError, match="fit"):
         case.out(copy, X)
     np.testing.assert_array_equal(case.out(case.fit(copy, X, y), X), case.out(est, X))
+
+
+def _params(est):
+    """get_params(deep=False) with nested estimators replaced by (their class, their parameters)."""
+    return {k: (type(v), _params(v)) if hasattr(v, "get_params") else v for k, v in est.get_params(deep=False).items()}
 
 
 # --------------------------------------------------------------------------- parameters
@@ -221,7 +227,7 @@ ESTIMATORS = {
     "ClusterTree": lambda **kw: ClusterTree(**{"r_max": 1.0, **kw}),
     "HAC": lambda **kw: HAC(**{"n_clusters": (2, 2, 2), **kw}),
     "EventVoting": lambda **kw: EventVoting(**kw),
-    "TreeVotingClassifier": lambda **kw: TreeVotingClassifier(**{"r_max": 1.0, **kw}),
+    "TreeVotingClassifier": lambda **kw: TreeVotingClassifier(**{"tree": ClusterTree(1.0, metric="dtw"), **kw}),
 }
 BAD_PARAMETERS = [
     ("ClusterTree", "r_max", 0.0), ("ClusterTree", "r_max", np.inf), ("ClusterTree", "n_max", 2.5),
@@ -232,10 +238,12 @@ BAD_PARAMETERS = [
     ("HAC", "lags", ()), ("HAC", "lags", (2, 0)), ("HAC", "lags", 2), ("HAC", "standardize", "yes"),
     ("HAC", "max_fit_frames", 0), ("HAC", "max_iter", 0), ("HAC", "random_state", "seed"),
     ("EventVoting", "weighting", "bm25"),
+    ("TreeVotingClassifier", "tree", "a tree"), ("TreeVotingClassifier", "tree", -1.0),
+    ("TreeVotingClassifier", "events", "phonemes"), ("TreeVotingClassifier", "weighting", "bm25"),
+    # the deprecated tree parameters are still checked
     ("TreeVotingClassifier", "r_max", -1.0), ("TreeVotingClassifier", "n_max", 0), ("TreeVotingClassifier", "k", 1),
     ("TreeVotingClassifier", "metric", "cosine"), ("TreeVotingClassifier", "search", "beam"),
-    ("TreeVotingClassifier", "backtrack", 0), ("TreeVotingClassifier", "events", "phonemes"),
-    ("TreeVotingClassifier", "weighting", "bm25"), ("TreeVotingClassifier", "random_state", 1.5),
+    ("TreeVotingClassifier", "backtrack", 0), ("TreeVotingClassifier", "random_state", 1.5),
 ]
 
 
@@ -252,7 +260,7 @@ def _fit_data(name, rng):
 @pytest.mark.parametrize("name", ESTIMATORS)
 def test_every_constructor_parameter_has_a_constraint(name):
     est = ESTIMATORS[name]()
-    assert set(est._parameter_constraints) == set(est.get_params())
+    assert set(est._parameter_constraints) == set(est.get_params(deep=False))
 
 
 @pytest.mark.parametrize("name, param, value", BAD_PARAMETERS)
@@ -269,7 +277,7 @@ def test_a_bad_parameter_is_refused_by_fit_and_partial_fit_with_its_name(name, p
 @pytest.mark.parametrize("name", ["ClusterTree", "TreeVotingClassifier"])
 def test_n_max_must_exceed_k_before_anything_is_learnt(name, rng):
     X, y = _fit_data(name, rng)
-    est = ESTIMATORS[name](n_max=3, k=3)
+    est = ESTIMATORS[name](n_max=3, k=3) if name == "ClusterTree" else ESTIMATORS[name](tree=ClusterTree(1.0, n_max=3, k=3))
     with pytest.raises(ParameterError, match=r"n_max must be at least k \+ 1 = 4"):
         est.fit(X) if y is None else est.fit(X, y)
     assert not any(k.endswith("_") for k in vars(est))
@@ -384,7 +392,8 @@ def test_a_loaded_model_answers_and_keeps_learning_as_the_saved_one(name, make, 
 
 def test_loaded_models_keep_their_fitted_attributes(tmp_path, rng):
     utts, tags = window_utterances(rng)
-    model = TreeVotingClassifier(1.5, n_max=4, k=2, events="nodes", random_state=0).fit(utts, tags)
+    model = TreeVotingClassifier(ClusterTree(1.5, n_max=4, k=2, metric="dtw", random_state=0), events="nodes")
+    model.fit(utts, tags)
     back, _ = _saved_then_loaded(model, tmp_path)
     assert back.classes_ == model.classes_
     assert back.tree_.n_nodes_ == model.tree_.n_nodes_ and back.tree_.max_depth_ == model.tree_.max_depth_
@@ -429,3 +438,73 @@ def test_a_tree_with_a_callable_metric_is_not_saved(tmp_path, rng):
     with pytest.raises(ParameterError, match="metric: a function cannot be saved without pickle"):
         tree.save(tmp_path / "t")
     assert not (tmp_path / "t.npz").exists()
+
+
+# --------------------------------------------------------------------------- TreeVotingClassifier takes a ClusterTree
+def test_tree_voting_is_a_meta_estimator_over_its_tree(rng):
+    utts, tags = window_utterances(rng)
+    tree = ClusterTree(1.5, n_max=4, k=2, metric="dtw", random_state=0)
+    model = TreeVotingClassifier(tree, events="nodes")
+    params = model.get_params(deep=True)
+    assert params["tree"] is tree and params["tree__r_max"] == 1.5 and params["tree__metric"] == "dtw"
+    model.fit(utts, tags)
+    assert model.tree_ is not tree and not hasattr(tree, "labels_")  # the parameter is cloned, never fitted
+    assert model.tree_.get_params() == tree.get_params()
+    # set_params reaches the tree; clone copies it
+    other = clone(model).set_params(tree__r_max=1e6, tree__search="greedy")
+    assert other.tree is not tree and other.tree.r_max == 1e6 and tree.r_max == 1.5
+    other.fit(utts, tags)
+    assert other.tree_.n_leaves_ == 1 < model.tree_.n_leaves_  # every window joins the first leaf
+    # retrieval uses the tree's own search (greedy here): the same events as the tree's predict
+    bags = other.bags(utts[:3])
+    for u, bag in zip(utts[:3], bags):
+        leaves = other.tree_.predict(u)
+        np.testing.assert_array_equal(bag, np.concatenate([other.tree_.ancestors(int(l)) for l in leaves]))
+
+
+def test_deprecated_tree_parameters_warn_and_build_the_same_model(rng):
+    utts, tags = window_utterances(rng)
+    new = TreeVotingClassifier(ClusterTree(1.5, n_max=4, k=2, metric="dtw", backtrack=3, random_state=0))
+    expected = new.fit(utts, tags).decision_function(utts)
+    # the old defaults: metric "dtw", search "restart"; r_max could be the first argument
+    for old in (TreeVotingClassifier(1.5, n_max=4, k=2, backtrack=3, random_state=0),
+                TreeVotingClassifier(r_max=1.5, n_max=4, k=2, backtrack=3, random_state=0)):
+        with pytest.warns(FutureWarning, match=r"deprecated since 0\.1\.0 .* write TreeVotingClassifier\("
+                                               r"tree=ClusterTree\(r_max=1\.5, n_max=4, k=2, metric='dtw', "
+                                               r"search='restart', backtrack=3, random_state=0\), \.\.\.\) instead"):
+            old.fit(utts, tags)
+        np.testing.assert_array_equal(old.decision_function(utts), expected)
+        assert old.tree_.get_params() == new.tree_.get_params()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new form does not warn
+        TreeVotingClassifier(ClusterTree(1.5, metric="dtw")).fit(utts, tags)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({}, r"tree must be a ClusterTree; got None\. Write TreeVotingClassifier\(tree=ClusterTree"),
+    ({"tree": ClusterTree(1.0), "metric": "dtw"}, r"only; got tree= and the deprecated metric"),
+    ({"tree": 1.0, "r_max": 2.0}, "r_max is given twice"),
+    ({"metric": "dtw"}, r"the deprecated metric need r_max"),
+])
+def test_tree_voting_needs_one_tree(kwargs, match, rng):
+    utts, tags = window_utterances(rng, n=4)
+    with pytest.raises(ParameterError, match=match):
+        TreeVotingClassifier(**kwargs).fit(utts, tags)
+
+
+def test_a_bad_tree_parameter_is_named_by_the_tree(rng):
+    utts, tags = window_utterances(rng, n=4)
+    with pytest.raises(ParameterError, match=r"^ClusterTree: r_max must be a real number > 0; got -1\.0"):
+        TreeVotingClassifier(ClusterTree(-1.0)).fit(utts, tags)
+    model = TreeVotingClassifier(ClusterTree(1.0)).set_params(tree__search="beam")
+    with pytest.raises(ParameterError, match=r"^ClusterTree: search must be one of"):
+        model.partial_fit(utts, tags)
+
+
+def test_a_model_saved_with_the_deprecated_parameters_loads(tmp_path, rng):
+    utts, tags = window_utterances(rng)
+    with pytest.warns(FutureWarning):
+        old = TreeVotingClassifier(1.5, n_max=4, k=2, random_state=0).fit(utts, tags)
+    back = TreeVotingClassifier.load(old.save(tmp_path / "old"))
+    assert back.get_params(deep=False) == old.get_params(deep=False)
+    np.testing.assert_array_equal(back.decision_function(utts), old.decision_function(utts))

@@ -13,16 +13,17 @@ event appearing ``q_i`` times in a query utterance votes ``V_i = q_i f_i^t w_i``
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Hashable, Sequence
 from typing import Any
 
 import numpy as np
-from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.base import BaseEstimator, ClassifierMixin, clone
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
-from .._validation import Interval, Options, validate_params
-from ..errors import DataError
+from .._validation import InstanceOf, Interval, Options, validate_params
+from ..errors import DataError, ParameterError
 from .tree import SEARCHES, ClusterTree
 
 __all__ = ["EventVoting", "TreeVotingClassifier"]
@@ -195,39 +196,54 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
         return float(np.mean(ok)) if ok else float("nan")
 
 
+class _NotSet:
+    """The default of a deprecated parameter: the string "deprecated" (not given)."""
+
+    def is_satisfied_by(self, value: Any) -> bool:
+        return isinstance(value, str) and value == _DEPRECATED
+
+    def __str__(self) -> str:
+        return "'deprecated' (not given)"
+
+
+_DEPRECATED = "deprecated"
+
+# The tree parameters TreeVotingClassifier mirrored before it took a ClusterTree (deprecated
+# in 0.1.0, removed in the next release), with the defaults they had then.
+_TREE_PARAMS = ("r_max", "n_max", "k", "metric", "search", "backtrack", "random_state")
+_OLD_DEFAULTS = {"n_max": None, "k": None, "metric": "dtw", "search": "restart", "backtrack": None,
+                 "random_state": None}
+
+
 class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     """The keyword recogniser of Thesis section 5.2.3: cluster tree + TF-IDF voting.
 
     Each utterance is a set of fixed-length MFCC windows (the local descriptors,
     :func:`~mmconcepts.sound.features.mfcc_windows`). Training inserts every window into
-    an incremental :class:`~mmconcepts.sound.tree.ClusterTree` (Algorithm 1: unsupervised,
-    the tags are not used) and counts, for the utterance's tag(s), the acoustic events
-    its windows fall in (:class:`EventVoting`). A new utterance's windows are retrieved in
-    the tree (no insertion) and the events vote (eq. 5.1). Training is incremental
+    a clone of ``tree``, an incremental :class:`~mmconcepts.sound.tree.ClusterTree`
+    (Algorithm 1: unsupervised, the tags are not used), and counts, for the utterance's
+    tag(s), the acoustic events its windows fall in (:class:`EventVoting`). A new
+    utterance's windows are retrieved in the tree (no insertion, with the tree's ``search``
+    and ``backtrack``) and the events vote (eq. 5.1). Training is incremental
     (:meth:`partial_fit`), as in the protocol of Fig. 5.3 and 5.4.
 
     Parameters
     ----------
-    r_max : float > 0
-        Radius of the primitive clusters (leaves), in the metric's units.
-    n_max : int, optional
-        Maximum number of children of a node (the tree's default when None).
-    k : int, optional
-        k-means parameter of node splits (the tree's default when None).
-    metric : {"dtw", "euclidean"} or callable, default="dtw"
-        Distance between windows (the thesis uses DTW).
-    search : str, default="restart"
-        Tree search used for insertion and retrieval (the thesis' second backtracking
-        search by default).
-    backtrack : int, optional
-        Backtracking parameter b of the search.
+    tree : ClusterTree
+        The unfitted tree to grow (it is cloned; ``tree_`` is the fitted clone), e.g.
+        ``ClusterTree(r_max, metric="dtw", search="restart", backtrack=4, random_state=0)``
+        for the thesis' DTW and second backtracking search. Its parameters are reached as
+        ``tree__<name>`` by :meth:`get_params` and :meth:`set_params`.
     events : {"leaves", "nodes"}, default="leaves"
         Acoustic events: the leaves only, or every node on the path from the root to the
         leaf (hierarchical, multi-scale events).
     weighting : {"tfidf", "uniform"}, default="tfidf"
         Weights of eq. (5.1) or uniform weights.
-    random_state : int, Generator or None
-        Seeds the tree's k-means splits.
+    r_max, n_max, k, metric, search, backtrack, random_state : deprecated
+        The tree's parameters, given here before 0.1.0 (with ``metric="dtw"`` by default;
+        ``r_max`` could be the first positional argument). They still build the tree, with
+        a ``FutureWarning`` that says which ``tree=ClusterTree(...)`` to write instead, and
+        will be removed in the next release. They cannot be mixed with ``tree``.
 
     Attributes
     ----------
@@ -243,31 +259,41 @@ class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     ``two_d_array`` input tag is False); ``tests/test_contract_sound.py`` runs the ones
     that apply on utterances. A fitted model saves and loads without pickle (:meth:`save`,
     :meth:`load`; not with a callable ``metric``).
+
+    Examples
+    --------
+    >>> from mmconcepts.sound import ClusterTree, TreeVotingClassifier
+    >>> model = TreeVotingClassifier(ClusterTree(2.0, metric="dtw", random_state=0), events="nodes")
+    >>> model.set_params(tree__r_max=1.5).get_params()["tree__r_max"]
+    1.5
     """
 
     _parameter_constraints = {
-        "r_max": [Interval("real", 0, None, closed="neither")],
-        "n_max": [Interval("int", 1, None), None],
-        "k": [Interval("int", 2, None), None],
-        "metric": [Options("dtw", "euclidean"), "callable"],
-        "search": [Options(*SEARCHES)],
-        "backtrack": [Interval("int", 1, None), None],
+        # a real number is the deprecated positional r_max
+        "tree": [InstanceOf(ClusterTree, description="a ClusterTree"), None, Interval("real", 0, None, closed="neither")],
         "events": [Options("leaves", "nodes")],
         "weighting": [Options(*_WEIGHTINGS)],
-        "random_state": ["random_state"],
+        "r_max": [_NotSet(), Interval("real", 0, None, closed="neither")],
+        "n_max": [_NotSet(), Interval("int", 1, None), None],
+        "k": [_NotSet(), Interval("int", 2, None), None],
+        "metric": [_NotSet(), Options("dtw", "euclidean"), "callable"],
+        "search": [_NotSet(), Options(*SEARCHES)],
+        "backtrack": [_NotSet(), Interval("int", 1, None), None],
+        "random_state": [_NotSet(), "random_state"],
     }
 
-    def __init__(self, r_max: float, *, n_max: int | None = None, k: int | None = None, metric="dtw",
-                 search: str = "restart", backtrack: int | None = None, events: str = "leaves",
-                 weighting: str = "tfidf", random_state=None) -> None:
+    def __init__(self, tree: ClusterTree | None = None, *, events: str = "leaves", weighting: str = "tfidf",
+                 r_max: Any = _DEPRECATED, n_max: Any = _DEPRECATED, k: Any = _DEPRECATED, metric: Any = _DEPRECATED,
+                 search: Any = _DEPRECATED, backtrack: Any = _DEPRECATED, random_state: Any = _DEPRECATED) -> None:
+        self.tree = tree
+        self.events = events
+        self.weighting = weighting
         self.r_max = r_max
         self.n_max = n_max
         self.k = k
         self.metric = metric
         self.search = search
         self.backtrack = backtrack
-        self.events = events
-        self.weighting = weighting
         self.random_state = random_state
 
     def __sklearn_tags__(self):
@@ -279,13 +305,46 @@ class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
 
     def _check_params(self) -> None:
         validate_params(self, self._parameter_constraints, hints={
+            "tree": "Write TreeVotingClassifier(tree=ClusterTree(r_max, metric='dtw', ...)).",
             "r_max": "Choose it from the nearest-neighbour distances between windows of different utterances.",
             "events": "'leaves' votes with the leaves only, 'nodes' with every node from the root to the leaf.",
         })
 
+    def _new_tree(self) -> ClusterTree:
+        """An unfitted clone of ``tree``, or the tree the deprecated parameters describe (with a warning)."""
+        old = {name: getattr(self, name) for name in _TREE_PARAMS if not _NotSet().is_satisfied_by(getattr(self, name))}
+        positional = self.tree is not None and not isinstance(self.tree, ClusterTree)
+        if positional:
+            if "r_max" in old:
+                raise ParameterError("TreeVotingClassifier: r_max is given twice (first argument and r_max=); "
+                                     "write TreeVotingClassifier(tree=ClusterTree(r_max, ...)).")
+            old["r_max"] = self.tree
+        if not old:
+            if self.tree is None:
+                raise ParameterError("TreeVotingClassifier: tree must be a ClusterTree; got None. Write "
+                                     "TreeVotingClassifier(tree=ClusterTree(r_max, metric='dtw', ...)).")
+            return clone(self.tree)
+        if isinstance(self.tree, ClusterTree):
+            raise ParameterError(
+                f"TreeVotingClassifier: give the tree's parameters in tree=ClusterTree(...) only; got tree= and the "
+                f"deprecated {', '.join(sorted(old))}.")
+        if "r_max" not in old:
+            raise ParameterError(
+                f"TreeVotingClassifier: the deprecated {', '.join(sorted(old))} need r_max; write "
+                "TreeVotingClassifier(tree=ClusterTree(r_max, metric='dtw', ...)).")
+        kw = {"r_max": old["r_max"], **_OLD_DEFAULTS, **old}
+        kw = {name: v for name, v in kw.items() if not (name in ("n_max", "k", "backtrack") and v is None)}
+        tree = ClusterTree(**kw)
+        shown = ", ".join(f"{name}={v!r}" if not callable(v) else f"{name}=<function>" for name, v in kw.items())
+        warnings.warn(
+            f"TreeVotingClassifier's tree parameters ({', '.join(n for n in _TREE_PARAMS if n in old)}) are "
+            f"deprecated since 0.1.0 and will be removed in the next release; write "
+            f"TreeVotingClassifier(tree=ClusterTree({shown}), ...) instead.",
+            FutureWarning, stacklevel=4)
+        return tree
+
     def _init(self) -> None:
-        kw = {name: getattr(self, name) for name in ("n_max", "k", "backtrack") if getattr(self, name) is not None}
-        tree = ClusterTree(self.r_max, metric=self.metric, search=self.search, random_state=self.random_state, **kw)
+        tree = self._new_tree()
         tree._check_params()  # what the table cannot say (n_max >= k + 1), before anything is learnt
         self.tree_ = tree
         self.voting_ = EventVoting(weighting=self.weighting)
