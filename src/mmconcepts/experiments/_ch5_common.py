@@ -244,11 +244,13 @@ def choose_r_max(windows: list[np.ndarray], *, metric: str, quantile: float, see
 
 def make_voter(params: dict, train_windows: list[np.ndarray], *, seed: int):
     """A :class:`~mmconcepts.sound.voting.TreeVotingClassifier` with r_max chosen from ``train_windows``."""
+    from ..sound.tree import ClusterTree
     from ..sound.voting import TreeVotingClassifier
 
     r_max = choose_r_max(train_windows, metric=params["metric"], quantile=params["r_quantile"], seed=seed)
-    return TreeVotingClassifier(r_max, metric=params["metric"], search=params["search"],
-                                backtrack=params["backtrack"], events=params["events"], random_state=seed)
+    tree = ClusterTree(r_max, metric=params["metric"], search=params["search"], backtrack=params["backtrack"],
+                       random_state=seed)
+    return TreeVotingClassifier(tree, events=params["events"])
 
 
 def first_speaker(ctx: RunContext, *, n_per_speaker: int):

@@ -93,7 +93,7 @@ def _learn(task: dict) -> dict:
             per_group.append({g: float(ok[groups[test] == g].mean()) for g in task["group_names"]})
     # the last session's hits, one 0/1 value per test utterance in the order of task["test"]
     return {"name": task["name"], "seen": seen, "accuracy": acc, "per_group": per_group, "final_hits": ok.astype(float),
-            "n_leaves": int(voter.tree_.n_leaves_), "r_max": float(voter.r_max)}
+            "n_leaves": int(voter.tree_.n_leaves_), "r_max": float(voter.tree.r_max)}
 
 
 def compute(config: Config, ctx: RunContext) -> Result:
