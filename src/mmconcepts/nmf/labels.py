@@ -555,8 +555,9 @@ def make_svm_baseline(*, C: float = 1.0, max_iter: int = 10000, scale: bool = Tr
     ``OneVsRestClassifier(make_pipeline(StandardScaler(), LinearSVC(C)))`` from
     scikit-learn (the thesis used scikit-learn's SVMs). Features are standardised first,
     as usual for SVMs: on raw histograms (values summing to one per degree of freedom) an
-    SVM with C = 1 is so strongly regularised that it predicts almost no label (measured
-    on the synthetic 47-label choreographies: l_full 0.004 raw, 0.33 standardised). Fitted on a binary indicator Y, :meth:`predict` gives the label
+    SVM with C = 1 is so strongly regularised that it predicts almost no label
+    (``scale=False`` gives that plain SVM; ch3-choreography reports both side by side).
+    Fitted on a binary indicator Y, :meth:`predict` gives the label
     set directly, each label's own SVM deciding (decision value > 0), "with no need for
     thresholding" as in the thesis, so it serves l_full; :meth:`decision_function`
     gives the per-label decision values for :func:`~mmconcepts.nmf.scores.l_given_number`

@@ -700,12 +700,12 @@ class KeypointBag(_WordBag):
         Grid spacing in pixels (121 patches on a 96 x 96 image with the defaults).
     contrast_threshold : float, default=0.01
         Mean gradient magnitude (intensity per pixel) below which a patch is flat and left
-        out. Sensor noise of standard deviation 0.012 (the 90th percentile measured on
-        ETH-80's flat background) gives about 0.008, the median (0.006) about 0.004.
+        out. The default sits just above what camera noise on a flat background gives
+        (see benchmarks/README.md, "Measurements quoted by the code's design decisions").
     rotation_invariant : bool, default=True
         Describe each patch in the frame of its dominant gradient orientation (as SURF);
-        False gives upright descriptors (as U-SURF), faster and more discriminative when
-        objects are always upright.
+        False gives upright descriptors (as U-SURF): one orientation estimate less per
+        patch, and the orientation itself stays informative when objects are always upright.
     normalize : {"l1", None}, default="l1"
         ``"l1"``: each histogram sums to one; None: counts.
     max_fit_samples : int, default=50000
