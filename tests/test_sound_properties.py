@@ -210,3 +210,24 @@ def test_tree_does_not_depend_on_the_batching_of_insertions(problem, metric, n_c
     np.testing.assert_array_equal(parts.node_parents_, whole.node_parents_)
     np.testing.assert_array_equal(parts.node_centers_, whole.node_centers_)
     np.testing.assert_array_equal(parts.predict(X), whole.predict(X))
+
+
+def test_ties_in_the_restart_queue_go_to_the_sibling_skipped_first():
+    """Windows on an integer grid give many equal margins in the "restart" queue; the kernels
+    break them as the Python reference does (heapq on (priority, push number)). Random data
+    almost never has such ties: this grid does (reversing the kernels' tie-break changes an answer)."""
+    import itertools
+
+    grid = np.array(list(itertools.product(range(5), repeat=2)), dtype=float)
+    X = grid[np.random.default_rng(0).integers(len(grid), size=300)][:, :, None]
+    Q = np.concatenate([grid, grid + 0.5])[:, :, None]
+    for seed in range(5):
+        for priority in ("path", "sibling"):
+            params = dict(r_max=0.5, n_max=5, k=3, random_state=seed, restart_priority=priority)
+            compiled = ClusterTree(metric="dtw", **params).fit(X)
+            python = ClusterTree(metric=_dtw_callable, **params).fit(X)
+            for b in (2, 3, 4, 6):
+                got = compiled.query_batch(Q, search="restart", backtrack=b)
+                ref = python.query_batch(Q, search="restart", backtrack=b)
+                for g, r in zip(got, ref):
+                    np.testing.assert_array_equal(g, r)
