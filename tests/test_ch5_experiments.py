@@ -13,6 +13,7 @@ from conftest import real_data_path
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.experiments import RunContext, evaluate_rule
 from mmconcepts.experiments import _ch5_common as common
+from mmconcepts.sound.tree import ClusterTree
 from mmconcepts.sound.voting import TreeVotingClassifier
 
 
@@ -34,15 +35,15 @@ def window_utterances(rng, n, n_tags=4, T=5, d=3):
 @pytest.mark.parametrize("events", ["leaves", "nodes"])
 def test_tree_voting_learns_tags(rng, metric, events):
     utts, tags = window_utterances(rng, 120)
-    model = TreeVotingClassifier(3.0, metric=metric, events=events, random_state=0).fit(utts[:80], tags[:80])
+    model = TreeVotingClassifier(tree=ClusterTree(3.0, metric=metric, random_state=0), events=events).fit(utts[:80], tags[:80])
     assert model.score(utts[80:], tags[80:]) > 0.9  # chance 0.25
     assert model.tree_.n_leaves_ < 80 * 7  # windows were grouped into events
 
 
 def test_tree_voting_incremental_equals_batch(rng):
     utts, tags = window_utterances(rng, 60)
-    a = TreeVotingClassifier(3.0, metric="euclidean", random_state=0).fit(utts, tags)
-    b = TreeVotingClassifier(3.0, metric="euclidean", random_state=0)
+    a = TreeVotingClassifier(tree=ClusterTree(3.0, metric="euclidean", random_state=0)).fit(utts, tags)
+    b = TreeVotingClassifier(tree=ClusterTree(3.0, metric="euclidean", random_state=0))
     for i in range(0, 60, 25):
         b.partial_fit(utts[i : i + 25], tags[i : i + 25])
     np.testing.assert_array_equal(a.decision_function(utts), b.decision_function(utts))
@@ -51,11 +52,11 @@ def test_tree_voting_incremental_equals_batch(rng):
 def test_tree_voting_bad_input(rng):
     utts, tags = window_utterances(rng, 5)
     with pytest.raises(DataError, match="5 utterances but 4 tags"):
-        TreeVotingClassifier(1.0).fit(utts, tags[:4])
+        TreeVotingClassifier(tree=ClusterTree(1.0)).fit(utts, tags[:4])
     with pytest.raises(ParameterError):
-        TreeVotingClassifier(1.0, events="phonemes").fit(utts, tags)
+        TreeVotingClassifier(tree=ClusterTree(1.0), events="phonemes").fit(utts, tags)
     with pytest.raises(NotFittedError, match="not fitted"):
-        TreeVotingClassifier(1.0).predict(utts)
+        TreeVotingClassifier(tree=ClusterTree(1.0)).predict(utts)
 
 
 def test_choose_r_max_ignores_windows_of_the_same_utterance(rng):
