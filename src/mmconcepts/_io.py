@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import DataFormatError
 
-__all__ = ["read_csv_rows", "replace_dir"]
+__all__ = ["atomic_path", "atomic_write", "read_csv_rows", "replace_dir"]
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
@@ -45,3 +47,46 @@ def replace_dir(tmp: Path, root: Path) -> None:
         shutil.rmtree(trash, ignore_errors=True)
     else:
         os.replace(tmp, root)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str], *, suffix: str = ".tmp") -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to; it replaces ``path`` when the block ends well.
+
+    The one way the package writes a file atomically: a reader never sees a half-written
+    ``path``, and a failure (any exception, ``KeyboardInterrupt`` included) removes the
+    temporary file and leaves any old ``path`` as it was. The file gets the usual
+    permissions (``0o666`` less the umask). ``suffix`` ends the temporary name (give the
+    real extension when the writer chooses the format from it, e.g. ``".tmp.wav"``).
+
+    Examples
+    --------
+    >>> with atomic_path(folder / "x.npz", suffix=".tmp.npz") as tmp:   # doctest: +SKIP
+    ...     np.savez(tmp, a=a)
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> None:
+    """Write ``data`` (bytes, or text as UTF-8) to ``path`` atomically, flushed to disk."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+            fh.flush()
+            os.fsync(fh.fileno())

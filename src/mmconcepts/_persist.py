@@ -26,6 +26,7 @@ import numpy as np
 from sklearn.exceptions import NotFittedError
 
 from . import __version__
+from ._io import atomic_path
 from .errors import DataFormatError, ParameterError, VersionMismatchError
 
 __all__ = ["SaveLoadMixin", "encode", "decode"]
@@ -54,15 +55,12 @@ def encode(value: Any, key: str, arrays: dict[str, np.ndarray]) -> Any:
         arr = value
         if arr.dtype == object:
             if all(isinstance(x, str) for x in arr.ravel()):
-                arr = arr.astype(str)
-                kind = "str-object-array"
-            else:
-                raise ParameterError(f"{key}: an object array that is not all strings cannot be saved without pickle.")
-        else:
-            kind = "array"
+                # in the JSON header: numpy's fixed-width strings would drop trailing NUL characters
+                return {_MARK: "str-object-array", "shape": list(arr.shape), "items": [str(x) for x in arr.ravel()]}
+            raise ParameterError(f"{key}: an object array that is not all strings cannot be saved without pickle.")
         name = f"a{len(arrays)}"
         arrays[name] = arr
-        return {_MARK: kind, "entry": name}
+        return {_MARK: "array", "entry": name}
     if isinstance(value, tuple):
         return {_MARK: "tuple", "items": [encode(v, f"{key}[{i}]", arrays) for i, v in enumerate(value)]}
     if isinstance(value, list):
@@ -96,8 +94,12 @@ def decode(value: Any, arrays: Any) -> Any:
         return {k: decode(v, arrays) for k, v in value.items()}
     if kind == "array":
         return np.asarray(arrays[value["entry"]])
-    if kind == "str-object-array":
+    if kind == "str-object-array" and "entry" in value:  # written before the strings moved to the header
         return np.asarray(arrays[value["entry"]]).astype(object)
+    if kind == "str-object-array":
+        out = np.empty(len(value["items"]), dtype=object)
+        out[:] = value["items"]
+        return out.reshape(value["shape"])
     if kind == "float":
         return float(value["value"])
     if kind == "tuple":
@@ -192,9 +194,8 @@ class SaveLoadMixin:
             "params": encode(_saveable_params(self), "params", arrays),
             "state": encode(self._get_state(), "state", arrays),
         }
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, header=np.array(json.dumps(header)), **arrays)
-        tmp.replace(path)
+        with atomic_path(path, suffix=".tmp.npz") as tmp:
+            np.savez(tmp, header=np.array(json.dumps(header)), **arrays)
         return path
 
     @classmethod

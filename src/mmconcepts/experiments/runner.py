@@ -58,7 +58,6 @@ import math
 import os
 import platform
 import re
-import tempfile
 import time
 import traceback
 import warnings
@@ -69,6 +68,7 @@ from typing import Any
 
 from .. import __version__
 from .._fingerprint import code_fingerprint
+from .._io import atomic_write
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
 from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext, Table, check_seed
@@ -104,31 +104,6 @@ _DATA_NAME = re.compile(r"[A-Za-z0-9_.-]+\Z")
 
 
 # --------------------------------------------------------------------------- files
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same folder and os.replace."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 def load_record(path: str | os.PathLike[str]) -> ResultRecord | None:
@@ -462,7 +437,7 @@ def _save_figures(figures: Mapping[str, Any], fig_dir: Path) -> dict[str, str]:
     for name, fig in figures.items():
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-        _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
+        atomic_write(fig_dir / f"{name}.png", buf.getvalue())
         saved[name] = f"{fig_dir.name}/{name}.png"
     return saved
 
@@ -616,7 +591,7 @@ def run_experiment(
     t0 = time.perf_counter()
     error = _execute(exp, config, ctx, record, target)
     record.elapsed_s = round(time.perf_counter() - t0, 3)
-    _atomic_write(target.json_path, record.to_json().encode("utf-8"))
+    atomic_write(target.json_path, record.to_json().encode("utf-8"))
     _remove_stale_figures(target.fig_dir, (Path(p).name for p in record.figures.values()))
     if record.status == "ok":
         logger.info("%s: done in %.1f s, wrote %s", exp.id, record.elapsed_s, target.json_path)

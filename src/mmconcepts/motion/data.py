@@ -26,7 +26,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import tempfile
 import warnings
 import zipfile
 from collections.abc import Iterable, Mapping, Sequence
@@ -35,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._io import atomic_path
 from ..errors import DataError, DataFormatError, ParameterError
 
 __all__ = [
@@ -388,15 +388,8 @@ def _open_npz(path: Path):
 
 
 def _atomic_write_bytes(path: Path, writer) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.name, suffix=".tmp")
-    os.close(fd)
-    try:
-        writer(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_path(path) as tmp:
+        writer(str(tmp))
 
 
 def _write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:

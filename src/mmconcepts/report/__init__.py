@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 
 from ..errors import ExperimentError
-from ..experiments.runner import _atomic_write
+from .._io import atomic_write
 from ._model import collect
 from .html import render_html
 from .markdown import render_markdown
@@ -57,7 +57,7 @@ def write_report(
     views = collect(results_dir)
     html_path = results_dir / "report.html"
     md_path = results_dir / "report.md"
-    _atomic_write(html_path, render_html(views, title=title).encode("utf-8"))
-    _atomic_write(md_path, render_markdown(views, title=title).encode("utf-8"))
+    atomic_write(html_path, render_html(views, title=title).encode("utf-8"))
+    atomic_write(md_path, render_markdown(views, title=title).encode("utf-8"))
     logger.info("wrote %s and %s (%d experiment(s))", html_path, md_path, len(views))
     return html_path, md_path

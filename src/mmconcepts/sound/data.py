@@ -58,7 +58,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._io import read_csv_rows
+from .._io import atomic_path, read_csv_rows
 from .._validation import check_subset_indices
 from ..errors import DataError, DataFormatError, ParameterError
 from .audio import DEFAULT_SR, audio_info, load_audio
@@ -477,20 +477,10 @@ def save_generic_audio(corpus: SpeechCorpus | Sequence[Utterance], root: str | o
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[str]]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(header)
-            w.writerows(rows)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
 
 
 # --------------------------------------------------------------------------- FSDD
