@@ -35,10 +35,6 @@ _EXPECTED = {
             "0.69 training accuracy with k=150, 0.75 with k=3, below the check's 0.83 (0.93 on the 2-blob "
             "problem); the thesis' inputs are histograms with hundreds of bins."
         ),
-        "check_classifier_multioutput": (
-            "decision_function returns the thesis' label activations y_hat (section 3.3.2) thresholded at the "
-            "cross-validated eta, not at 0 as the check assumes."
-        ),
     },
 }
 

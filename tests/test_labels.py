@@ -119,7 +119,7 @@ def test_label_nmf_recovers_label_sets(rng, beta_loss, n_components):
     X, Y, _ = label_mixtures(rng, 300)
     Xtr, Ytr, Xte, Yte = X[:200], Y[:200], X[200:], Y[200:]
     model = LabelNMF(n_components, beta_loss=beta_loss, random_state=0).fit(Xtr, Ytr)
-    scores = model.decision_function(Xte)
+    scores = model.label_activations(Xte)
     full, given = l_full(Yte, model.predict(Xte)), l_given_number(Yte, scores)
 
     # Chance: ranking labels at random finds the true 2 or 3 of 12 with probability
@@ -146,7 +146,7 @@ def test_label_nmf_recovers_label_sets(rng, beta_loss, n_components):
     # Control: the same learner trained on labels shuffled across examples is at chance.
     perm = rng.permutation(len(Ytr))
     shuffled = LabelNMF(n_components, beta_loss=beta_loss, threshold=0.5, random_state=0).fit(Xtr, Ytr[perm])
-    assert l_given_number(Yte, shuffled.decision_function(Xte)) < 0.15
+    assert l_given_number(Yte, shuffled.label_activations(Xte)) < 0.15
 
 
 def test_label_nmf_generalises_to_unseen_combinations(rng):
@@ -161,7 +161,7 @@ def test_label_nmf_generalises_to_unseen_combinations(rng):
     assert not train_sets & {tuple(np.flatnonzero(r)) for r in Yte}
     model = LabelNMF(12, random_state=0).fit(Xtr, Ytr)
     # A learner that memorised whole label sets would score 0 here; chance is 1/66.
-    assert l_given_number(Yte, model.decision_function(Xte)) >= 0.7
+    assert l_given_number(Yte, model.label_activations(Xte)) >= 0.7
     assert l_full(Yte, model.predict(Xte)) >= 0.5
 
 
@@ -239,7 +239,24 @@ def test_cv_threshold_is_the_pooled_best_of_the_folds(rng):
     # A fixed threshold skips cross-validation and is used as given.
     fixed = LabelNMF(12, threshold=0.3, random_state=0).fit(X, Y)
     assert fixed.threshold_ == 0.3 and fixed.cv_scores_ is None
-    assert np.array_equal(fixed.predict(X), (fixed.decision_function(X) >= 0.3).astype(int))
+    assert np.array_equal(fixed.predict(X), (fixed.label_activations(X) >= 0.3).astype(int))
+
+
+def test_decision_function_is_positive_where_predicted(rng):
+    # scikit-learn's convention (a label is predicted where its decision value is >= 0),
+    # on top of the thesis' activations y_hat: decision = y_hat - eta.
+    X, Y, _ = label_mixtures(rng, 120)
+    model = LabelNMF(12, cv=3, random_state=0).fit(X[:80], Y[:80])
+    y_hat, decision = model.label_activations(X[80:]), model.decision_function(X[80:])
+    np.testing.assert_array_equal(decision, y_hat - model.threshold_)
+    assert np.array_equal(model.predict(X[80:]), (decision >= 0).astype(int))
+    assert 0 < model.predict(X[80:]).mean() < 1  # both signs occur
+    # Two classes, one label per example: the second class's activation minus the first's.
+    y = Y[:, 0]
+    two = LabelNMF(6, random_state=0).fit(X, y)
+    s = two.label_activations(X)
+    np.testing.assert_array_equal(two.decision_function(X), s[:, 1] - s[:, 0])
+    assert np.array_equal(two.predict(X), two.classes_[(two.decision_function(X) > 0).astype(int)])
 
 
 # --------------------------------------------------------------------------- inputs
@@ -259,7 +276,7 @@ def test_label_weight_balances_the_l1_norms_and_scores_are_in_label_units(rng):
     model = LabelNMF(12, threshold=0.5, random_state=0).fit(X, Y)
     assert model.label_weight_ == pytest.approx(X.sum(1).mean() / Y.sum(1).mean())
     # Scores come back in label units: on training data present labels score near 1.
-    s = model.decision_function(X)
+    s = model.label_activations(X)
     assert 0.6 < np.median(s[Y == 1]) < 1.4 and np.median(s[Y == 0]) < 0.2
     heavy = LabelNMF(12, label_weight=3.0, threshold=0.5, random_state=0).fit(X, Y)
     assert heavy.label_weight_ == 3.0
@@ -320,9 +337,6 @@ def test_sklearn_estimator_checks():
     from sklearn.utils.estimator_checks import check_estimator
 
     expected = {
-        # decision_function returns the reconstructed label activations y_hat (thesis
-        # section 3.3.2), thresholded at threshold_, not at 0 as scikit-learn assumes.
-        "check_classifier_multioutput": "decision_function is y_hat, predict is y_hat >= threshold_",
         # Nonnegative reconstruction from 2 shifted blob coordinates is not a general
         # classifier: accuracy 0.47-0.75 on the 3-blob problem (0.945 on 2 blobs).
         "check_classifiers_train": "method limit on 2-feature blobs",

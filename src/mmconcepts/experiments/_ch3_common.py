@@ -406,7 +406,7 @@ def _fold(task: dict) -> dict:
                 model = _learner(name, task["params"], seed)
                 keep = Ytr.sum(axis=0) > 0  # labels absent from training cannot be learnt
                 model.fit(Xtr, Ytr[:, keep])
-                s = model.decision_function(Xte)
+                s = model.label_activations(Xte) if name.startswith("nmf_") else model.decision_function(Xte)
                 scores = np.full((len(test), L), -1e9)
                 scores[:, keep] = s
                 pred = np.zeros((len(test), L), dtype=np.int64)

@@ -136,7 +136,7 @@ def _fold(task: dict) -> dict:
         Cte = hac.transform([c_hac[i] for i in cte])
         cmodel = LabelNMF(cfg["n_components"], threshold="cv", cv=cfg["threshold_cv"], **nmf).fit(
             Ctr[:, ckeep], Y[ctr])
-        S = cmodel.decision_function(Cte[:, ckeep])
+        S = cmodel.label_activations(Cte[:, ckeep])
         P = cmodel.predict(Cte[:, ckeep])
         cvoter = common.make_voter(task["voting"], [c_win[i] for i in ctr], seed=seed)
         cvoter.partial_fit([c_win[i] for i in ctr], [tuple(keywords[j] for j in np.flatnonzero(Y[i])) for i in ctr])

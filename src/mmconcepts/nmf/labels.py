@@ -60,7 +60,7 @@ __all__ = ["DEFAULT_THRESHOLD_GRID", "LabelNMF", "make_svm_baseline"]
 
 #: Thresholds tried when ``threshold='cv'``: 0.05, 0.075, ..., 0.95 (37 values), in the
 #: units of the label vectors (a label present with weight 1 and perfectly reconstructed
-#: scores 1, an absent one 0), since :meth:`LabelNMF.decision_function` undoes the
+#: scores 1, an absent one 0), since :meth:`LabelNMF.label_activations` undoes the
 #: label weight.
 DEFAULT_THRESHOLD_GRID = np.round(np.linspace(0.05, 0.95, 37), 4)
 
@@ -121,7 +121,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
     multiplied by ``lambda = mean_i ||x_i||_1 / mean_i ||y_i||_1`` so that
     both parts have the same average L1 norm per example. Scaling only Y is equivalent to
     normalizing both parts (the minimisers of a beta-divergence scale with the data) and
-    lets :meth:`decision_function` take raw features. The reconstruction is divided by
+    lets :meth:`label_activations` take raw features. The reconstruction is divided by
     lambda again, so scores are in label units whatever the weight.
 
     Parameters
@@ -209,8 +209,10 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
     ...     row[rng.choice(4, 2, replace=False)] = 1
     >>> X = Y @ patterns + 0.01 * rng.random((60, 30))
     >>> model = LabelNMF(8, random_state=0).fit(X, Y)
-    >>> model.decision_function(X).shape
+    >>> model.label_activations(X).shape
     (60, 4)
+    >>> bool(np.all((model.decision_function(X) >= 0) == model.predict(X)))
+    True
     """
 
     _parameter_constraints: dict = {
@@ -458,8 +460,12 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         X = self._check_X(X)
         return self.nmf_.transform(X, features=slice(0, self.n_features_in_))
 
-    def decision_function(self, X: Any) -> np.ndarray:
+    def label_activations(self, X: Any) -> np.ndarray:
         """Reconstructed label activations y_hat (thesis section 3.3.2 step 2), in label units.
+
+        ``transform(X) @ H_lab / label_weight_``: a label present with weight 1 and
+        perfectly reconstructed scores 1, an absent one 0. This is the score the thesis
+        thresholds (:meth:`predict`) and ranks (:meth:`predict_given_number`).
 
         Parameters
         ----------
@@ -468,19 +474,37 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         Returns
         -------
         ndarray of shape (n_samples, n_labels)
-            ``transform(X) @ H_lab / label_weight_``; for a 2-class single-label fit,
-            the difference of the two classes' activations, shape (n_samples,).
+            One column per label (per class after a single-label fit).
         """
         W = self.transform(X)
         labels = slice(self.n_features_in_, self.n_features_in_ + self.n_labels_)
-        scores = self.nmf_.inverse_transform(W, features=labels) / self.label_weight_
-        if self._single_label and self.n_labels_ == 2:
-            return scores[:, 1] - scores[:, 0]
-        return scores
+        return self.nmf_.inverse_transform(W, features=labels) / self.label_weight_
 
-    def _scores(self, X: Any) -> np.ndarray:
-        s = self.decision_function(X)
-        return np.column_stack([-s / 2, s / 2]) if s.ndim == 1 else s
+    def decision_function(self, X: Any) -> np.ndarray:
+        """Confidence scores in scikit-learn's convention: positive means predicted.
+
+        After a multi-label fit, ``label_activations(X) - threshold_``, so that
+        ``decision_function(X) >= 0`` is exactly :meth:`predict`. After a single-label
+        fit (1-D y), the label activations themselves (the best-scored class is
+        predicted), or for two classes the second's minus the first's.
+
+        Parameters
+        ----------
+        X : {array-like, sparse matrix} of shape (n_samples, n_features)
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_labels), or (n_samples,) after a 2-class single-label fit
+
+        Notes
+        -----
+        Earlier development versions returned y_hat itself after a multi-label fit; it
+        is :meth:`label_activations` now.
+        """
+        scores = self.label_activations(X)
+        if self._single_label:
+            return scores[:, 1] - scores[:, 0] if self.n_labels_ == 2 else scores
+        return scores - self.threshold_
 
     def predict(self, X: Any) -> np.ndarray:
         """Label sets: ``y_hat >= threshold_`` (thesis section 3.3.3).
@@ -495,7 +519,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         -------
         ndarray of int of shape (n_samples, n_labels), or of shape (n_samples,) after a 1-D y
         """
-        scores = self._scores(X)
+        scores = self.label_activations(X)
         if self._single_label:
             return self.classes_[np.argmax(scores, axis=1)]
         return (scores >= self.threshold_).astype(np.int64)
@@ -516,7 +540,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
             index (lowest first), whereas :func:`~mmconcepts.nmf.scores.l_given_number`
             counts a tie at the boundary as a failure.
         """
-        scores = self._scores(X)
+        scores = self.label_activations(X)
         n, L = scores.shape
         counts = np.asarray(n_labels_per_sample)
         if counts.dtype.kind == "f" and np.all(np.isfinite(counts)) and np.all(counts == np.round(counts)):
@@ -538,7 +562,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
 def _fold_curve(inner: LabelNMF, X, Y: np.ndarray, train, val, seed: int, grid: np.ndarray) -> np.ndarray:
     """Fit one inner fold once (fixed threshold: no nested search) and score all thresholds on its validation part."""
     model = clone(inner).set_params(random_state=seed).fit(X[train], Y[train])
-    return l_full_curve(Y[val], model.decision_function(X[val]), grid)
+    return l_full_curve(Y[val], model.label_activations(X[val]), grid)
 
 
 _SVM_BASELINE_CONSTRAINTS: dict = {
