@@ -10,11 +10,16 @@ DATA_ROOT ?=
 
 .PHONY: reproduce test bench clean
 
+# The package with every modality (extra "all"); the tests and the benchmarks add their tools.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[all]"
 	touch $(STAMP)
+
+$(VENV)/.installed-%: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e ".[all,$*]"
+	touch $@
 
 ## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
 ## and write results/report.html and results/report.md
@@ -22,11 +27,11 @@ reproduce: $(STAMP)
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included)
-test: $(STAMP)
+test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q
 
 ## Speed comparisons against the peer libraries (see benchmarks/README.md)
-bench: $(STAMP)
+bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/nmf.py
 	$(BIN)/python benchmarks/dtw.py
 	$(BIN)/python benchmarks/tree.py
