@@ -1,7 +1,8 @@
 """The pieces an experiment is made of: Experiment, Claim, Result, Table, RunContext.
 
 An experiment reproduces one table or figure of the thesis. It has a stable id, a frozen
-dataclass config with ``quick()`` and ``full()`` presets and a ``seed`` field, the thesis'
+dataclass config with ``quick()`` and ``full()`` presets (declared as data with
+:class:`~mmconcepts.experiments.config.PresetConfig`) and a ``seed`` field, the thesis'
 reference numbers and its claims, each with a rule checked on our numbers (see
 :mod:`mmconcepts.experiments.rules`), and two functions:
 
@@ -26,20 +27,15 @@ A complete experiment module (``src/mmconcepts/experiments/ch2_example.py``)::
     from matplotlib.figure import Figure
 
     from mmconcepts.experiments import Claim, Experiment, Result, RunContext, Table, register
+    from mmconcepts.experiments.config import PresetConfig
 
 
     @dataclass(frozen=True)
-    class Config:
-        n_trials: int = 10
+    class Config(PresetConfig):             # quick() and full() from the presets below
+        n_trials: int = 100                 # the defaults: the full protocol
         seed: int = 0
 
-        @classmethod
-        def quick(cls) -> "Config":
-            return cls(n_trials=3)
-
-        @classmethod
-        def full(cls) -> "Config":
-            return cls(n_trials=100)
+        QUICK = {"n_trials": 3}             # what the quick preset changes (FULL: none)
 
 
     def _trial(seed):                       # module level, so it pickles for ctx.parallel

@@ -31,6 +31,7 @@ from matplotlib.figure import Figure
 
 from ..nmf import beta_nmf, match_components
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run", "make_data", "streams"]
@@ -39,7 +40,7 @@ KINDS = ("identifiable", "nonidentifiable")
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes, betas and solvers of the recovery experiment.
 
     ``learner_seed`` (default: spawned from ``seed``) changes the solvers' initialisation
@@ -58,13 +59,8 @@ class Config:
     learner_seed: int | None = None
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_samples=300, n_features=60, n_components=5, max_iter=400, pg_max_iter=400, n_repeats=3)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls(n_samples=1000, n_features=200, n_components=10, max_iter=2000, pg_max_iter=1000, n_repeats=5)
+    QUICK = dict(n_samples=300, n_features=60, n_components=5, max_iter=400, pg_max_iter=400, n_repeats=3)
+    FULL = dict(n_samples=1000, n_features=200, n_components=10, max_iter=2000, pg_max_iter=1000, n_repeats=5)
 
 
 def make_data(kind: str, n_samples: int, n_features: int, n_components: int, noise: float,

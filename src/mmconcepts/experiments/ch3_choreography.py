@@ -76,6 +76,7 @@ from matplotlib.figure import Figure
 
 from . import _ch3_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "evaluate_mixed", "present", "run", "score_figure", "score_table"]
@@ -86,7 +87,7 @@ SUBSETS = {"16": "mixed_partial", "47": "mixed_full"}
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Protocol of Table 3.2 (``n_folds=None``: leave-one-out)."""
 
     n_folds: int | None = None
@@ -103,13 +104,7 @@ class Config:
     sensitivity: bool = True
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> Config:
-        return cls(n_folds=10, max_iter=100, inner_cv=3)
-
-    @classmethod
-    def full(cls) -> Config:
-        return cls()
+    QUICK = dict(n_folds=10, max_iter=100, inner_cv=3)
 
     def features(self) -> dict:
         feats = {"data": self.data, "method": self.method, "n_bins": self.n_bins, "delay": self.delay}

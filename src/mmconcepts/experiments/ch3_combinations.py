@@ -41,7 +41,7 @@ __all__ = ["Config", "compute", "present", "run", "subset_unit_scores"]
 @dataclass(frozen=True)
 class Config(_BaseConfig):
     """The ``ch3-choreography`` protocol (its quick/full presets)."""
-    # quick() and full() are inherited: the same presets as ch3-choreography.
+    # QUICK and FULL are inherited: the same presets as ch3-choreography.
 
 
 def subset_unit_scores(Y: np.ndarray, S: np.ndarray, P: np.ndarray, units: list[np.ndarray],

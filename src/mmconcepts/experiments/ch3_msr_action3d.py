@@ -40,6 +40,7 @@ from matplotlib.figure import Figure
 
 from . import _ch3_common as common
 from .base import Claim, Experiment, ExperimentSkipped, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run"]
@@ -53,7 +54,7 @@ MIXED_LEARNERS = ("nmf_frobenius", "svm", "svm_std")
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     n_folds_single: int = 10
     n_folds_mixed: int = 10
     n_components: int = 150
@@ -62,13 +63,7 @@ class Config:
     n_records: int | None = None
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> Config:
-        return cls(n_folds_single=3, n_folds_mixed=5, max_iter=100, inner_cv=3)
-
-    @classmethod
-    def full(cls) -> Config:
-        return cls()
+    QUICK = dict(n_folds_single=3, n_folds_mixed=5, max_iter=100, inner_cv=3)
 
 
 def _folder(ctx: RunContext):

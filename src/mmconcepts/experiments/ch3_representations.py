@@ -54,6 +54,7 @@ from matplotlib.figure import Figure
 
 from . import _ch3_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run"]
@@ -64,7 +65,7 @@ DATA = ("angles", "velocities", "separate", "joint")
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Bins and delays compared, and the learner's protocol."""
 
     bins: tuple[int, ...] = (4, 9, 16, 25, 36, 49)
@@ -77,13 +78,7 @@ class Config:
     n_records: int | None = 326
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> Config:
-        return cls(bins=(4, 9, 16), delays=(1, 3, 10), n_folds=3, max_iter=100)
-
-    @classmethod
-    def full(cls) -> Config:
-        return cls()
+    QUICK = dict(bins=(4, 9, 16), delays=(1, 3, 10), n_folds=3, max_iter=100)
 
 
 def _fig6_delays(config: Config) -> tuple[int, ...]:

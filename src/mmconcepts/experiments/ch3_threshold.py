@@ -62,7 +62,7 @@ _CURVE_LEARNERS = ("nmf_frobenius", "nmf_kl")
 @dataclass(frozen=True)
 class Config(_BaseConfig):
     """The ``ch3-choreography`` protocol (its quick/full presets)."""
-    # quick() and full() are inherited: the same presets as ch3-choreography.
+    # QUICK and FULL are inherited: the same presets as ch3-choreography.
 
 
 def unit_curves(Y: np.ndarray, S: np.ndarray, units: list[np.ndarray], grid: np.ndarray = GRID) -> np.ndarray:

@@ -39,6 +39,7 @@ from ..tasks import (
     value_iteration,
 )
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run", "make_tasks", "score_rewards"]
@@ -48,7 +49,7 @@ TRANSFER_LEARNERS = ("flat", "factorial", "flat_pca", "flat_gt", "flat_examples"
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes of the factorial IRL experiment (defaults: the thesis' settings)."""
 
     grid_size: int = 10
@@ -68,14 +69,7 @@ class Config:
     tasks_curve: tuple[int, ...] = (10, 20, 50, 100)
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_tasks=30, n_test_tasks=30, flat_max_iter=50,
-                   demos_curve=(2, 10), tasks_curve=(10, 30))
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_tasks=30, n_test_tasks=30, flat_max_iter=50, demos_curve=(2, 10), tasks_curve=(10, 30))
 
 
 def make_tasks(config: Config, n_tasks: int, n_demos: int, rng: np.random.Generator, D_true: np.ndarray, mdp):

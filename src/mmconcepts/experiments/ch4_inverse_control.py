@@ -52,6 +52,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ..tasks import FactorialInverseControl, RBFFeatures, brillinger_regression, control_trajectories, relative_l2_error
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run", "streams", "make_data", "mixing_error"]
@@ -69,7 +70,7 @@ SENSITIVITY_METRICS = ("supervised.train.rel_l2", "supervised.test.rel_l2", "sup
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes of the factorial inverse control experiment (defaults: the thesis' settings).
 
     ``sensor_noise`` is the standard deviation of the Gaussian noise on observed positions,
@@ -101,13 +102,7 @@ class Config:
     learner_seed: int | None = None
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_test=50, max_iter=60, n_repeats=3)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_test=50, max_iter=60, n_repeats=3)
 
 
 def _mix(rng, n, k):

@@ -35,13 +35,14 @@ from threadpoolctl import threadpool_limits
 from ..sound.features import MFCCConfig
 from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run"]
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Protocol sizes (defaults: the thesis'); ``n_per_speaker`` selects the generated corpus."""
 
     n_per_speaker: int = 1000
@@ -55,13 +56,7 @@ class Config:
     backtrack: int = 4
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_train=200, n_test=50, session=50, multi_session=100)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_train=200, n_test=50, session=50, multi_session=100)
 
 
 def _split(y: np.ndarray, n_train: int, n_test: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -54,13 +54,14 @@ from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run"]
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Protocol sizes. ``n_per_speaker`` selects the generated corpus (ignored with real data).
 
     ``n_composed_per_fold`` utterances of ``min_words`` to ``max_words`` recordings, with
@@ -85,13 +86,7 @@ class Config:
     threshold_cv: int = 5
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=3)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=3)
 
 
 def _observed(X) -> np.ndarray:

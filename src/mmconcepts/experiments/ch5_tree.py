@@ -35,6 +35,7 @@ from ..sound.features import MFCCConfig
 from ..sound.tree import ClusterTree
 from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run"]
@@ -44,7 +45,7 @@ SEARCHES = (("greedy", 1), ("best_children", 2), ("best_children", 3),
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes; ``n_per_speaker`` selects the generated corpus (ignored with --data)."""
 
     n_per_speaker: int = 1000
@@ -56,13 +57,7 @@ class Config:
     metric: str = "dtw"
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_train_utterances=400, n_queries=400)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_train_utterances=400, n_queries=400)
 
 
 #: "Recall 0.9 for less than a fifth of exact search's cost": some restart search does both, decided on the

@@ -37,13 +37,14 @@ from ..multimodal import MultimodalNMF
 from ..sound.hac import HAC
 from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run", "mutual_information_matrix", "REPEATED"]
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes (``n_per_speaker``, ``n_motion`` select the generated data), the thesis' k = 15, 10 bins.
 
     ``n_repeats``: NMF fits from as many learner initialisations (the features are computed once).
@@ -58,17 +59,11 @@ class Config:
     n_repeats: int = 10
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        # 3 initialisations: one NMF fit costs about a quarter of the single-fit quick run on real data and an
-        # eighth on generated data, so 3 add about 45 % and 25 % with --workers 1 (30 % over both variants; with
-        # two workers, as make reproduce runs, half that), where 5 would double the real one; the verdicts say
-        # inconclusive rather than slow the run down (issue 12's time budget)
-        return cls(n_per_speaker=250, n_motion=250, n_repeats=3)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    # 3 initialisations: one NMF fit costs about a quarter of the single-fit quick run on real data and an
+    # eighth on generated data, so 3 add about 45 % and 25 % with --workers 1 (30 % over both variants; with
+    # two workers, as make reproduce runs, half that), where 5 would double the real one; the verdicts say
+    # inconclusive rather than slow the run down (issue 12's time budget)
+    QUICK = dict(n_per_speaker=250, n_motion=250, n_repeats=3)
 
 
 def mutual_information_matrix(y: np.ndarray, W: np.ndarray, n_bins: int = 10) -> np.ndarray:

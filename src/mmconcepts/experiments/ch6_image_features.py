@@ -33,6 +33,7 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from ..sound.hac import HAC
 from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run", "SETS"]
@@ -42,7 +43,7 @@ SPLIT = (0.6, 0.2, 0.2)  # training, test, reference
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes; ``n_per_speaker`` and ``n_views`` select the generated data."""
 
     n_per_speaker: int = 1000
@@ -52,13 +53,7 @@ class Config:
     n_iter: int = 50
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_views=24, n_repeats=3)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_views=24, n_repeats=3)
 
 
 def load_images(ctx: RunContext, n_objects: int, n_views: int):

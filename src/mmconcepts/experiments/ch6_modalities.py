@@ -37,6 +37,7 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run"]
@@ -47,7 +48,7 @@ NAMES = {"S": "sound", "M": "motion", "I": "image"}
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes; ``n_per_speaker``, ``n_motion`` and ``n_views`` select the generated data."""
 
     n_per_speaker: int = 1000
@@ -60,13 +61,7 @@ class Config:
     motion_bins: int = 25
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_motion=250, n_views=24, n_repeats=3, k_sweep=(10, 50))
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_motion=250, n_views=24, n_repeats=3, k_sweep=(10, 50))
 
 
 def _setups() -> list[tuple[str, str, str]]:

@@ -33,6 +33,7 @@ from matplotlib.figure import Figure
 
 from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute_motion_sound", "present_motion_sound", "run_motion_sound", "compute_symbolic",
@@ -44,7 +45,7 @@ METRIC_TITLES = {"kl": "KL (I-div.)", "kl_normalised": "KL normalised", "euclide
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes (defaults: the thesis'); ``n_per_speaker`` and ``n_motion`` select the generated data."""
 
     n_per_speaker: int = 1000
@@ -55,13 +56,7 @@ class Config:
     motion_bins: int = 25
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_motion=250, n_folds=5)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_motion=250, n_folds=5)
 
 
 #: Thesis Table 6.2 (success rates; the shuffled control "generally scores around 0.116").

@@ -55,6 +55,7 @@ from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch6_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
+from .config import PresetConfig
 from .registry import register
 
 __all__ = ["Config", "compute", "present", "run", "stream_windows", "compose_test_utterances", "stratified_folds",
@@ -62,7 +63,7 @@ __all__ = ["Config", "compute", "present", "run", "stream_windows", "compose_tes
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(PresetConfig):
     """Sizes; ``n_per_speaker`` and ``n_views`` select the generated data.
 
     ``fixed_width`` is the window width the claims are decided on and Fig. 6.9's probe uses
@@ -86,13 +87,7 @@ class Config:
     n_test_folds: int = 5
     seed: int = 0
 
-    @classmethod
-    def quick(cls) -> "Config":
-        return cls(n_per_speaker=250, n_views=24, widths=(0.1, 0.3, 1.0), n_repeats=1)
-
-    @classmethod
-    def full(cls) -> "Config":
-        return cls()
+    QUICK = dict(n_per_speaker=250, n_views=24, widths=(0.1, 0.3, 1.0), n_repeats=1)
 
 
 def stream_windows(starts: np.ndarray, durations: np.ndarray, width: float, shift: float) -> np.ndarray:
