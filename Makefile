@@ -8,7 +8,7 @@ RESULTS ?= results
 # The folder of real data sets (fsdd, msr-action3d, eth80, ...); empty: $$MMCONCEPTS_DATA_ROOT, else generated data only.
 DATA_ROOT ?=
 
-.PHONY: reproduce test bench clean
+.PHONY: reproduce test typecheck docs bench clean
 
 # The package with every modality (extra "all"); the tests and the benchmarks add their tools.
 $(STAMP): pyproject.toml
@@ -21,14 +21,27 @@ $(VENV)/.installed-%: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e ".[all,$*]"
 	touch $@
 
+# The tests check the types and build the documentation too (what CI runs).
+$(VENV)/.installed-dev: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	touch $@
+
 ## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
 ## and write results/report.html and results/report.md
 reproduce: $(STAMP)
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included)
-test: $(VENV)/.installed-test
+test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q
+
+## Type-check the package (mypy; configuration in pyproject.toml)
+typecheck: $(VENV)/.installed-dev
+	$(BIN)/python -m mypy
+
+## Build the documentation site into docs/_build/html (warnings are errors)
+docs: $(VENV)/.installed-dev
+	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 ## Speed comparisons against the peer libraries (see benchmarks/README.md)
 bench: $(VENV)/.installed-bench
@@ -38,4 +51,4 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/mdp.py
 
 clean:
-	rm -rf $(VENV) $(RESULTS) .pytest_cache
+	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache docs/_build docs/auto_examples docs/api/generated

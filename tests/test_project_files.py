@@ -42,4 +42,4 @@ def test_all_is_what_a_user_needs_and_developer_tools_stay_apart(project):
     for tool in ("pytest", "hypothesis", "dtaidistance", "pymdptoolbox"):
         assert tool not in user
     assert [name for name, deps in extras.items() if any("pymdptoolbox" in d for d in deps)] == ["bench"]
-    assert extras["dev"] == ["mmconcepts[all,test,bench]"]
+    assert extras["dev"] == ["mmconcepts[all,test,bench,docs]"]

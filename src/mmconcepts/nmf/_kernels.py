@@ -10,11 +10,13 @@ Rows are processed in parallel (``prange``), so no two threads write the same ou
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba as nb
 import numpy as np
 
 # Reassociation lets LLVM vectorise the length-k dot products (results change in the last bits only).
-_OPTS = dict(nogil=True, cache=True, fastmath={"reassoc", "contract"}, error_model="numpy")
+_OPTS: dict[str, Any] = dict(nogil=True, cache=True, fastmath={"reassoc", "contract"}, error_model="numpy")
 
 
 @nb.njit(parallel=True, **_OPTS)

@@ -101,7 +101,7 @@ _PARALLEL_MIN_CELLS = 100_000
 # ``fastmath=False`` is written out: a kernel that does not set it inherits the fastmath
 # flags of a compiled caller (numba's flag inheritance), and the cluster tree's kernels,
 # which call :func:`_dtw_to_rows`, are compiled with fastmath.
-_OPTS = dict(nogil=True, cache=True, error_model="numpy", fastmath=False)
+_OPTS: dict[str, Any] = dict(nogil=True, cache=True, error_model="numpy", fastmath=False)
 
 
 # --------------------------------------------------------------------------------------

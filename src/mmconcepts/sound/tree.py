@@ -77,7 +77,7 @@ _KMEANS_N_INIT = 3
 _KMEANS_MAX_ITER = 100
 
 # Same options as nmf/_kernels.py: reassociation lets LLVM vectorise the distance loops.
-_OPTS = {"nogil": True, "cache": True, "fastmath": {"reassoc", "contract"}, "error_model": "numpy"}
+_OPTS: dict[str, Any] = {"nogil": True, "cache": True, "fastmath": {"reassoc", "contract"}, "error_model": "numpy"}
 
 # Metric codes of the kernels (user callables run in Python, see ClusterTree._search_generic).
 # The kernels' numba cache (cache=True) holds the compiled DTW of dtw.py they call, and numba
