@@ -126,6 +126,45 @@ def test_wrong_format_keys_explained(tmp_path, rng):
         load_choreo1(tmp_path / "choreo2.json", on_error="ignore")
 
 
+@pytest.mark.parametrize(("load", "save", "sep"), [(load_choreo1, lambda r, d: save_choreo1(r, d, "primitive"), "-"),
+                                                    (load_choreo2, save_choreo2, "_")])
+def test_both_formats_check_their_own_key_spelling(tmp_path, rng, load, save, sep):
+    """load_choreo1 and load_choreo2 share their code; each still names its own keys."""
+    path = save(_recs(rng, 2, ("head", "neck"), orient=True), tmp_path)
+    meta = json.loads(path.read_text())
+    meta[f"marker{sep}names"] = [1, 2]
+    path.write_text(json.dumps(meta))
+    with pytest.raises(DataFormatError, match=f"'marker{sep}names' must be a list of strings"):
+        load(path)
+    meta[f"marker{sep}names"] = ["head", "neck"]
+    meta["records"][1][f"data{sep}id"] = 7
+    path.write_text(json.dumps(meta))
+    with pytest.raises(DataFormatError, match=f"no array for record 7 .key '7'. listed in .*{path.name}"):
+        load(path)
+    with pytest.warns(RuntimeWarning, match="1 record") as caught:
+        ds = load(path, on_error="skip", frame_rate=12.5)
+    assert caught[0].filename == __file__  # the warning points at the caller
+    assert [r.record_id for r in ds] == ["0"] and ds[0].frame_rate == 12.5
+    assert (ds[0].orientations is None) == (sep == "-")
+
+
+def test_choreo2_gesture_names(tmp_path, rng):
+    from mmconcepts.motion import CHOREO2_GESTURES
+
+    path = save_choreo2(_recs(rng, 1, ("head",), orient=True), tmp_path, name="mine", label_descriptions=("a", "b"))
+    ds = load_choreo2(path)
+    assert ds.name == "mine" and ds.label_names == {0: "a", 1: "b"}
+    meta = json.loads(path.read_text())
+    del meta["label_descriptions"], meta["name"]
+    path.write_text(json.dumps(meta))
+    ds = load_choreo2(path)
+    assert ds.name == "choreo2" and ds.label_names == dict(enumerate(CHOREO2_GESTURES))
+    meta["label_descriptions"] = "squat"
+    path.write_text(json.dumps(meta))
+    (tmp_path / "choreo2.npz").unlink()  # the index is checked before the data file is opened
+    with pytest.raises(DataFormatError, match="'label_descriptions' must be a list of strings"):
+        load_choreo2(path)
+
 def test_msr_loader_bad_file(tmp_path):
     (tmp_path / "a01_s01_e01_skeleton3D.txt").write_text("1 2 3 1\n" * 19)
     good = "\n".join("0.1 0.2 2.0 1.0" for _ in range(20)) + "\n"

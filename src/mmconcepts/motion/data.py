@@ -28,7 +28,7 @@ import os
 import re
 import warnings
 import zipfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -503,23 +503,42 @@ def load_choreo1(
     MotionDataset
         Positions (T, n_markers, 3); labels are Table B.2 gesture ids.
     """
+    json_path, _, recs, skipped = _load_choreo(path, "Choreo1", "-", n_values=3, on_error=on_error,
+                                               frame_rate=frame_rate)
+    _warn_skipped(skipped, str(json_path))
+    return MotionDataset(recs, dict(CHOREO1_GESTURES), name=json_path.stem, skipped=skipped)
+
+
+def _load_choreo(path: str | os.PathLike[str], what: str, sep: str, *, n_values: int, on_error: str,
+                 frame_rate: float, check_meta: Callable[[Mapping, Path], object] | None = None,
+                 ) -> tuple[Path, dict, list[MotionRecording], list[SkippedRecord]]:
+    """What :func:`load_choreo1` and :func:`load_choreo2` share: the JSON index, its NPZ, the records.
+
+    The two formats differ in the spelling of the index's keys (``sep``: ``"-"`` in Choreo1,
+    ``marker-names``, ``data-file``, ``data-id``; ``"_"`` in Choreo2) and in the values per
+    marker (``n_values``: 3 positions, or 7 with an orientation quaternion).
+    ``check_meta(meta, json_path)``, when given, checks the format's other entries before
+    the NPZ is opened. Returns the JSON path, its content, the records read and the skipped.
+    """
     _check_on_error(on_error)
-    json_path = _resolve_json(Path(path), "Choreo1")
+    json_path = _resolve_json(Path(path), what)
     meta = _read_json(json_path)
-    names = _require(meta, "marker-names", json_path)
-    data_file = _require(meta, "data-file", json_path)
+    names_key = f"marker{sep}names"
+    names = _require(meta, names_key, json_path)
+    data_file = _require(meta, f"data{sep}file", json_path)
     records = _require(meta, "records", json_path)
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise DataFormatError(f"{json_path}: 'marker-names' must be a list of strings.")
+        raise DataFormatError(f"{json_path}: {names_key!r} must be a list of strings.")
+    if check_meta is not None:
+        check_meta(meta, json_path)
     npz_path = json_path.parent / str(data_file)
     npz = _open_npz(npz_path)
     skipped: list[SkippedRecord] = []
     with npz:
-        recs = _load_records(json_path, records, npz, npz_path, id_key="data-id", n_values=3,
+        recs = _load_records(json_path, records, npz, npz_path, id_key=f"data{sep}id", n_values=n_values,
                              marker_names=tuple(names), frame_rate=frame_rate, on_error=on_error,
                              skipped=skipped)
-    _warn_skipped(skipped, str(json_path))
-    return MotionDataset(recs, dict(CHOREO1_GESTURES), name=json_path.stem, skipped=skipped)
+    return json_path, meta, recs, skipped
 
 
 def _resolve_json(path: Path, what: str) -> Path:
@@ -641,28 +660,21 @@ def load_choreo2(
         Positions and orientations (qx, qy, qz, qw); label ids 0..9 named by
         ``label_descriptions``.
     """
-    _check_on_error(on_error)
-    json_path = _resolve_json(Path(path), "Choreo2")
-    meta = _read_json(json_path)
-    names = _require(meta, "marker_names", json_path)
-    data_file = _require(meta, "data_file", json_path)
-    records = _require(meta, "records", json_path)
+    json_path, meta, recs, skipped = _load_choreo(path, "Choreo2", "_", n_values=7, on_error=on_error,
+                                                  frame_rate=frame_rate, check_meta=_choreo2_descriptions)
+    _warn_skipped(skipped, str(json_path))
+    descr = _choreo2_descriptions(meta, json_path)
+    return MotionDataset(recs, dict(enumerate(descr)), name=str(meta.get("name", json_path.stem)), skipped=skipped)
+
+
+def _choreo2_descriptions(meta: Mapping, json_path: Path) -> list[str]:
+    """The gesture names of a Choreo2 index (its ``label_descriptions``, else Table B.3's)."""
     descr = meta.get("label_descriptions")
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise DataFormatError(f"{json_path}: 'marker_names' must be a list of strings.")
     if descr is None:
         descr = list(CHOREO2_GESTURES)
     if not isinstance(descr, list) or not all(isinstance(d, str) for d in descr):
         raise DataFormatError(f"{json_path}: 'label_descriptions' must be a list of strings.")
-    npz_path = json_path.parent / str(data_file)
-    npz = _open_npz(npz_path)
-    skipped: list[SkippedRecord] = []
-    with npz:
-        recs = _load_records(json_path, records, npz, npz_path, id_key="data_id", n_values=7,
-                             marker_names=tuple(names), frame_rate=frame_rate, on_error=on_error,
-                             skipped=skipped)
-    _warn_skipped(skipped, str(json_path))
-    return MotionDataset(recs, dict(enumerate(descr)), name=str(meta.get("name", json_path.stem)), skipped=skipped)
+    return descr
 
 
 def save_choreo2(dataset: MotionDataset | Sequence[MotionRecording], folder: str | os.PathLike[str], *,
