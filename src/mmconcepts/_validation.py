@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import math
 import numbers
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -13,6 +15,18 @@ from .errors import DataError, ParameterError
 __all__ = ["check_random_state", "check_nonnegative_matrix", "check_positive_int", "check_scalar", "check_subset_indices"]
 
 RandomLike = "int | np.random.Generator | np.random.RandomState | None"
+
+
+def _is_finite_real(value: numbers.Real) -> bool:
+    """Whether a real number is finite as a float (False for an int too large for a float).
+
+    ``math.isfinite`` rather than ``np.isfinite``: the ufunc raises TypeError for real numbers
+    that are not Python or numpy scalars (``fractions.Fraction``, an int beyond float range).
+    """
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def check_random_state(random_state: Any) -> np.random.Generator:
@@ -60,7 +74,7 @@ def check_scalar(
     high_inclusive: bool = True,
 ) -> float:
     """Return ``value`` as a finite float in the given range, or raise :class:`ParameterError`."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not _is_finite_real(value):
         raise ParameterError(f"{name} must be a finite real number; got {value!r}.")
     value = float(value)
     bad = (
@@ -196,7 +210,7 @@ class Interval:
         if self.kind == "int":
             if not isinstance(value, (numbers.Integral, np.integer)):
                 return False
-        elif not isinstance(value, numbers.Real) or not np.isfinite(value):
+        elif not isinstance(value, numbers.Real) or not _is_finite_real(value):
             return False
         left = self.closed in ("both", "left")
         right = self.closed in ("both", "right")
@@ -291,7 +305,7 @@ class _Named:
         if self.name == "random_state":
             return (value is None or isinstance(value, (np.random.Generator, np.random.RandomState))
                     or (isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, bool)
-                        and value >= 0))
+                        and int(value) >= 0))
         if self.name == "callable":
             return callable(value)
         if self.name == "sparse matrix":
@@ -326,13 +340,14 @@ class _NoneConstraint:
 _NONE = _NoneConstraint()
 
 
-def describe_constraints(constraints: list) -> str:
+def describe_constraints(constraints: list[Any]) -> str:
     """The constraints of one parameter in words: "an int >= 1 or None"."""
     parts = [str(_as_constraint(c)) for c in constraints]
     return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " or " + parts[-1]
 
 
-def validate_params(params: Any, constraints: dict[str, list], *, owner: str | None = None,
+def validate_params(params: Any, constraints: Mapping[str, list[Any] | Literal["no_validation"]], *,
+                    owner: str | None = None,
                     hints: dict[str, str] | None = None) -> None:
     """Check every parameter named in ``constraints`` against its list of accepted forms.
 

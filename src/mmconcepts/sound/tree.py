@@ -51,10 +51,11 @@ from __future__ import annotations
 import heapq
 import numbers
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numba as nb
 import numpy as np
+from numpy.typing import ArrayLike
 import scipy.sparse as sp
 from sklearn.base import BaseEstimator, ClusterMixin
 from sklearn.utils.validation import check_is_fitted
@@ -699,7 +700,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         *,
         n_max: int = 24,
         k: int = 12,
-        metric: Literal["euclidean", "dtw"] | Callable[[np.ndarray, np.ndarray], np.ndarray] = "euclidean",
+        metric: Literal["euclidean", "dtw"] | Callable[[np.ndarray, np.ndarray], ArrayLike] = "euclidean",
         search: Literal["greedy", "best_children", "restart", "exact"] = "restart",
         backtrack: int | None = None,
         restart_priority: Literal["path", "sibling"] = "path",
@@ -714,7 +715,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         self.restart_priority = restart_priority
         self.random_state = random_state
 
-    _parameter_constraints = {
+    _parameter_constraints: dict[str, list] = {
         "r_max": [Interval("real", 0, None, closed="neither")],
         "n_max": [Interval("int", 1, None)],
         "k": [Interval("int", 2, None)],
@@ -747,7 +748,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
             validate_params({"search": search, "backtrack": backtrack},
                             {n: self._parameter_constraints[n] for n in ("search", "backtrack")},
                             owner=type(self).__name__, hints=self._HINTS)
-            b = int(b)
+            b = int(cast(int, b))  # valid now: an int >= 1, or the search's default
         return search, b
 
     def _check_items(self, X: Any, name: str, *, single: bool) -> np.ndarray:
@@ -926,8 +927,9 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         """The kernels' code of a built-in metric; None for a callable (the Python path)."""
         return None if callable(self.metric) else _METRIC_CODES[self.metric]
 
-    def _metric_fn(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-        return self.metric
+    def _metric_fn(self) -> Callable[[np.ndarray, np.ndarray], ArrayLike]:
+        # only called on the Python path, when _metric_code() is None: the metric is a callable
+        return cast("Callable[[np.ndarray, np.ndarray], ArrayLike]", self.metric)
 
     def _distances(self, fn, q_item: np.ndarray, ids: np.ndarray) -> np.ndarray:
         cands = self._center[ids].reshape((ids.shape[0],) + self.item_shape_)
@@ -1045,8 +1047,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         self
         """
         self._check_params()
-        self._parent = None
-        for name in ("item_shape_", "labels_"):
+        for name in ("_parent", "item_shape_", "labels_"):  # unfitted until _reset (no _parent: unfitted)
             self.__dict__.pop(name, None)
         X = self._check_items(X, "X", single=False)
         self._reset(X.shape[1:])

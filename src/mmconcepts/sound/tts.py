@@ -65,7 +65,7 @@ import tempfile
 import threading
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -316,9 +316,10 @@ def _espeak_word_timings(text: str, events: list, n_samples: int, sr: int) -> tu
         cuts = start + (end - start) * np.concatenate([[0.0], np.cumsum(lens)]) / max(lens.sum(), 1.0)
         for m, k in enumerate(range(k0, k1)):
             spans[k] = (float(cuts[m]), float(cuts[m + 1]))
-    if any(s is None for s in spans):
+    found = [s for s in spans if s is not None]
+    if len(found) < len(spans):
         return None
-    return tuple(WordTiming(w, a, b) for (_, _, w), (a, b) in zip(tokens, spans))
+    return tuple(WordTiming(w, a, b) for (_, _, w), (a, b) in zip(tokens, found))
 
 
 @dataclass(frozen=True)
@@ -396,8 +397,8 @@ _PIPER_CACHE: dict[tuple, _PiperModel] = {}
 
 @dataclass
 class _PiperModel:
-    voice: object  # piper.PiperVoice
-    session: object  # onnxruntime.InferenceSession
+    voice: Any  # piper.PiperVoice (piper and onnxruntime ship no type information)
+    session: Any  # onnxruntime.InferenceSession
     noise_inputs: list[tuple[str, int]]  # (input name, channels), in graph order
     has_alignment: bool
     lock: threading.Lock

@@ -268,7 +268,7 @@ class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     1.5
     """
 
-    _parameter_constraints = {
+    _parameter_constraints: dict[str, list] = {
         # a real number is the deprecated positional r_max
         "tree": [InstanceOf(ClusterTree, description="a ClusterTree"), None, Interval("real", 0, None, closed="neither")],
         "events": [Options("leaves", "nodes")],

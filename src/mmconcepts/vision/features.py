@@ -78,7 +78,7 @@ from sklearn.metrics.pairwise import euclidean_distances
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
-from .._validation import InstanceOf, Interval, Options, check_random_state, validate_params
+from .._validation import InstanceOf, Interval, Options, _is_finite_real, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 from .data import check_images
 
@@ -343,7 +343,7 @@ def _rotated_sift(gx, gy, mag, ang, patch_size: int, step: int, contrast_thresho
     # dominant orientation: 36-bin histogram, smoothed twice with [1, 2, 1] / 4, parabola at the peak
     nb = 36
     idx = np.minimum((ang * (nb / (2 * np.pi))).astype(np.int64), nb - 1)[rows, cols]
-    hist = np.bincount((np.arange(n)[:, None] * nb + idx).ravel(), (m * gw[None, :]).ravel(),
+    hist: np.ndarray = np.bincount((np.arange(n)[:, None] * nb + idx).ravel(), (m * gw[None, :]).ravel(),
                        minlength=n * nb).reshape(n, nb)
     for _ in range(2):
         hist = (np.roll(hist, 1, axis=1) + 2 * hist + np.roll(hist, -1, axis=1)) / 4
@@ -443,7 +443,7 @@ def tuple_columns(words: np.ndarray) -> np.ndarray:
 
 
 def _check_real(value, name: str, *, low: float = 0.0) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value < low:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not _is_finite_real(value) or value < low:
         raise ParameterError(f"{name} must be a real >= {low}; got {value!r}.")
     return float(value)
 
@@ -510,6 +510,8 @@ def _bag(words_list: Sequence[np.ndarray], weights_list: Sequence[np.ndarray], k
 def _mid(words_list, positions_list, k: int, order: int, n_neighbors: int, normalize) -> sp.csr_matrix:
     n_cols = n_tuple_columns(k, order)
     indptr, indices, data = [0], [], []
+    u: np.ndarray
+    cnt: np.ndarray  # counts, as floats
     for w, p in zip(words_list, positions_list):
         tup = neighbour_tuples(p, order=order, n_neighbors=n_neighbors)
         if len(tup):
