@@ -19,10 +19,11 @@ Thesis section 3.3. What the experiments have in common:
 - :func:`evaluate_folds` runs one fold per task through ``ctx.parallel``: histograms
   (grids / codebooks) are fitted on the fold's training recordings only, then each learner
   is fitted on the training examples and scores the test examples. Fold results are cached
-  on disk (``ctx.cache_dir/ch3-folds``) under a hash of everything they depend on (data,
-  split, features, learner parameters, seed, :func:`~mmconcepts._fingerprint.code_fingerprint`),
-  so experiments sharing a protocol (Table 3.2, Fig. 3.7, Fig. 3.8) fit each fold once, and
-  a change of code recomputes.
+  on disk, one entry per fold written as the fold ends (a :class:`joblib.Memory` under
+  ``ctx.cache_dir/ch3-folds``), under a hash of everything they depend on (data, split,
+  features, learner parameters, seed, :func:`~mmconcepts._fingerprint.code_fingerprint`),
+  so experiments sharing a protocol (Table 3.2, Fig. 3.7, Fig. 3.8) fit each fold once, an
+  interrupted run resumes from the folds it finished, and a change of code recomputes.
 - :func:`pooled_scores` gathers the test scores of all folds (each example is tested exactly
   once) and computes l_full / l_given_number / l_single over all examples, which for
   leave-one-out is the thesis' "averaged over all possible test sets"; :func:`fold_samples`
@@ -43,9 +44,6 @@ a random tie-break).
 from __future__ import annotations
 
 import functools
-import hashlib
-import os
-import pickle
 import re
 import time
 import warnings
@@ -60,7 +58,7 @@ from ..errors import ConvergenceWarning
 from .._fingerprint import code_fingerprint
 from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
-from .base import RunContext, Streams, streams
+from .base import RunContext, Streams, array_digest, streams
 
 __all__ = [
     "MotionArrays",
@@ -419,12 +417,19 @@ def _fold(task: dict) -> dict:
     return out
 
 
-def _fingerprint(angles: list[np.ndarray], Y: np.ndarray) -> str:
-    h = hashlib.sha1()
-    for a in angles:
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(np.ascontiguousarray(Y).tobytes())
-    return h.hexdigest()
+def _cached_fold(task: dict, key: tuple, code: str) -> dict:
+    """:func:`_fold`, cached on disk by :func:`evaluate_folds` (``task`` is not hashed).
+
+    ``key`` stands for everything ``task`` holds (a digest of the data, the split, the
+    features, learners and their parameters, the fold's seed), ``code`` is the package's
+    :func:`~mmconcepts._fingerprint.code_fingerprint`.
+    """
+    return _fold(task)
+
+
+def _call(args: tuple) -> Any:
+    """``f(*rest)`` for ``args = (f, *rest)``: one argument per item, for ``ctx.parallel``."""
+    return args[0](*args[1:])
 
 
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *, features: dict,
@@ -453,36 +458,29 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     """
     many = isinstance(features, (list, tuple))
     feature_list = list(features) if many else [features]
-    fp = _fingerprint(angles, Y)
-    cache = Path(ctx.cache_dir) / "ch3-folds"
-    cache.mkdir(parents=True, exist_ok=True)
+    fp = array_digest([*angles, Y])
+    code = code_fingerprint()
+    memo = ctx.memory("ch3-folds").cache(_cached_fold, ignore=["task"])
     results: list[list[dict | None]] = [[None] * len(splits) for _ in feature_list]
-    todo, keys = [], []
+    todo = []
     for j, feats in enumerate(feature_list):
         for i, (tr, te) in enumerate(splits):
             fold_seed = int(np.random.SeedSequence([seed, i]).generate_state(1)[0] % (2**31 - 1))
+            task = {"angles": angles, "Y": Y, "train": np.asarray(tr), "test": np.asarray(te), "features": feats,
+                    "learners": tuple(learners), "params": params, "seed": fold_seed, "single": single}
             # Every histogram parameter, defaults included, so a changed default is a new key.
             hist_params = sorted(MotionHistograms(**feats).get_params().items())
-            h = hashlib.sha1(pickle.dumps((fp, hist_params, tuple(learners), sorted(params.items()), single,
-                                           np.asarray(tr).tobytes(), np.asarray(te).tobytes(), fold_seed, code_fingerprint(), 3)))
-            key = cache / f"{h.hexdigest()}.pkl"
-            if key.exists():
-                try:
-                    results[j][i] = pickle.loads(key.read_bytes())
-                    continue
-                except (OSError, pickle.UnpicklingError, EOFError):  # a torn cache file: recompute
-                    key.unlink(missing_ok=True)
-            todo.append(((j, i), {"angles": angles, "Y": Y, "train": np.asarray(tr), "test": np.asarray(te), "features": feats,
-                                      "learners": tuple(learners), "params": params, "seed": fold_seed, "single": single}))
-            keys.append(key)
-    def keep(t: int, res: dict) -> None:  # cached as each fold ends, so an interrupted run resumes per fold
-        j, i = todo[t][0]
+            key = (fp, hist_params, tuple(learners), sorted(params.items()), single, task["train"], task["test"],
+                   fold_seed)
+            if memo.check_call_in_cache(task, key, code):
+                results[j][i] = memo(task, key, code)  # loaded (recomputed, should the entry be torn)
+            else:
+                todo.append(((j, i), (memo, task, key, code)))
+    # Each fold's entry is written by the process that computed it as soon as the fold ends,
+    # so an interrupted run resumes from the folds it finished.
+    done = ctx.parallel(_call, [args for _, args in todo], desc=desc)
+    for ((j, i), _), res in zip(todo, done):
         results[j][i] = res
-        tmp = keys[t].with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_bytes(pickle.dumps(res))
-        os.replace(tmp, keys[t])
-
-    ctx.parallel(_fold, [t for _, t in todo], desc=desc, on_result=keep)
     if not many:
         return results[0]  # type: ignore[return-value]
     return results  # type: ignore[return-value]

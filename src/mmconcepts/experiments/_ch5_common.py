@@ -167,33 +167,27 @@ def _mfcc_one(task: tuple[str, dict]) -> np.ndarray:
     return mfcc(load_audio(path, sr=config.sr), config)
 
 
+def _cached_mfcc(ctx: RunContext, files: list[str], config: dict, stamps: list[tuple[int, int]],
+                 code: str) -> list[np.ndarray]:
+    """MFCC of ``files`` computed over ``ctx.parallel``; cached by :func:`corpus_mfcc` (``ctx`` is not hashed).
+
+    ``stamps`` are the files' (size, modification time in s), ``code`` the package's
+    :func:`~mmconcepts._fingerprint.code_fingerprint`.
+    """
+    return ctx.parallel(_mfcc_one, [(f, config) for f in files], desc="MFCC")
+
+
 def corpus_mfcc(ctx: RunContext, corpus, config: MFCCConfig) -> list[np.ndarray]:
-    """MFCC sequence of every utterance of ``corpus`` (cached on disk, computed in parallel)."""
+    """MFCC sequence of every utterance of ``corpus`` (computed in parallel, cached on disk).
+
+    The cache (a :class:`joblib.Memory` under ``ctx.cache_dir/ch5-mfcc``) is keyed on the
+    files (path, size, modification time), the MFCC configuration and
+    :func:`~mmconcepts._fingerprint.code_fingerprint`.
+    """
     files = [str(Path(f).resolve()) for f in corpus.paths]
-    h = hashlib.sha1()
-    for f in files:
-        st = os.stat(f)
-        h.update(f"{f}:{st.st_size}:{int(st.st_mtime)}\n".encode())
-    h.update(json.dumps(config.to_dict(), sort_keys=True).encode())
-    h.update(code_fingerprint().encode())
-    cache = Path(ctx.cache_dir) / "ch5-mfcc"
-    cache.mkdir(parents=True, exist_ok=True)
-    key = cache / f"{h.hexdigest()}.npz"
-    if key.exists():
-        try:
-            with np.load(key) as z:
-                lengths = z["lengths"]
-                flat = z["mfcc"]
-            bounds = np.cumsum(np.r_[0, lengths])
-            return [flat[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-        except (OSError, KeyError, ValueError):  # torn cache file: recompute
-            key.unlink(missing_ok=True)
-    cfg = config.to_dict()
-    seqs = ctx.parallel(_mfcc_one, [(f, cfg) for f in files], desc="MFCC")
-    tmp = key.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez(tmp, mfcc=np.concatenate(seqs), lengths=np.array([len(s) for s in seqs]))
-    os.replace(tmp, key)
-    return seqs
+    stamps = [(st.st_size, int(st.st_mtime)) for st in map(os.stat, files)]
+    memo = ctx.memory("ch5-mfcc").cache(_cached_mfcc, ignore=["ctx"])
+    return memo(ctx, files, config.to_dict(), stamps, code_fingerprint())
 
 
 def corpus_windows(ctx: RunContext, corpus, config: MFCCConfig, *, window_ms: float = 80.0,

@@ -40,9 +40,6 @@ the three experiments share one computation.
 
 from __future__ import annotations
 
-import hashlib
-import os
-import pickle
 import warnings
 from pathlib import Path
 
@@ -56,7 +53,7 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
-from .base import RunContext, Streams, streams
+from .base import RunContext, Streams, array_digest, streams
 
 __all__ = ["Streams", "streams", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
            "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
@@ -397,21 +394,23 @@ def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
              "control_seed": control[f]} for f in range(n)]
 
 
-def _cache_key(data: dict, tasks: list[dict]) -> str:
-    h = hashlib.sha1()
-    for a in data["mfcc"]:
-        h.update(np.ascontiguousarray(a).tobytes())
-    for a in data["angles"]:
-        h.update(np.ascontiguousarray(a).tobytes())
+def _cache_key(data: dict, tasks: list[dict]) -> tuple:
+    """What the fold results of :func:`evaluate` depend on, besides the code."""
     t0 = tasks[0]
-    h.update(pickle.dumps((data["y"].tobytes(), data["fold"].tobytes(), sorted(t0["motion_features"].items()),
-                           t0["k"], t0["n_iter"], [(t["learner_seed"], t["reference_seed"], t["control_seed"])
-                                                   for t in tasks], code_fingerprint())))
-    return h.hexdigest()
+    return (array_digest(data["mfcc"]), array_digest(data["angles"]), data["y"], data["fold"],
+            sorted(t0["motion_features"].items()), t0["k"], t0["n_iter"],
+            [(t["learner_seed"], t["reference_seed"], t["control_seed"]) for t in tasks])
+
+
+def _cached_folds(ctx: RunContext, tasks: list[dict], desc: str, key: tuple, code: str) -> list[dict]:
+    """Every fold of ``tasks`` over ``ctx.parallel``; cached by :func:`evaluate` under ``key`` and ``code``
+    (the package's :func:`~mmconcepts._fingerprint.code_fingerprint`); ``ctx``, ``tasks`` and ``desc`` are not
+    hashed."""
+    return ctx.parallel(_fold, tasks, desc=desc)
 
 
 def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | None = None) -> tuple[dict, list[dict]]:
-    """Pairs and per-fold results (cached on disk under ``ctx.cache_dir/ch6-folds``).
+    """Pairs and per-fold results (cached on disk: a :class:`joblib.Memory` under ``ctx.cache_dir/ch6-folds``).
 
     ``seeds`` replaces the streams spawned from ``config.seed`` (to vary one alone).
     """
@@ -419,19 +418,8 @@ def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | N
     data = load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, n_folds=config.n_folds,
                       seeds=st)
     tasks = fold_tasks(data, config, st)
-    cache = Path(ctx.cache_dir) / "ch6-folds"
-    cache.mkdir(parents=True, exist_ok=True)
-    key = cache / f"{_cache_key(data, tasks)}.pkl"
-    if key.exists():
-        try:
-            return data, pickle.loads(key.read_bytes())
-        except (OSError, pickle.UnpicklingError, EOFError):
-            key.unlink(missing_ok=True)
-    folds = ctx.parallel(_fold, tasks, desc=desc)
-    tmp = key.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_bytes(pickle.dumps(folds))
-    os.replace(tmp, key)
-    return data, folds
+    memo = ctx.memory("ch6-folds").cache(_cached_folds, ignore=["ctx", "tasks", "desc"])
+    return data, memo(ctx, tasks, desc, _cache_key(data, tasks), code_fingerprint())
 
 
 def summarise(folds: list[dict], keys) -> dict[str, float]:
@@ -462,29 +450,22 @@ def image_locals(ctx: RunContext, ims, *, chunk: int = 40) -> tuple[list, list]:
 
     They do not depend on any codebook, so the experiments fit their codebooks on each
     repetition's training images from these (:meth:`ImageFeatures.fit_locals`) instead of
-    extracting them again. Key: the image bytes and :func:`code_fingerprint`.
+    extracting them again. The cache is a :class:`joblib.Memory` under
+    ``ctx.cache_dir/ch6-image-locals``; key: the images (shapes, types and bytes) and
+    :func:`code_fingerprint`.
     """
     images = list(ims.images) if hasattr(ims, "images") else list(ims)
-    h = hashlib.sha1()
-    for im in images:
-        a = np.ascontiguousarray(im)
-        h.update(str(a.shape).encode() + a.tobytes())
-    h.update(code_fingerprint().encode())
-    cache = Path(ctx.cache_dir) / "ch6-image-locals"
-    cache.mkdir(parents=True, exist_ok=True)
-    key = cache / f"{h.hexdigest()}.pkl"
-    if key.exists():
-        try:
-            return pickle.loads(key.read_bytes())
-        except (OSError, pickle.UnpicklingError, EOFError):
-            key.unlink(missing_ok=True)
+    memo = ctx.memory("ch6-image-locals").cache(_cached_locals, ignore=["ctx", "images", "chunk"])
+    return memo(ctx, images, chunk, array_digest(images), code_fingerprint())
+
+
+def _cached_locals(ctx: RunContext, images: list, chunk: int, digest: str, code: str) -> tuple[list, list]:
+    """The local features of ``images``, ``chunk`` images per task of ``ctx.parallel``; cached by
+    :func:`image_locals` under the images' ``digest`` and ``code`` (the package's
+    :func:`~mmconcepts._fingerprint.code_fingerprint`); ``ctx``, ``images`` and ``chunk`` are not hashed."""
     parts = ctx.parallel(_locals_chunk, [images[i:i + chunk] for i in range(0, len(images), chunk)],
                          desc="image features")
-    out = ([c for p in parts for c in p[0]], [k for p in parts for k in p[1]])
-    tmp = key.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_bytes(pickle.dumps(out))
-    os.replace(tmp, key)
-    return out
+    return [c for p in parts for c in p[0]], [k for p in parts for k in p[1]]
 
 
 def image_concepts(labels, objects_of_concept) -> np.ndarray:

@@ -70,6 +70,7 @@ A complete experiment module (``src/mmconcepts/experiments/ch2_example.py``)::
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import logging
 import numbers
 import os
@@ -89,10 +90,12 @@ from ..errors import ExperimentError, ParameterError
 from .rules import is_valid_metric_name, parse_rule
 
 if TYPE_CHECKING:  # pragma: no cover
+    from joblib import Memory
     from matplotlib.figure import Figure
 
 __all__ = [
     "Streams",
+    "array_digest",
     "streams",
     "Claim",
     "Experiment",
@@ -430,6 +433,26 @@ class RunContext:
                 on_result(len(out) - 1, result)
         return out
 
+    def memory(self, name: str) -> Memory:
+        """A :class:`joblib.Memory` that caches on disk under ``cache_dir/name``.
+
+        An entry of a function cached with it is reused only for the same arguments
+        (hashed by joblib; leave out with ``ignore=`` the ones the others stand for, such
+        as this context or data summarised by a digest) and the same source of the cached
+        function. joblib only watches that function's own source, so a cached function
+        also takes :func:`~mmconcepts._fingerprint.code_fingerprint` as an argument: a
+        change anywhere in the package then recomputes. joblib writes each entry
+        atomically and recomputes an entry it cannot read (a torn file).
+
+        Parameters
+        ----------
+        name : str
+            The cache's folder under :attr:`cache_dir` (e.g. ``"ch3-folds"``).
+        """
+        from joblib import Memory
+
+        return Memory(self.cache_dir / name, verbose=0)
+
     def require_data(self, name: str, *, hint: str = "") -> Path:
         """Return the path given for data set ``name``, or skip the experiment.
 
@@ -445,6 +468,20 @@ class RunContext:
             f"needs the real data set {name!r}: put it under the data root (--data-root DIR or "
             f"$MMCONCEPTS_DATA_ROOT; see `mmconcepts data list`) or pass --data {name}=PATH.{more}"
         )
+
+
+def array_digest(arrays: Iterable[np.ndarray]) -> str:
+    """A digest (hex SHA-1) of a sequence of arrays: their shapes, dtypes and values.
+
+    For cache keys that stand for data too large to hash on every call (see
+    :meth:`RunContext.memory`).
+    """
+    h = hashlib.sha1()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.shape}{a.dtype.str}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def check_seed(seed: Any) -> int:
