@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
@@ -246,10 +246,10 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
     def _grid_shape(self, dim: int) -> tuple[int, ...]:
         nb = self.n_bins
+        if isinstance(nb, (tuple, list)):  # _check_params: a pair only for data="joint" (dim 2)
+            return (int(nb[0]), int(nb[1]))
         if dim == 1:
             return (int(nb),)
-        if isinstance(nb, (tuple, list)):
-            return (int(nb[0]), int(nb[1]))
         if self.method == "kde":
             g = max(2, int(round(np.sqrt(nb))))
             return (g, g)
@@ -286,7 +286,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
             self.bins_per_channel_ = int(np.prod(shape))
             self.grid_shape_ = shape
         else:
-            k = int(self.n_bins)
+            k = int(cast(int, self.n_bins))  # _check_params: a pair only with method="kde"
             scales = []
             for c in chans:
                 s = c.std(axis=0)
@@ -315,7 +315,8 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
         # scipy's k-means (k-means++ seeding, Lloyd iterations): same algorithm as
         # sklearn.cluster.KMeans, without its per-call thread-pool set-up, which cost ~0.3 s
         # per fit here and dominated the 16-30 small fits a data set needs.
-        best, best_inertia = None, np.inf
+        best: np.ndarray | None = None
+        best_inertia = np.inf
         for _ in range(self.n_init):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # empty clusters are re-seeded below
@@ -326,8 +327,9 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 far = np.argsort(d)[::-1]
                 cb[counts == 0] = z[far[: int((counts == 0).sum())]]
             inertia = float(euclidean_distances(z, cb, squared=True).min(axis=1).sum())
-            if inertia < best_inertia:
+            if best is None or inertia < best_inertia:
                 best, best_inertia = cb, inertia
+        assert best is not None  # n_init >= 1 (_check_params)
         return best
 
     def transform(self, X: Sequence[np.ndarray]) -> np.ndarray:

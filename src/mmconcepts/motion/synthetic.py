@@ -520,8 +520,9 @@ def simulate_choreography(
     """
     rng = check_random_state(random_state)
     gestures = tuple(sorted(int(g) for g in gestures))
-    limbs = [CHOREO1_LIMBS.get(g) for g in gestures]
-    if any(l is None for l in limbs):
+    found = [CHOREO1_LIMBS.get(g) for g in gestures]
+    limbs = [limb for limb in found if limb is not None]
+    if len(limbs) < len(found):
         raise ParameterError(f"Unknown gesture id in {gestures}; ids are 1..47 (Table B.2).")
     if len(set(limbs)) != len(limbs) or ("both_arms" in limbs and ({"left_arm", "right_arm"} & set(limbs))):
         raise ParameterError(
@@ -654,7 +655,7 @@ def choreo1_label_sets(subset: str, *, n_records: int | None = None, random_stat
     # mixed_full: 60 % of the records show a combination seen only once (Thesis Fig 3.8).
     n_single = int(round(0.6 * n))
     n_rep = n - n_single
-    counts = []
+    counts: list[int] = []
     while sum(counts) < n_rep:
         counts.append(int(rng.choice([2, 3, 4], p=[0.5, 0.3, 0.2])))
     while sum(counts) > n_rep:

@@ -21,11 +21,12 @@ Kullback-Leibler divergence after normalising both sides to sum to one; ``"kl_re
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from .._validation import Interval, Options, check_random_state, validate_params
 from ..errors import DataError
@@ -38,9 +39,9 @@ SPACES = ("internal", "test", "reference")
 _EPS = 1e-12
 
 #: Parameters of the public functions, checked by :func:`~mmconcepts._validation.validate_params`.
-_PAIRWISE_CONSTRAINTS = {"metric": [Options(*METRICS)]}
-_CROSSMODAL_CONSTRAINTS = {"space": [Options(*SPACES)], "metric": [Options(*METRICS)]}
-_SUCCESS_RATE_CONSTRAINTS = {"n_draws": [Interval("int", 1)], "random_state": ["random_state"]}
+_PAIRWISE_CONSTRAINTS: dict[str, list] = {"metric": [Options(*METRICS)]}
+_CROSSMODAL_CONSTRAINTS: dict[str, list] = {"space": [Options(*SPACES)], "metric": [Options(*METRICS)]}
+_SUCCESS_RATE_CONSTRAINTS: dict[str, list] = {"n_draws": [Interval("int", 1)], "random_state": ["random_state"]}
 
 
 def _dense(X: Any) -> np.ndarray:
@@ -145,9 +146,9 @@ def crossmodal_distances(
 
 
 def matching_success_rate(
-    D: np.ndarray,
-    y_test: Sequence,
-    y_ref: Sequence,
+    D: ArrayLike,
+    y_test: ArrayLike,
+    y_ref: ArrayLike,
     *,
     n_draws: int = 10,
     random_state: Any = None,
@@ -162,8 +163,8 @@ def matching_success_rate(
     ----------
     D : ndarray of shape (n_test, n_ref)
         From :func:`crossmodal_distances`.
-    y_test : sequence of length n_test
-    y_ref : sequence of length n_ref
+    y_test : array-like of shape (n_test,)
+    y_ref : array-like of shape (n_ref,)
     n_draws : int, default=10
         Draws of the reference set per test example (the rate is averaged over them).
     random_state : int, Generator or None

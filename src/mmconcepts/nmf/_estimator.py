@@ -140,6 +140,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         "transform_max_iter": [Interval("int", 0), None],
     }
     _persisted_private = ("_stats",)
+    _stats: tuple[np.ndarray, np.ndarray] | None  # partial_fit's pooled statistics (A, B); None before
 
     def __init__(
         self,
@@ -302,8 +303,9 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         problem = Problem(Xv, maskv)
         W = np.ascontiguousarray(W)
         Ht = np.ascontiguousarray(H.T)
-        A0, B0 = (None, None) if getattr(self, "_stats", None) is None else self._stats
-        A = B = None
+        stats: tuple[np.ndarray, np.ndarray] | None = getattr(self, "_stats", None)
+        A: np.ndarray | None = None
+        B: np.ndarray | None = None
         for _ in range(max_iter):
             W = mu_update(problem.sides[0], W, Ht, beta, gamma, pen_W)
             num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
@@ -311,13 +313,13 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             den = np.where(den == 0, Ht.dtype.type(EPSILON), den)
             A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
             B = np.array(den, copy=True)
-            if A0 is not None:
-                A += rho * A0
-                B += rho * B0
+            if stats is not None:
+                A += rho * stats[0]
+                B += rho * stats[1]
             Ht = A / B
             if gamma != 1.0:
                 Ht **= gamma
-        if A is not None:
+        if A is not None and B is not None:
             self._stats = (A, B)
         self._set_fitted(np.ascontiguousarray(Ht.T), X)
         self.n_iter_ = max_iter

@@ -13,6 +13,7 @@ W_thesis = Ht and H_thesis = W.T, so thesis eq. (2.16)'s H-update is our side 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -154,9 +155,10 @@ class Side:
         """D_beta(X_side | L R^T) over observed cells (same value on both sides)."""
         X, M = self.X, self.mask
         if self.sparse:
-            Y = _kernels.lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz, dtype=L.dtype))
+            Xs = cast("sp.csr_matrix", X)  # self.sparse: X is CSR (the property hides it from mypy)
+            Y = _kernels.lowrank_at_nonzeros(Xs.indptr, Xs.indices, L, R, np.empty(Xs.nnz, dtype=L.dtype))
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                on_nnz = elementwise_beta_divergence(X.data, Y, beta)
+                on_nnz = elementwise_beta_divergence(Xs.data, Y, beta)
                 zero_term = None
                 if beta > 0:
                     zero_term = Y if beta == 1.0 else np.maximum(Y, 0.0) ** beta / beta

@@ -123,8 +123,9 @@ class _Solver:
     # -- one update of the left factor of side s -------------------------------------
     def update(self, s: int, L: np.ndarray, R: np.ndarray) -> np.ndarray:
         side = self.problem.sides[s]
-        if self.hoyer[s] is not None:
-            return self._hoyer_step(s, side, L, R)
+        hoyer = self.hoyer[s]
+        if hoyer is not None:
+            return self._hoyer_step(s, side, L, R, hoyer)
         if self.solver == "pg":
             return self._pg_step(s, side, L, R)
         return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s])
@@ -168,13 +169,13 @@ class _Solver:
             L = Ln
         return L
 
-    def _hoyer_step(self, s: int, side: Side, L: np.ndarray, R: np.ndarray) -> np.ndarray:
+    def _hoyer_step(self, s: int, side: Side, L: np.ndarray, R: np.ndarray, hoyer: _Hoyer) -> np.ndarray:
         """Hoyer's (2004) gradient step followed by the sparseness projection of each vector."""
         grad = self._gradient(s, side, L, R)
         f0 = self._side_objective(s, L, R)
         mu = self.step[s]
         for _ in range(50):
-            Ln = self.hoyer[s].project(np.maximum(L - mu * grad, 0.0)).astype(L.dtype, copy=False)
+            Ln = hoyer.project(np.maximum(L - mu * grad, 0.0)).astype(L.dtype, copy=False)
             fn = self._side_objective(s, Ln, R)
             if np.isfinite(fn) and fn <= f0:
                 self.step[s] = mu * 1.2

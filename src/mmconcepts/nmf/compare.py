@@ -107,7 +107,8 @@ def match_components(
     return ComponentMatching(float(pairs.mean()), rows, cols, pairs, cost)
 
 
-def dictionary_distance(A: np.ndarray, B: np.ndarray, *, metric: str = "cosine") -> float:
+def dictionary_distance(A: np.ndarray, B: np.ndarray, *,
+                        metric: Literal["cosine", "euclidean", "l1"] = "cosine") -> float:
     """Distance between two dictionaries, invariant to scaling and permutation of atoms.
 
     Shorthand for ``match_components(A, B, metric=metric).distance``.

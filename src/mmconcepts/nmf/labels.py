@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numbers
 import warnings
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -227,6 +227,11 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         "n_jobs": [Interval("int"), None],
     }
     _persisted_private = ("_single_label",)
+    # fitted attributes that may be None (the threshold search did not run)
+    threshold_: float | None
+    threshold_grid_: np.ndarray | None
+    cv_scores_: np.ndarray | None
+    cv_mean_scores_: np.ndarray | None
 
     def __init__(
         self,
@@ -240,8 +245,8 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         threshold_grid: Any = None,
         cv: Any = 5,
         init: str | None = None,
-        solver: str = "mu",
-        update_rule: str = "mm",
+        solver: Literal["mu", "pg"] = "mu",
+        update_rule: Literal["mm", "heuristic"] = "mm",
         transform_max_iter: int | None = None,
         random_state: Any = None,
         n_jobs: int | None = None,

@@ -110,7 +110,7 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
             t[: self.tag_counts_.size] = self.tag_counts_
             self.tag_counts_ = t
 
-    def partial_fit(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
+    def partial_fit(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> EventVoting:
         """Add training utterances: ``bags[j]`` (event ids, repeats allowed) with ``tags[j]``.
 
         A tag is any hashable; a tuple, list or set of tags marks an utterance with several.
@@ -120,7 +120,7 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
             self._init()
         return self._count(bags, tags)
 
-    def _count(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
+    def _count(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> EventVoting:
         if len(bags) != len(tags):
             raise DataError(f"got {len(bags)} bags but {len(tags)} tag entries.")
         for j, (bag, tag) in enumerate(zip(bags, tags)):
@@ -139,7 +139,7 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
                 self.tag_counts_[c] += 1
         return self
 
-    def fit(self, bags: Sequence[np.ndarray], tags: Sequence) -> EventVoting:
+    def fit(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> EventVoting:
         """Forget everything, then :meth:`partial_fit`."""
         self._check_params()
         self._init()
@@ -186,7 +186,7 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
         scores = self.decision_function(bags)
         return [self.classes_[k] for k in scores.argmax(axis=1)]
 
-    def score(self, bags: Sequence[np.ndarray], tags: Sequence) -> float:
+    def score(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> float:
         """Accuracy: the predicted tag is (one of) the utterance's tag(s)."""
         pred = self.predict(bags)
         ok = [

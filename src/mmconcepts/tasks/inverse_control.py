@@ -75,6 +75,10 @@ class RBFFeatures(SaveLoadMixin):
     """
 
     def __init__(self, grid_size: int = 5, sigma: float | None = None) -> None:
+        self._setup(grid_size, sigma)
+
+    def _setup(self, grid_size: int, sigma: float | None) -> None:
+        """Check and store the parameters, then compute the width and the centres."""
         validate_params({"grid_size": grid_size, "sigma": sigma}, _PARAMETER_CONSTRAINTS["RBFFeatures"],
                         owner="RBFFeatures")
         self.grid_size = grid_size
@@ -94,7 +98,7 @@ class RBFFeatures(SaveLoadMixin):
         if unknown:
             raise ParameterError(f"RBFFeatures has no parameter {sorted(unknown)[0]!r}; its parameters are "
                                  "'grid_size' and 'sigma'.")
-        self.__init__(**{**self.get_params(), **params})
+        self._setup(**{**self.get_params(), **params})
         return self
 
     def __repr__(self) -> str:
@@ -411,7 +415,7 @@ class FactorialInverseControl(SaveLoadMixin, BaseEstimator):
         rng = check_random_state(self.random_state)
         D = rng.standard_normal((K, F))
         self.init_components_ = D.copy()
-        history = []
+        history: list[float] = []
         if coefficients is not None:
             A = np.asarray(coefficients, dtype=float)
             if A.shape != (len(designs), K):

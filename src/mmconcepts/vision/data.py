@@ -42,7 +42,7 @@ import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -232,10 +232,10 @@ class ImageSet:
         self.skipped = list(self.skipped)
 
     @staticmethod
-    def _strings(values: object, what: str, n: int) -> list[str]:
+    def _strings(values: Any, what: str, n: int) -> list[str]:
         if isinstance(values, str):
             raise DataError(f"{what} must be a sequence of strings, one per image; got a single string {values!r}.")
-        vals = list(values)  # type: ignore[call-overload]
+        vals = list(values)
         if len(vals) != n:
             raise DataError(f"{len(vals)} {what} for {n} images; give one per image.")
         return [str(v) for v in vals]
@@ -383,7 +383,8 @@ def load_image_folder(
             f"found {header}."
         )
     has_view, has_cat = "view" in header, "category" in header
-    images, labels, views, cats, paths = [], [], [], [], []
+    images, labels, views, cats = [], [], [], []
+    paths: list[Path | None] = []
     skipped: list[SkippedFile] = []
     for line, row in rows:
         where = f"{labels_path}, line {line}"
@@ -468,12 +469,13 @@ def load_eth80(
         found = [f for f in found if f[0] in categories]
     if instances is not None:
         have = sorted({f[1] for f in found})
-        unknown = sorted(set(instances) - set(have))
-        if unknown:
-            raise ParameterError(f"Unknown ETH-80 instance number(s) {unknown}; the selection holds {have}.")
+        unknown_ids = sorted(set(instances) - set(have))
+        if unknown_ids:
+            raise ParameterError(f"Unknown ETH-80 instance number(s) {unknown_ids}; the selection holds {have}.")
         found = [f for f in found if f[1] in instances]
     found.sort(key=lambda f: f[:4] + (str(f[6]),))
-    images, labels, views, cats, paths = [], [], [], [], []
+    images, labels, views, cats = [], [], [], []
+    paths: list[Path | None] = []
     skipped: list[SkippedFile] = []
     for cat, inst, _, _, tilt, pan, p in found:
         try:
