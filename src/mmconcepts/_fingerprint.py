@@ -12,6 +12,7 @@ import functools
 import hashlib
 from importlib import metadata
 from pathlib import Path
+from typing import TypedDict
 
 __all__ = ["code_fingerprint", "fingerprint_parts", "DEPENDENCIES"]
 
@@ -49,7 +50,14 @@ def _dependency_versions() -> dict[str, str | None]:
     return out
 
 
-def fingerprint_parts(root: Path | None = None) -> dict[str, object]:
+class FingerprintParts(TypedDict):
+    """What :func:`fingerprint_parts` returns."""
+
+    source: str
+    dependencies: dict[str, str | None]
+
+
+def fingerprint_parts(root: Path | None = None) -> FingerprintParts:
     """What the fingerprint is made of: the source digest and the dependency versions.
 
     Parameters
@@ -76,8 +84,8 @@ def fingerprint_parts(root: Path | None = None) -> dict[str, object]:
 @functools.lru_cache(maxsize=None)
 def _cached(root: str) -> str:
     parts = fingerprint_parts(Path(root))
-    h = hashlib.sha256(parts["source"].encode())  # type: ignore[union-attr]
-    for name, version in sorted(parts["dependencies"].items()):  # type: ignore[union-attr]
+    h = hashlib.sha256(parts["source"].encode())
+    for name, version in sorted(parts["dependencies"].items()):
         h.update(f"\n{name}=={version}".encode())
     return h.hexdigest()[:16]
 

@@ -195,7 +195,7 @@ class SaveLoadMixin:
             "state": encode(self._get_state(), "state", arrays),
         }
         with atomic_path(path, suffix=".tmp.npz") as tmp:
-            np.savez(tmp, header=np.array(json.dumps(header)), **arrays)
+            np.savez(tmp, header=np.array(json.dumps(header)), allow_pickle=False, **arrays)
         return path
 
     @classmethod

@@ -22,7 +22,7 @@ import argparse
 import logging
 import sys
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -219,6 +219,7 @@ def _setup_logging(verbose: int, quiet: bool) -> None:
         if getattr(handler, "_mmconcepts_cli", False):
             root.removeHandler(handler)
     handler = logging.StreamHandler(sys.stderr)
+    # a marker attribute on a stdlib handler (found and removed by the next call): typeshed's Handler has no such field
     handler._mmconcepts_cli = True  # type: ignore[attr-defined]
     handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s" if verbose else "%(message)s"))
     root.addHandler(handler)
@@ -242,7 +243,7 @@ def _claims_summary(claims: list[dict[str, Any]]) -> str:
     return ", ".join(f"{n} {v}" for v, n in counts.items() if n) or "no claims"
 
 
-def _print_record(record: dict[str, Any], json_path: Path) -> None:
+def _print_record(record: Mapping[str, Any], json_path: Path) -> None:
     from .report._model import format_number as _fmt
 
     status = record["status"]

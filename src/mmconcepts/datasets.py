@@ -555,7 +555,7 @@ def data_root(path: PathLike | None = None) -> Path | None:
 
 def _locate(info: DatasetInfo, root: Path) -> tuple[Path | None, str | None]:
     """(first present folder with a sound layout or None, what is wrong with the folders tried before it)."""
-    problems = []
+    problems: list[str] = []
     for folder in info.folders:
         path = root / folder
         if not path.exists():
@@ -657,9 +657,9 @@ def _safe_extract(archive: Path, dest: Path) -> None:
         raise DataError(f"{archive} is neither a tar nor a zip archive ({exc}).") from exc
     with tf:
         members = tf.getmembers()
-        for m in members:
-            if not inside(m.name) or m.issym() or m.islnk() or m.isdev():
-                raise DataError(f"{archive}: member {m.name!r} is a link, a device or outside the folder; refused.")
+        for t in members:
+            if not inside(t.name) or t.issym() or t.islnk() or t.isdev():
+                raise DataError(f"{archive}: member {t.name!r} is a link, a device or outside the folder; refused.")
         tf.extractall(dest, members=members, filter="data")
 
 
@@ -683,7 +683,9 @@ def _arrange_fsdd(unpacked: Path, out: Path) -> None:
         if p.name in seen:
             raise DataError(f"the archive holds two files named {p.name}.")
         seen.add(p.name)
-        digit, speaker, _ = _FSDD_NAME.match(p.name).groups()
+        match = _FSDD_NAME.match(p.name)
+        assert match is not None  # _iter_files yields only names that match
+        digit, speaker, _ = match.groups()
         word = _DIGIT_WORDS[int(digit)]
         shutil.move(str(p), out / p.name)
         rows.append((p.name, speaker, word, word))

@@ -41,6 +41,7 @@ import math
 import re
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
+from typing import cast
 
 from ..errors import ExperimentError
 
@@ -263,7 +264,7 @@ def _div(a: float, b: float) -> float:
     return math.copysign(math.inf, a) * math.copysign(1.0, b)
 
 
-def _compare(op: type, a: float, b: float) -> bool:
+def _compare(op: type[ast.cmpop], a: float, b: float) -> bool:
     if math.isnan(a) or math.isnan(b):
         raise _Undefined
     return {ast.Lt: a < b, ast.LtE: a <= b, ast.Gt: a > b, ast.GtE: a >= b, ast.Eq: a == b, ast.NotEq: a != b}[op]
@@ -271,7 +272,7 @@ def _compare(op: type, a: float, b: float) -> bool:
 
 def _eval(node: ast.AST, values: Mapping[str, float]):
     if isinstance(node, ast.Constant):
-        return float(node.value)
+        return float(cast(float, node.value))  # _check admits float constants only
     if isinstance(node, ast.Name):
         return values[node.id]
     if isinstance(node, ast.UnaryOp):
@@ -287,19 +288,20 @@ def _eval(node: ast.AST, values: Mapping[str, float]):
         return any(_eval(v, values) for v in node.values)
     if isinstance(node, ast.Compare):
         left = _eval(node.left, values)
-        for op, right_node in zip(node.ops, node.comparators):
+        for cmp, right_node in zip(node.ops, node.comparators):
             right = _eval(right_node, values)
-            if not _compare(type(op), left, right):
+            if not _compare(type(cmp), left, right):
                 return False
             left = right
         return True
     if isinstance(node, ast.Call):
         args = [_eval(a, values) for a in node.args]
-        if node.func.id == "abs":  # type: ignore[attr-defined]
+        func = cast(ast.Name, node.func)  # _check admits calls of abs, min and max by name only
+        if func.id == "abs":
             return abs(args[0])
         if any(math.isnan(x) for x in args):
             return math.nan
-        return min(args) if node.func.id == "min" else max(args)  # type: ignore[attr-defined]
+        return min(args) if func.id == "min" else max(args)
     raise AssertionError(f"unchecked node {type(node).__name__}")  # pragma: no cover
 
 
@@ -391,7 +393,7 @@ def parse_rule(rule: str, names: Collection[str] | None = None) -> Rule:
     if lead:
         for node in ast.walk(tree):
             if hasattr(node, "col_offset"):
-                node.col_offset += lead  # type: ignore[attr-defined]
+                node.col_offset += lead
     if _check(tree.body, src) != "bool":
         raise _error(rule, "a rule must be true or false (use a comparison such as 'a > b'), but this one computes a number")
     return Rule(text=rule, metrics=frozenset(src.metrics.values()), _tree=tree,

@@ -61,10 +61,10 @@ import re
 import time
 import traceback
 import warnings
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from .. import __version__
 from .._fingerprint import code_fingerprint
@@ -75,6 +75,9 @@ from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext, Ta
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, to_jsonable
 from .registry import all_experiments, get
 from .uncertainty import claim_verdict, t_interval
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -328,7 +331,8 @@ def _config_and_preset(exp: Experiment, preset: str | None, config: Any, seed: i
             f"dataclasses.replace({exp.config_cls.__name__}.quick(), ...)."
         )
     if seed is not None:
-        config = dataclasses.replace(config, seed=check_seed(seed))
+        # an instance of exp.config_cls, a frozen dataclass (checked when the experiment was declared)
+        config = dataclasses.replace(cast("DataclassInstance", config), seed=check_seed(seed))
     name = next((p for p in PRESETS if exp.make_config(p, seed=check_seed(config.seed)) == config), CUSTOM_PRESET)
     return config, name
 
@@ -391,7 +395,8 @@ def _run_recording_warnings(exp: Experiment, config: Any, ctx: RunContext, seen:
     """``exp.run(config, ctx)``, adding the distinct warnings it raises to ``seen`` (then showing them)."""
     with warnings.catch_warnings(record=True) as caught:  # filters still apply ("error" raises)
         try:
-            result = exp.run(config, ctx)  # type: ignore[misc]
+            run = cast("Callable[[Any, RunContext], Result]", exp.run)  # set by Experiment.__post_init__
+            result = run(config, ctx)
         finally:
             for w in caught:
                 text = f"{w.category.__name__}: {w.message}"
@@ -611,7 +616,7 @@ def reproduce(
     force: bool = False,
     ids: Sequence[str] | None = None,
     progress: bool = True,
-) -> list[dict[str, Any]]:
+) -> list[ResultRecord]:
     """Run every registered experiment (or those in ``ids``), keeping going on failures.
 
     Each experiment runs on the real sets found for it (data root, ``data``), and, when
@@ -652,8 +657,8 @@ def reproduce(
     if not experiments:
         raise ExperimentError("no experiments are registered; nothing to reproduce.")
     checked = check_data(data, all_experiments())
-    records = []
-    common = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers, force=force,
+    records: list[ResultRecord] = []
+    common: dict[str, Any] = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers, force=force,
                   progress=progress, raise_errors=False)
     for exp in experiments:
         has_real = bool(resolve_data(exp, checked, data_root))
