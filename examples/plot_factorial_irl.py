@@ -84,7 +84,7 @@ for name, s in scores.items():
 # %%
 # Deviation from the optimal behaviour on the new tasks
 # -----------------------------------------------------
-fig, ax = plt.subplots(figsize=(5.5, 3.2))
+fig, ax = plt.subplots(figsize=(7, 3.2))
 names = list(scores)
 ax.boxplot([scores[n] for n in names], orientation="horizontal")
 ax.set_yticks([1, 2], names)

@@ -102,6 +102,6 @@ ax.plot(seen, scores, "o-", label="cluster tree + TF-IDF voting")
 ax.axhline(1 / len(KEYWORDS), color="0.5", ls="--", label=f"chance (1/{len(KEYWORDS)})")
 ax.set(xlabel="training utterances", ylabel="held-out accuracy", ylim=(0, 1.05),
        title="Incremental keyword learning (generated sequences)")
-ax.legend(loc="lower right")
+ax.legend(loc="center right")
 fig.tight_layout()
 plt.show()
