@@ -212,3 +212,31 @@ def test_run_context_memory_lives_under_the_cache_dir(tmp_path):
     cached = memory.cache(_add)
     assert cached(1, 2) == 3 and cached(1, 2) == 3
     assert _entries(tmp_path / "ch3-folds") and all(p.is_relative_to(tmp_path) for p in tmp_path.rglob("*"))
+
+
+class _SlowRepr:
+    """An argument whose repr (written to the cache entry's metadata) takes longer than joblib's 0.5 s."""
+
+    def __repr__(self):
+        import time
+
+        time.sleep(0.6)
+        return "slow"
+
+
+def _identity(x):
+    return 1
+
+
+def test_cached_call_keeps_joblibs_slow_write_note_out_of_the_run(tmp_path, recwarn):
+    import warnings
+
+    from mmconcepts.experiments.base import cached_call
+
+    cached = RunContext(cache_dir=tmp_path, show_progress=False).memory("slow").cache(_identity)
+    warnings.simplefilter("always")
+    assert cached(_SlowRepr()) == 1
+    assert any("Persisting input arguments took" in str(w.message) for w in recwarn)  # what it keeps out
+    recwarn.clear()
+    cached.clear(warn=False)
+    assert cached_call(cached, _SlowRepr()) == 1 and not recwarn.list

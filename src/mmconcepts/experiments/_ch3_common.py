@@ -58,7 +58,7 @@ from ..errors import ConvergenceWarning
 from .._fingerprint import code_fingerprint
 from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
-from .base import RunContext, Streams, array_digest, streams
+from .base import RunContext, Streams, array_digest, cached_call, streams
 
 __all__ = [
     "MotionArrays",
@@ -428,8 +428,8 @@ def _cached_fold(task: dict, key: tuple, code: str) -> dict:
 
 
 def _call(args: tuple) -> Any:
-    """``f(*rest)`` for ``args = (f, *rest)``: one argument per item, for ``ctx.parallel``."""
-    return args[0](*args[1:])
+    """``f(*rest)`` for ``args = (f, *rest)`` (a cached function): one argument per item, for ``ctx.parallel``."""
+    return cached_call(*args)
 
 
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *, features: dict,
@@ -473,7 +473,7 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
             key = (fp, hist_params, tuple(learners), sorted(params.items()), single, task["train"], task["test"],
                    fold_seed)
             if memo.check_call_in_cache(task, key, code):
-                results[j][i] = memo(task, key, code)  # loaded (recomputed, should the entry be torn)
+                results[j][i] = cached_call(memo, task, key, code)  # loaded (recomputed if torn)
             else:
                 todo.append(((j, i), (memo, task, key, code)))
     # Each fold's entry is written by the process that computed it as soon as the fold ends,

@@ -32,7 +32,7 @@ import numpy as np
 from .._fingerprint import code_fingerprint
 from ..errors import DataError
 from ..sound.features import MFCCConfig, mfcc
-from .base import RunContext, Streams, streams
+from .base import RunContext, Streams, cached_call, streams
 
 __all__ = ["CORPUS_SEED", "Streams", "streams", "load_corpus", "data_source", "data_source_note", "corpus_mfcc",
            "composed_corpus", "keyword_targets", "speaker_ids"]
@@ -187,7 +187,7 @@ def corpus_mfcc(ctx: RunContext, corpus, config: MFCCConfig) -> list[np.ndarray]
     files = [str(Path(f).resolve()) for f in corpus.paths]
     stamps = [(st.st_size, int(st.st_mtime)) for st in map(os.stat, files)]
     memo = ctx.memory("ch5-mfcc").cache(_cached_mfcc, ignore=["ctx"])
-    return memo(ctx, files, config.to_dict(), stamps, code_fingerprint())
+    return cached_call(memo, ctx, files, config.to_dict(), stamps, code_fingerprint())
 
 
 def corpus_windows(ctx: RunContext, corpus, config: MFCCConfig, *, window_ms: float = 80.0,

@@ -53,7 +53,7 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
-from .base import RunContext, Streams, array_digest, streams
+from .base import RunContext, Streams, array_digest, cached_call, streams
 
 __all__ = ["Streams", "streams", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
            "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
@@ -419,7 +419,7 @@ def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | N
                       seeds=st)
     tasks = fold_tasks(data, config, st)
     memo = ctx.memory("ch6-folds").cache(_cached_folds, ignore=["ctx", "tasks", "desc"])
-    return data, memo(ctx, tasks, desc, _cache_key(data, tasks), code_fingerprint())
+    return data, cached_call(memo, ctx, tasks, desc, _cache_key(data, tasks), code_fingerprint())
 
 
 def summarise(folds: list[dict], keys) -> dict[str, float]:
@@ -456,7 +456,7 @@ def image_locals(ctx: RunContext, ims, *, chunk: int = 40) -> tuple[list, list]:
     """
     images = list(ims.images) if hasattr(ims, "images") else list(ims)
     memo = ctx.memory("ch6-image-locals").cache(_cached_locals, ignore=["ctx", "images", "chunk"])
-    return memo(ctx, images, chunk, array_digest(images), code_fingerprint())
+    return cached_call(memo, ctx, images, chunk, array_digest(images), code_fingerprint())
 
 
 def _cached_locals(ctx: RunContext, images: list, chunk: int, digest: str, code: str) -> tuple[list, list]:

@@ -96,6 +96,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "Streams",
     "array_digest",
+    "cached_call",
     "streams",
     "Claim",
     "Experiment",
@@ -442,7 +443,8 @@ class RunContext:
         function. joblib only watches that function's own source, so a cached function
         also takes :func:`~mmconcepts._fingerprint.code_fingerprint` as an argument: a
         change anywhere in the package then recomputes. joblib writes each entry
-        atomically and recomputes an entry it cannot read (a torn file).
+        atomically and recomputes an entry it cannot read (a torn file). Call the cached
+        function through :func:`cached_call`.
 
         Parameters
         ----------
@@ -468,6 +470,18 @@ class RunContext:
             f"needs the real data set {name!r}: put it under the data root (--data-root DIR or "
             f"$MMCONCEPTS_DATA_ROOT; see `mmconcepts data list`) or pass --data {name}=PATH.{more}"
         )
+
+
+def cached_call(cached: Callable[..., _R], *args: Any) -> _R:
+    """``cached(*args)`` for a function cached with :meth:`RunContext.memory`, without joblib's slow-write note.
+
+    joblib warns when writing a call's metadata (the ``repr`` of its hashed arguments) took
+    over half a second. The arguments hashed here are small, so on a loaded machine that
+    note says nothing about the run; it is kept out of the run's warnings (and its record).
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Persisting input arguments took", category=UserWarning)
+        return cached(*args)
 
 
 def array_digest(arrays: Iterable[np.ndarray]) -> str:
