@@ -127,7 +127,7 @@ class Side:
         return np.matmul(R, L.T, out=buf) if self.transposed else np.matmul(L, R.T, out=buf)
 
     def _sparse_nd(self, L, R, beta):
-        X, M = self.X, self.mask
+        X, M = cast("sp.csr_matrix", self.X), self.mask  # the sparse side: X is CSR
         w = self.weights if self.weights is not None else np.empty(0, dtype=L.dtype)
         if beta == 2.0 and M is None:
             num = np.asarray(X @ R)
