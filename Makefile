@@ -51,4 +51,4 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/mdp.py
 
 clean:
-	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache docs/_build docs/auto_examples docs/api/generated
+	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache docs/_build docs/auto_examples docs/api/generated docs/sg_execution_times.rst

@@ -118,7 +118,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
         KDE grid edges per channel (one array per axis).
     codebooks_ : list of ndarray of shape (n_bins, dim)
         VQ centroids per channel, in standardised units.
-    scales_ : ndarray of shape (n_channels_, dim)
+    scales_ : ndarray of shape ``(n_channels_, dim)``
         VQ standardisation (training standard deviations).
 
     Examples
@@ -341,7 +341,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        H : ndarray of shape (n_recordings, n_features_out_)
+        H : ndarray of shape ``(n_recordings, n_features_out_)``
             Nonnegative; the ``bins_per_channel_`` columns of each channel sum to one.
         """
         check_is_fitted(self, "n_features_out_")

@@ -36,7 +36,7 @@ skeletons: the pelvis is ``hip_center`` (MSR) or else the mean of the two hips; 
 
 For Choreo2 orientations, :func:`orientation_angles` computes the relative rotation
 between pairs of frames along the limbs, as Euler angles on static x-y-z axes
-(``scipy.spatial.transform.Rotation``), as in formats.md.
+(``scipy.spatial.transform.Rotation``), as the Choreo2 format says (:ref:`format-choreo2`).
 """
 
 from __future__ import annotations
@@ -186,7 +186,7 @@ def orientation_angles(
     For each pair (parent, child), ``R_rel = R_parent^{-1} R_child`` (both frames given
     relative to the camera as unit quaternions (qx, qy, qz, qw)), converted with
     ``Rotation.as_euler("xyz")`` (lower case: extrinsic, static axes), as the authors' Choreo2
-    features do (formats.md; Thesis section 6.5).
+    features do (:ref:`format-choreo2`; Thesis section 6.5).
 
     Parameters
     ----------

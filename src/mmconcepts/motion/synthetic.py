@@ -19,7 +19,7 @@ Data sets (sizes of Thesis section 3.3.1 / Appendix B):
   combinations repeated 2-4 times (a third of them legs + both arms: there are only 28
   such combinations, so they necessarily repeat);
 - Choreo2: 1100 records, 110 of each of the 10 gestures of Table B.3, positions and
-  orientations, marker names from the observer's point of view (formats.md), i.e. the
+  orientations, marker names from the observer's point of view (:ref:`format-choreo2`), i.e. the
   marker written ``right_hand`` is the dancer's left hand.
 
 How the parameters were chosen (measured on the 566 usable real Kinect v1 skeletons of
@@ -722,7 +722,7 @@ def write_choreo2(folder: str | os.PathLike[str], *, random_state: int = 0, n_re
     """Generate the Choreo2-like set (10 gestures of Table B.3) and write ``choreo2.json`` + NPZ.
 
     Marker names are written from the observer's point of view, as in the real Choreo2
-    (formats.md): the dancer's left hand is written ``right_hand``.
+    (:ref:`format-choreo2`): the dancer's left hand is written ``right_hand``.
     """
     seed = _check_seed(random_state)
     n = SUBSET_SIZES["choreo2"] if n_records is None else int(n_records)

@@ -165,7 +165,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
     ----------
     nmf_ : NMF
         The factorization of the stacked training matrix; ``nmf_.components_`` is
-        (n_components, n_features_in_ + n_labels_).
+        ``(n_components, n_features_in_ + n_labels_)``.
     label_weight_ : float
         The weight lambda used.
     threshold_ : float

@@ -270,7 +270,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        csr_matrix of shape (n_utterances, n_features_out_), float64
+        csr_matrix of shape ``(n_utterances, n_features_out_)``, float64
             Blocks ordered by lag, then stream (static, delta, delta-delta); in each block
             column ``a * k + b`` counts the pairs ``(a, b)``.
         """

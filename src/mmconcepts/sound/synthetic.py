@@ -132,7 +132,7 @@ __all__ = [
 #: Bumped whenever the generator's output changes; cached corpora of another version are rebuilt.
 GENERATOR_VERSION = 1
 
-#: The 10 keywords of Caregiver year 1 used in the thesis (section 6.5.2, formats.md).
+#: The 10 keywords of Caregiver year 1 used in the thesis (section 6.5.2; the ACORNS format: :ref:`format-acorns` in the documentation).
 CAREGIVER_KEYWORDS: tuple[str, ...] = (
     "Angus", "bath", "book", "bottle", "car", "daddy", "mummy", "nappy", "shoe", "telephone",
 )

@@ -588,7 +588,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         :func:`mmconcepts.sound.dtw.dtw_one_to_many`'s distance (Euclidean frame cost,
         no window) on (T, d) windows, as in the thesis; both run in compiled kernels. A
         callable ``metric(query, candidates) -> (n,)`` receives one item and an
-        (n, *item_shape) stack of centroids, and runs in Python.
+        ``(n, *item_shape)`` stack of centroids, and runs in Python.
     search : {"greedy", "best_children", "restart", "exact"}, default="restart"
         Default retrieval strategy of :meth:`query` and :meth:`predict` (insertion always
         uses the greedy descent of thesis Algorithm 1). "restart" is the thesis' second
@@ -629,17 +629,17 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
         Vectors inserted since the last :meth:`fit`.
     n_leaves_, n_nodes_ : int
         Number of leaves (acoustic events) and of nodes (leaves and root included).
-    leaf_centers_ : ndarray of shape (n_leaves_, *item_shape_)
+    leaf_centers_ : ndarray of shape ``(n_leaves_, *item_shape_)``
         Centroid of every leaf (the mean of its vectors), by leaf id.
-    leaf_sizes_ : ndarray of int64, shape (n_leaves_,)
+    leaf_sizes_ : ndarray of int64, shape ``(n_leaves_,)``
         Number of vectors in every leaf.
-    leaf_node_ids_ : ndarray of int64, shape (n_leaves_,)
+    leaf_node_ids_ : ndarray of int64, shape ``(n_leaves_,)``
         Node id of every leaf.
-    node_centers_ : ndarray of shape (n_nodes_, *item_shape_)
-    node_sizes_ : ndarray of int64, shape (n_nodes_,)
-    node_parents_ : ndarray of int64, shape (n_nodes_,)
+    node_centers_ : ndarray of shape ``(n_nodes_, *item_shape_)``
+    node_sizes_ : ndarray of int64, shape ``(n_nodes_,)``
+    node_parents_ : ndarray of int64, shape ``(n_nodes_,)``
         Parent node id (-1 for the root).
-    node_leaf_ids_ : ndarray of int64, shape (n_nodes_,)
+    node_leaf_ids_ : ndarray of int64, shape ``(n_nodes_,)``
         Leaf id of every node, -1 for internal nodes.
     max_depth_ : int
         Number of edges on the longest root-to-leaf path.
@@ -1062,7 +1062,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, *item_shape)
+        X : array-like of shape ``(n_samples, *item_shape)``
         y : ignored
 
         Returns
@@ -1106,7 +1106,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
 
         Parameters
         ----------
-        x : array-like of shape item_shape_ ((d,) or (T, d))
+        x : array-like of shape ``item_shape_`` ((d,) or (T, d))
 
         Returns
         -------
@@ -1137,7 +1137,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_queries, *item_shape_)
+        X : array-like of shape ``(n_queries, *item_shape_)``
         search : {"greedy", "best_children", "restart", "exact"}, optional
             Default: the estimator's ``search``.
         backtrack : int >= 1, optional
@@ -1181,7 +1181,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
 
         Parameters
         ----------
-        x : array-like of shape item_shape_
+        x : array-like of shape ``item_shape_``
         search, backtrack : see :meth:`query_batch`
         return_stats : bool, default=False
             Also return the number of distance evaluations.
@@ -1225,7 +1225,7 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_queries, *item_shape_)
+        X : array-like of shape ``(n_queries, *item_shape_)``
         search, backtrack : see :meth:`query_batch`
 
         Returns

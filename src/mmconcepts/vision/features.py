@@ -601,7 +601,7 @@ class _WordBag(SaveLoadMixin, TransformerMixin, BaseEstimator, abc.ABC):
 
         Returns
         -------
-        ndarray of shape (n_images, n_features_out_)
+        ndarray of shape ``(n_images, n_features_out_)``
             Nonnegative; rows sum to one with ``normalize="l1"``.
         """
         check_is_fitted(self, "codebook_")
@@ -825,7 +825,7 @@ class MidFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
                     self.order, self.n_neighbors, self.normalize)
 
     def transform(self, images) -> sp.csr_matrix:
-        """Mid-feature histograms, shape (n_images, n_features_out_), CSR, nonnegative."""
+        """Mid-feature histograms, shape ``(n_images, n_features_out_)``, CSR, nonnegative."""
         check_is_fitted(self, "base_")
         ims = check_images(images, min_size=self.base_._min_size())
         return self._from_locals(self.base_._extract(ims))
@@ -853,17 +853,17 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
     set alone or several combined (:func:`stack_descriptors`). Superpixels and keypoint
     descriptors are extracted once per image and shared by the sets that need them.
 
-    ==================== ========================= =================================
-    name                 what                      columns (defaults)
-    ==================== ========================= =================================
-    ``color``            superpixel colour words   ``n_colors`` = 64, dense
-    ``color_pairs``      pairs of colour words     K(K+1)/2 = 2080, CSR
-    ``color_triplets``   triplets of colour words  K(K+1)(K+2)/6 = 45760, CSR
-    ``keypoints``        dense-SIFT words          ``n_words`` = 256, dense
-    ``keypoint_pairs``   pairs of keypoint words   32896, CSR
-    ``keypoint_triplets`` triplets of keypoint     2829056, CSR
-                         words
-    ==================== ========================= =================================
+    ====================== ========================= =================================
+    name                   what                      columns (defaults)
+    ====================== ========================= =================================
+    ``color``              superpixel colour words   ``n_colors`` = 64, dense
+    ``color_pairs``        pairs of colour words     K(K+1)/2 = 2080, CSR
+    ``color_triplets``     triplets of colour words  K(K+1)(K+2)/6 = 45760, CSR
+    ``keypoints``          dense-SIFT words          ``n_words`` = 256, dense
+    ``keypoint_pairs``     pairs of keypoint words   32896, CSR
+    ``keypoint_triplets``  triplets of keypoint      2829056, CSR
+                           words
+    ====================== ========================= =================================
 
     Parameters
     ----------
