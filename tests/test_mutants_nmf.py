@@ -1,0 +1,59 @@
+"""Tests written from the mutation run of issue 13 (section 3) on ``mmconcepts.nmf``.
+
+Each test kills mutants that the rest of the suite let survive (see /work/notes/mutation13.md):
+Hoyer's sparseness on known answers and on the all-zero vector (NaN, without a warning), and
+the message of ``match_components`` for non-finite dictionaries, and feature indices checked
+against numpy's own indexing.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from mmconcepts.errors import DataError, ParameterError
+from mmconcepts.nmf import NMF, hoyer_sparseness, match_components
+from mmconcepts.nmf._estimator import resolve_features
+
+
+def test_hoyer_sparseness_known_answers_and_the_zero_vector_without_warnings():
+    """Thesis eq. (2.20): (sqrt(n) - |x|_1 / |x|_2) / (sqrt(n) - 1); 0 for a constant vector,
+    1 for one nonzero entry, NaN (documented, no RuntimeWarning) for the zero vector."""
+    x = np.array([3.0, -4.0, 0.0, 0.0])  # |x|_1 = 7, |x|_2 = 5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert hoyer_sparseness(x) == pytest.approx((2.0 - 7.0 / 5.0) / (2.0 - 1.0), rel=1e-14)
+        assert hoyer_sparseness(np.full(9, 2.5)) == pytest.approx(0.0, abs=1e-14)
+        assert hoyer_sparseness(np.eye(5)[2]) == pytest.approx(1.0, rel=1e-14)
+        assert np.isnan(hoyer_sparseness(np.zeros(4)))
+        cols = hoyer_sparseness(np.array([[0.0, 1.0], [0.0, 1.0]]), axis=0)
+    assert np.isnan(cols[0]) and cols[1] == pytest.approx(0.0, abs=1e-14)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_match_components_names_non_finite_dictionaries(bad):
+    A = np.eye(3)
+    B = np.eye(3)
+    B[1, 2] = bad
+    with pytest.raises(DataError, match="dictionaries hold NaN or infinite values"):
+        match_components(A, B)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")  # 20 iterations are enough here
+def test_features_take_every_index_numpy_takes_and_refuse_the_others():
+    """``features`` are numpy indices: -n_features .. n_features - 1 select what
+    ``np.arange(n)[idx]`` selects (so -n_features is column 0); anything else is refused."""
+    rng = np.random.default_rng(0)
+    X = rng.random((12, 5)) + 0.1
+    model = NMF(2, max_iter=20, random_state=0).fit(X)
+    n = X.shape[1]
+    for idx in ([-n, 1], [-1, -n + 2], [4, -n + 1]):
+        cols = np.arange(n)[idx]
+        np.testing.assert_array_equal(resolve_features(idx, n), cols)
+        np.testing.assert_array_equal(model.transform(X[:, cols], features=idx),
+                                      model.transform(X[:, cols], features=list(cols)))
+    for idx in ([-n - 1], [n]):
+        with pytest.raises(ParameterError, match="out of range"):
+            resolve_features(idx, n)
