@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from mmconcepts.errors import DataError, ParameterError
-from mmconcepts.nmf import NMF, hoyer_sparseness, match_components
+from mmconcepts.nmf import NMF, beta_nmf, hoyer_sparseness, match_components
 from mmconcepts.nmf._estimator import resolve_features
 
 
@@ -57,3 +57,32 @@ def test_features_take_every_index_numpy_takes_and_refuse_the_others():
     for idx in ([-n - 1], [n]):
         with pytest.raises(ParameterError, match="out of range"):
             resolve_features(idx, n)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("init", ["nndsvd", "nndsvda", "nndsvdar"])
+def test_svd_starts_ignore_what_lies_in_masked_cells(init):
+    """The README's promise, for the SVD-based starts too: unobserved cells have no influence."""
+    rng = np.random.default_rng(1)
+    X = rng.random((15, 8)) + 0.1
+    mask = rng.random(X.shape) < 0.8
+    fits = [NMF(3, init=init, beta_loss=1, max_iter=15, random_state=0).fit(np.where(mask, X, g), mask=mask)
+            for g in (np.nan, 0.0, 1e3)]
+    for other in fits[1:]:
+        np.testing.assert_allclose(other.components_, fits[0].components_, rtol=1e-12, atol=1e-14)
+
+
+def test_beta_nmf_reports_a_bad_init_through_its_parameter_table():
+    X = np.random.default_rng(2).random((6, 5))
+    with pytest.raises(ParameterError, match=r"^beta_nmf: init must be one of 'random', 'nndsvd'"):
+        beta_nmf(X, 2, init="bogus")
+
+
+@pytest.mark.parametrize("bad", ["W", "H"])
+def test_beta_nmf_names_the_negative_starting_factor(bad):
+    X = np.random.default_rng(3).random((6, 5))
+    W, H = np.ones((6, 2)), np.ones((2, 5))
+    factors = {"W": W, "H": H}
+    factors[bad] = -factors[bad]
+    with pytest.raises(DataError, match=rf"^Negative values in data passed to {bad}:"):
+        beta_nmf(X, 2, init="custom", **factors)

@@ -3,15 +3,24 @@
 Each test kills mutants that the rest of the suite let survive (see /work/notes/mutation13.md):
 the synthetic room impulse response against the acoustic definitions of its two parameters,
 the direct-to-reverberant ratio (energy of the direct path over that of the tail) and the
-reverberation time (Schroeder's backward integration, T20 extrapolated to 60 dB, ISO 3382).
+reverberation time (Schroeder's backward integration, T20 extrapolated to 60 dB, ISO 3382);
+and the documented keyword balance of the caregiver transcripts.
 """
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 import pytest
 
-from mmconcepts.sound.synthetic import SAMPLE_RATE, SpeakerProfile, _room_ir
+from mmconcepts.sound.synthetic import (
+    CAREGIVER_KEYWORDS,
+    SAMPLE_RATE,
+    SpeakerProfile,
+    _room_ir,
+    caregiver_transcripts,
+)
 
 
 @pytest.mark.parametrize("rt60, drr_db", [(0.35, 7.0), (0.6, 2.0), (0.2, 12.0)])
@@ -32,3 +41,15 @@ def test_room_impulse_response_has_the_profile_drr_and_rt60(rt60, drr_db):
     sel = (edc_db <= -5) & (edc_db >= -25)
     slope = np.polyfit(t[sel], edc_db[sel], 1)[0]  # dB per second
     assert -60.0 / slope == pytest.approx(rt60, rel=0.1)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_caregiver_transcripts_keep_keyword_pairs_balanced_and_distinct(seed):
+    """The documented balance: each keyword is used n * kpu / len(keywords) times, +-1, and an
+    utterance never holds one keyword twice (three keywords in pairs make repeats frequent)."""
+    kws = CAREGIVER_KEYWORDS[:3]
+    out = caregiver_transcripts(40, keywords=kws, keywords_per_utterance=2, random_state=seed)
+    counts = collections.Counter(k for labels, _ in out for k in labels)
+    assert set(counts) == set(kws) and sum(counts.values()) == 80
+    assert max(counts.values()) - min(counts.values()) <= 1
+    assert all(len(set(labels)) == 2 for labels, _ in out)
