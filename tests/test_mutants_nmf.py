@@ -16,6 +16,7 @@ import pytest
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.nmf import NMF, beta_nmf, hoyer_sparseness, match_components
 from mmconcepts.nmf._estimator import resolve_features
+from mmconcepts.nmf._init import initialize
 
 
 def test_hoyer_sparseness_known_answers_and_the_zero_vector_without_warnings():
@@ -86,3 +87,17 @@ def test_beta_nmf_names_the_negative_starting_factor(bad):
     factors[bad] = -factors[bad]
     with pytest.raises(DataError, match=rf"^Negative values in data passed to {bad}:"):
         beta_nmf(X, 2, init="custom", **factors)
+
+
+@pytest.mark.parametrize("init", ["nndsvd", "nndsvda", "nndsvdar"])
+def test_masked_svd_start_is_the_start_of_the_mean_filled_matrix(init):
+    """As documented: with a mask, unobserved cells are filled with the observed mean before
+    the SVD -- so the masked start equals the unmasked start of that filled matrix."""
+    rng = np.random.default_rng(5)
+    X = rng.random((12, 7)) + 0.1
+    mask = rng.random(X.shape) < 0.7
+    filled = np.where(mask, X, X[mask].mean())
+    W1, H1 = initialize(np.where(mask, X, 0.0), 3, init, np.random.default_rng(0), mask=mask)
+    W2, H2 = initialize(filled, 3, init, np.random.default_rng(0))
+    np.testing.assert_allclose(W1, W2, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(H1, H2, rtol=1e-10, atol=1e-12)
