@@ -164,23 +164,49 @@ def test_ch6_folds_reused_recomputed_and_torn(rng, tmp_path, monkeypatch):
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
     _, first = ch6.evaluate(ctx, config())
     assert len(calls) == 2 and first[0]["n_train"] == 10.0
-    (entry,) = _entries(tmp_path / "ch6-folds")
+    entries = _entries(tmp_path / "ch6-folds")
+    assert len(entries) == 2  # one per fold
     assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 2
-    _tear(entry)
-    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 4  # torn: recomputed
-    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 4
+    _tear(entries[0])
+    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 3  # the torn fold: recomputed
+    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 3
     ch6.evaluate(ctx, config(k=4))
-    assert len(calls) == 6  # a setting of the learners is part of the key
+    assert len(calls) == 5  # a setting of the learners is part of the key
     ch6.evaluate(ctx, config(seed=1))
-    assert len(calls) == 8  # so are the seeds
+    assert len(calls) == 7  # so are the seeds
     kept = data["mfcc"][3]
     data["mfcc"][3] = kept + 1.0  # and the data
     ch6.evaluate(ctx, config())
-    assert len(calls) == 10
+    assert len(calls) == 9
     data["mfcc"][3] = kept
-    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 10
+    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 9
     monkeypatch.setattr(ch6, "code_fingerprint", lambda: "another code")
-    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 12
+    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 11
+
+
+def test_ch6_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, monkeypatch):
+    n = 30
+    data = {"mfcc": [rng.normal(size=(5, 4)) for _ in range(n)], "angles": [rng.normal(size=(6, 3)) for _ in range(n)],
+            "y": np.arange(n) % 4, "fold": np.arange(n) % 3, "n_folds": 3}
+    monkeypatch.setattr(ch6, "load_pairs", lambda ctx, **kw: data)
+    config = types.SimpleNamespace(seed=0, n_per_speaker=5, n_motion=n, n_folds=3, k=3, n_iter=5, motion_bins=4)
+    calls = []
+
+    def stop_at_third(task):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return _fake_fold(task)
+
+    monkeypatch.setattr(ch6, "_fold", stop_at_third)
+    ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
+    with pytest.raises(KeyboardInterrupt):
+        ch6.evaluate(ctx, config)
+    assert len(_entries(tmp_path / "ch6-folds")) == 2
+    calls.clear()
+    monkeypatch.setattr(ch6, "_fold", lambda task: (calls.append(1), _fake_fold(task))[1])
+    _, resumed = ch6.evaluate(ctx, config)
+    assert len(calls) == 1 and resumed == [_fake_fold(t) for t in ch6.fold_tasks(data, config, ch6.streams(0))]
 
 
 def test_ch6_image_locals_reused_recomputed_and_torn(rng, tmp_path, monkeypatch):

@@ -58,7 +58,7 @@ from ..errors import ConvergenceWarning
 from .._fingerprint import code_fingerprint
 from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
-from .base import RunContext, Streams, array_digest, cached_call, streams
+from .base import RunContext, Streams, array_digest, streams
 
 __all__ = [
     "MotionArrays",
@@ -427,11 +427,6 @@ def _cached_fold(task: dict, key: tuple, code: str) -> dict:
     return _fold(task)
 
 
-def _call(args: tuple) -> Any:
-    """``f(*rest)`` for ``args = (f, *rest)`` (a cached function): one argument per item, for ``ctx.parallel``."""
-    return cached_call(*args)
-
-
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *, features: dict,
                    learners: tuple[str, ...], params: dict, seed: int, single: bool = False,
                    desc: str = "folds") -> list[dict]:
@@ -461,28 +456,23 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     fp = array_digest([*angles, Y])
     code = code_fingerprint()
     memo = ctx.memory("ch3-folds").cache(_cached_fold, ignore=["task"])
-    results: list[list[dict | None]] = [[None] * len(splits) for _ in feature_list]
-    todo = []
-    for j, feats in enumerate(feature_list):
+    calls = []
+    for feats in feature_list:
+        # Every histogram parameter, defaults included, so a changed default is a new key.
+        hist_params = sorted(MotionHistograms(**feats).get_params().items())
         for i, (tr, te) in enumerate(splits):
             fold_seed = int(np.random.SeedSequence([seed, i]).generate_state(1)[0] % (2**31 - 1))
             task = {"angles": angles, "Y": Y, "train": np.asarray(tr), "test": np.asarray(te), "features": feats,
                     "learners": tuple(learners), "params": params, "seed": fold_seed, "single": single}
-            # Every histogram parameter, defaults included, so a changed default is a new key.
-            hist_params = sorted(MotionHistograms(**feats).get_params().items())
             key = (fp, hist_params, tuple(learners), sorted(params.items()), single, task["train"], task["test"],
                    fold_seed)
-            if memo.check_call_in_cache(task, key, code):
-                results[j][i] = cached_call(memo, task, key, code)  # loaded (recomputed if torn)
-            else:
-                todo.append(((j, i), (memo, task, key, code)))
+            calls.append((task, key, code))
     # Each fold's entry is written by the process that computed it as soon as the fold ends,
     # so an interrupted run resumes from the folds it finished.
-    done = ctx.parallel(_call, [args for _, args in todo], desc=desc)
-    for ((j, i), _), res in zip(todo, done):
-        results[j][i] = res
+    done = ctx.parallel_cached(memo, calls, desc=desc)
+    results = [done[j * len(splits):(j + 1) * len(splits)] for j in range(len(feature_list))]
     if not many:
-        return results[0]  # type: ignore[return-value]
+        return results[0]
     return results  # type: ignore[return-value]
 
 

@@ -34,8 +34,9 @@ the learners (HAC and histogram codebooks, NMF initialisation), the reference dr
 matching protocol, and the composition of the test utterances of the sliding windows.
 
 :func:`evaluate` runs every fold of Tables 6.2-6.4 through ``ctx.parallel`` and caches
-the fold results on disk (key: the data, the setting and :func:`code_fingerprint`), so
-the three experiments share one computation.
+each fold's result on disk as the fold ends (key: the data, the setting, the fold and
+:func:`code_fingerprint`), so the three experiments share one computation and an
+interrupted run resumes from the folds it finished.
 """
 
 from __future__ import annotations
@@ -394,32 +395,39 @@ def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
              "control_seed": control[f]} for f in range(n)]
 
 
-def _cache_key(data: dict, tasks: list[dict]) -> tuple:
-    """What the fold results of :func:`evaluate` depend on, besides the code."""
-    t0 = tasks[0]
-    return (array_digest(data["mfcc"]), array_digest(data["angles"]), data["y"], data["fold"],
-            sorted(t0["motion_features"].items()), t0["k"], t0["n_iter"],
-            [(t["learner_seed"], t["reference_seed"], t["control_seed"]) for t in tasks])
+def _fold_keys(data: dict, tasks: list[dict]) -> list[tuple]:
+    """What each fold result of :func:`evaluate` depends on, besides the code."""
+    data_key = (array_digest(data["mfcc"]), array_digest(data["angles"]), data["y"], data["fold"])
+    return [(data_key, f, sorted(t["motion_features"].items()), t["k"], t["n_iter"], t["learner_seed"],
+             t["reference_seed"], t["control_seed"]) for f, t in enumerate(tasks)]
 
 
-def _cached_folds(ctx: RunContext, tasks: list[dict], desc: str, key: tuple, code: str) -> list[dict]:
-    """Every fold of ``tasks`` over ``ctx.parallel``; cached by :func:`evaluate` under ``key`` and ``code``
-    (the package's :func:`~mmconcepts._fingerprint.code_fingerprint`); ``ctx``, ``tasks`` and ``desc`` are not
-    hashed."""
-    return ctx.parallel(_fold, tasks, desc=desc)
+def _cached_fold(task: dict, key: tuple, code: str) -> dict:
+    """:func:`_fold`, cached on disk by :func:`evaluate` (``task`` is not hashed).
+
+    ``key`` stands for everything ``task`` holds (digests of the data, the labels and
+    folds, the fold's index, features, k, iterations and seeds), ``code`` is the package's
+    :func:`~mmconcepts._fingerprint.code_fingerprint`.
+    """
+    return _fold(task)
 
 
 def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | None = None) -> tuple[dict, list[dict]]:
-    """Pairs and per-fold results (cached on disk: a :class:`joblib.Memory` under ``ctx.cache_dir/ch6-folds``).
+    """Pairs and per-fold results.
 
-    ``seeds`` replaces the streams spawned from ``config.seed`` (to vary one alone).
+    Each fold's result is cached on disk as the fold ends (a :class:`joblib.Memory` under
+    ``ctx.cache_dir/ch6-folds``), so experiments sharing the folds compute them once and an
+    interrupted run resumes from the folds it finished. ``seeds`` replaces the streams
+    spawned from ``config.seed`` (to vary one alone).
     """
     st = seeds if seeds is not None else streams(config.seed)
     data = load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, n_folds=config.n_folds,
                       seeds=st)
     tasks = fold_tasks(data, config, st)
-    memo = ctx.memory("ch6-folds").cache(_cached_folds, ignore=["ctx", "tasks", "desc"])
-    return data, cached_call(memo, ctx, tasks, desc, _cache_key(data, tasks), code_fingerprint())
+    memo = ctx.memory("ch6-folds").cache(_cached_fold, ignore=["task"])
+    code = code_fingerprint()
+    return data, ctx.parallel_cached(memo, [(t, key, code) for t, key in zip(tasks, _fold_keys(data, tasks))],
+                                     desc=desc)
 
 
 def summarise(folds: list[dict], keys) -> dict[str, float]:

@@ -455,6 +455,35 @@ class RunContext:
 
         return Memory(self.cache_dir / name, verbose=0)
 
+    def parallel_cached(self, cached: Callable[..., _R], calls: Sequence[tuple], *, desc: str | None = None) -> list[_R]:
+        """Return ``[cached(*args) for args in calls]`` for a function cached with :meth:`memory`.
+
+        The calls already in the cache are read here; the others run through
+        :meth:`parallel`, where each worker writes its call's entry as soon as that call
+        ends, so an interrupted run keeps every call it finished (and resumes from there).
+        Calls go through :func:`cached_call`; a torn entry is recomputed.
+
+        Parameters
+        ----------
+        cached : joblib.memory.MemorizedFunc
+            ``memory.cache(f, ignore=...)``, ``f`` defined at module level.
+        calls : sequence of tuple
+            The positional arguments of each call.
+        desc : str, optional
+            Progress-bar label.
+        """
+        out: list[Any] = [None] * len(calls)
+        todo = []
+        for i, args in enumerate(calls):
+            if cached.check_call_in_cache(*args):  # type: ignore[attr-defined]
+                out[i] = cached_call(cached, *args)
+            else:
+                todo.append(i)
+        done = self.parallel(_cached_item, [(cached, *calls[i]) for i in todo], desc=desc)
+        for i, result in zip(todo, done):
+            out[i] = result
+        return out
+
     def require_data(self, name: str, *, hint: str = "") -> Path:
         """Return the path given for data set ``name``, or skip the experiment.
 
@@ -482,6 +511,11 @@ def cached_call(cached: Callable[..., _R], *args: Any) -> _R:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Persisting input arguments took", category=UserWarning)
         return cached(*args)
+
+
+def _cached_item(item: tuple) -> Any:
+    """``cached_call(*item)``: one argument per item, for :meth:`RunContext.parallel`."""
+    return cached_call(*item)
 
 
 def array_digest(arrays: Iterable[np.ndarray]) -> str:
