@@ -12,6 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.nmf import NMF, beta_nmf, hoyer_sparseness, match_components
@@ -101,3 +102,53 @@ def test_masked_svd_start_is_the_start_of_the_mean_filled_matrix(init):
     W2, H2 = initialize(filled, 3, init, np.random.default_rng(0))
     np.testing.assert_allclose(W1, W2, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(H1, H2, rtol=1e-10, atol=1e-12)
+
+
+# ------------------------------------------------------------------ from the hold-out sample
+
+
+def test_partial_fit_without_n_components_uses_the_documented_default():
+    X = np.random.default_rng(6).random((9, 4)) + 0.1
+    model = NMF(None, max_iter=5, random_state=0).partial_fit(X)
+    assert model.components_.shape == (min(X.shape), X.shape[1])  # "Default: min(n_samples, n_features)"
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_inverse_transform_takes_sparse_coefficients():
+    rng = np.random.default_rng(7)
+    model = NMF(3, max_iter=10, random_state=0).fit(rng.random((10, 6)) + 0.1)
+    W = rng.random((4, 3)) * (rng.random((4, 3)) < 0.5)
+    np.testing.assert_allclose(model.inverse_transform(sp.csr_matrix(W)), W @ model.components_, rtol=1e-12)
+
+
+def test_relative_stopping_rule_also_stops_a_fit_whose_objective_is_below_one():
+    """The rule is relative (decrease / first error < tol): Frobenius MU is scale-equivariant, so
+    a fit of 1e-3 X (objective ~1e-6) must stop like the fit of X, not run to max_iter. (The
+    stopping iterations are compared within two loss checks: in floating point the equivariance
+    is not exact, and here the two fits stop 10 iterations apart.)"""
+    X = np.random.default_rng(8).random((20, 10)) + 0.1
+    fits = [NMF(3, beta_loss=2, tol=1e-3, max_iter=500, random_state=0).fit(c * X) for c in (1.0, 1e-3)]
+    assert fits[0].n_iter_ < 500 and fits[1].n_iter_ < 500
+    assert abs(fits[1].n_iter_ - fits[0].n_iter_) <= 20
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_a_sparse_mask_gives_the_fit_of_the_dense_mask():
+    rng = np.random.default_rng(9)
+    X = rng.random((12, 6)) + 0.1
+    mask = rng.random(X.shape) < 0.7
+    dense = NMF(2, beta_loss=1, max_iter=20, random_state=0).fit(X, mask=mask)
+    sparse = NMF(2, beta_loss=1, max_iter=20, random_state=0).fit(X, mask=sp.csr_matrix(mask))
+    np.testing.assert_allclose(sparse.components_, dense.components_, rtol=1e-10)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_itakura_saito_refuses_observed_zeros_of_sparse_x_only():
+    """beta <= 0 is undefined at X = 0: implicit zeros of a sparse X count when observed, and
+    do not when the mask hides them."""
+    rng = np.random.default_rng(10)
+    dense = (rng.random((8, 5)) + 0.1) * (rng.random((8, 5)) < 0.6)
+    X = sp.csr_matrix(dense)
+    with pytest.raises(DataError, match="beta_loss=0 is undefined where X is zero"):
+        NMF(2, beta_loss=0, max_iter=5, random_state=0).fit(X)
+    NMF(2, beta_loss=0, max_iter=5, random_state=0).fit(X, mask=dense > 0)  # zeros unobserved: fine

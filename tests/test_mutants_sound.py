@@ -4,7 +4,7 @@ Each test kills mutants that the rest of the suite let survive (see /work/notes/
 the synthetic room impulse response against the acoustic definitions of its two parameters,
 the direct-to-reverberant ratio (energy of the direct path over that of the tail) and the
 reverberation time (Schroeder's backward integration, T20 extrapolated to 60 dB, ISO 3382);
-and the documented keyword balance of the caregiver transcripts.
+the documented keyword balance of the caregiver transcripts, and the message for repeated keywords.
 """
 
 from __future__ import annotations
@@ -13,6 +13,8 @@ import collections
 
 import numpy as np
 import pytest
+
+from mmconcepts.errors import ParameterError
 
 from mmconcepts.sound.synthetic import (
     CAREGIVER_KEYWORDS,
@@ -53,3 +55,8 @@ def test_caregiver_transcripts_keep_keyword_pairs_balanced_and_distinct(seed):
     assert set(counts) == set(kws) and sum(counts.values()) == 80
     assert max(counts.values()) - min(counts.values()) <= 1
     assert all(len(set(labels)) == 2 for labels, _ in out)
+
+
+def test_repeated_keywords_are_refused_with_the_rule():
+    with pytest.raises(ParameterError, match=r"^keywords must be distinct non-empty strings; got \['ball', 'ball'\]"):
+        caregiver_transcripts(4, keywords=["ball", "ball"])

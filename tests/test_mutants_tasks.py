@@ -25,6 +25,7 @@ from mmconcepts.tasks import (
     empirical_policy,
     gradirl_objective,
     grid_world,
+    value_iteration,
 )
 from mmconcepts.tasks.irl import check_task_demonstrations
 from mmconcepts.tasks.mdp import check_trajectories
@@ -139,3 +140,10 @@ def test_factorial_inverse_control_stops_by_its_relative_decrease_rule(supervise
         est.fit(trajs, A if supervised else None)
     _check_stopping_rule(est.loss_history_, tol, max_iter)
     assert est.n_iter_ == len(est.loss_history_)
+
+
+def test_rewards_of_the_wrong_shape_are_refused_with_both_accepted_shapes():
+    mdp = grid_world(3)
+    with pytest.raises(ParameterError, match=r"^rewards must have shape \(n_states, n_actions\) or "
+                                             r"\(n_tasks, n_states, n_actions\) = \(9, 4\); got \(9,\)"):
+        value_iteration(mdp, np.zeros(9))
