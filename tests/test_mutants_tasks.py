@@ -19,6 +19,7 @@ from mmconcepts.tasks import (
     MDP,
     FactorialInverseControl,
     FactorialIRL,
+    GradIRL,
     RBFFeatures,
     adjoint_gradient,
     control_trajectories,
@@ -147,3 +148,15 @@ def test_rewards_of_the_wrong_shape_are_refused_with_both_accepted_shapes():
     with pytest.raises(ParameterError, match=r"^rewards must have shape \(n_states, n_actions\) or "
                                              r"\(n_tasks, n_states, n_actions\) = \(9, 4\); got \(9,\)"):
         value_iteration(mdp, np.zeros(9))
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_factorial_irl_transform_is_gradirl_on_the_learnt_features_with_its_beta():
+    """As documented: the coefficients of new tasks are GradIRL (same beta) on reward_features."""
+    world, demos = _irl_tasks()
+    fa = FactorialIRL(2, beta=3.0, max_iter=2, inner_steps=2, flat_max_iter=3).fit(world, demos)
+    got = fa.transform(world, demos[:1], max_iter=5)
+    ref = GradIRL(fa.reward_features(world), beta=3.0, max_iter=5).fit(world, demos[:1]).theta_
+    np.testing.assert_allclose(got, ref, rtol=1e-12)
+    beta1 = GradIRL(fa.reward_features(world), beta=1.0, max_iter=5).fit(world, demos[:1]).theta_
+    assert not np.allclose(got, beta1, rtol=1e-6)
