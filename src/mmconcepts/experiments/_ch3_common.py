@@ -50,11 +50,11 @@ import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
-from ..errors import ConvergenceWarning
+from ..errors import ConvergenceWarning, DataError
 from .._fingerprint import code_fingerprint
 from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
@@ -175,7 +175,10 @@ def _msr_angles(folder: str, stamp: tuple) -> tuple[tuple[np.ndarray, ...], np.n
             continue
         angles.append(a)
         actions.append(r.labels[0])
-        subjects.append(int(re.search(r"_s(\d+)", r.record_id).group(1)))
+        subject = re.search(r"_s(\d+)", r.record_id)
+        if subject is None:
+            raise DataError(f"MSR Action3D record id {r.record_id!r} names no subject (_sNN); expected aAA_sSS_eEE.")
+        subjects.append(int(subject.group(1)))
     return tuple(angles), np.array(actions), np.array(subjects), tuple(skipped)
 
 
@@ -212,7 +215,7 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None) 
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
     out: list[np.ndarray] = []
     labels: list[tuple[int, ...]] = []
-    sources: list[tuple[int, ...]] = []  # indices of the source sequences (in the primitive set's order)
+    sources: list[tuple[Any, ...]] = []  # indices of the source sequences (in the primitive set's order)
     if subset == "primitive":
         out = [a.copy() for a in angles]
         labels = [(int(a),) for a in actions]
@@ -427,9 +430,21 @@ def _cached_fold(task: dict, key: tuple, code: str) -> dict:
     return _fold(task)
 
 
+@overload
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *, features: dict,
                    learners: tuple[str, ...], params: dict, seed: int, single: bool = False,
-                   desc: str = "folds") -> list[dict]:
+                   desc: str = "folds") -> list[dict]: ...
+
+
+@overload
+def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *,
+                   features: list[dict] | tuple[dict, ...], learners: tuple[str, ...], params: dict, seed: int,
+                   single: bool = False, desc: str = "folds") -> list[list[dict]]: ...
+
+
+def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *,
+                   features: dict | list[dict] | tuple[dict, ...], learners: tuple[str, ...], params: dict,
+                   seed: int, single: bool = False, desc: str = "folds") -> list[dict] | list[list[dict]]:
     """Evaluate every split (in parallel over ``ctx.workers``), reusing cached folds.
 
     Parameters
@@ -452,7 +467,7 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     ``pred`` (multi-label only), ``threshold`` (NMF), ``seconds``.
     """
     many = isinstance(features, (list, tuple))
-    feature_list = list(features) if many else [features]
+    feature_list: list[dict] = list(features) if isinstance(features, (list, tuple)) else [features]
     fp = array_digest([*angles, Y])
     code = code_fingerprint()
     memo = ctx.memory("ch3-folds").cache(_cached_fold, ignore=["task"])
@@ -473,7 +488,7 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     results = [done[j * len(splits):(j + 1) * len(splits)] for j in range(len(feature_list))]
     if not many:
         return results[0]
-    return results  # type: ignore[return-value]
+    return results
 
 
 def pooled(folds: list[dict], name: str, field: str, n: int, L: int) -> np.ndarray:

@@ -42,6 +42,7 @@ interrupted run resumes from the folds it finished.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +50,7 @@ from threadpoolctl import threadpool_limits
 
 from .._fingerprint import code_fingerprint
 from ..errors import ConvergenceWarning, DataError
-from ..motion import MotionHistograms, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
+from ..motion import MotionHistograms, MotionRecording, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
 from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
@@ -128,7 +129,7 @@ def load_motion(ctx: RunContext, *, n_motion: int) -> dict:
     if "choreo2" in ctx.data:
         path = Path(ctx.data["choreo2"])
         ds = load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip")
-        fn = orientation_angles
+        fn: Callable[[MotionRecording], np.ndarray] = orientation_angles
     elif "msr-action3d" in ctx.data:
         ds, fn = load_msr_action3d(ctx.data["msr-action3d"], actions=MSR_ACTIONS, on_error="skip"), joint_angles
     else:
@@ -152,7 +153,8 @@ def eth80_objects(labels, categories, n_objects: int) -> list[str]:
     for lab, cat in set(zip(labels, categories)):
         by_cat.setdefault(cat, []).append(lab)
     for cat, objs in by_cat.items():
-        objs.sort(key=lambda o, n=len(cat): (int(o[n:]) if o[n:].isdigit() else 0, o))
+        n = len(cat)
+        objs.sort(key=lambda o: (int(o[n:]) if o[n:].isdigit() else 0, o))
     out: list[str] = []
     for rank in range(max(len(v) for v in by_cat.values())):
         out += [objs[rank] for _, objs in sorted(by_cat.items()) if rank < len(objs)]
@@ -440,9 +442,14 @@ def summarise(folds: list[dict], keys) -> dict[str, float]:
     return out
 
 
-def fold_samples(folds: list[dict], metrics: dict, rename=lambda k: k) -> dict[str, list[float]]:
+def fold_samples(folds: list[dict], metrics: dict, rename: Callable[[str], str | None] = lambda k: k) -> dict[str, list[float]]:
     """Per-fold (or per-repetition) values of every key that is a metric (``rename``: key -> metric name or None)."""
-    return {rename(k): [float(f[k]) for f in folds] for k in folds[0] if rename(k) is not None and rename(k) in metrics}
+    out: dict[str, list[float]] = {}
+    for k in folds[0]:
+        name = rename(k)
+        if name is not None and name in metrics:
+            out[name] = [float(f[k]) for f in folds]
+    return out
 
 
 # ---------------------------------------------------------------------------- image features
@@ -450,7 +457,9 @@ def _locals_chunk(images: list) -> tuple[list, list]:
     from ..vision import THESIS_DESCRIPTORS, ImageFeatures
 
     with threadpool_limits(1):
-        return ImageFeatures(THESIS_DESCRIPTORS).extract_locals(images)
+        colors, keypoints = ImageFeatures(THESIS_DESCRIPTORS).extract_locals(images)
+    assert colors is not None and keypoints is not None  # the thesis' descriptors use both
+    return colors, keypoints
 
 
 def image_locals(ctx: RunContext, ims, *, chunk: int = 40) -> tuple[list, list]:

@@ -81,7 +81,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar, cast
 
 import numpy as np
 
@@ -627,7 +627,7 @@ class Experiment:
             )
         _check_config_cls(self.id, self.config_cls)
         self._check_functions()
-        reference = {}
+        reference: dict[str, Any] = {}
         for name, value in dict(self.reference).items():
             if not is_valid_metric_name(name):
                 raise ExperimentError(f"experiment {self.id!r}: reference key {name!r} is not a valid metric name.")
@@ -716,7 +716,7 @@ class Experiment:
                 f"{type(config).__name__}, not a {self.config_cls.__name__}."
             )
         if seed is not None:
-            config = dataclasses.replace(config, seed=check_seed(seed))
+            config = dataclasses.replace(cast(Any, config), seed=check_seed(seed))
         return config
 
     def __repr__(self) -> str:

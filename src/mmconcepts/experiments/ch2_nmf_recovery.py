@@ -24,6 +24,7 @@ recovered dictionary is compared with the truth by the Hungarian matching distan
 from __future__ import annotations
 
 import time
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,7 +91,7 @@ def make_data(kind: str, n_samples: int, n_features: int, n_components: int, noi
     return X, H
 
 
-def streams(config: Config) -> dict[str, list]:
+def streams(config: Config) -> dict[str, Any]:
     """Independent random streams: ``data[kind][repeat]`` (dictionary, coefficients, noise),
     ``learner[kind][repeat]`` (the solvers' initialisation, shared by all methods of a repeat so
     that they are compared from the same start) and ``reference[repeat]`` (the random

@@ -210,8 +210,8 @@ def compute(config: Config, ctx: RunContext) -> Result:
                 if name in default[split]:
                     samples[f"{split}.{name}.{key}"] = [float(v) for v in default[split][name][key]]
     tasks_pts = sorted(k for k in results if k[0] == m0)
-    for label, key in (("min_tasks", tasks_pts[0]), ("max_tasks", tasks_pts[-1])):
-        diff = np.subtract(results[key]["train"]["flat"]["deviation"], results[key]["train"]["factorial"]["deviation"])
+    for label, pt in (("min_tasks", tasks_pts[0]), ("max_tasks", tasks_pts[-1])):
+        diff = np.subtract(results[pt]["train"]["flat"]["deviation"], results[pt]["train"]["factorial"]["deviation"])
         metrics[f"tasks_curve.{label}.advantage"] = float(diff.mean())
         samples[f"tasks_curve.{label}.advantage"] = diff.tolist()
     metrics["factorial.converged"] = float(default["factorial_converged"])

@@ -298,7 +298,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         raise ValueError(f"n_repeats must be at least 1; got {config.n_repeats!r}")
     feats = RBFFeatures(config.grid_size)
     ss = streams(config)
-    jobs = [("repeat", (config, s)) for s in ss]
+    jobs: list[tuple[str, tuple]] = [("repeat", (config, s)) for s in ss]
     if config.sensitivity:
         jobs += [("cell", (config, s, cell)) for s in ss for cell in SENSITIVITY]
     outs = ctx.parallel(_job, jobs, desc="fits")

@@ -43,6 +43,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from math import comb
+from typing import cast
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -146,7 +147,7 @@ def _fold(task: dict) -> dict:
                          "voting.keyword_recall": _recall(Yte, V),
                          "chance.l_given_number": float(np.mean([1 / comb(Y.shape[1], int(n)) for n in Yte.sum(1)])),
                          "chance.keyword_recall": float(np.mean(Yte.sum(1) / Y.shape[1]))},
-            "threshold": float(cmodel.threshold_)}
+            "threshold": float(cast(float, cmodel.threshold_))}
 
 
 def _plan(config: Config, y: np.ndarray, s: common.Streams) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -196,12 +197,12 @@ def compute(config: Config, ctx: RunContext) -> Result:
     folds = ctx.parallel(_fold, tasks, desc="folds")
 
     pred = {name: np.empty(len(y), dtype=object) for name in ("nmf", "voting")}
-    per_fold = []
+    fold_rates = []
     for f in folds:
         for name in pred:
             pred[name][f["test"]] = f[name]
-        per_fold.append([float(np.mean(f[n] == y[f["test"]])) for n in ("nmf", "voting")])
-    per_fold = np.asarray(per_fold)
+        fold_rates.append([float(np.mean(f[n] == y[f["test"]])) for n in ("nmf", "voting")])
+    per_fold = np.asarray(fold_rates)
     counts = np.unique(y, return_counts=True)[1]
     chance = float(counts.max() / counts.sum())
     metrics = {

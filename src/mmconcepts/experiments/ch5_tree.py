@@ -26,6 +26,7 @@ the ``learner`` stream.
 from __future__ import annotations
 
 import time
+from typing import Literal
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,7 +55,7 @@ class Config(PresetConfig):
     n_blocks: int = 10
     n_mfcc: int = 13
     window_ms: float = 80.0
-    metric: str = "dtw"
+    metric: Literal["euclidean", "dtw"] = "dtw"
     seed: int = 0
 
     QUICK = dict(n_per_speaker=250, n_train_utterances=400, n_queries=400)

@@ -137,7 +137,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     # descriptive oracle only (a maximum over sets chosen on the test results; no claim uses it): the set best on
     # average, with that set's per-repetition values as samples
     for key in ("i2s", "s2i"):
-        top = max(singles, key=lambda s, key=key: metrics[f"{s}.{key}"])
+        top = max(singles, key=lambda s: metrics[f"{s}.{key}"])
         metrics[f"best_single.{key}"] = metrics[f"{top}.{key}"]
         samples[f"best_single.{key}"] = list(samples[f"{top}.{key}"])
     best = max(singles, key=lambda s: metrics[f"{s}.both"])

@@ -342,9 +342,9 @@ def compute(config: Config, ctx: RunContext) -> Result:
     reps = [_prepare(config, ctx, speech, ims, c_loc, repetition_streams(st, r, R)) for r in range(R)]
     tasks = [dict(rep["task"], width=w, probe=(j == fixed_at)) for rep in reps for j, w in enumerate(widths)]
     outs = ctx.parallel(_width, tasks, desc="repetitions x window widths")
-    outs = [outs[r * len(widths):(r + 1) * len(widths)] for r in range(R)]  # [repetition][width]
+    by_rep = [outs[r * len(widths):(r + 1) * len(widths)] for r in range(R)]  # [repetition][width]
     probes = []
-    for rep, out in zip(reps, outs):
+    for rep, out in zip(reps, by_rep):
         seqs, y_probe, spans_probe = rep["probe_input"]
         probes.append(_probe(out[fixed_at]["model"], rep["task"]["hac"], seqs, y_probe, spans_probe,
                              out[fixed_at]["h_image"], rep["task"]["y_ref"], widths[fixed_at], config.probe_shift,
@@ -356,9 +356,9 @@ def compute(config: Config, ctx: RunContext) -> Result:
     tags = _tags(widths)
     for j, tag in enumerate(tags):
         for key in ("s2i", "i2s"):
-            samples[f"{tag}.{key}"] = _units([out[j][key] for out in outs])
+            samples[f"{tag}.{key}"] = _units([out[j][key] for out in by_rep])
             metrics[f"{tag}.{key}"] = _nanmean(samples[f"{tag}.{key}"])
-        metrics[f"{tag}.n_windows"] = float(np.mean([out[j]["n_windows"] for out in outs]))
+        metrics[f"{tag}.n_windows"] = float(np.mean([out[j]["n_windows"] for out in by_rep]))
     for key in ("s2i", "i2s"):  # the claims' width (same values and samples as its width_* metric)
         metrics[f"fixed_width.{key}"] = metrics[f"{tags[fixed_at]}.{key}"]
         samples[f"fixed_width.{key}"] = list(samples[f"{tags[fixed_at]}.{key}"])

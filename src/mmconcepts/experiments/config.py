@@ -61,7 +61,7 @@ class PresetConfig:
         if name not in _PRESET_NAMES:
             raise ParameterError(f"preset must be one of {', '.join(_PRESET_NAMES)}; got {name!r}.")
         values = dict(getattr(cls, name.upper()))
-        fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]  # subclasses are dataclasses; the mixin itself is not one, which mypy cannot see
         unknown = sorted(set(values) - fields)
         if unknown:
             raise ParameterError(

@@ -408,7 +408,7 @@ def _write_json(path: Path, obj: object) -> None:
 
 def _load_records(
     json_path: Path,
-    records: list,
+    records: object,
     npz,
     npz_path: Path,
     *,
@@ -689,7 +689,8 @@ def save_choreo2(dataset: MotionDataset | Sequence[MotionRecording], folder: str
         raise DataError("Nothing to write: the dataset is empty.")
     names = recs[0].marker_names
     folder = Path(folder)
-    arrays, records = {}, []
+    arrays: dict[str, np.ndarray] = {}
+    records = []
     for i, r in enumerate(recs):
         if r.orientations is None:
             raise DataError(f"Recording {i} has no orientations; Choreo2 stores 7 values per marker.")
@@ -775,7 +776,9 @@ def load_msr_action3d(
     if not files:
         raise DataFormatError(f"{folder} holds no aAA_sSS_eEE_skeleton3D.txt file.")
     for p in files:
-        a, s, _e = (int(x) for x in _MSR_RE.search(p.name).groups())
+        match = _MSR_RE.search(p.name)
+        assert match is not None  # the files were selected by this pattern
+        a, s, _e = (int(x) for x in match.groups())
         if (acts is not None and a not in acts) or (subs is not None and s not in subs):
             continue
         rid = p.name.split("_skeleton3D")[0]
