@@ -31,9 +31,10 @@ $(VENV)/.installed-dev: $(STAMP)
 reproduce: $(STAMP)
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
-## Run the test-suite (slow tests included)
+## Run the test-suite (slow tests included), then the type check and the documentation build (what CI runs)
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q
+	$(MAKE) --no-print-directory typecheck docs
 
 ## Type-check the package (mypy; configuration in pyproject.toml)
 typecheck: $(VENV)/.installed-dev
