@@ -1,7 +1,9 @@
 """Where data, caches and results live (internal).
 
 Resolution order for the data/cache folder: an explicit argument, else the
-``MMCONCEPTS_DATA`` environment variable, else ``~/.cache/mmconcepts``.
+``MMCONCEPTS_DATA`` environment variable, else ``$XDG_CACHE_HOME/mmconcepts`` when
+``XDG_CACHE_HOME`` is set (an absolute path, as the XDG base directory specification asks),
+else ``~/.cache/mmconcepts``.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ def data_home(path: str | os.PathLike[str] | None = None, *, create: bool = True
         home = Path(path)
     elif os.environ.get("MMCONCEPTS_DATA"):
         home = Path(os.environ["MMCONCEPTS_DATA"])
+    elif os.path.isabs(os.environ.get("XDG_CACHE_HOME", "")):
+        home = Path(os.environ["XDG_CACHE_HOME"]) / "mmconcepts"
     else:
         home = Path.home() / ".cache" / "mmconcepts"
     home = home.expanduser()

@@ -207,6 +207,30 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--url", default=None, help="download from this address instead of the set's own")
     q.add_argument("--sha256", default=None, help="expected SHA-256 of the download (with --url)")
     q.set_defaults(func=_cmd_data_fetch)
+
+    p = sub.add_parser(
+        "cache", parents=[common], help="list or clear the cache of generated data and features",
+        description="The folder of generated data sets and cached computations: $MMCONCEPTS_DATA, else "
+                    "$XDG_CACHE_HOME/mmconcepts, else ~/.cache/mmconcepts (or --cache-dir DIR). Everything "
+                    "in it can be recomputed.",
+    )
+    cache_sub = p.add_subparsers(dest="cache_command", metavar="ACTION", required=True)
+    q = cache_sub.add_parser(
+        "list", parents=[common], help="what the cache holds: one line per item, files, size, newest file",
+        description="Show the cache folder and, for each item in it, its files, size and newest file.",
+    )
+    q.add_argument("--cache-dir", metavar="DIR", type=Path, default=None, help="the cache folder to use")
+    q.set_defaults(func=_cmd_cache_list)
+    q = cache_sub.add_parser(
+        "clear", parents=[common], help="delete cached files (all, some items, or the old ones)",
+        description="Delete the files of the cache folder, or of the items NAME given (see `cache list`); "
+                    "with --older-than, only the files last modified longer ago than AGE.",
+    )
+    q.add_argument("names", metavar="NAME", nargs="*", help="only these items of the cache folder")
+    q.add_argument("--older-than", metavar="AGE", default=None,
+                   help="only files older than AGE: numbers with units s, m, h, d, w (e.g. 12h, 7d, 1d12h)")
+    q.add_argument("--cache-dir", metavar="DIR", type=Path, default=None, help="the cache folder to use")
+    q.set_defaults(func=_cmd_cache_clear)
     return parser
 
 
@@ -383,6 +407,51 @@ def _cmd_data_fetch(args: argparse.Namespace) -> int:
         raise _UsageError("no data root: pass --data-root DIR or set MMCONCEPTS_DATA_ROOT.")
     path = fetch_dataset(args.name, root, url=args.url, sha256=args.sha256, progressbar=not args.quiet)
     print(f"{args.name}: {path}")
+    return 0
+
+
+def _size(n_bytes: int) -> str:
+    value = float(n_bytes)
+    for unit in ("B", "kB", "MB"):
+        if value < 1000:
+            return f"{value:.0f} {unit}" if unit == "B" else f"{value:.1f} {unit}"
+        value /= 1000
+    return f"{value:.1f} GB"
+
+
+def _cmd_cache_list(args: argparse.Namespace) -> int:
+    import datetime
+
+    from ._paths import data_home
+    from .cache import cache_entries
+
+    home = data_home(args.cache_dir, create=False)
+    entries = cache_entries(home)
+    print(f"cache: {home}{'' if home.is_dir() else ' (does not exist)'}")
+    if entries:
+        rows = [["item", "files", "size", "newest file (UTC)"]]
+        for e in entries:
+            newest = "" if e.newest is None else datetime.datetime.fromtimestamp(
+                e.newest, datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
+            rows.append([e.name, str(e.n_files), _size(e.n_bytes), newest])
+        rows.append(["total", str(sum(e.n_files for e in entries)), _size(sum(e.n_bytes for e in entries)), ""])
+        print(_columns(rows, indent=""))
+    return 0
+
+
+def _cmd_cache_clear(args: argparse.Namespace) -> int:
+    from ._paths import data_home
+    from .cache import clear_cache, parse_age
+
+    from .errors import ParameterError
+
+    home = data_home(args.cache_dir, create=False)
+    try:  # a bad AGE or NAME is a usage error (exit code 2)
+        older = None if args.older_than is None else parse_age(args.older_than)
+        n_files, n_bytes = clear_cache(home, older_than=older, names=args.names or None)
+    except ParameterError as exc:
+        raise _UsageError(str(exc)) from exc
+    print(f"removed {n_files} files ({_size(n_bytes)}) from {home}")
     return 0
 
 
