@@ -110,6 +110,36 @@ def test_report_ignores_non_records_and_logs_it(results, caplog):
     assert "broken.json: not a result record" in caplog.text
     md = md_path.read_text()
     assert "settings" not in md and "4 experiment(s)" in md
+    # a file that is not even JSON may be a truncated record: listed, not silently dropped
+    assert re.search(r"\| broken\.json \| not a valid result record: .+ \|", md)
+
+
+def _damaged(results):
+    """Records damaged by hand (issue 14): truncated, a string metric, claims not a list, a list config, int notes."""
+    good = json.loads((results / "toy-mean.json").read_text())
+    (results / "cut.json").write_text(json.dumps(good)[:200])
+    bad_metric = dict(good, experiment="toy-cut-metric", metrics=dict(good["metrics"], mean="high"))
+    (results / "bad-metric.json").write_text(json.dumps(bad_metric))
+    (results / "bad-claims.json").write_text(json.dumps(dict(good, experiment="toy-bad-claims", claims={"a": 1})))
+    # read as a record, but the report cannot show it (crashed the report before issue 14)
+    (results / "list-config.json").write_text(json.dumps(dict(good, experiment="toy-list-config", config=[1])))
+    (results / "int-notes.json").write_text(json.dumps(dict(good, experiment="toy-int-notes", notes=5)))
+    return {"cut.json", "bad-metric.json", "bad-claims.json", "list-config.json", "int-notes.json"}
+
+
+def test_damaged_records_are_listed_and_the_others_shown(results, caplog):
+    damaged = _damaged(results)
+    with caplog.at_level("WARNING", logger="mmconcepts"):
+        html_path, md_path = write_report(results)
+    md, html_text = md_path.read_text(), html_path.read_text()
+    section = md.split("### Records left out")[1].split("## Summary")[0]
+    listed = set(re.findall(r"^\| ([\w.-]+\.json) \|", section, re.M))
+    assert listed == damaged | {"broken.json"}
+    assert "4 experiment(s)" in md and "| toy-mean |" in md  # the good records are all there
+    assert "settings.json" not in section
+    assert 'id="records-left-out"' in html_text and not _parse(html_text).errors
+    for name in damaged:
+        assert f"{name}: left out of the report" in caplog.text
 
 
 def test_report_reevaluates_claims_from_stored_metrics(results):

@@ -34,7 +34,9 @@ def write_report(
     ----------
     results_dir : str or path-like
         A folder of ``<id>.json`` result records (and their ``<id>/*.png`` figures).
-        JSON files that are not result records are ignored (and logged).
+        JSON files that are not result records are ignored (and logged); a damaged
+        record (truncated, or edited so that it cannot be shown) is listed in the report
+        under "Records left out", with the reason, and the others are shown.
     title : str, optional
         The report's title.
 
@@ -54,10 +56,11 @@ def write_report(
             f"results folder {str(results_dir)!r} does not exist; run `mmconcepts run ID` or "
             "`mmconcepts reproduce` first, or pass the folder they wrote to."
         )
-    views = collect(results_dir)
+    problems: list[tuple[str, str]] = []
+    views = collect(results_dir, problems)
     html_path = results_dir / "report.html"
     md_path = results_dir / "report.md"
-    atomic_write(html_path, render_html(views, title=title).encode("utf-8"))
-    atomic_write(md_path, render_markdown(views, title=title).encode("utf-8"))
+    atomic_write(html_path, render_html(views, title=title, problems=problems).encode("utf-8"))
+    atomic_write(md_path, render_markdown(views, title=title, problems=problems).encode("utf-8"))
     logger.info("wrote %s and %s (%d experiment(s))", html_path, md_path, len(views))
     return html_path, md_path

@@ -12,7 +12,6 @@ from typing import Any
 from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
 from ..experiments.record import ResultRecord
-from ..experiments.runner import load_record
 from ..experiments.uncertainty import VERDICTS, claim_verdict
 
 logger = logging.getLogger("mmconcepts.report")
@@ -248,15 +247,44 @@ def build_view(record: ResultRecord, results_dir: Path, source: Path) -> Experim
     )
 
 
-def collect(results_dir: Path) -> list[ExperimentView]:
-    """Read every result record of ``results_dir``, sorted by experiment id (real data first)."""
+def _looks_like_a_record(raw: bytes) -> bool:
+    """Whether a JSON file that is no valid record was meant to be one (a damaged record,
+    listed in the report) rather than some other JSON file of the folder (ignored)."""
+    try:
+        content = json.loads(raw)
+    except (ValueError, RecursionError):  # not JSON (truncated, edited): shown as unreadable
+        return True
+    return isinstance(content, dict) and "experiment" in content
+
+
+def collect(results_dir: Path, problems: list[tuple[str, str]] | None = None) -> list[ExperimentView]:
+    """Read every result record of ``results_dir``, sorted by experiment id (real data first).
+
+    A record that cannot be read or shown (truncated, edited by hand) does not stop the
+    others: it is logged and, when ``problems`` is given, appended to it as
+    ``(file name, reason)``. JSON files that are not result records are ignored (logged).
+    """
     views = []
     for path in sorted(results_dir.glob("*.json")):
-        record = load_record(path)
-        if record is None:
-            logger.info("ignoring %s: not a result record", path)
-            continue
-        views.append(build_view(record, results_dir, path))
+        try:
+            raw = path.read_bytes()
+            record = ResultRecord.from_json(raw)
+        except OSError as exc:
+            reason = f"cannot be read ({exc.strerror or exc})"
+        except (ExperimentError, RecursionError) as exc:
+            logger.info("ignoring %s: not a result record (%s)", path, exc)
+            if not _looks_like_a_record(raw):
+                continue
+            reason = f"not a valid result record: {exc}"
+        else:
+            try:
+                views.append(build_view(record, results_dir, path))
+                continue
+            except Exception as exc:  # noqa: BLE001 -- a record edited by hand must not take the report down
+                reason = f"a result record that cannot be shown ({type(exc).__name__}: {exc})"
+        logger.warning("%s: left out of the report: %s", path, reason)
+        if problems is not None:
+            problems.append((path.name, reason))
     views.sort(key=lambda v: (v.id, v.variant != "real"))
     return views
 

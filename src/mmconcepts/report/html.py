@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Sequence
 from html import escape
 from importlib import resources
 from urllib.parse import quote
@@ -129,8 +130,8 @@ def _section(group: ExperimentGroup) -> str:
     return "\n".join(out)
 
 
-def render_html(views: list[ExperimentView], *, title: str) -> str:
-    """Return the whole HTML report for ``views``."""
+def render_html(views: list[ExperimentView], *, title: str, problems: Sequence[tuple[str, str]] = ()) -> str:
+    """Return the whole HTML report for ``views`` (``problems``: records left out, as (file, reason))."""
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     groups = group(views)
     out = [
@@ -143,6 +144,10 @@ def render_html(views: list[ExperimentView], *, title: str) -> str:
         f'<p class="meta">Generated {_e(now)} by mmconcepts {_e(__version__)} · '
         f"{len(groups)} experiment(s), {len(views)} run(s)</p>",
     ]
+    if problems:
+        out.append('<h3 id="records-left-out">Records left out</h3><p class="note">These files look like result '
+                   "records but cannot be read or shown; rerun their experiments (or delete them).</p>")
+        out.append(_table(["file", "reason"], [[name, reason] for name, reason in problems], numeric=False))
     if not views:
         out.append("<p>No result records found.</p>")
     else:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Sequence
 from urllib.parse import quote
 
 from .. import __version__
@@ -102,12 +103,16 @@ def _summary(views: list[ExperimentView]) -> list[str]:
     return out
 
 
-def render_markdown(views: list[ExperimentView], *, title: str) -> str:
-    """Return the whole Markdown report for ``views``."""
+def render_markdown(views: list[ExperimentView], *, title: str, problems: Sequence[tuple[str, str]] = ()) -> str:
+    """Return the whole Markdown report for ``views`` (``problems``: records left out, as (file, reason))."""
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     groups = group(views)
     out = [f"# {_text(title)}", "", f"Generated {now} by mmconcepts {__version__} · {len(groups)} experiment(s), "
            f"{len(views)} run(s)", ""]
+    if problems:
+        out += ["### Records left out", "", "These files look like result records but cannot be read or shown; "
+                "rerun their experiments (or delete them).", ""]
+        out += _table(["file", "reason"], [[name, reason] for name, reason in problems])
     if not views:
         out += ["No result records found.", ""]
     else:
