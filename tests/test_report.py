@@ -228,3 +228,4 @@ def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagree
     assert "| toy-bydata | a beats b | fails | holds | differ |" in md
     html = (out / "report.html").read_text()
     assert _parse(html).errors == [] and "Every claim on each data" in html
+

@@ -10,9 +10,9 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import DataFormatError
+from .errors import DataFormatError, ParameterError
 
-__all__ = ["atomic_path", "atomic_write", "read_csv_rows", "replace_dir"]
+__all__ = ["check_output_dir", "atomic_path", "atomic_write", "read_csv_rows", "replace_dir"]
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
@@ -90,3 +90,34 @@ def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> None:
             fh.write(data.encode("utf-8") if isinstance(data, str) else data)
             fh.flush()
             os.fsync(fh.fileno())
+
+
+def check_output_dir(output: str | os.PathLike[str]) -> Path:
+    """Check, before any work, that results can be written to the folder ``output``.
+
+    The folder need not exist yet (it is created when the first result is written), but the
+    nearest existing folder on its path must be a folder in which a file can be created.
+
+    Raises
+    ------
+    ParameterError
+        If ``output`` is empty, names a file (or a path through a file), or cannot be written.
+    """
+    if not str(output).strip():
+        raise ParameterError("output must name a results folder; got an empty name. Pass e.g. --output results.")
+    path = Path(output)
+    probe = path
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        where = "is" if probe == path else f"cannot be made: {probe} is"
+        raise ParameterError(f"output folder {path} {where} a file, not a folder. Pass --output a folder.")
+    try:
+        with tempfile.TemporaryFile(dir=probe):
+            pass
+    except OSError as exc:
+        raise ParameterError(
+            f"output folder {path} cannot be written ({exc.strerror or exc} in {probe}). "
+            "Pass --output a folder you can write to."
+        ) from exc
+    return path

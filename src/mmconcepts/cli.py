@@ -78,6 +78,13 @@ def _data_root_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _folder(text: str) -> Path:
+    """An argparse type: a non-empty folder name (``Path("")`` would silently mean the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty folder name; give a folder, e.g. results")
+    return Path(text)
+
+
 def _run_options(parser: argparse.ArgumentParser) -> None:
     preset = parser.add_mutually_exclusive_group()
     preset.add_argument(
@@ -90,7 +97,7 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.set_defaults(preset="quick")
     parser.add_argument(
-        "--output", "-o", metavar="DIR", type=Path, default=DEFAULT_RESULTS_DIR,
+        "--output", "-o", metavar="DIR", type=_folder, default=DEFAULT_RESULTS_DIR,
         help="results folder (default: %(default)s)",
     )
     _data_root_option(parser)

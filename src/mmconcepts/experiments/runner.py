@@ -68,7 +68,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 from .. import __version__
 from .._fingerprint import code_fingerprint
-from .._io import atomic_write
+from .._io import atomic_write, check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
 from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext, Table, check_seed
@@ -557,14 +557,15 @@ def run_experiment(
     ExperimentError
         On an unknown id, a bad preset, config, variant or data argument (a
         :class:`ParameterError` for a config of another class, or a preset and a config
-        both given), or (with ``raise_errors``) the experiment's own error.
+        both given; for an output folder that is a file or cannot be written, checked before
+        any work), or (with ``raise_errors``) the experiment's own error.
     """
     exp = _resolve(exp_or_id)
     if variant not in ("auto", *VARIANTS):
         raise ParameterError(f"variant must be 'auto', 'real' or 'synthetic'; got {variant!r}.")
     config, preset = _config_and_preset(exp, preset, config, seed)
     check_data(data, [exp])
-    output = Path(output)
+    output = check_output_dir(output)  # before any work: a file or an unwritable folder fails now
     target = _target(exp, variant, data, data_root, output)
     record = _new_record(exp, preset, config, target)
     ctx = RunContext(
@@ -656,6 +657,7 @@ def reproduce(
     experiments = [get(i) for i in dict.fromkeys(ids)] if ids else all_experiments()
     if not experiments:
         raise ExperimentError("no experiments are registered; nothing to reproduce.")
+    check_output_dir(output)
     checked = check_data(data, all_experiments())
     records: list[ResultRecord] = []
     common: dict[str, Any] = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers, force=force,
