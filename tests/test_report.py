@@ -229,3 +229,15 @@ def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagree
     html = (out / "report.html").read_text()
     assert _parse(html).errors == [] and "Every claim on each data" in html
 
+
+def test_markdown_shows_hand_edited_fields_verbatim(results):
+    """Issue 14: report.md let raw HTML through (the status field, backticks in an id)."""
+    good = json.loads((results / "toy-mean.json").read_text())
+    edited = dict(good, experiment="toy``x<i>", status="<script>alert(1)</script>", data={"a`b": "/p<a>th"})
+    (results / "edited.json").write_text(json.dumps(edited))
+    md = write_report(results)[1].read_text()
+    assert "<script>" not in md and "<i>" not in md.replace("```toy``x<i>```", "")
+    assert "status: **&lt;script&gt;alert(1)&lt;/script&gt;**" in md
+    # code spans whose fence is longer than any backtick run inside (CommonMark), so the text stays verbatim
+    assert "```toy``x<i>``` · thesis:" in md
+    assert "- data set ``a`b``: `/p<a>th`" in md

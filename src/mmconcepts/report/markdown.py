@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import re
 from collections.abc import Sequence
 from urllib.parse import quote
 
@@ -25,8 +26,15 @@ def _text(text: object) -> str:
 
 
 def _code(text: object) -> str:
-    s = str(text)
-    fence = "``" if "`" in s else "`"
+    """An inline code span that holds ``text`` verbatim (HTML in it is not interpreted).
+
+    CommonMark: the fence is one backtick longer than the longest run of backticks inside,
+    padded with a space when the text starts or ends with a backtick; a newline would end
+    the table row or paragraph, so it becomes a space.
+    """
+    s = " ".join(str(text).splitlines())
+    longest = max((len(run) for run in re.findall(r"`+", s)), default=0)
+    fence = "`" * (longest + 1)
     pad = " " if s.startswith("`") or s.endswith("`") else ""
     return f"{fence}{pad}{s}{pad}{fence}"
 
@@ -38,12 +46,12 @@ def _table(columns: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def _run(view: ExperimentView) -> list[str]:
-    meta = f"status: **{view.status_label}**"
+    meta = f"status: **{_text(view.status_label)}**"
     if view.elapsed:
         meta += f" · {view.elapsed}"
     out = [f"### On {_text(view.data_label)}", "", meta, ""]
     if view.data:
-        out += [f"- data set `{_text(name)}`: `{_text(path)}`" for name, path in view.data] + [""]
+        out += [f"- data set {_code(name)}: {_code(path)}" for name, path in view.data] + [""]
     if view.status == "failed":
         out += [f"**Failed:** {_text(view.message or '')}", ""]
         if view.traceback:
@@ -64,12 +72,12 @@ def _run(view: ExperimentView) -> list[str]:
     if view.config:
         out += ["#### Configuration", ""] + _table(["parameter", "value"], [list(r) for r in view.config])
     out += ["#### Run", ""] + _table(["", ""], [list(r) for r in view.run_info])
-    out += [f"Record: `{view.source}`", ""]
+    out += [f"Record: {_code(view.source)}", ""]
     return out
 
 
 def _section(group: ExperimentGroup) -> list[str]:
-    out = [f"## {_text(group.title)}", "", f"`{group.id}` · thesis: {_text(group.thesis_ref or '—')}", ""]
+    out = [f"## {_text(group.title)}", "", f"{_code(group.id)} · thesis: {_text(group.thesis_ref or '—')}", ""]
     columns, rows = group.claim_rows()
     if rows:
         out += ["### Claims", ""] + _table(columns, rows)
