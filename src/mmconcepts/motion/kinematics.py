@@ -236,6 +236,8 @@ def delayed_velocity(x: np.ndarray, delay: int = 1, *, period: float | None = No
     """
     if isinstance(delay, bool) or not isinstance(delay, (int, np.integer)) or delay < 1:
         raise ParameterError(f"delay must be an int >= 1; got {delay!r}.")
+    if period is not None and not (isinstance(period, (int, float, np.number)) and 0 < float(period) < np.inf):
+        raise ParameterError(f"period must be a finite number > 0 (2 * pi for angles) or None; got {period!r}.")
     x = np.asarray(x, dtype=float)
     if x.ndim == 0 or x.shape[0] <= delay:
         raise DataError(

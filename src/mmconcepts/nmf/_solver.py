@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -291,6 +292,31 @@ BETA_NMF_CONSTRAINTS: dict[str, list] = {
 }
 
 
+def _physical_memory() -> int | None:
+    """Bytes of physical memory (None where the platform does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _check_fits_in_memory(n: int, m: int, k: int, dtype: np.dtype) -> None:
+    """Refuse a factorization whose arrays cannot fit in memory before allocating them.
+
+    The updates hold W (n, k) and H (k, m) with temporaries of the same shapes (about four
+    of each) and, for the Frobenius loss, the (k, k) Gram matrices: an absurd
+    ``n_components`` would otherwise fail deep inside numpy or exhaust the machine.
+    """
+    total = _physical_memory()
+    need = (4 * (n + m) * k + 2 * k * k) * np.dtype(dtype).itemsize
+    if total is not None and need > total:
+        raise ParameterError(
+            f"n_components={k} on a {n} x {m} matrix needs about {need / 2**30:.3g} GiB for W, H, their updates and "
+            f"the (k, k) Gram matrices, more than this machine's {total / 2**30:.3g} GiB; choose a smaller "
+            "n_components (the thesis uses tens to hundreds)."
+        )
+
+
 def beta_nmf(
     X: Any,
     n_components: int | None = None,
@@ -404,6 +430,7 @@ def beta_nmf(
     if n_components is None:
         n_components = H.shape[0] if H is not None else (W.shape[1] if W is not None else min(n, m))
     k = int(n_components)
+    _check_fits_in_memory(n, m, k, dtype)
 
     if not update_H:
         if H is None:

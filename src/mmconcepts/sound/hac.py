@@ -93,7 +93,15 @@ def cooccurrence_counts(
     validate_params({"n_events": n_events, "lag": lag}, _COOCCURRENCE_CONSTRAINTS, owner="cooccurrence_counts")
     rows, cols = [], []
     for i, e in enumerate(events):
-        e = np.asarray(e, dtype=np.int64)
+        e = np.asarray(e)
+        if e.ndim != 1 or (e.size and e.dtype.kind not in "iu"):
+            raise DataError(f"events[{i}] must be a 1-D array of integer event ids; got shape {e.shape}, dtype {e.dtype}.")
+        e = e.astype(np.int64, copy=False)
+        if e.size and (e.min() < 0 or e.max() >= n_events):
+            raise DataError(
+                f"events[{i}] holds event ids in [{e.min()}, {e.max()}], outside [0, n_events={n_events}): "
+                "pass the codebook size as n_events."
+            )
         if e.size > lag:
             c = e[:-lag] * n_events + e[lag:]
             rows.append(np.full(c.size, i, dtype=np.int64))

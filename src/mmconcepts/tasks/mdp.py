@@ -415,13 +415,23 @@ def greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
     Q : array-like of shape (..., S, A)
     tie_tol : float, default=1e-8
         Actions whose value is within ``tie_tol * (1 + |max Q|)`` of the maximum are tied
-        and share the probability (so a constant reward gives the uniform policy).
+        and share the probability (so a constant reward gives the uniform policy). Where
+        the best value is +inf, the +inf actions share it; where every action is -inf,
+        the policy is uniform.
 
     Returns
     -------
     pi : ndarray of shape (..., S, A)
+
+    Raises
+    ------
+    DataError
+        If Q holds NaN.
     """
     validate_params({"tie_tol": tie_tol}, _PARAMETER_CONSTRAINTS["greedy_policy"], owner="greedy_policy")
+    Q = np.asarray(Q, dtype=float)
+    if np.isnan(Q).any():
+        raise DataError(f"Q holds NaN at {np.argwhere(np.isnan(Q))[0].tolist()}: the values are undefined there.")
     return _greedy_policy(Q, tie_tol=tie_tol)
 
 
@@ -429,7 +439,11 @@ def _greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
     """:func:`greedy_policy` without the parameter check."""
     Q = np.asarray(Q, dtype=float)
     best = Q.max(axis=-1, keepdims=True)
-    mask = Q >= best - tie_tol * (1.0 + np.abs(best))
+    with np.errstate(invalid="ignore"):  # inf - inf where the best value is infinite: replaced below
+        threshold = best - tie_tol * (1.0 + np.abs(best))
+    # an infinite best value: +inf actions win outright, and a state whose actions are all -inf is uniform
+    threshold = np.where(np.isinf(best), best, threshold)
+    mask = Q >= threshold
     return mask / mask.sum(axis=-1, keepdims=True)
 
 
@@ -559,9 +573,17 @@ def sample_trajectories(mdp: MDP, policy: Any, n_trajectories: int, length: int,
     if pi.ndim != 2:
         raise ParameterError(f"policy must have shape (n_states, n_actions) here; got {pi.shape}.")
     n, L = int(n_trajectories), int(length)
-    s = rng.integers(mdp.n_states, size=n) if start is None else np.asarray(start, dtype=int).copy()
-    if s.shape != (n,):
-        raise ParameterError(f"start must have shape ({n},); got {s.shape}.")
+    if start is None:
+        s = rng.integers(mdp.n_states, size=n)
+    else:
+        given = np.asarray(start)
+        if given.shape != (n,):
+            raise ParameterError(f"start must have shape ({n},); got {given.shape}.")
+        if given.size and (given.dtype.kind not in "iu" or given.min() < 0 or given.max() >= mdp.n_states):
+            raise ParameterError(
+                f"start must hold state indices (integers in [0, {mdp.n_states})); got {given.tolist()!r:.80}."
+            )
+        s = given.astype(np.int64)
     cpi = np.cumsum(pi, axis=1)
     cP = np.cumsum(mdp.transitions, axis=2)
     out = np.empty((n, L, 2), dtype=np.int64)

@@ -1,0 +1,80 @@
+"""Inputs that gave silently wrong output or an untyped error (issue 14 section 4), one test each.
+
+Each asserts what a user should get instead: a ParameterError/DataError naming the problem,
+or a correct finite result checked against an answer computed here.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from mmconcepts.errors import DataError, ParameterError
+from mmconcepts.motion import delayed_velocity
+from mmconcepts.nmf import NMF
+from mmconcepts.sound import cooccurrence_counts
+from mmconcepts.tasks.mdp import grid_world, greedy_policy, sample_trajectories
+
+
+# --------------------------------------------------------------------------- cooccurrence_counts
+@given(st.lists(st.lists(st.integers(0, 4), max_size=12), min_size=1, max_size=4), st.integers(1, 3))
+def test_cooccurrence_counts_equal_a_direct_count(streams, lag):
+    X = cooccurrence_counts([np.array(s, dtype=np.int64) for s in streams], 5, lag).toarray()
+    for i, s in enumerate(streams):
+        expected = Counter((a, b) for a, b in zip(s, s[lag:]))
+        assert {(c // 5, c % 5): int(v) for c, v in enumerate(X[i]) if v} == dict(expected)
+
+
+def test_cooccurrence_counts_refuse_ids_outside_the_alphabet():
+    # an id >= n_events used to land in another pair's column (a * n + b wraps): silent corruption
+    with pytest.raises(DataError, match=r"events\[1\] holds event ids in \[0, 5\], outside \[0, n_events=5\)"):
+        cooccurrence_counts([np.array([0, 1, 2]), np.array([0, 5, 1])], 5, 1)
+    with pytest.raises(DataError, match="outside"):
+        cooccurrence_counts([np.array([-1, 1, 2])], 5, 1)
+    with pytest.raises(DataError, match="integer event ids"):
+        cooccurrence_counts([np.array([0.5, 1.0])], 5, 1)
+    assert cooccurrence_counts([np.array([], dtype=float)], 5, 1).nnz == 0  # an empty stream is fine
+
+
+# --------------------------------------------------------------------------- NMF
+def test_an_absurd_n_components_is_a_parameter_error_not_an_allocation():
+    X = np.random.default_rng(0).random((100, 50))
+    with pytest.raises(ParameterError, match=r"n_components=1000000 on a 100 x 50 matrix needs about .* GiB"):
+        NMF(10**6).fit(X)
+    assert NMF(120, max_iter=3, tol=0.5).fit(X).components_.shape == (120, 50)  # overcomplete is fine
+
+
+# --------------------------------------------------------------------------- motion
+@pytest.mark.parametrize("period", [0, -1.0, np.inf, np.nan, "2pi"])
+def test_delayed_velocity_period_must_be_finite_and_positive(period):
+    with pytest.raises(ParameterError, match="period must be a finite number > 0"):
+        delayed_velocity(np.zeros((5, 2)), period=period)
+
+
+def test_delayed_velocity_wraps_angles():
+    x = np.array([[3.1], [-3.1]])
+    assert delayed_velocity(x, period=2 * np.pi)[0, 0] == pytest.approx(-6.2 + 2 * np.pi)
+
+
+# --------------------------------------------------------------------------- tasks
+def test_greedy_policy_with_infinite_values():
+    Q = np.array([[1.0, np.inf, 0.0, np.inf], [-np.inf, -np.inf, -np.inf, -np.inf], [0.0, 1.0, 1.0, 0.5]])
+    pi = greedy_policy(Q)
+    assert np.isfinite(pi).all()  # was NaN where a value was infinite (inf - inf)
+    np.testing.assert_array_equal(pi, [[0, 0.5, 0, 0.5], [0.25] * 4, [0, 0.5, 0.5, 0]])
+    with pytest.raises(DataError, match=r"Q holds NaN at \[0, 2\]"):
+        greedy_policy(np.array([[0.0, 1.0, np.nan]]))
+
+
+@pytest.mark.parametrize("start", [[-1, 0], [16, 0], [0.5, 1.0]])
+def test_sample_trajectories_start_must_be_states(start):
+    mdp = grid_world(4)
+    pi = np.full((mdp.n_states, mdp.n_actions), 1 / mdp.n_actions)
+    with pytest.raises(ParameterError, match=r"start must hold state indices \(integers in \[0, 16\)\)"):
+        sample_trajectories(mdp, pi, 2, 5, start=start, random_state=0)
+    trajs = sample_trajectories(mdp, pi, 2, 5, start=[3, 15], random_state=0)
+    assert [int(t[0][0]) for t in trajs] == [3, 15]
