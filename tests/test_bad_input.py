@@ -78,3 +78,38 @@ def test_sample_trajectories_start_must_be_states(start):
         sample_trajectories(mdp, pi, 2, 5, start=start, random_state=0)
     trajs = sample_trajectories(mdp, pi, 2, 5, start=[3, 15], random_state=0)
     assert [int(t[0][0]) for t in trajs] == [3, 15]
+
+
+# --------------------------------------------------------------------------- loaders
+def _msr_folder(tmp_path):
+    folder = tmp_path / "msr"
+    folder.mkdir()
+    frames = np.random.default_rng(0).random((3 * 20, 4)) + 0.1  # 3 frames of 20 joints: x y z confidence
+    np.savetxt(folder / "a01_s01_e01_skeleton3D.txt", frames)
+    (folder / "a02_s01_e01_skeleton3D.txt").mkdir()  # a stray folder named like a data file
+    (folder / "a03_s01_e01_skeleton3D.txt").symlink_to(tmp_path / "gone.txt")  # a dangling link
+    return folder
+
+
+def test_msr_skip_passes_over_folders_and_dangling_links(tmp_path):
+    from mmconcepts.errors import DataFormatError
+    from mmconcepts.motion import load_msr_action3d
+
+    folder = _msr_folder(tmp_path)
+    with pytest.warns(RuntimeWarning, match="2 record"):
+        ds = load_msr_action3d(folder, on_error="skip")
+    assert [r.record_id for r in ds] == ["a01_s01_e01"]
+    assert sorted(s.record_id for s in ds.skipped) == ["a02_s01_e01", "a03_s01_e01"]
+    assert all("cannot be read as a skeleton file" in s.reason for s in ds.skipped)
+    with pytest.raises(DataFormatError, match="a02_s01_e01_skeleton3D.txt: cannot be read as a skeleton file"):
+        load_msr_action3d(folder)
+
+
+def test_a_deeply_nested_json_index_is_a_format_error(tmp_path):
+    from mmconcepts.errors import DataFormatError
+    from mmconcepts.motion import load_choreo1
+
+    path = tmp_path / "primitive.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(DataFormatError, match="nested too deeply"):
+        load_choreo1(path)

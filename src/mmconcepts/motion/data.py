@@ -365,6 +365,8 @@ def _read_json(path: Path) -> dict:
         raise
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataFormatError(f"Cannot read {path}: not valid JSON ({exc}).") from exc
+    except RecursionError as exc:  # nesting deeper than Python's recursion limit: no index is that deep
+        raise DataFormatError(f"Cannot read {path}: JSON nested too deeply to be a data index.") from exc
     if not isinstance(meta, dict):
         raise DataFormatError(f"{path} must hold a JSON object; got {type(meta).__name__}.")
     return meta
@@ -789,6 +791,8 @@ def load_msr_action3d(
                     arr = np.loadtxt(p, ndmin=2)
             except ValueError as exc:
                 raise DataFormatError(f"{p}: not a table of numbers ({exc}).") from exc
+            except OSError as exc:  # a folder or a dangling link named like a data file, an unreadable file
+                raise DataFormatError(f"{p}: cannot be read as a skeleton file ({exc.strerror or exc}).") from exc
             if arr.shape[1] != 4 or arr.shape[0] == 0 or arr.shape[0] % 20:
                 raise DataFormatError(
                     f"{p}: {arr.shape[0]} lines of {arr.shape[1]} values; expected 20 lines of "
