@@ -113,3 +113,15 @@ def test_a_deeply_nested_json_index_is_a_format_error(tmp_path):
     path.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(DataFormatError, match="nested too deeply"):
         load_choreo1(path)
+
+
+def test_sparseness_one_gives_a_vertex_not_nan():
+    from mmconcepts.nmf import beta_nmf
+    from mmconcepts.nmf.sparseness import project_hoyer
+
+    x = np.array([0.2, 0.9, 0.4, 0.1])
+    # l1 == l2: the only nonnegative vectors are l1 times a basis vector; the closest is at x's largest entry
+    np.testing.assert_array_equal(project_hoyer(x, 2.0, 2.0), [0.0, 2.0, 0.0, 0.0])
+    X = np.random.default_rng(0).random((30, 20))
+    res = beta_nmf(X, 5, max_iter=20, random_state=0, sparseness_H=1.0)
+    assert np.isfinite(res.H).all() and np.isfinite(res.W).all()  # was NaN

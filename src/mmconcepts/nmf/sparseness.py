@@ -83,6 +83,8 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
     zero = np.zeros(n, dtype=bool)
     for _ in range(n + 1):
         n_free = n - int(zero.sum())
+        if n_free == 1:  # sparseness 1 (l1 == l2): the one entry left carries all of l1 (0/0 below)
+            return np.where(zero, 0.0, l1)
         midpoint = np.where(zero, 0.0, l1 / n_free)
         w = v - midpoint
         a = float(w @ w)
