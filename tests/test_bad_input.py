@@ -125,3 +125,23 @@ def test_sparseness_one_gives_a_vertex_not_nan():
     X = np.random.default_rng(0).random((30, 20))
     res = beta_nmf(X, 5, max_iter=20, random_state=0, sparseness_H=1.0)
     assert np.isfinite(res.H).all() and np.isfinite(res.W).all()  # was NaN
+
+
+# --------------------------------------------------------------------------- saved models
+def test_loading_a_damaged_model_file_names_it(tmp_path):
+    from mmconcepts.errors import DataFormatError
+    from mmconcepts.multimodal import MultimodalNMF
+
+    rng = np.random.default_rng(0)
+    model = MultimodalNMF(3, max_iter=10).fit({"a": rng.random((20, 5)), "b": rng.random((20, 4))})
+    path = tmp_path / "model.npz"
+    model.save(path)
+    raw = path.read_bytes()
+    damaged = {"empty": b"", "truncated": raw[: len(raw) // 2], "cut-at-the-end": raw[:-30], "noise": b"x" * 500}
+    for name, data in damaged.items():  # were EOFError, BadZipFile, ... naming no file
+        bad = tmp_path / f"{name}.npz"
+        bad.write_bytes(data)
+        with pytest.raises(DataFormatError, match=str(bad).replace(".", r"\.")):
+            MultimodalNMF.load(bad)
+    back = MultimodalNMF.load(path)  # the intact file still loads
+    np.testing.assert_array_equal(back.components_, model.components_)

@@ -19,6 +19,8 @@ from __future__ import annotations
 import importlib
 import json
 import numbers
+import zipfile
+import zlib
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -203,7 +205,7 @@ class SaveLoadMixin:
         try:
             z = np.load(path, allow_pickle=False)
             header = json.loads(str(z["header"]))
-        except (OSError, ValueError, KeyError) as e:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as e:  # empty, truncated
             raise DataFormatError(f"{path}: not a saved mmconcepts {cls.__name__} ({e}).") from None
         if not isinstance(header, dict) or header.get("format") != f"mmconcepts.{cls.__name__}":
             fmt = header.get("format") if isinstance(header, dict) else None
@@ -232,7 +234,8 @@ class SaveLoadMixin:
             try:
                 obj = cls(**decode(header["params"], z))
                 obj._set_state(decode(header["state"], z))
-            except (KeyError, TypeError, ValueError) as e:
+            except (KeyError, TypeError, ValueError, AttributeError, IndexError, OSError, EOFError,
+                    zipfile.BadZipFile, zlib.error) as e:  # an edited header, an array cut short
                 raise DataFormatError(f"{path}: a corrupt saved {cls.__name__} ({type(e).__name__}: {e}).") from None
         return obj
 
