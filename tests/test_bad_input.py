@@ -145,3 +145,24 @@ def test_loading_a_damaged_model_file_names_it(tmp_path):
             MultimodalNMF.load(bad)
     back = MultimodalNMF.load(path)  # the intact file still loads
     np.testing.assert_array_equal(back.components_, model.components_)
+
+
+# --------------------------------------------------------------------------- images
+def test_image_descriptors_take_gray_and_rgba_and_name_other_shapes():
+    from mmconcepts.vision import dense_sift, superpixel_colors
+
+    rng = np.random.default_rng(0)
+    rgb = rng.random((32, 32, 3))
+    rgba = np.concatenate([rgb, rng.random((32, 32, 1))], axis=2)
+    gray = rgb.mean(axis=2)
+    for fn in (superpixel_colors, dense_sift):
+        a, b = fn(rgba), fn(rgb)  # the alpha channel is dropped: the same features as the RGB image
+        np.testing.assert_array_equal(a.vectors, b.vectors)
+        with pytest.raises(DataError, match=r"needs an image of shape \(H, W\) gray, .*got shape \(32, 32, 2\)"):
+            fn(rgb[:, :, :2])
+        with pytest.raises(DataError, match="got shape"):
+            fn(rng.random((2, 32, 32, 3)))
+    # gray: superpixels of a gray image have no hue or saturation (cone coordinates (0, 0, v))
+    g = superpixel_colors(gray, n_segments=9)
+    np.testing.assert_allclose(g.vectors[:, :2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(dense_sift(gray).vectors, dense_sift(np.stack([gray] * 3, axis=2)).vectors, atol=1e-12)

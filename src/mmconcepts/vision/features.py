@@ -178,13 +178,32 @@ _STACK_CONSTRAINTS: dict[str, list] = {"weights": [dict, None]}
 # --------------------------------------------------------------------------- local features
 
 
+def _as_rgb(image: Any, owner: str) -> np.ndarray:
+    """An (H, W, 3) RGB array from a gray (H, W), RGB (H, W, 3) or RGBA (H, W, 4) image.
+
+    Gray is repeated over the three channels and the alpha channel is dropped; an RGB
+    array is returned as it is. Anything else is a :class:`~mmconcepts.errors.DataError`.
+    """
+    a = np.asarray(image)
+    if a.ndim == 3 and a.shape[2] == 3:
+        return a
+    if a.ndim == 3 and a.shape[2] == 4:
+        return a[:, :, :3]
+    if a.ndim == 2:
+        return np.repeat(a[:, :, None], 3, axis=2)
+    raise DataError(
+        f"{owner} needs an image of shape (H, W) gray, (H, W, 3) RGB or (H, W, 4) RGBA; got shape {a.shape}."
+    )
+
+
 def superpixel_colors(image: np.ndarray, *, n_segments: int = 50, compactness: float = 10.0) -> LocalFeatures:
     r"""HSV colour of the SLIC superpixels of an RGB image (Thesis 6.5.3, "HSV of superpixels").
 
     Parameters
     ----------
     image : ndarray of shape (H, W, 3)
-        Float RGB in [0, 1].
+        Float RGB in [0, 1]. A gray (H, W) image is taken as RGB with three equal channels,
+        an RGBA (H, W, 4) image without its alpha channel.
     n_segments : int
         Approximate number of superpixels (:func:`skimage.segmentation.slic`).
     compactness : float
@@ -203,6 +222,7 @@ def superpixel_colors(image: np.ndarray, *, n_segments: int = 50, compactness: f
 
     validate_params({"n_segments": n_segments, "compactness": compactness}, _SUPERPIXEL_CONSTRAINTS,
                     owner="superpixel_colors")
+    image = _as_rgb(image, "superpixel_colors")
     seg = slic(image, n_segments=n_segments, compactness=compactness, start_label=0, channel_axis=-1)
     _, seg = np.unique(seg, return_inverse=True)  # consecutive labels
     seg = seg.reshape(image.shape[:2])
@@ -248,7 +268,8 @@ def dense_sift(
     Parameters
     ----------
     image : ndarray of shape (H, W, 3) or (H, W)
-        RGB in [0, 1] (converted to gray with :func:`skimage.color.rgb2gray`), or gray.
+        RGB in [0, 1] (converted to gray with :func:`skimage.color.rgb2gray`), or gray; an
+        RGBA image is taken without its alpha channel.
     patch_size : int
         Side of the square patches in pixels; a multiple of 4, at most the image's sides.
     step : int
@@ -270,7 +291,8 @@ def dense_sift(
 
     validate_params({"patch_size": patch_size, "step": step, "contrast_threshold": contrast_threshold,
                      "rotation_invariant": rotation_invariant}, _SIFT_CONSTRAINTS, owner="dense_sift")
-    gray = rgb2gray(image) if image.ndim == 3 else np.asarray(image, dtype=np.float64)
+    image = np.asarray(image)
+    gray = rgb2gray(_as_rgb(image, "dense_sift")) if image.ndim != 2 else image.astype(np.float64)
     H, W = gray.shape
     if patch_size > min(H, W):
         raise DataError(f"An image of shape {gray.shape} is smaller than patch_size={patch_size}.")
