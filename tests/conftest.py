@@ -104,3 +104,11 @@ def tiny_speech_corpus(tmp_path_factory):
     root = tmp_path_factory.mktemp("speech") / "caregiver"
     make_caregiver_corpus(root, n_utterances_per_speaker=50, n_speakers=2, random_state=0)
     return root
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """With MMCONCEPTS_FUZZ_CENSUS set, write the fuzz tests' outcome counts there (tests/_fuzz.py)."""
+    fuzz = sys.modules.get("_fuzz")
+    path = os.environ.get("MMCONCEPTS_FUZZ_CENSUS")
+    if fuzz is not None and path:
+        fuzz.write_census(path)
