@@ -1,27 +1,40 @@
-"""The experiments' disk caches (issue 13: joblib.Memory instead of hand-rolled pickle caches).
+"""The experiments' disk caches (issue 13: one entry per call; issue 14: no cache may unpickle).
 
 Each cache (chapter-3 folds, chapter-5 MFCC, chapter-6 folds and image local features) is a
-:class:`joblib.Memory` under ``ctx.cache_dir/<name>`` (:meth:`RunContext.memory`). What the
-tests pin: an entry is reused for the same data, parameters and code fingerprint; a change
-of code fingerprint recomputes; a torn entry recomputes instead of crashing; the result is
-the same whether it was computed or read back.
+folder of ``.npz`` entries (arrays + the structure as JSON) under ``ctx.cache_dir/<name>``
+(:meth:`RunContext.memory`, :mod:`mmconcepts.experiments._store`). What the tests pin: an
+entry is reused for the same data, parameters and code fingerprint; a change of code
+fingerprint recomputes; a torn entry recomputes instead of crashing; the result is the same
+(types, dtypes, bits) whether it was computed or read back; nothing in the cache folder is
+ever unpickled (a planted pickle is ignored and the value recomputed); an interrupted
+parallel run keeps the calls it finished.
 """
 
 from __future__ import annotations
 
+import json
+import pathlib
+import pickle
+import struct
+import tempfile
 import types
 
+import hypothesis.extra.numpy as hnp
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from mmconcepts.experiments import RunContext
+from mmconcepts.experiments import RunContext, _store
+from mmconcepts.experiments._store import FORMAT
+from mmconcepts.experiments.base import cached_call
 from mmconcepts.experiments import _ch3_common as ch3
 from mmconcepts.experiments import _ch5_common as ch5
 from mmconcepts.experiments import _ch6_common as ch6
 
 
 def _entries(folder):
-    return sorted(folder.rglob("output.pkl"))
+    return sorted(folder.rglob("*.npz"))
 
 
 def _tear(path):
@@ -229,6 +242,8 @@ def test_ch6_image_locals_reused_recomputed_and_torn(rng, tmp_path, monkeypatch)
     assert ch6.image_locals(ctx, images, chunk=2) == first and len(calls) == 12
 
 
+
+# --------------------------------------------------------------------------- the store itself
 def _add(a, b):
     return a + b
 
@@ -236,33 +251,194 @@ def _add(a, b):
 def test_run_context_memory_lives_under_the_cache_dir(tmp_path):
     memory = RunContext(cache_dir=tmp_path, show_progress=False).memory("ch3-folds")
     cached = memory.cache(_add)
-    assert cached(1, 2) == 3 and cached(1, 2) == 3
-    assert _entries(tmp_path / "ch3-folds") and all(p.is_relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    assert cached(1, 2) == 3 and cached(1, 2) == 3 and cached_call(cached, 1, 2) == 3
+    assert len(_entries(tmp_path / "ch3-folds")) == 1
+    assert all(p.is_relative_to(tmp_path / "ch3-folds") for p in tmp_path.rglob("*"))
+    assert not list(tmp_path.rglob("*.pkl"))
 
 
-class _SlowRepr:
-    """An argument whose repr (written to the cache entry's metadata) takes longer than joblib's 0.5 s."""
+class _Plant:
+    """A pickle whose loading touches ``marker`` (what a planted file could do: run any code)."""
 
-    def __repr__(self):
-        import time
+    def __init__(self, marker):
+        self.marker = marker
 
-        time.sleep(0.6)
-        return "slow"
-
-
-def _identity(x):
-    return 1
+    def __reduce__(self):
+        return (pathlib.Path.touch, (pathlib.Path(self.marker),))
 
 
-def test_cached_call_keeps_joblibs_slow_write_note_out_of_the_run(tmp_path, recwarn):
-    import warnings
+_computed = []
 
-    from mmconcepts.experiments.base import cached_call
 
-    cached = RunContext(cache_dir=tmp_path, show_progress=False).memory("slow").cache(_identity)
-    warnings.simplefilter("always")
-    assert cached(_SlowRepr()) == 1
-    assert any("Persisting input arguments took" in str(w.message) for w in recwarn)  # what it keeps out
-    recwarn.clear()
-    cached.clear(warn=False)
-    assert cached_call(cached, _SlowRepr()) == 1 and not recwarn.list
+def _planted_target(x, note):
+    _computed.append(x)
+    return {"x": np.arange(x), "note": note}
+
+
+def test_a_planted_pickle_is_never_loaded(tmp_path):
+    marker = tmp_path / "marker"
+    planted = pickle.dumps(_Plant(marker))
+    pickle.loads(planted)  # the plant works: loading it runs code
+    assert marker.exists()
+    marker.unlink()
+    store = RunContext(cache_dir=tmp_path / "cache", show_progress=False).memory("ch3-folds")
+    cached = store.cache(_planted_target, ignore=["note"])
+    entry = cached.path(cached.key(3, "a"))
+    # where an old joblib cache kept its outputs, and at the entry's own name
+    old = tmp_path / "cache" / "ch3-folds" / "joblib" / __name__ / "_planted_target" / "0123abcd" / "output.pkl"
+    old.parent.mkdir(parents=True)
+    old.write_bytes(planted)
+    entry.parent.mkdir(parents=True)
+    entry.write_bytes(planted)
+    _computed.clear()
+    value = cached_call(cached, 3, "a")
+    assert not marker.exists() and _computed == [3]  # recomputed, not loaded
+    np.testing.assert_array_equal(value["x"], np.arange(3))
+    again = cached_call(cached, 3, "b")  # note is not hashed: the (rewritten) entry is read back
+    assert _computed == [3] and again["note"] == "a" and not marker.exists()
+    # an npz archive in our format whose array member is a pickled object
+    structure = json.dumps({"format": FORMAT, "key": cached.key(4, "a"),
+                            "value": {"dict": [["x", {"array": "a0"}], ["note", "a"]]}}).encode()
+    planted_npz = cached.path(cached.key(4, "a"))
+    with open(planted_npz, "wb") as fh:
+        np.savez(fh, __structure__=np.frombuffer(structure, np.uint8),
+                 a0=np.array([_Plant(marker)], dtype=object))
+    value = cached_call(cached, 4, "a")
+    assert not marker.exists() and _computed == [3, 4]
+    np.testing.assert_array_equal(value["x"], np.arange(4))
+    # an entry naming a class outside the package as a named tuple is not built either
+    structure = json.dumps({"format": FORMAT, "key": cached.key(5, "a"),
+                            "value": {"namedtuple": "pathlib:Path.touch", "fields": [], "items": []}}).encode()
+    with open(cached.path(cached.key(5, "a")), "wb") as fh:
+        np.savez(fh, __structure__=np.frombuffer(structure, np.uint8))
+    assert cached_call(cached, 5, "a")["x"].shape == (5,) and _computed == [3, 4, 5]
+
+
+def test_an_unsupported_result_is_a_clear_error(tmp_path):
+    from mmconcepts.errors import ExperimentError
+
+    cached = RunContext(cache_dir=tmp_path, show_progress=False).memory("x").cache(_identity_value)
+    for bad, what in (({1, 2}, "set"), ({1: 2}, "keys must be strings"), (np.array([None]), "Python objects"),
+                      ([object()], "object"), (b"raw", "bytes")):
+        with pytest.raises(ExperimentError, match=what):
+            cached(bad)
+    assert not _entries(tmp_path)
+
+
+def _identity_value(x):
+    _computed.append("identity")
+    return x
+
+
+def _same(a, b, where="value"):
+    """``a`` and ``b`` are the same: types, dtypes, shapes and bits (NaN payloads and -0.0 included)."""
+    assert type(a) is type(b), (where, type(a), type(b))
+    if isinstance(a, np.ndarray):
+        assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), where
+    elif isinstance(a, np.generic):
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), where
+    elif isinstance(a, float):
+        assert struct.pack("<d", a) == struct.pack("<d", b), (where, a, b)
+    elif isinstance(a, dict):
+        assert list(a) == list(b), where
+        for k in a:
+            _same(a[k], b[k], f"{where}[{k!r}]")
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b)):
+            _same(x, y, f"{where}[{i}]")
+    else:
+        assert a == b, (where, a, b)
+
+
+_DTYPES = st.sampled_from([np.float64, np.float32, np.float16, np.int64, np.int32, np.uint8, np.bool_,
+                           np.complex128, "U3", "datetime64[s]"])
+_ARRAYS = hnp.arrays(_DTYPES, hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=4))
+_FLOATS = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from([-0.0, float("nan"), -float("nan"),
+                                                                              struct.unpack("<d", b"\x01\0\0\0\0\0\xf8\x7f")[0]])
+_LEAVES = (st.none() | st.booleans() | st.integers() | _FLOATS | st.text(max_size=8) | _ARRAYS
+           | _ARRAYS.filter(lambda a: a.ndim == 0).map(lambda a: a[()]))
+_TREES = st.recursive(
+    _LEAVES,
+    lambda kids: (st.lists(kids, max_size=4) | st.lists(kids, max_size=4).map(tuple)
+                  | st.dictionaries(st.text(max_size=6), kids, max_size=4)),
+    max_leaves=25,
+)
+
+
+def _local_features():
+    from mmconcepts.vision.features import LocalFeatures
+
+    n = st.integers(0, 5)
+    return n.flatmap(lambda k: st.builds(
+        LocalFeatures, hnp.arrays(np.float64, (k, 3), elements=_FLOATS), hnp.arrays(np.float64, (k, 2)),
+        hnp.arrays(np.float64, (k,))))
+
+
+_CH3_FOLD = st.builds(  # _ch3_common._fold: test indices, seconds, per learner scores / pred / threshold
+    lambda n, L, learners, data: {"test": data.draw(hnp.arrays(np.int64, n)), "feature_seconds": data.draw(_FLOATS),
+                                  **{name: {"scores": data.draw(hnp.arrays(np.float64, (n, L), elements=_FLOATS)),
+                                            "pred": data.draw(hnp.arrays(np.int64, (n, L))),
+                                            "threshold": data.draw(_FLOATS), "seconds": data.draw(_FLOATS)}
+                                     for name in learners}},
+    st.integers(0, 6), st.integers(1, 4), st.lists(st.sampled_from(["nmf_kl", "svm", "chance"]), unique=True),
+    st.data())
+_CH6_FOLD = st.dictionaries(st.text(min_size=1, max_size=30), _FLOATS | _FLOATS.map(np.float64))
+_CH5_MFCC = st.lists(hnp.arrays(st.sampled_from([np.float32, np.float64]), hnp.array_shapes(min_dims=2, max_dims=2,
+                                                                                          min_side=0)))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(value=_TREES | _CH3_FOLD | _CH6_FOLD | _CH5_MFCC
+       | st.tuples(st.lists(st.deferred(_local_features)), st.lists(st.deferred(_local_features))))
+def test_round_trip_is_exact(value):
+    """What is read back from an entry is what was computed: types (tuples stay tuples), dtypes, shapes, bits."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = pathlib.Path(tmp) / "e.npz"
+        _store.write_entry(path, value, "k")
+        _same(value, _store.read_entry(path, "k"))
+        structure, arrays = _store.encode(value)
+        _same(value, _store.decode(json.loads(json.dumps(structure)), arrays))
+
+
+def test_a_hit_returns_what_the_miss_returned(tmp_path):
+    from mmconcepts.vision.features import LocalFeatures
+
+    value = ({"a": np.float64(0.1), "b": [1, 2.5, None, True, "x", (1, 2)], "c": np.arange(3, dtype=np.int32)},
+             [LocalFeatures(np.zeros((2, 3)), np.ones((2, 2), np.float32), np.ones(2))], float("nan"))
+    cached = RunContext(cache_dir=tmp_path, show_progress=False).memory("x").cache(_identity_value)
+    _computed.clear()
+    miss = cached(value)
+    hit = cached(value)
+    assert _computed == ["identity"]  # the second call was read back
+    _same(value, miss)
+    _same(miss, hit)
+    assert type(hit[1][0]) is LocalFeatures
+
+
+def _logged_square(x, log_dir, fail_on):
+    """x * x, writing a file per call to ``log_dir``; the call ``x == fail_on`` waits, then fails."""
+    import os
+    import time
+
+    (pathlib.Path(log_dir) / f"{x}-{os.getpid()}-{time.monotonic_ns()}").touch()
+    if x == fail_on:
+        time.sleep(1.0)  # the other calls end first
+        raise RuntimeError("interrupted")
+    return {"x": x, "square": np.array([x * x])}
+
+
+def test_an_interrupted_parallel_run_keeps_the_calls_it_finished(tmp_path):
+    log = tmp_path / "log"
+    log.mkdir()
+    ctx = RunContext(workers=2, cache_dir=tmp_path / "cache", show_progress=False)
+    cached = ctx.memory("squares").cache(_logged_square, ignore=["log_dir", "fail_on"])
+    with pytest.raises(RuntimeError, match="interrupted"):
+        ctx.parallel_cached(cached, [(x, str(log), 5) for x in range(6)])
+    assert len({p.name.split("-")[1] for p in log.iterdir()}) == 2  # two worker processes ran them
+    assert len(_entries(tmp_path / "cache" / "squares")) == 5  # each written by its worker as it ended
+    for p in log.iterdir():
+        p.unlink()
+    out = ctx.parallel_cached(cached, [(x, str(log), -1) for x in range(6)])
+    assert [p.name.split("-")[0] for p in log.iterdir()] == ["5"]  # only the unfinished call ran again
+    assert [o["x"] for o in out] == list(range(6)) and [int(o["square"][0]) for o in out] == [x * x for x in range(6)]

@@ -90,8 +90,9 @@ from ..errors import ExperimentError, ParameterError
 from .rules import is_valid_metric_name, parse_rule
 
 if TYPE_CHECKING:  # pragma: no cover
-    from joblib import Memory
     from matplotlib.figure import Figure
+
+    from ._store import CacheStore
 
 __all__ = [
     "Streams",
@@ -434,26 +435,31 @@ class RunContext:
                 on_result(len(out) - 1, result)
         return out
 
-    def memory(self, name: str) -> Memory:
-        """A :class:`joblib.Memory` that caches on disk under ``cache_dir/name``.
+    def memory(self, name: str) -> CacheStore:
+        """A disk cache under ``cache_dir/name`` that never unpickles (a :class:`~._store.CacheStore`).
 
-        An entry of a function cached with it is reused only for the same arguments
-        (hashed by joblib; leave out with ``ignore=`` the ones the others stand for, such
-        as this context or data summarised by a digest) and the same source of the cached
-        function. joblib only watches that function's own source, so a cached function
-        also takes :func:`~mmconcepts._fingerprint.code_fingerprint` as an argument: a
-        change anywhere in the package then recomputes. joblib writes each entry
-        atomically and recomputes an entry it cannot read (a torn file). Call the cached
-        function through :func:`cached_call`.
+        ``ctx.memory(name).cache(f, ignore=[...])`` is ``f`` with its results kept on disk:
+        an entry is reused only for the same arguments (hashed; leave out with ``ignore=``
+        the ones the others stand for, such as this context or data summarised by a
+        digest) and the same source of ``f``. Only ``f``'s own source is watched, so a
+        cached function also takes :func:`~mmconcepts._fingerprint.code_fingerprint` as an
+        argument: a change anywhere in the package then recomputes. Each entry is one
+        ``.npz`` file (the result's arrays, and its structure as JSON) written atomically
+        and read with ``allow_pickle=False``: ``f`` may return None, bools, ints, floats,
+        strings, numpy arrays and scalars, and lists, tuples, the package's named tuples
+        and str-keyed dicts of these (anything else raises
+        :class:`~mmconcepts.errors.ExperimentError`). An entry that cannot be read (torn,
+        or not in this format, such as a planted pickle) is computed again, never
+        loaded. Call the cached function through :func:`cached_call`.
 
         Parameters
         ----------
         name : str
             The cache's folder under :attr:`cache_dir` (e.g. ``"ch3-folds"``).
         """
-        from joblib import Memory
+        from ._store import CacheStore
 
-        return Memory(self.cache_dir / name, verbose=0)
+        return CacheStore(self.cache_dir / name)
 
     def parallel_cached(self, cached: Callable[..., _R], calls: Sequence[tuple], *, desc: str | None = None) -> list[_R]:
         """Return ``[cached(*args) for args in calls]`` for a function cached with :meth:`memory`.
@@ -461,12 +467,12 @@ class RunContext:
         The calls already in the cache are read here; the others run through
         :meth:`parallel`, where each worker writes its call's entry as soon as that call
         ends, so an interrupted run keeps every call it finished (and resumes from there).
-        Calls go through :func:`cached_call`; a torn entry is recomputed.
+        An entry that cannot be read is computed again.
 
         Parameters
         ----------
-        cached : joblib.memory.MemorizedFunc
-            ``memory.cache(f, ignore=...)``, ``f`` defined at module level.
+        cached : CachedFunction
+            ``ctx.memory(name).cache(f, ignore=...)``, ``f`` defined at module level.
         calls : sequence of tuple
             The positional arguments of each call.
         desc : str, optional
@@ -474,9 +480,11 @@ class RunContext:
         """
         out: list[Any] = [None] * len(calls)
         todo = []
+        lookup = getattr(cached, "lookup", None)
         for i, args in enumerate(calls):
-            if cached.check_call_in_cache(*args):  # type: ignore[attr-defined]
-                out[i] = cached_call(cached, *args)
+            found, value = lookup(*args) if lookup is not None else (False, None)
+            if found:
+                out[i] = value
             else:
                 todo.append(i)
         done = self.parallel(_cached_item, [(cached, *calls[i]) for i in todo], desc=desc)
@@ -502,20 +510,20 @@ class RunContext:
 
 
 def cached_call(cached: Callable[..., _R], *args: Any) -> _R:
-    """``cached(*args)`` for a function cached with :meth:`RunContext.memory`, without joblib's slow-write note.
+    """``cached(*args)`` for a function cached with :meth:`RunContext.memory`.
 
-    joblib warns when writing a call's metadata (the ``repr`` of its hashed arguments) took
-    over half a second. The arguments hashed here are small, so on a loaded machine that
-    note says nothing about the run; it is kept out of the run's warnings (and its record).
+    The one way the experiments call a cached function (kept as the place to change how
+    cached calls are made, e.g. to silence a note of the cache about itself).
     """
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="Persisting input arguments took", category=UserWarning)
-        return cached(*args)
+    return cached(*args)
 
 
 def _cached_item(item: tuple) -> Any:
-    """``cached_call(*item)``: one argument per item, for :meth:`RunContext.parallel`."""
-    return cached_call(*item)
+    """``cached(*args)`` of ``item = (cached, *args)``, a call :meth:`RunContext.parallel_cached` found
+    missing: computed and its entry written, without reading the cache again."""
+    cached, *args = item
+    compute = getattr(cached, "compute", None)
+    return compute(*args) if compute is not None else cached_call(cached, *args)
 
 
 def array_digest(arrays: Iterable[np.ndarray]) -> str:
