@@ -12,7 +12,7 @@ from pathlib import Path
 
 from .errors import DataFormatError, ParameterError
 
-__all__ = ["check_output_dir", "atomic_path", "atomic_write", "read_csv_rows", "replace_dir"]
+__all__ = ["check_output_dir", "atomic_path", "atomic_write", "folder_lock", "read_csv_rows", "replace_dir"]
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
@@ -90,6 +90,42 @@ def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> None:
             fh.write(data.encode("utf-8") if isinstance(data, str) else data)
             fh.flush()
             os.fsync(fh.fileno())
+
+
+@contextlib.contextmanager
+def folder_lock(folder: str | os.PathLike[str], name: str = ".lock") -> Iterator[None]:
+    """Hold an exclusive lock on the file ``folder/name`` for the block (made, with ``folder``, if absent).
+
+    For work on a folder that several processes may do at once and that must not
+    interleave, such as reading a results folder's records and writing its report: a
+    second process waits at the start of its block until the first leaves its own. The
+    lock is advisory (``fcntl.flock``; ``msvcrt.locking`` on Windows; none on a file system
+    that does not support it), is released when the block ends or the process dies, and
+    the lock file is left in place (empty).
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder / name, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            import fcntl
+        except ImportError:  # pragma: no cover - Windows
+            import msvcrt
+
+            while True:
+                try:
+                    msvcrt.locking(fd, msvcrt.LK_LOCK, 1)  # type: ignore[attr-defined,unused-ignore]
+                    break
+                except OSError:  # gave up after 10 s: keep waiting
+                    continue
+        else:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            except OSError:  # pragma: no cover - a file system without locks: go on unlocked
+                pass
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def check_output_dir(output: str | os.PathLike[str]) -> Path:

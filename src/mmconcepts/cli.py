@@ -358,7 +358,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from .errors import MMConceptsError
     from .experiments import all_experiments, check_data, get, load_experiments, reproduce
-    from .report import write_report
 
     data = _data(args)
     load_experiments()
@@ -372,7 +371,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         preset=args.preset, output=args.output, data=data, data_root=args.data_root, synthetic=args.synthetic,
         workers=args.workers, force=args.force, ids=args.only, progress=not args.quiet,
     )
-    html_path, md_path = write_report(args.output)
+    html_path, md_path = _write_report(args.output)
     rows = [["experiment", "data", "ran", "claims"]]
     for r in records:
         message = ((r.get("message") or "").splitlines() or [""])[0]
@@ -462,10 +461,26 @@ def _cmd_cache_clear(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_report(args: argparse.Namespace) -> int:
+def _write_report(folder: Path) -> tuple[Path, Path]:
+    """``write_report(folder)`` under the folder's report lock.
+
+    Runs writing to one folder at once (``reproduce`` on a cluster, one job per experiment)
+    each write their records and then the report: with the lock, the last to read the
+    records is the last to write the report, so the report lists every record written
+    before it started (without it, a run that read the folder earlier could replace the
+    report with one that misses the other run's experiments).
+    """
+    from ._io import folder_lock
     from .report import write_report
 
-    html_path, md_path = write_report(args.dir)
+    if not folder.is_dir():
+        return write_report(folder)  # which says the folder does not exist
+    with folder_lock(folder, ".report.lock"):
+        return write_report(folder)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    html_path, md_path = _write_report(args.dir)
     print(f"report: {html_path}")
     print(f"        {md_path}")
     return 0

@@ -69,6 +69,7 @@ A complete experiment module (``src/mmconcepts/experiments/ch2_example.py``)::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import logging
@@ -76,6 +77,8 @@ import numbers
 import os
 import re
 import sys
+import threading
+import time
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -335,6 +338,53 @@ class _WarningsCarried:
         return result, [(w.category, str(w.message), w.filename, w.lineno) for w in caught]
 
 
+def _workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
+    """A joblib config under which the (loky) worker processes end when this process ends.
+
+    loky's workers outlive a parent killed with SIGKILL: one busy with a task finishes it, and
+    an idle one waits for its idle timeout (300 s). Under this config each worker runs
+    :func:`_end_with_parent` when it starts. Another joblib back end chosen by the caller
+    (``joblib.parallel_config``) is left as it is.
+    """
+    try:
+        from joblib import parallel_config
+        from joblib.parallel import get_active_backend
+
+        backend, _ = get_active_backend()
+    except ImportError:  # pragma: no cover - an older joblib
+        return contextlib.nullcontext()
+    if type(backend).__name__ != "LokyBackend":
+        return contextlib.nullcontext()
+    return cast("contextlib.AbstractContextManager[Any]",
+                parallel_config(backend="loky", initializer=_end_with_parent, initargs=(os.getpid(),)))
+
+
+def _end_with_parent(parent_pid: int) -> None:
+    """Initializer of a worker process: end this worker as soon as ``parent_pid`` (its parent) ends.
+
+    On Linux the kernel sends the worker SIGKILL when its parent dies (``prctl`` with
+    ``PR_SET_PDEATHSIG``), even while the worker computes; everywhere a daemon thread also
+    checks every half second that the parent is still the same process.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - no libc prctl
+            pass
+    if os.getppid() != parent_pid:  # the parent ended before the worker got here
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="mmconcepts-watch-parent", daemon=True).start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(0.5)
+    os._exit(1)
+
+
 def _progress_enabled(show: bool) -> bool:
     try:
         return bool(show) and sys.stderr is not None and sys.stderr.isatty()
@@ -426,13 +476,14 @@ class RunContext:
         from joblib import Parallel, delayed
 
         n_jobs = min(self.workers, len(items))
-        gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_WarningsCarried(fn))(item) for item in items)
-        for result, caught in self.progress(gen, total=len(items), desc=desc):
-            for category, message, filename, lineno in caught:
-                warnings.warn_explicit(message, category, filename, lineno)
-            out.append(result)
-            if on_result is not None:
-                on_result(len(out) - 1, result)
+        with _workers_end_with_this_process():
+            gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_WarningsCarried(fn))(item) for item in items)
+            for result, caught in self.progress(gen, total=len(items), desc=desc):
+                for category, message, filename, lineno in caught:
+                    warnings.warn_explicit(message, category, filename, lineno)
+                out.append(result)
+                if on_result is not None:
+                    on_result(len(out) - 1, result)
         return out
 
     def memory(self, name: str) -> CacheStore:
