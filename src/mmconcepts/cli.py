@@ -72,7 +72,7 @@ def _workers(text: str) -> int:
 
 def _data_root_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--data-root", metavar="DIR", type=Path, default=None,
+        "--data-root", metavar="DIR", type=_folder, default=None,
         help="folder holding the real data sets by name (default: $MMCONCEPTS_DATA_ROOT; "
              "without either, experiments run on generated data)",
     )
@@ -187,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
         "report", parents=[common], help="write the HTML/Markdown report of a results folder",
         description="Read the JSON result records of DIR and write DIR/report.html and DIR/report.md.",
     )
-    p.add_argument("dir", metavar="DIR", type=Path, nargs="?", default=DEFAULT_RESULTS_DIR,
+    p.add_argument("dir", metavar="DIR", type=_folder, nargs="?", default=DEFAULT_RESULTS_DIR,
                    help="results folder (default: %(default)s)")
     p.set_defaults(func=_cmd_report)
 
@@ -226,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
         "list", parents=[common], help="what the cache holds: one line per item, files, size, newest file",
         description="Show the cache folder and, for each item in it, its files, size and newest file.",
     )
-    q.add_argument("--cache-dir", metavar="DIR", type=Path, default=None, help="the cache folder to use")
+    q.add_argument("--cache-dir", metavar="DIR", type=_folder, default=None, help="the cache folder to use")
     q.set_defaults(func=_cmd_cache_list)
     q = cache_sub.add_parser(
         "clear", parents=[common], help="delete cached files (all, some items, or the old ones)",
@@ -236,7 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("names", metavar="NAME", nargs="*", help="only these items of the cache folder")
     q.add_argument("--older-than", metavar="AGE", default=None,
                    help="only files older than AGE: numbers with units s, m, h, d, w (e.g. 12h, 7d, 1d12h)")
-    q.add_argument("--cache-dir", metavar="DIR", type=Path, default=None, help="the cache folder to use")
+    q.add_argument("--cache-dir", metavar="DIR", type=_folder, default=None, help="the cache folder to use")
     q.set_defaults(func=_cmd_cache_clear)
     return parser
 
@@ -470,13 +470,21 @@ def _write_report(folder: Path) -> tuple[Path, Path]:
     before it started (without it, a run that read the folder earlier could replace the
     report with one that misses the other run's experiments).
     """
-    from ._io import folder_lock
+    from ._io import check_output_dir, folder_lock
+    from .errors import ParameterError
     from .report import write_report
 
+    folder = Path(folder)
     if not folder.is_dir():
         return write_report(folder)  # which says the folder does not exist
-    with folder_lock(folder, ".report.lock"):
-        return write_report(folder)
+    check_output_dir(folder)  # a folder that cannot be written: a ParameterError naming it
+    try:
+        with folder_lock(folder, ".report.lock"):
+            return write_report(folder)
+    except OSError as exc:
+        raise ParameterError(
+            f"cannot write the report in {folder} ({exc.strerror or exc}). Pass a results folder you can write to."
+        ) from exc
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
