@@ -165,34 +165,60 @@ def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_step
                     _PARAMETER_CONSTRAINTS["control_trajectories"], owner="control_trajectories")
     B = np.atleast_2d(np.asarray(beta, dtype=float))
     q = np.atleast_2d(np.asarray(start, dtype=float)).copy()
-    if B.shape[1] != features.n_features or q.shape != (B.shape[0], 2):
+    if B.ndim != 2 or B.shape[1] != features.n_features or q.shape != (B.shape[0], 2):
         raise ParameterError(f"beta must be (n, {features.n_features}) and start (n, 2); got {B.shape} and {q.shape}.")
+    if not (np.isfinite(B).all() and np.isfinite(q).all()):
+        raise DataError("beta and start must be finite; they hold NaN or infinite values.")
     T = int(n_steps)
     if method == "ode":
         if settle_tol > 0:
             raise ParameterError("settle_tol applies to method='euler' only; pass settle_tol=0 with method='ode'.")
         n = q.shape[0]
+        calls = [0]
 
         def rhs(_t, y):
+            calls[0] += 1
+            if calls[0] > _MAX_RHS_CALLS:
+                raise _TooStiff
             return (-lam * np.einsum("nfk,nf->nk", features.jacobian(y.reshape(n, 2)), B)).reshape(-1)
 
         times = dt * np.arange(T + 1)
-        sol = solve_ivp(rhs, (0.0, times[-1]), q.reshape(-1), method="LSODA", t_eval=times, rtol=rtol, atol=atol,
-                        lband=1, uband=1)  # (x, y) pairs: a block-diagonal, hence banded, Jacobian
+        try:
+            sol = solve_ivp(rhs, (0.0, times[-1]), q.reshape(-1), method="LSODA", t_eval=times, rtol=rtol, atol=atol,
+                            lband=1, uband=1)  # (x, y) pairs: a block-diagonal, hence banded, Jacobian
+        except _TooStiff:
+            raise DataError(
+                f"integrating eq. (4.1) needed more than {_MAX_RHS_CALLS} evaluations of the dynamics: the costs "
+                f"(|beta| up to {np.abs(B).max():.3g}, lam={lam:g}) make them too stiff. Use smaller costs, or "
+                "method='euler'."
+            ) from None
         if not sol.success:  # pragma: no cover - smooth RBF dynamics do not fail
             raise ParameterError(f"integrating eq. (4.1) failed: {sol.message}")
         return sol.y.T.reshape(T + 1, n, 2).transpose(1, 0, 2)
     out = np.empty((q.shape[0], T + 1, 2))
     out[:, 0] = q
     moving = np.ones(q.shape[0], dtype=bool)
-    for t in range(T):
-        step = -lam * dt * np.einsum("nfk,nf->nk", features.jacobian(q), B)
-        if settle_tol > 0:
-            moving &= np.linalg.norm(step, axis=1) >= settle_tol
-            step[~moving] = 0.0
-        q = q + step
-        out[:, t + 1] = q
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(T):
+            step = -lam * dt * np.einsum("nfk,nf->nk", features.jacobian(q), B)
+            if settle_tol > 0:
+                moving &= np.linalg.norm(step, axis=1) >= settle_tol
+                step[~moving] = 0.0
+            q = q + step
+            out[:, t + 1] = q
+    if not np.isfinite(out).all():
+        raise DataError(f"the Euler steps of eq. (4.1) overflowed (|beta| up to {np.abs(B).max():.3g}, lam={lam:g}, "
+                        f"dt={dt:g}); use smaller costs or a smaller dt.")
     return out
+
+
+class _TooStiff(Exception):
+    """Raised inside the ODE right-hand side when the integration takes too many evaluations."""
+
+
+#: Evaluations of the dynamics allowed per call of control_trajectories(method='ode'): smooth
+#: dynamics need a few per sampled step; millions mean costs so large the system is hopelessly stiff.
+_MAX_RHS_CALLS = 200_000
 
 
 def _design(features: RBFFeatures, traj: np.ndarray, lam: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -212,7 +238,10 @@ def _regress(Phi: np.ndarray, Y: np.ndarray, regression: str, alpha: float) -> n
     if regression == "lstsq":  # eq. (4.3); minimum-norm solution when Phi^T Phi is singular
         return np.linalg.lstsq(Phi, Y, rcond=None)[0]
     if regression == "ridge":
-        return np.linalg.solve(Phi.T @ Phi + alpha * np.eye(Phi.shape[1]), Phi.T @ Y)
+        try:
+            return np.linalg.solve(Phi.T @ Phi + alpha * np.eye(Phi.shape[1]), Phi.T @ Y)
+        except np.linalg.LinAlgError:  # alpha = 0 and too few independent steps: the minimum-norm solution
+            return np.linalg.lstsq(Phi, Y, rcond=None)[0]
     return nnls(Phi, Y)[0]  # "nnls"
 
 
@@ -234,7 +263,12 @@ def brillinger_regression(features: RBFFeatures, trajectories: Any, *, lam: floa
     """
     validate_params(dict(lam=lam, dt=dt, regression=regression, alpha=alpha),
                     _PARAMETER_CONSTRAINTS["brillinger_regression"], owner="brillinger_regression")
-    trajs = [trajectories] if np.ndim(trajectories) == 2 else list(trajectories)
+    try:
+        trajs = [trajectories] if np.ndim(trajectories) == 2 else list(trajectories)
+    except (TypeError, ValueError):  # ragged nesting or not a sequence
+        trajs = list(trajectories) if isinstance(trajectories, Sequence) else [trajectories]
+    if not trajs:
+        raise DataError("no trajectory given; pass an array of shape (T, 2) or a list of them.")
     parts = [_design(features, t, lam, dt) for t in trajs]
     return _regress(np.concatenate([p[1] for p in parts]), np.concatenate([p[0] for p in parts]), regression, alpha)
 
@@ -336,7 +370,10 @@ class FactorialInverseControl(SaveLoadMixin, BaseEstimator):
         if isinstance(trajectories, np.ndarray) and trajectories.ndim == 2:
             raise DataError("trajectories must be a list (or (n, T, 2) array) of demonstrations, one per task.")
         f = self._feats()
-        return [_design(f, t, self.lam, self.dt) for t in trajectories]
+        designs = [_design(f, t, self.lam, self.dt) for t in trajectories]
+        if not designs:
+            raise DataError("no demonstration given; pass a list of trajectories of shape (T >= 2, 2).")
+        return designs
 
     @staticmethod
     def _loss(designs, D, A):

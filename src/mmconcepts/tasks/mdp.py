@@ -150,7 +150,19 @@ def check_rewards(mdp: MDP, rewards: Any, *, allow_batch: bool = True) -> np.nda
         raise ParameterError(f"rewards must have shape {want} = ({mdp.n_states}, {mdp.n_actions}); got {r.shape}.")
     if not np.all(np.isfinite(r)):
         raise DataError("rewards contain NaN or infinite values.")
+    big = float(np.abs(r).max()) if r.size else 0.0
+    if big > _MAX_REWARD * (1.0 - mdp.discount):
+        raise DataError(
+            f"rewards up to {big:.3g} with discount {mdp.discount:g} give values up to {big / (1 - mdp.discount):.3g}, "
+            f"beyond what float64 holds safely ({_MAX_REWARD:.0e}); rescale the rewards (the optimal policy does not "
+            "change when every reward is multiplied by the same positive number)."
+        )
     return r
+
+
+#: Largest |value| a planning function is asked to compute: values are sums of S rewards over an
+#: effective horizon 1 / (1 - gamma), and intermediate sums must not overflow float64.
+_MAX_REWARD = 1e300
 
 
 def grid_world(size: int = 10, *, success_prob: float = 0.7, discount: float = 0.9,
@@ -429,10 +441,21 @@ def greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
         If Q holds NaN.
     """
     validate_params({"tie_tol": tie_tol}, _PARAMETER_CONSTRAINTS["greedy_policy"], owner="greedy_policy")
-    Q = np.asarray(Q, dtype=float)
+    return _greedy_policy(_check_q(Q), tie_tol=tie_tol)
+
+
+def _check_q(Q: Any) -> np.ndarray:
+    """``Q`` as a float array of shape (..., S, A) with S, A >= 1 and no NaN, or a DataError."""
+    try:
+        Q = np.asarray(Q, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"Q must be an array of action values of shape (..., n_states, n_actions) ({exc}).") from None
+    if Q.ndim < 2 or Q.shape[-1] < 1 or Q.shape[-2] < 1:
+        raise DataError(f"Q must have shape (..., n_states, n_actions) with at least one state and one action; "
+                        f"got {Q.shape}.")
     if np.isnan(Q).any():
         raise DataError(f"Q holds NaN at {np.argwhere(np.isnan(Q))[0].tolist()}: the values are undefined there.")
-    return _greedy_policy(Q, tie_tol=tie_tol)
+    return Q
 
 
 def _greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
@@ -457,12 +480,29 @@ def boltzmann_policy(Q: Any, beta: float = 1.0) -> np.ndarray:
         Inverse temperature (nonnegative); beta -> inf gives the greedy policy.
     """
     validate_params({"beta": beta}, _PARAMETER_CONSTRAINTS["boltzmann_policy"], owner="boltzmann_policy")
+    Q = _check_q(Q)
+    beta = float(beta)
+    if beta == 0.0:  # 0 * inf is undefined; the limit is the uniform policy whatever Q
+        return np.full(Q.shape, 1.0 / Q.shape[-1])
+    if np.isinf(beta):  # the limit is the greedy policy, ties shared
+        return _greedy_policy(Q, tie_tol=0.0)
+    if np.isinf(Q).any():
+        # limits: +inf actions share the state; -inf actions get 0; a state whose actions are all -inf is uniform
+        best = Q.max(axis=-1, keepdims=True)
+        finite_rows = np.isfinite(best)
+        Qf = np.where(finite_rows, Q, 0.0)
+        pi = _boltzmann_policy(Qf, beta)
+        return np.where(finite_rows, pi, _greedy_policy(Q, tie_tol=0.0))
+    with np.errstate(over="ignore"):
+        if not np.isfinite(beta * Q).all():  # beta Q overflows: shift first (-inf differences weigh 0, as they should)
+            return _boltzmann_policy(Q - Q.max(axis=-1, keepdims=True), beta)
     return _boltzmann_policy(Q, beta)
 
 
 def _boltzmann_policy(Q: Any, beta: float) -> np.ndarray:
-    """:func:`boltzmann_policy` without the parameter check."""
-    Z = float(beta) * np.asarray(Q, dtype=float)
+    """:func:`boltzmann_policy` without the parameter check (finite Q and beta)."""
+    with np.errstate(over="ignore"):
+        Z = float(beta) * np.asarray(Q, dtype=float)
     Z = Z - Z.max(axis=-1, keepdims=True)
     E = np.exp(Z)
     return E / E.sum(axis=-1, keepdims=True)
@@ -487,6 +527,8 @@ def _check_policy(mdp: MDP, policy: Any) -> np.ndarray:
     if pi.ndim < 2 or pi.shape[-2:] != (mdp.n_states, mdp.n_actions):
         raise ParameterError(f"policy must have shape (..., n_states, n_actions) = (..., {mdp.n_states}, "
                              f"{mdp.n_actions}); got {pi.shape}.")
+    if not np.isfinite(pi).all():
+        raise ParameterError("policy holds NaN or infinite probabilities; rows must be distributions over actions.")
     if (pi < -1e-12).any() or np.abs(pi.sum(axis=-1) - 1.0).max() > 1e-8:
         raise ParameterError("policy rows must be probability distributions over actions (nonnegative, summing to one).")
     return pi
