@@ -155,12 +155,14 @@ def test_image_descriptors_take_gray_and_rgba_and_name_other_shapes():
     rgb = rng.random((32, 32, 3))
     rgba = np.concatenate([rgb, rng.random((32, 32, 1))], axis=2)
     gray = rgb.mean(axis=2)
+    gray_alpha = np.stack([gray, rng.random((32, 32))], axis=2)  # 2 channels: gray + alpha (PNG "LA")
     for fn in (superpixel_colors, dense_sift):
         a, b = fn(rgba), fn(rgb)  # the alpha channel is dropped: the same features as the RGB image
         np.testing.assert_array_equal(a.vectors, b.vectors)
-        with pytest.raises(DataError, match=r"needs an image of shape \(H, W\) gray, .*got shape \(32, 32, 2\)"):
-            fn(rgb[:, :, :2])
-        with pytest.raises(DataError, match="got shape"):
+        np.testing.assert_array_equal(fn(gray_alpha).vectors, fn(gray).vectors)
+        with pytest.raises(DataError, match=r"must have shape \(H, W\) \(grayscale\).*got \(32, 32, 5\)"):
+            fn(rng.random((32, 32, 5)))
+        with pytest.raises(DataError, match="got"):
             fn(rng.random((2, 32, 32, 3)))
     # gray: superpixels of a gray image have no hue or saturation (cone coordinates (0, 0, v))
     g = superpixel_colors(gray, n_segments=9)

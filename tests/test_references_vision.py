@@ -21,7 +21,7 @@ P, CS, STEP = 16, 4, 8
 
 def _ramp(phi: float, a: float = 0.01, size: int = 32) -> np.ndarray:
     y, x = np.mgrid[0:size, 0:size].astype(np.float64)
-    return a * (np.cos(phi) * x + np.sin(phi) * y) + 0.1
+    return a * (np.cos(phi) * x + np.sin(phi) * y) + 0.5  # offset: values in [0, 1], as every float image's
 
 
 def _normalize_clip(v: np.ndarray, clip: float = 0.2) -> np.ndarray:

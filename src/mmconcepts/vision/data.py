@@ -92,6 +92,15 @@ def as_rgb_image(image: object, *, name: str = "image") -> np.ndarray:
         alpha channel is dropped). Integer images are scaled by their type's maximum
         (255 for uint8, 65535 for uint16); boolean images become 0/1; float images must
         already lie in [0, 1].
+
+    Notes
+    -----
+    This function is the one meaning of an image array in :mod:`mmconcepts.vision`: the
+    loaders and every descriptor (:func:`~mmconcepts.vision.superpixel_colors`,
+    :func:`~mmconcepts.vision.dense_sift` and the bags built on them) read their images
+    through it. Two channels are gray + alpha, as PNG's "LA" mode and Pillow/imageio give
+    them (not two colour channels); the alpha channel is dropped, not composited over a
+    background, so a transparent pixel keeps the colour stored under it.
     name : str
         How to call the image in error messages.
 

@@ -80,7 +80,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._persist import SaveLoadMixin
 from .._validation import InstanceOf, Interval, Options, _is_finite_real, check_random_state, validate_params
 from ..errors import DataError, ParameterError
-from .data import check_images
+from .data import as_rgb_image, check_images
 
 __all__ = [
     "DESCRIPTORS",
@@ -162,8 +162,12 @@ class _DescriptorNames:
 #: Parameters of the public functions, checked by :func:`~mmconcepts._validation.validate_params`.
 _SUPERPIXEL_CONSTRAINTS: dict[str, list] = {
     "n_segments": [Interval("int", 1)],
-    "compactness": [Interval("real", 0, None, closed="neither")],
+    # scikit-image's SLIC squares compactness / grid step: below ~1e-150 that underflows to 0 and SLIC
+    # corrupts memory (observed: "double free or corruption" with 1e-300); useful values are 0.01-100
+    "compactness": [Interval("real", 1e-6, None, closed="left")],
 }
+_SUPERPIXEL_HINTS = {"compactness": "SLIC's useful range is about 0.01-100 (10 by default); smaller values make "
+                                     "its spatial weight underflow."}
 _SIFT_CONSTRAINTS: dict[str, list] = {
     "patch_size": [_MultipleOf(4, 4, "4 x 4 cells")],
     "step": [Interval("int", 1)],
@@ -178,36 +182,20 @@ _STACK_CONSTRAINTS: dict[str, list] = {"weights": [dict, None]}
 # --------------------------------------------------------------------------- local features
 
 
-def _as_rgb(image: Any, owner: str) -> np.ndarray:
-    """An (H, W, 3) RGB array from a gray (H, W), RGB (H, W, 3) or RGBA (H, W, 4) image.
-
-    Gray is repeated over the three channels and the alpha channel is dropped; an RGB
-    array is returned as it is. Anything else is a :class:`~mmconcepts.errors.DataError`.
-    """
-    a = np.asarray(image)
-    if a.ndim == 3 and a.shape[2] == 3:
-        return a
-    if a.ndim == 3 and a.shape[2] == 4:
-        return a[:, :, :3]
-    if a.ndim == 2:
-        return np.repeat(a[:, :, None], 3, axis=2)
-    raise DataError(
-        f"{owner} needs an image of shape (H, W) gray, (H, W, 3) RGB or (H, W, 4) RGBA; got shape {a.shape}."
-    )
-
-
 def superpixel_colors(image: np.ndarray, *, n_segments: int = 50, compactness: float = 10.0) -> LocalFeatures:
     r"""HSV colour of the SLIC superpixels of an RGB image (Thesis 6.5.3, "HSV of superpixels").
 
     Parameters
     ----------
     image : ndarray of shape (H, W, 3)
-        Float RGB in [0, 1]. A gray (H, W) image is taken as RGB with three equal channels,
-        an RGBA (H, W, 4) image without its alpha channel.
+        Float RGB in [0, 1], or any image :func:`~mmconcepts.vision.as_rgb_image` reads
+        (gray (H, W) or (H, W, 1), gray + alpha (H, W, 2), RGBA (H, W, 4); integer types
+        scaled by their maximum): the answer is the one on ``as_rgb_image(image)``.
     n_segments : int
         Approximate number of superpixels (:func:`skimage.segmentation.slic`).
     compactness : float
-        SLIC's balance between colour and space (higher: more square superpixels).
+        SLIC's balance between colour and space (higher: more square superpixels); at
+        least 1e-6.
 
     Returns
     -------
@@ -221,8 +209,8 @@ def superpixel_colors(image: np.ndarray, *, n_segments: int = 50, compactness: f
     from skimage.segmentation import slic
 
     validate_params({"n_segments": n_segments, "compactness": compactness}, _SUPERPIXEL_CONSTRAINTS,
-                    owner="superpixel_colors")
-    image = _as_rgb(image, "superpixel_colors")
+                    owner="superpixel_colors", hints=_SUPERPIXEL_HINTS)
+    image = as_rgb_image(image, name="superpixel_colors' image")
     seg = slic(image, n_segments=n_segments, compactness=compactness, start_label=0, channel_axis=-1)
     _, seg = np.unique(seg, return_inverse=True)  # consecutive labels
     seg = seg.reshape(image.shape[:2])
@@ -268,8 +256,9 @@ def dense_sift(
     Parameters
     ----------
     image : ndarray of shape (H, W, 3) or (H, W)
-        RGB in [0, 1] (converted to gray with :func:`skimage.color.rgb2gray`), or gray; an
-        RGBA image is taken without its alpha channel.
+        RGB in [0, 1] (converted to gray with :func:`skimage.color.rgb2gray`), gray, or any
+        image :func:`~mmconcepts.vision.as_rgb_image` reads (gray + alpha (H, W, 2) and RGBA
+        lose their alpha channel; integer types are scaled by their maximum).
     patch_size : int
         Side of the square patches in pixels; a multiple of 4, at most the image's sides.
     step : int
@@ -284,15 +273,18 @@ def dense_sift(
     Returns
     -------
     LocalFeatures
-        ``vectors`` (n_kept, 128), unit norm; ``positions`` the patch centres (row,
+        ``vectors`` (n_kept, 128), unit norm (all zeros for a patch without any gradient,
+        which only ``contrast_threshold=0`` keeps); ``positions`` the patch centres (row,
         column); ``weights`` ones.
     """
     from skimage.color import rgb2gray
 
     validate_params({"patch_size": patch_size, "step": step, "contrast_threshold": contrast_threshold,
                      "rotation_invariant": rotation_invariant}, _SIFT_CONSTRAINTS, owner="dense_sift")
-    image = np.asarray(image)
-    gray = rgb2gray(_as_rgb(image, "dense_sift")) if image.ndim != 2 else image.astype(np.float64)
+    raw_ndim = np.ndim(image)
+    rgb = as_rgb_image(image, name="dense_sift's image")
+    one_channel = raw_ndim == 2 or (raw_ndim == 3 and np.shape(image)[2] in (1, 2))  # gray, or gray + alpha
+    gray = rgb[:, :, 0] if one_channel else rgb2gray(rgb)
     H, W = gray.shape
     if patch_size > min(H, W):
         raise DataError(f"An image of shape {gray.shape} is smaller than patch_size={patch_size}.")
@@ -414,7 +406,14 @@ def neighbour_tuples(positions: np.ndarray, *, order: int = 2, n_neighbors: int 
         Distinct tuples of feature indices, each sorted, in lexicographic order.
     """
     validate_params({"order": order, "n_neighbors": n_neighbors}, _TUPLE_CONSTRAINTS, owner="neighbour_tuples")
-    pos = np.asarray(positions, dtype=np.float64)
+    try:
+        pos = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"positions must be an array of shape (n_local, 2) of numbers ({exc}).") from None
+    if pos.ndim != 2 or pos.shape[1] != 2:
+        raise DataError(f"positions must have shape (n_local, 2) (row, column); got {pos.shape}.")
+    if not np.isfinite(pos).all():
+        raise DataError("positions hold NaN or infinite values.")
     n = len(pos)
     k = min(n_neighbors, n - 1)
     if n < order or k < order - 1:
@@ -448,9 +447,21 @@ def tuple_columns(words: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     words : ndarray of shape (n_tuples, r), int
-        Word indices, each row sorted in increasing order.
+        Word indices (nonnegative), one unordered tuple per row: rows are sorted here, so
+        ``(3, 1)`` and ``(1, 3)`` get the same column.
+
+    Raises
+    ------
+    DataError
+        If ``words`` is not a 2-D array of nonnegative integers with at least one column.
     """
-    w = np.asarray(words, dtype=np.int64)
+    w = np.asarray(words)
+    if w.ndim != 2 or w.shape[1] < 1:
+        raise DataError(f"words must have shape (n_tuples, r >= 1); got {w.shape}.")
+    if w.size and not (np.issubdtype(w.dtype, np.integer) and w.min() >= 0):
+        raise DataError(f"words must be nonnegative integer word indices; got dtype {w.dtype}"
+                        + (f", min {w.min()}." if np.issubdtype(w.dtype, np.number) else "."))
+    w = np.sort(w.astype(np.int64), axis=1)
     col = np.zeros(len(w), dtype=np.int64)
     for t in range(w.shape[1]):
         x = w[:, t] + t
@@ -665,7 +676,7 @@ class ColorHistograms(_WordBag):
     n_segments : int, default=50
         Approximate number of superpixels per image (about 180 pixels each at 96 x 96).
     compactness : float, default=10.0
-        SLIC compactness.
+        SLIC compactness (>= 1e-6).
     normalize : {"l1", None}, default="l1"
         ``"l1"``: each histogram sums to one (area fractions); None: areas in pixels.
     max_fit_samples : int, default=50000
