@@ -3,9 +3,13 @@
 :func:`write_report` reads every result record (``*.json``) of a results folder written by
 :func:`mmconcepts.experiments.run_experiment` and writes ``report.html`` (one
 self-contained file; figures are linked as the relative PNGs next to it) and
-``report.md``. For each experiment it shows the status, our metrics beside the thesis'
-values, the result tables and figures, each claim with its verdict (re-evaluated from the
-stored metrics), the config and run details, and notes.
+``report.md``. A table of contents (a sidebar that stays in view in the HTML) and a summary
+(per run: whether it ran, on which data, and how many of its claims hold, fail or are
+inconclusive) come first; then one section per experiment (collapsible in the HTML, open by
+default) with our metrics beside the thesis' values, each claim with its verdict
+(re-evaluated from the stored metrics), the result tables and figures, the config, run
+details and notes. Every experiment, run, claim, table and figure has an anchor, and every
+section links back to the summary.
 """
 
 from __future__ import annotations
@@ -60,7 +64,8 @@ def write_report(
     views = collect(results_dir, problems)
     html_path = results_dir / "report.html"
     md_path = results_dir / "report.md"
-    atomic_write(html_path, render_html(views, title=title, problems=problems).encode("utf-8"))
-    atomic_write(md_path, render_markdown(views, title=title, problems=problems).encode("utf-8"))
+    # "replace": a lone surrogate (a "\\ud800" escape in a record's JSON) becomes "?" instead of failing the report
+    atomic_write(html_path, render_html(views, title=title, problems=problems).encode("utf-8", "replace"))
+    atomic_write(md_path, render_markdown(views, title=title, problems=problems).encode("utf-8", "replace"))
     logger.info("wrote %s and %s (%d experiment(s))", html_path, md_path, len(views))
     return html_path, md_path

@@ -7,11 +7,12 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Any
 
 from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
-from ..experiments.record import ResultRecord
+from ..experiments.record import RECORD_KEYS, ResultRecord
 from ..experiments.uncertainty import VERDICTS, claim_verdict
 
 logger = logging.getLogger("mmconcepts.report")
@@ -112,6 +113,17 @@ class ExperimentView:
         return f"{label} ({', '.join(n for n, _ in self.data)})" if self.data else label
 
     @property
+    def data_sets(self) -> str:
+        """The real sets' names (``fsdd, eth80``), or ``generated`` for generated data."""
+        return ", ".join(n for n, _ in self.data) if self.data else ("generated" if self.variant == "synthetic" else "")
+
+    def verdict_counts(self) -> dict[str, int]:
+        """How many claims got each verdict (all ``not evaluated`` when the run did not run)."""
+        if self.status != "ok":
+            return {v: (self.n_claims if v == "not evaluated" else 0) for v in VERDICTS}
+        return {v: self.count(v) for v in VERDICTS}
+
+    @property
     def claims_summary(self) -> str:
         if not self.claims:
             return "no claims"
@@ -192,8 +204,19 @@ def _with_interval(value: Any, interval: Any) -> str:
     return text
 
 
+def _check_shown_fields(record: ResultRecord) -> None:
+    """Raise :class:`ExperimentError` when a field the report is organised by has the wrong type."""
+    if not isinstance(record.experiment, str) or not record.experiment.strip():
+        raise ExperimentError(f"its experiment id must be a non-empty string; got {record.experiment!r:.60}")
+    for key in ("status", "variant"):
+        value = getattr(record, key)
+        if not isinstance(value, str):
+            raise ExperimentError(f"its {key} must be a string; got {value!r:.60}")
+
+
 def build_view(record: ResultRecord, results_dir: Path, source: Path) -> ExperimentView:
     """Turn one result record into an :class:`ExperimentView`."""
+    _check_shown_fields(record)
     metrics, reference, data, intervals = record.metrics, record.reference, record.data, record.intervals
     rows = [(name, format_number(value), format_number(reference.get(name))) for name, value in metrics.items()]
     rows += [(name, "", format_number(value)) for name, value in reference.items() if name not in metrics]
@@ -254,7 +277,9 @@ def _looks_like_a_record(raw: bytes) -> bool:
         content = json.loads(raw)
     except (ValueError, RecursionError):  # not JSON (truncated, edited): shown as unreadable
         return True
-    return isinstance(content, dict) and "experiment" in content
+    if not isinstance(content, dict):  # a record edited into a list, a number, null...
+        return True
+    return any(key in content for key in RECORD_KEYS)
 
 
 def collect(results_dir: Path, problems: list[tuple[str, str]] | None = None) -> list[ExperimentView]:
@@ -268,9 +293,11 @@ def collect(results_dir: Path, problems: list[tuple[str, str]] | None = None) ->
     for path in sorted(results_dir.glob("*.json")):
         try:
             raw = path.read_bytes()
-            record = ResultRecord.from_json(raw)
+            record = ResultRecord.from_json(raw.decode("utf-8"))  # strict: json.loads(bytes) lets surrogates in
         except OSError as exc:
             reason = f"cannot be read ({exc.strerror or exc})"
+        except UnicodeDecodeError as exc:
+            reason = f"not valid UTF-8 text ({exc.reason} at byte {exc.start})"
         except (ExperimentError, RecursionError) as exc:
             logger.info("ignoring %s: not a result record (%s)", path, exc)
             if not _looks_like_a_record(raw):
@@ -327,3 +354,60 @@ def claims_by_data(views: list[ExperimentView]) -> tuple[list[str], list[list[st
             row[-1] = "same" if decided[0] == decided[1] else "differ"
     order = sorted(range(len(rows)), key=lambda i: (rows[i][-1] != "differ", i))
     return columns, [rows[i] for i in order]
+
+
+def slug(text: str) -> str:
+    """The anchor of an experiment: ``exp-`` and its id, every character but ASCII letters, digits and ``-`` as ``-``."""
+    return "exp-" + slug_part(text)
+
+
+def slug_part(text: str) -> str:
+    """``text`` with every character but ASCII letters, digits and ``-`` as ``-`` (safe in an id and a URL)."""
+    return "".join(c if (c.isascii() and c.isalnum()) or c == "-" else "-" for c in str(text))
+
+
+class _Anchors:
+    """Hands out unique element ids (a second ``exp-a`` becomes ``exp-a-2``)."""
+
+    def __init__(self, reserved: Sequence[str] = ()) -> None:
+        self.used: set[str] = set(reserved)
+
+    def make(self, base: str) -> str:
+        anchor, n = base, 1
+        while anchor in self.used:
+            n += 1
+            anchor = f"{base}-{n}"
+        self.used.add(anchor)
+        return anchor
+
+
+class Plan:
+    """The anchors (element ids) of one report, decided before any link to them is written.
+
+    Both formats use the same ones: ``exp-<id>`` per experiment, ``exp-<id>-claim-<n>`` per
+    claim, ``exp-<id>-<variant>`` per run, ``...-table-<name>`` and ``...-fig-<name>`` per
+    table and figure (``-2``, ``-3`` appended where two would coincide).
+    """
+
+    def __init__(self, groups: list[ExperimentGroup]) -> None:
+        self.groups = groups
+        self.section_of: dict[str, str] = {}  # experiment id -> its section's anchor
+        anchors = _Anchors(["toc", "top", "summary", "claims", "records-left-out", "main"])
+        self.section: dict[int, str] = {}
+        self.claim: dict[tuple[int, int], str] = {}
+        self.claim_by_text: dict[tuple[str, str], str] = {}
+        self.run: dict[int, str] = {}
+        self.table: dict[tuple[int, int], str] = {}
+        self.figure: dict[tuple[int, int], str] = {}
+        for g in groups:
+            self.section[id(g)] = sec = anchors.make(slug(g.id))
+            self.section_of.setdefault(g.id, sec)
+            for i, row in enumerate(g.claim_rows()[1]):
+                self.claim[(id(g), i)] = anchor = anchors.make(f"{sec}-claim-{i + 1}")
+                self.claim_by_text.setdefault((g.id, row[0]), anchor)
+            for view in g.views:
+                self.run[id(view)] = run = anchors.make(f"{sec}-{slug_part(view.variant)}")
+                for j, table in enumerate(view.tables):
+                    self.table[(id(view), j)] = anchors.make(f"{run}-table-{slug_part(table['name'])}")
+                for j, (name, _rel, _ok) in enumerate(view.figures):
+                    self.figure[(id(view), j)] = anchors.make(f"{run}-fig-{slug_part(name)}")
