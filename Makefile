@@ -8,7 +8,7 @@ RESULTS ?= results
 # The folder of real data sets (fsdd, msr-action3d, eth80, ...); empty: $$MMCONCEPTS_DATA_ROOT, else generated data only.
 DATA_ROOT ?=
 
-.PHONY: reproduce test typecheck docs bench clean
+.PHONY: reproduce test browser typecheck docs bench clean
 
 # The package with every modality (extra "all"); the tests and the benchmarks add their tools.
 $(STAMP): pyproject.toml
@@ -32,9 +32,28 @@ reproduce: $(STAMP)
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included), then the type check and the documentation build (what CI runs)
-test: $(VENV)/.installed-dev
+test: $(VENV)/.installed-dev browser
 	$(BIN)/python -m pytest -q
 	$(MAKE) --no-print-directory typecheck docs
+
+## Install headless Chromium and its driver (Debian packages) for tests/test_report_browser.py when they are
+## missing and this user may (root, or passwordless sudo); otherwise do nothing (that test then skips, saying why)
+browser:
+	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then :; \
+	elif ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "note: no chromium/chromedriver and no apt-get: the report's browser test will skip"; \
+	else \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; elif sudo -n true 2>/dev/null; then SUDO="sudo -n"; else SUDO=none; fi; \
+	  if [ "$$SUDO" = none ]; then \
+	    echo "note: chromium/chromedriver missing and not root: the report's browser test will skip"; \
+	  else \
+	    echo "installing chromium and chromium-driver (apt-get) for the report's browser test"; \
+	    $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium chromium-driver >/dev/null 2>&1 \
+	    || { $$SUDO apt-get update -q >/dev/null 2>&1 && \
+	         $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium chromium-driver >/dev/null 2>&1; } \
+	    || echo "note: could not install chromium: the report's browser test will skip"; \
+	  fi; \
+	fi
 
 ## Type-check the package (mypy; configuration in pyproject.toml)
 typecheck: $(VENV)/.installed-dev
@@ -52,4 +71,4 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/mdp.py
 
 clean:
-	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache docs/_build docs/auto_examples docs/api/generated docs/sg_execution_times.rst
+	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache tests/.artifacts docs/_build docs/auto_examples docs/api/generated docs/sg_execution_times.rst

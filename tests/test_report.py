@@ -78,17 +78,20 @@ def test_report_shows_metrics_thesis_values_and_verdicts(results):
     assert re.search(r"\| The sample mean exceeds one \(false on purpose\)\. \| [^|]+ \| fails \(no spread\) \|", md)
     assert "verdict-holds" in html_text and "verdict-fails" in html_text
 
-    # summary lines: what ran, on which data, and the claims apart
-    assert "| toy-mean | Toy: the mean of uniform numbers | generated data | ran | 1 holds, 1 fails |" in md
-    assert re.search(r"\| toy-fail \| [^|]+ \| [^|]+ \| FAILED \|", md)
-    assert re.search(r"\| toy-skip \| [^|]+ \| [^|]+ \| skipped \|", md)
-    assert "On generated data: 1 run(s); claims: 1 holds, 1 fails, 0 inconclusive, 0 not evaluated." in md
+    # summary lines: what ran (status), on which data, and the claims' verdicts apart (holds, fails, inconclusive,
+    # not evaluated), each experiment linked to its run's anchor
+    assert ("| [`toy-mean`](#exp-toy-mean-synthetic) | Toy: the mean of uniform numbers | generated data | ran "
+            "| 1 | 1 |   |   | ") in md
+    assert re.search(r"\| \[`toy-fail`\]\(#exp-toy-fail-synthetic\) \| [^|]+ \| [^|]+ \| FAILED \|   \|   \|   \| 1 \|", md)
+    assert re.search(r"\| \[`toy-skip`\]\(#exp-toy-skip-synthetic\) \| [^|]+ \| [^|]+ \| skipped \|", md)
+    assert ("On generated data: 1 run(s) ran (1 failed, 2 skipped); claims: 1 holds, 1 fails, 0 inconclusive, "
+            "0 not evaluated.") in md
     assert "broke on purpose" in md and "no real data here" in md
 
     # result table, config, run info, figures
     assert "Quantiles of the sample" in md and "| 0.25 |" in md
     assert "| n_chunks | 4 |" in md and "| sizes | [1, 2, 3] |" in md
-    assert "![hist](toy-mean/hist.png)" in md
+    assert "![figure hist](toy-mean/hist.png)" in md
     parsed = _parse(html_text)
     assert parsed.errors == [] and parsed.stack == []
     assert parsed.imgs == ["toy-mean/hist.png"]
@@ -135,7 +138,7 @@ def test_damaged_records_are_listed_and_the_others_shown(results, caplog):
     section = md.split("### Records left out")[1].split("## Summary")[0]
     listed = set(re.findall(r"^\| ([\w.-]+\.json) \|", section, re.M))
     assert listed == damaged | {"broken.json"}
-    assert "4 experiment(s)" in md and "| toy-mean |" in md  # the good records are all there
+    assert "4 experiment(s)" in md and "| [`toy-mean`](#exp-toy-mean-synthetic) |" in md  # the good ones are there
     assert "settings.json" not in section
     assert 'id="records-left-out"' in html_text and not _parse(html_text).errors
     for name in damaged:
@@ -152,7 +155,7 @@ def test_report_reevaluates_claims_from_stored_metrics(results):
     assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| not evaluated \|", md)
     assert re.search(r"\| The sample mean exceeds one [^|]+ \| [^|]+ \| not evaluated \|", md)
     assert "| mean | 0.5 | n/a |" in md
-    assert "| 2 not evaluated |" in md
+    assert re.search(r"\| \[`toy-mean`\][^|]+\| [^|]+ \| [^|]+ \| ran \|   \|   \|   \| 2 \|", md)
 
 
 def test_report_of_missing_folder_is_a_clear_error(tmp_path):
@@ -225,7 +228,10 @@ def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagree
     assert rows == [["toy-bydata", "a beats b", "fails", "holds", "differ"],
                     ["toy-bydata", "b is positive", "holds", "holds", "same"]]
     md = write_report(out)[1].read_text()
-    assert "| toy-bydata | a beats b | fails | holds | differ |" in md
+    # each claim links to its row in the experiment's section (and the experiment to its section)
+    assert ("| [`toy-bydata`](#exp-toy-bydata) | [a beats b](#exp-toy-bydata-claim-2) | fails | holds | differ |"
+            in md)
+    assert '| <a id="exp-toy-bydata-claim-2"></a> | a beats b | a &gt; b | fails | holds |' in md
     html = (out / "report.html").read_text()
     assert _parse(html).errors == [] and "Every claim on each data" in html
 
@@ -241,3 +247,91 @@ def test_markdown_shows_hand_edited_fields_verbatim(results):
     # code spans whose fence is longer than any backtick run inside (CommonMark), so the text stays verbatim
     assert "```toy``x<i>``` · thesis:" in md
     assert "- data set ``a`b``: `/p<a>th`" in md
+
+
+class _Anchors(HTMLParser):
+    """Collects element ids, in-page links and the <details> of a page."""
+
+    def __init__(self):
+        super().__init__()
+        self.ids, self.links, self.details, self.nav_links = [], [], [], []
+        self._in_nav = False
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if "id" in a:
+            self.ids.append(a["id"])
+        if tag == "nav":
+            self._in_nav = True
+        if tag == "a" and (a.get("href") or "").startswith("#"):
+            self.links.append(a["href"][1:])
+            if self._in_nav:
+                self.nav_links.append(a["href"][1:])
+        if tag == "details":
+            self.details.append(a)
+
+    def handle_endtag(self, tag):
+        if tag == "nav":
+            self._in_nav = False
+
+
+def _anchors(html_text):
+    parser = _Anchors()
+    parser.feed(html_text)
+    parser.close()
+    return parser
+
+
+def test_html_navigation_every_link_resolves_and_every_part_has_an_anchor(results):
+    html_text = write_report(results)[0].read_text()
+    page = _anchors(html_text)
+    assert len(page.ids) == len(set(page.ids)), "duplicate ids"
+    assert set(page.links) <= set(page.ids), set(page.links) - set(page.ids)
+    # the contents: the summary, the left-out records, the claims and every experiment, with each run
+    assert {"summary", "records-left-out", "claims", "exp-toy-mean", "exp-toy-fail", "exp-toy-skip", "exp-toy-data",
+            "exp-toy-mean-synthetic"} <= set(page.nav_links)
+    assert 'class="toc"' in html_text and "position: sticky" in html_text
+    # one collapsible section per experiment, open by default, each with a link back to the summary
+    experiments = [d for d in page.details if d.get("class") == "experiment"]
+    assert len(experiments) == 4 and all("open" in d for d in experiments)
+    for exp_id in ("toy-mean", "toy-fail", "toy-skip", "toy-data"):
+        section = html_text.split(f'id="exp-{exp_id}"', 1)[1].split("</section>\n</div></details></section>", 1)[0]
+        assert 'href="#summary"' in section
+    # anchors per claim, table and figure; the summary's claims link to their rows
+    assert {"exp-toy-mean-claim-1", "exp-toy-mean-claim-2", "exp-toy-mean-synthetic-table-quantiles",
+            "exp-toy-mean-synthetic-fig-hist"} <= set(page.ids)
+    assert 'href="#exp-toy-mean-claim-1">The sample mean is close to one half.</a>' in html_text
+    # printing shows every section: the script opens them before printing
+    assert 'addEventListener("beforeprint"' in html_text
+
+
+def test_markdown_navigation_every_link_has_its_anchor(results):
+    md = write_report(results)[1].read_text()
+    anchors = re.findall(r'<a id="([^"]+)"></a>', md)
+    links = re.findall(r"\]\(#([^)]+)\)", md)
+    assert len(anchors) == len(set(anchors)) and links and set(links) <= set(anchors), set(links) - set(anchors)
+    assert "## Contents" in md and "- [`toy-mean`](#exp-toy-mean): Toy: the mean of uniform numbers" in md
+    assert md.count("[↑ back to the summary](#summary)") >= 4
+    assert '<a id="exp-toy-mean-synthetic-table-quantiles"></a>\n#### Table: Quantiles of the sample' in md
+    assert '<a id="exp-toy-mean-synthetic-fig-hist"></a>\n![figure hist](toy-mean/hist.png)' in md
+
+
+def test_anchors_stay_unique_when_ids_collide(results):
+    """Two records of one experiment and data, and ids that slug alike: every anchor still unique and resolved."""
+    good = json.loads((results / "toy-mean.json").read_text())
+    (results / "copy.json").write_text(json.dumps(good))
+    (results / "other.json").write_text(json.dumps(dict(good, experiment="toy mean")))  # slugs as toy-mean
+    html_path, md_path = write_report(results)
+    page = _anchors(html_path.read_text())
+    assert len(page.ids) == len(set(page.ids)) and set(page.links) <= set(page.ids)
+    assert {"exp-toy-mean", "exp-toy-mean-2", "exp-toy-mean-2-synthetic-2"} <= set(page.ids)
+    md = md_path.read_text()
+    anchors = re.findall(r'<a id="([^"]+)"></a>', md)
+    assert len(anchors) == len(set(anchors)) and set(re.findall(r"\]\(#([^)]+)\)", md)) <= set(anchors)
+
+
+def test_missing_figure_is_named_not_an_image_that_cannot_load(results):
+    (results / "toy-mean" / "hist.png").unlink()
+    html_text, md = (p.read_text() for p in write_report(results))
+    assert "<img" not in html_text and "figure file missing: <code>toy-mean/hist.png</code>" in html_text
+    assert "*Figure `hist`: file missing (`toy-mean/hist.png`)*" in md

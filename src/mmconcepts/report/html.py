@@ -1,4 +1,12 @@
-"""Render the report as one self-contained HTML file (CSS inline, figures as relative PNGs)."""
+"""Render the report as one self-contained HTML file (CSS and a few lines of script inline,
+figures as relative PNGs).
+
+The page has a table of contents that stays in view beside the text (a sticky sidebar; on
+a narrow screen it sits above), a summary, and one collapsible section per experiment
+(``<details open>``: open by default, every section opens before printing). Every
+experiment, run, table, figure and claim has an anchor (an ``id``) and every section a link
+back to the summary. Nothing a result record holds reaches the page unescaped.
+"""
 
 from __future__ import annotations
 
@@ -9,11 +17,34 @@ from importlib import resources
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, claims_by_data, group
+from ._model import (STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group,
+                     slug_part)
 
 __all__ = ["render_html"]
 
 _FALLBACK_CSS = "body { font-family: sans-serif; max-width: 980px; margin: 2rem auto; }"
+
+#: Opens every section before printing, opens the section an anchor points into, and
+#: wires the "open all / close all" buttons of the contents (hidden without script).
+_SCRIPT = """
+(function () {
+  var sections = function () { return document.querySelectorAll("details.experiment"); };
+  var setAll = function (open) { sections().forEach(function (d) { d.open = open; }); };
+  document.querySelectorAll("button[data-open]").forEach(function (b) {
+    b.hidden = false;
+    b.addEventListener("click", function () { setAll(b.getAttribute("data-open") === "1"); });
+  });
+  window.addEventListener("beforeprint", function () { setAll(true); });
+  var reveal = function () {
+    var id = decodeURIComponent(location.hash.slice(1));
+    var target = id && document.getElementById(id);
+    var closed = target && target.closest("details:not([open])");
+    if (closed) { closed.open = true; target.scrollIntoView(); }
+  };
+  window.addEventListener("hashchange", reveal);
+  reveal();
+})();
+"""
 
 
 def _css() -> str:
@@ -27,10 +58,6 @@ def _e(text: object) -> str:
     return escape(str(text), quote=True)
 
 
-def _slug(text: str) -> str:
-    return "exp-" + "".join(c if c.isalnum() or c == "-" else "-" for c in text)
-
-
 def _is_numeric(text: str) -> bool:
     try:
         float(text)
@@ -39,8 +66,9 @@ def _is_numeric(text: str) -> bool:
     return True
 
 
-def _table(columns: list[str], rows: list[list[str]], *, caption: str | None = None, numeric: bool = True) -> str:
-    out = ["<table>"]
+def _table(columns: list[str], rows: list[list[str]], *, caption: str | None = None, numeric: bool = True,
+           anchor: str | None = None) -> str:
+    out = ['<div class="scroll">', f'<table id="{_e(anchor)}">' if anchor else "<table>"]
     if caption:
         out.append(f"<caption>{_e(caption)}</caption>")
     out.append("<thead><tr>" + "".join(f"<th>{_e(c)}</th>" for c in columns) + "</tr></thead><tbody>")
@@ -50,21 +78,49 @@ def _table(columns: list[str], rows: list[list[str]], *, caption: str | None = N
             cls = ' class="num"' if numeric and cell and _is_numeric(cell) else ""
             cells.append(f"<td{cls}>{_e(cell)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "".join(out)
 
 
 def _status(status: str, label: str | None = None) -> str:
     text = STATUS_LABELS.get(status, status) if label is None else label
-    return f'<span class="status status-{_e(status)}">{_e(text)}</span>'
+    return f'<span class="status status-{_e(slug_part(status))}">{_e(text)}</span>'
 
 
-def _run(view: ExperimentView) -> str:
-    out = [f'<section class="run run-{_e(view.variant)}">']
-    out.append(f"<h3>On {_e(view.data_label)}</h3>")
-    out.append(f'<p class="meta">status {_status(view.status, view.status_label)}' + (f" · {_e(view.elapsed)}" if view.elapsed else "") + "</p>")
+def _verdict(text: str) -> str:
+    word = text.split(" (")[0]
+    if word not in VERDICTS:
+        return _e(text)
+    return f'<span class="verdict verdict-{_e(word.replace(" ", "-"))}">{_e(text)}</span>'
+
+
+_SYMBOLS = {"holds": "✓", "fails": "✗", "inconclusive": "?", "not evaluated": "–"}
+
+
+def _counts(view: ExperimentView, *, compact: bool = False) -> str:
+    """Small coloured verdict counts (``2 holds 1 fails``, compact ``2✓ 1✗``), or the status when it did not run."""
+    if view.status != "ok":
+        return _status(view.status, view.status_label)
+    parts = [f'<span class="count count-{_e(v.replace(" ", "-"))}" title="{view.count(v)} {_e(v)}">'
+             f'{view.count(v)}{_SYMBOLS[v] if compact else " " + _e(v)}</span>' for v in VERDICTS if view.count(v)]
+    return " ".join(parts) if parts else '<span class="muted">no claims</span>'
+
+
+def _heading(level: int, text: str, anchor: str, *, raw: bool = False) -> str:
+    body = text if raw else _e(text)
+    return (f'<h{level} id="{_e(anchor)}">{body} <a class="anchor" href="#{_e(anchor)}" '
+            f'aria-label="link to this part">#</a></h{level}>')
+
+
+def _run(view: ExperimentView, plan: Plan) -> str:
+    run_id = plan.run[id(view)]
+    out = [f'<section class="run run-{_e(slug_part(view.variant))}">']
+    out.append(_heading(3, f"On {view.data_label}", run_id))
+    out.append(f'<p class="meta">status {_status(view.status, view.status_label)}'
+               + (f" · {_e(view.elapsed)}" if view.elapsed else "") + "</p>")
     if view.data:
-        out.append("<ul>" + "".join(f"<li>data set <code>{_e(n)}</code>: <code>{_e(p)}</code></li>" for n, p in view.data) + "</ul>")
+        out.append("<ul>" + "".join(f"<li>data set <code>{_e(n)}</code>: <code>{_e(p)}</code></li>"
+                                    for n, p in view.data) + "</ul>")
     if view.status == "failed":
         message = view.message or ""
         if "\n" in message:
@@ -75,58 +131,144 @@ def _run(view: ExperimentView) -> str:
             out.append(f"<details><summary>traceback</summary><pre>{_e(view.traceback)}</pre></details>")
     elif view.status == "skipped":
         out.append(f"<p><strong>Skipped:</strong> {_e(view.message or '')}</p>")
-    for table in view.tables:
-        out.append(f"<h4>{_e(table['title'])}</h4>")
+    for j, table in enumerate(view.tables):
+        anchor = plan.table[(id(view), j)]
+        out.append(_heading(4, f"Table: {table['title']}", anchor))
         out.append(_table(table["columns"], table["rows"]))
         if table["note"]:
             out.append(f'<p class="note">{_e(table["note"])}</p>')
-    for name, rel, exists in view.figures:
-        src = quote(rel, safe="/")
-        missing = "" if exists else ' <span class="muted">(file missing)</span>'
-        out.append(
-            f'<figure><img src="{_e(src)}" alt="{_e(name)}" loading="lazy">'
-            f"<figcaption>{_e(name)}{missing}</figcaption></figure>"
-        )
+    for j, (name, rel, exists) in enumerate(view.figures):
+        anchor = plan.figure[(id(view), j)]
+        caption = (f'<figcaption><a class="anchor" href="#{_e(anchor)}">Figure</a> <code>{_e(name)}</code> '
+                   f"({_e(view.data_label)})</figcaption>")
+        if exists:
+            src = _e(quote(rel, safe="/"))
+            out.append(f'<figure id="{_e(anchor)}"><a href="{src}"><img src="{src}" alt="figure {_e(name)}" '
+                       f'loading="lazy"></a>{caption}</figure>')
+        else:  # no <img> that cannot load: say which file is missing
+            out.append(f'<figure id="{_e(anchor)}" class="missing"><p class="muted">figure file missing: '
+                       f"<code>{_e(rel)}</code></p>{caption}</figure>")
     if view.notes:
         out.append("<h4>Notes</h4><ul>" + "".join(f"<li>{_e(n)}</li>" for n in view.notes) + "</ul>")
     if view.warnings:
         out.append("<h4>Warnings during the run (skipped files, ...)</h4><ul>"
                    + "".join(f"<li>{_e(w)}</li>" for w in view.warnings) + "</ul>")
     if view.config:
-        out.append("<h4>Configuration</h4>")
+        out.append("<details><summary>Configuration</summary>")
         out.append(_table(["parameter", "value"], [list(r) for r in view.config]))
-    out.append("<h4>Run</h4>")
+        out.append("</details>")
+    out.append("<details><summary>Run details</summary>")
     out.append(_table(["", ""], [list(r) for r in view.run_info], numeric=False))
-    out.append(f'<p class="note">Record: <code>{_e(view.source)}</code></p>')
+    out.append(f'<p class="note">Record: <code>{_e(view.source)}</code></p></details>')
     out.append("</section>")
     return "\n".join(out)
 
 
-def _verdict(text: str) -> str:
-    word = text.split(" (")[0]
-    if word not in VERDICTS:
-        return _e(text)
-    return f'<span class="verdict verdict-{_e(word.replace(" ", "-"))}">{_e(text)}</span>'
-
-
-def _section(group: ExperimentGroup) -> str:
-    out = [f'<section id="{_e(_slug(group.id))}">']
-    out.append(f"<h2>{_e(group.title)}</h2>")
-    out.append(f'<p class="meta"><code>{_e(group.id)}</code> · thesis: {_e(group.thesis_ref or "—")}</p>')
-    columns, rows = group.claim_rows()
+def _section(g: ExperimentGroup, plan: Plan) -> str:
+    sec = plan.section[id(g)]
+    out = [f'<section class="experiment-section" id="{_e(sec)}">', '<details class="experiment" open>']
+    badges = " ".join(f'<span class="run-badge">{_e(VARIANT_LABELS.get(v.variant, v.variant))}: {_counts(v)}</span>'
+                      for v in g.views)
+    out.append(f'<summary><h2>{_e(g.title)}</h2><span class="meta"><code>{_e(g.id)}</code> · thesis: '
+               f'{_e(g.thesis_ref or "—")}</span><span class="badges">{badges}</span></summary>')
+    out.append('<div class="section-body">')
+    out.append(f'<p class="back"><a href="#summary">↑ summary</a> · <a href="#{_e(sec)}">link to this experiment</a></p>')
+    columns, rows = g.claim_rows()
     if rows:
-        out.append("<h3>Claims</h3><table><thead><tr>" + "".join(f"<th>{_e(c)}</th>" for c in columns)
-                   + "</tr></thead><tbody>")
-        for row in rows:
-            out.append(f"<tr><td>{_e(row[0])}</td><td><code>{_e(row[1])}</code></td>"
+        out.append(f'<h3>Claims</h3><div class="scroll"><table class="claims"><thead><tr><th></th>'
+                   + "".join(f"<th>{_e(c)}</th>" for c in columns) + "</tr></thead><tbody>")
+        for i, row in enumerate(rows):
+            anchor = plan.claim[(id(g), i)]
+            out.append(f'<tr id="{_e(anchor)}"><td><a class="anchor" href="#{_e(anchor)}" aria-label="link to this '
+                       f'claim">#</a></td><td>{_e(row[0])}</td><td><code>{_e(row[1])}</code></td>'
                        + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:]) + "</tr>")
-        out.append("</tbody></table>")
-    columns, rows = group.metric_rows()
+        out.append("</tbody></table></div>")
+    columns, rows = g.metric_rows()
     if rows:
         out.append("<h3>Numbers: the thesis' and ours, on each data</h3>")
         out.append(_table(columns, rows, caption="95 % interval in brackets where there are folds or seeds"))
-    out.extend(_run(view) for view in group.views)
-    out.append("</section>")
+    out.extend(_run(view, plan) for view in g.views)
+    out.append('<p class="back"><a href="#summary">↑ back to the summary</a></p>')
+    out.append("</div></details></section>")
+    return "\n".join(out)
+
+
+def _toc(groups: list[ExperimentGroup], plan: Plan, *, has_problems: bool, has_claims: bool) -> str:
+    out = ['<nav id="toc" class="toc" aria-label="contents">', '<p class="toc-title">Contents</p><ul>',
+           '<li><a href="#summary">Summary</a></li>']
+    if has_problems:
+        out.append('<li><a href="#records-left-out">Records left out</a></li>')
+    if has_claims:
+        out.append('<li><a href="#claims">Every claim on each data</a></li>')
+    out.append("</ul>")
+    if groups:
+        out.append(f'<p class="toc-title">Experiments ({len(groups)})</p><ol class="toc-experiments">')
+        for g in groups:
+            runs = "".join(f'<li><a href="#{_e(plan.run[id(v)])}">{_e(VARIANT_LABELS.get(v.variant, v.variant))}</a> '
+                           f"{_counts(v, compact=True)}</li>" for v in g.views)
+            out.append(f'<li><a href="#{_e(plan.section[id(g)])}" title="{_e(g.title)}"><code>{_e(g.id)}</code></a>'
+                       f'<ul class="toc-runs">{runs}</ul></li>')
+        out.append("</ol>")
+        out.append('<p class="toc-legend">claims: ' + " ".join(
+            f'<span class="count count-{_e(v.replace(" ", "-"))}">{_SYMBOLS[v]}</span> {_e(v)}' for v in VERDICTS) + "</p>")
+        out.append('<p class="toc-buttons"><button type="button" data-open="1" hidden>open all</button> '
+                   '<button type="button" data-open="0" hidden>close all</button></p>')
+    out.append("</nav>")
+    return "\n".join(out)
+
+
+def _summary(views: list[ExperimentView], plan: Plan) -> str:
+    out = ['<h2 id="summary">Summary</h2>',
+           '<p class="note">One row per run: whether it ran, on which data, and the verdicts of its claims '
+           "(re-decided from the stored numbers). The experiment's section has the numbers behind them.</p>",
+           '<div class="scroll"><table class="summary"><thead><tr><th>experiment</th><th>title</th><th>data</th>'
+           "<th>ran</th>" + "".join(f'<th class="num">{_e(v)}</th>' for v in VERDICTS)
+           + "<th>run time</th></tr></thead><tbody>"]
+    for g in plan.groups:  # one row per run, the experiment's cells spanning its runs
+        for k, view in enumerate(g.views):
+            n_by_verdict = view.verdict_counts()
+            cells = "".join(f'<td class="num count-{_e(v.replace(" ", "-"))}">{n_by_verdict[v] or ""}</td>'
+                            for v in VERDICTS)
+            span = f' rowspan="{len(g.views)}"' if len(g.views) > 1 else ""
+            head = (f'<td{span}><a href="#{_e(plan.section[id(g)])}"><code>{_e(g.id)}</code></a></td>'
+                    f"<td{span}>{_e(g.title)}</td>") if k == 0 else ""
+            out.append(
+                f'<tr>{head}<td><a href="#{_e(plan.run[id(view)])}">{_e(view.data_label)}</a></td>'
+                f'<td class="nowrap">{_status(view.status, view.status_label)}</td>{cells}'
+                f'<td class="nowrap">{_e(view.elapsed)}</td></tr>'
+            )
+    out.append("</tbody></table></div>")
+    out.append("<ul>")
+    for variant in ("real", "synthetic"):
+        runs = [v for v in views if v.variant == variant]
+        if runs:
+            ran = [v for v in runs if v.status == "ok"]
+            counts = ", ".join(f"{sum(v.count(x) for v in ran)} {x}" for x in VERDICTS)
+            others = ", ".join(f"{n} {label}" for label, n in (
+                ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
+                if n)
+            out.append(f"<li>On {_e(VARIANT_LABELS[variant])}: {len(ran)} run(s) ran"
+                       + (f" ({_e(others)})" if others else "") + f"; claims: {_e(counts)}.</li>")
+    out.append("</ul>")
+    return "\n".join(out)
+
+
+def _claims(views: list[ExperimentView], plan: Plan) -> str:
+    columns, rows = claims_by_data(views)
+    if not rows:
+        return ""
+    out = ['<h2 id="claims">Every claim on each data</h2><p class="note">Claims whose verdict differs between real '
+           "and generated data come first; each claim links to its experiment's section, with the numbers and "
+           "intervals behind the verdict.</p>",
+           '<div class="scroll"><table><thead><tr>' + "".join(f"<th>{_e(c)}</th>" for c in columns)
+           + "</tr></thead><tbody>"]
+    sections = plan.section_of
+    for row in rows:
+        target = plan.claim_by_text.get((row[0], row[1])) or sections.get(row[0], "summary")
+        out.append(f'<tr><td><a href="#{_e(sections.get(row[0], "summary"))}"><code>{_e(row[0])}</code></a></td>'
+                   f'<td><a href="#{_e(target)}">{_e(row[1])}</a></td>'
+                   + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:-1]) + f"<td>{_e(row[-1])}</td></tr>")
+    out.append("</tbody></table></div>")
     return "\n".join(out)
 
 
@@ -134,50 +276,32 @@ def render_html(views: list[ExperimentView], *, title: str, problems: Sequence[t
     """Return the whole HTML report for ``views`` (``problems``: records left out, as (file, reason))."""
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     groups = group(views)
+    plan = Plan(groups)
+    claims = _claims(views, plan) if views else ""
     out = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
         f"<title>{_e(title)}</title>",
         f"<style>\n{_css()}\n</style></head><body>",
-        f"<h1>{_e(title)}</h1>",
+        '<div class="layout">',
+        _toc(groups, plan, has_problems=bool(problems), has_claims=bool(claims)),
+        '<main id="main">',
+        f'<h1 id="top">{_e(title)}</h1>',
         f'<p class="meta">Generated {_e(now)} by mmconcepts {_e(__version__)} · '
         f"{len(groups)} experiment(s), {len(views)} run(s)</p>",
     ]
     if problems:
-        out.append('<h3 id="records-left-out">Records left out</h3><p class="note">These files look like result '
+        out.append('<h2 id="records-left-out">Records left out</h2><p class="note">These files look like result '
                    "records but cannot be read or shown; rerun their experiments (or delete them).</p>")
         out.append(_table(["file", "reason"], [[name, reason] for name, reason in problems], numeric=False))
     if not views:
-        out.append("<p>No result records found.</p>")
+        out.append('<h2 id="summary">Summary</h2><p>No result records found.</p>')
     else:
-        out.append("<h3>Summary</h3><table><thead><tr><th>experiment</th><th>title</th><th>data</th><th>ran</th>"
-                   "<th>claims</th><th>run time</th></tr></thead><tbody>")
-        for view in views:
-            out.append(
-                f'<tr><td><a href="#{_e(_slug(view.id))}"><code>{_e(view.id)}</code></a></td>'
-                f"<td>{_e(view.title)}</td><td>{_e(view.data_label)}</td><td>{_status(view.status, view.status_label)}</td>"
-                f"<td>{_e(view.claims_summary)}</td><td>{_e(view.elapsed)}</td></tr>"
-            )
-        out.append("</tbody></table>")
-        out.append("<ul>")
-        for variant in ("real", "synthetic"):
-            runs = [v for v in views if v.variant == variant and v.status == "ok"]
-            if runs:
-                counts = ", ".join(f"{sum(v.count(x) for v in runs)} {x}" for x in VERDICTS)
-                out.append(f"<li>On {_e(VARIANT_LABELS[variant])}: {len(runs)} run(s); claims: {_e(counts)}.</li>")
-        out.append("</ul>")
-        columns, rows = claims_by_data(views)
-        if rows:
-            out.append("<h3>Every claim on each data</h3><p class=\"note\">Claims whose verdict differs between real "
-                       "and generated data come first; the experiment's section has the numbers and intervals behind "
-                       "each verdict.</p>")
-            out.append("<table><thead><tr>" + "".join(f"<th>{_e(c)}</th>" for c in columns) + "</tr></thead><tbody>")
-            for row in rows:
-                out.append(f'<tr><td><a href="#{_e(_slug(row[0]))}"><code>{_e(row[0])}</code></a></td>'
-                           f"<td>{_e(row[1])}</td>" + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:-1])
-                           + f"<td>{_e(row[-1])}</td></tr>")
-            out.append("</tbody></table>")
-    out.extend(_section(g) for g in groups)
+        out.append(_summary(views, plan))
+        out.append(claims)
+    out.extend(_section(g, plan) for g in groups)
+    out.append("</main></div>")
+    out.append(f"<script>{_SCRIPT}</script>")
     out.append("</body></html>\n")
     return "\n".join(out)

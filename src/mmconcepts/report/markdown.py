@@ -1,4 +1,10 @@
-"""Render the report as Markdown (GitHub-flavoured tables, figures as relative images)."""
+"""Render the report as Markdown (GitHub-flavoured tables, figures as relative images).
+
+The same structure as the HTML report where Markdown can: a contents list, a summary, one
+section per experiment, each with a link back to the summary, and an anchor (an empty
+``<a id="...">``, the ids of the HTML report) before every experiment, run, table, figure
+and claim. Text from a record is escaped: no HTML from a record reaches the file.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +14,7 @@ from collections.abc import Sequence
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, claims_by_data, group
+from ._model import VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group
 
 __all__ = ["render_markdown"]
 
@@ -39,17 +45,31 @@ def _code(text: object) -> str:
     return f"{fence}{pad}{s}{pad}{fence}"
 
 
-def _table(columns: list[str], rows: list[list[str]]) -> list[str]:
+def _table(columns: list[str], rows: list[list[str]], *, raw: int = 0) -> list[str]:
+    """A GFM table; the first ``raw`` cells of each row are table-ready Markdown already (pipes escaped)."""
     out = ["| " + " | ".join(_cell(c) for c in columns) + " |", "|" + "|".join("---" for _ in columns) + "|"]
-    out += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in rows]
+    for row in rows:
+        cells = [c if i < raw else _cell(c) for i, c in enumerate(row)]
+        out.append("| " + " | ".join(cells) + " |")
     return out + [""]
 
 
-def _run(view: ExperimentView) -> list[str]:
+def _anchor(anchor: str) -> str:
+    """An empty HTML anchor; ``anchor`` comes from :class:`Plan` (ASCII letters, digits, ``-``)."""
+    return f'<a id="{anchor}"></a>'
+
+
+def _link(text: str, anchor: str, *, cell: bool = False) -> str:
+    """``[text](#anchor)`` with ``text`` as a code span (so nothing in it is markup); ``cell``: for a table cell."""
+    code = _code(text)
+    return f"[{code.replace('|', chr(92) + '|') if cell else code}](#{anchor})"
+
+
+def _run(view: ExperimentView, plan: Plan) -> list[str]:
     meta = f"status: **{_text(view.status_label)}**"
     if view.elapsed:
         meta += f" · {view.elapsed}"
-    out = [f"### On {_text(view.data_label)}", "", meta, ""]
+    out = [_anchor(plan.run[id(view)]), f"### On {_text(view.data_label)}", "", meta, ""]
     if view.data:
         out += [f"- data set {_code(name)}: {_code(path)}" for name, path in view.data] + [""]
     if view.status == "failed":
@@ -58,13 +78,17 @@ def _run(view: ExperimentView) -> list[str]:
             out += ["```", view.traceback.rstrip("\n").replace("```", "` ` `"), "```", ""]
     elif view.status == "skipped":
         out += [f"**Skipped:** {_text(view.message or '')}", ""]
-    for table in view.tables:
-        out += [f"#### {_text(table['title'])}", ""] + _table(table["columns"], table["rows"])
+    for j, table in enumerate(view.tables):
+        out += [_anchor(plan.table[(id(view), j)]), f"#### Table: {_text(table['title'])}", ""]
+        out += _table(table["columns"], table["rows"])
         if table["note"]:
             out += [f"*{_text(table['note'])}*", ""]
-    for name, rel, exists in view.figures:
-        missing = " (file missing)" if not exists else ""
-        out += [f"![{_text(name)}]({quote(rel, safe='/')}){missing}", ""]
+    for j, (name, rel, exists) in enumerate(view.figures):
+        out += [_anchor(plan.figure[(id(view), j)])]
+        if exists:
+            out += [f"![figure {_text(name)}]({quote(rel, safe='/')})", "", f"*Figure {_code(name)}*", ""]
+        else:
+            out += [f"*Figure {_code(name)}: file missing ({_code(rel)})*", ""]
     if view.notes:
         out += ["#### Notes", ""] + [f"- {_text(n)}" for n in view.notes] + [""]
     if view.warnings:
@@ -76,38 +100,70 @@ def _run(view: ExperimentView) -> list[str]:
     return out
 
 
-def _section(group: ExperimentGroup) -> list[str]:
-    out = [f"## {_text(group.title)}", "", f"{_code(group.id)} · thesis: {_text(group.thesis_ref or '—')}", ""]
-    columns, rows = group.claim_rows()
+def _section(g: ExperimentGroup, plan: Plan) -> list[str]:
+    sec = plan.section[id(g)]
+    out = [_anchor(sec), f"## {_text(g.title)}", "", f"{_code(g.id)} · thesis: {_text(g.thesis_ref or '—')}", "",
+           "[↑ back to the summary](#summary)", ""]
+    columns, rows = g.claim_rows()
     if rows:
-        out += ["### Claims", ""] + _table(columns, rows)
-    columns, rows = group.metric_rows()
+        cells = [[_anchor(plan.claim[(id(g), i)])] + row for i, row in enumerate(rows)]
+        out += ["### Claims", ""] + _table(["#", *columns], cells, raw=1)
+    columns, rows = g.metric_rows()
     if rows:
         out += ["### Numbers: the thesis' and ours, on each data (95 % interval where there are folds or seeds)", ""]
         out += _table(columns, rows)
-    for view in group.views:
-        out += _run(view)
+    for view in g.views:
+        out += _run(view, plan)
+    out += ["[↑ back to the summary](#summary)", ""]
     return out
 
 
-def _summary(views: list[ExperimentView]) -> list[str]:
-    rows = [[v.id, v.title, v.data_label, v.status_label, v.claims_summary, v.elapsed]
-            for v in views]
-    out = ["## Summary", ""] + _table(["experiment", "title", "data", "ran", "claims", "run time"], rows)
-    totals = {verdict: sum(v.count(verdict) for v in views if v.status == "ok") for verdict in VERDICTS}
+def _contents(groups: list[ExperimentGroup], plan: Plan, *, problems: bool, claims: bool) -> list[str]:
+    out = ["## Contents", "", "- [Summary](#summary)"]
+    if problems:
+        out.append("- [Records left out](#records-left-out)")
+    if claims:
+        out.append("- [Every claim on each data](#claims)")
+    for g in groups:
+        runs = "; ".join(f"{VARIANT_LABELS.get(v.variant, _text(v.variant))}: "
+                         + (v.claims_summary if v.status == "ok" else _text(v.status_label)) for v in g.views)
+        out.append(f"- {_link(g.id, plan.section[id(g)])}: {_text(g.title)} ({runs})")
+    return out + [""]
+
+
+def _summary(views: list[ExperimentView], plan: Plan) -> list[str]:
+    out = [_anchor("summary"), "## Summary", "",
+           "One row per run: whether it ran, on which data, and the verdicts of its claims (re-decided from the "
+           "stored numbers).", ""]
+    rows = []
+    for g in plan.groups:
+        for view in g.views:
+            n_by_verdict = view.verdict_counts()
+            rows.append([_link(view.id, plan.run[id(view)], cell=True), view.title, view.data_label, view.status_label]
+                        + [str(n_by_verdict[v]) if n_by_verdict[v] else "" for v in VERDICTS] + [view.elapsed])
+    out += _table(["experiment", "title", "data", "ran", *VERDICTS, "run time"], rows, raw=1)
     for variant in ("real", "synthetic"):
-        runs = [v for v in views if v.variant == variant and v.status == "ok"]
+        runs = [v for v in views if v.variant == variant]
         if runs:
-            counts = ", ".join(f"{sum(v.count(x) for v in runs)} {x}" for x in VERDICTS)
-            out += [f"- On {VARIANT_LABELS[variant]}: {len(runs)} run(s); claims: {counts}."]
-    if any(totals.values()):
-        out.append("")
+            ran = [v for v in runs if v.status == "ok"]
+            counts = ", ".join(f"{sum(v.count(x) for v in ran)} {x}" for x in VERDICTS)
+            others = ", ".join(f"{n} {label}" for label, n in (
+                ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
+                if n)
+            out.append(f"- On {VARIANT_LABELS[variant]}: {len(ran)} run(s) ran" + (f" ({others})" if others else "")
+                       + f"; claims: {counts}.")
+    out.append("")
     columns, rows = claims_by_data(views)
     if rows:
-        out += ["### Every claim on each data", "",
-                "Claims whose verdict differs between real and generated data come first; the experiment's "
-                "section has the numbers and intervals behind each verdict.", ""]
-        out += _table(columns, rows)
+        out += [_anchor("claims"), "### Every claim on each data", "",
+                "Claims whose verdict differs between real and generated data come first; each claim links to its "
+                "experiment's section, with the numbers and intervals behind the verdict.", ""]
+        linked = []
+        for row in rows:
+            target = plan.claim_by_text.get((row[0], row[1])) or plan.section_of.get(row[0], "summary")
+            linked.append([_link(row[0], plan.section_of.get(row[0], "summary"), cell=True),
+                           f"[{_cell(row[1]).replace('[', '&#91;').replace(']', '&#93;')}](#{target})"] + row[2:])
+        out += _table(columns, linked, raw=2)
     return out
 
 
@@ -115,16 +171,20 @@ def render_markdown(views: list[ExperimentView], *, title: str, problems: Sequen
     """Return the whole Markdown report for ``views`` (``problems``: records left out, as (file, reason))."""
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     groups = group(views)
+    plan = Plan(groups)
     out = [f"# {_text(title)}", "", f"Generated {now} by mmconcepts {__version__} · {len(groups)} experiment(s), "
            f"{len(views)} run(s)", ""]
+    if views:
+        out += _contents(groups, plan, problems=bool(problems), claims=bool(claims_by_data(views)[1]))
     if problems:
-        out += ["### Records left out", "", "These files look like result records but cannot be read or shown; "
-                "rerun their experiments (or delete them).", ""]
+        out += [_anchor("records-left-out"), "### Records left out", "",
+                "These files look like result records but cannot be read or shown; rerun their experiments (or "
+                "delete them).", ""]
         out += _table(["file", "reason"], [[name, reason] for name, reason in problems])
     if not views:
-        out += ["No result records found.", ""]
+        out += [_anchor("summary"), "No result records found.", ""]
     else:
-        out += _summary(views)
+        out += _summary(views, plan)
     for g in groups:
-        out += _section(g)
+        out += _section(g, plan)
     return "\n".join(out).rstrip("\n") + "\n"
