@@ -34,7 +34,8 @@ from mmconcepts.experiments import _ch6_common as ch6
 
 
 def _entries(folder):
-    return sorted(folder.rglob("*.npz"))
+    """The cache entries under ``folder`` (not the temporary files of entries being written)."""
+    return sorted(p for p in folder.rglob("*.npz") if not p.name.startswith("."))
 
 
 def _tear(path):
@@ -442,3 +443,27 @@ def test_an_interrupted_parallel_run_keeps_the_calls_it_finished(tmp_path):
     out = ctx.parallel_cached(cached, [(x, str(log), -1) for x in range(6)])
     assert [p.name.split("-")[0] for p in log.iterdir()] == ["5"]  # only the unfinished call ran again
     assert [o["x"] for o in out] == list(range(6)) and [int(o["square"][0]) for o in out] == [x * x for x in range(6)]
+
+
+def test_an_entry_that_cannot_be_written_or_read_is_computed(tmp_path, caplog):
+    """A folder where the entry should be (neither readable nor replaceable): computed each time, no crash."""
+    cached = RunContext(cache_dir=tmp_path, show_progress=False).memory("x").cache(_identity_value)
+    cached.path(cached.key(7)).mkdir(parents=True)
+    _computed.clear()
+    assert cached(7) == 7 and cached(7) == 7 and _computed == ["identity"] * 2
+    assert "not written" in caplog.text
+
+
+def test_the_temporary_file_of_a_killed_writer_is_removed_later(tmp_path):
+    import os
+    import time
+
+    store = RunContext(cache_dir=tmp_path, show_progress=False).memory("x")
+    cached = store.cache(_identity_value)
+    cached(1)
+    old, new = cached.location / ".abc.npz.x1.tmp.npz", cached.location / ".def.npz.x2.tmp.npz"
+    old.write_bytes(b"PK")
+    new.write_bytes(b"PK")
+    os.utime(old, (time.time() - 7200,) * 2)
+    store.cache(_identity_value)
+    assert not old.exists() and new.exists() and len(_entries(tmp_path)) == 1  # a recent one may be being written

@@ -21,6 +21,7 @@ function's module, qualified name and source, and of the arguments not in ``igno
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import inspect
@@ -274,6 +275,21 @@ def _source_digest(func: Callable[..., Any]) -> str:
     return hashlib.sha1(source.encode("utf-8", "surrogatepass")).hexdigest()
 
 
+def _remove_stale_temporaries(folder: Path, age: float = 3600.0) -> None:
+    """Delete the temporary files of entries whose writer was killed (older than ``age`` seconds)."""
+    import time
+
+    try:
+        with os.scandir(folder) as it:
+            for entry in it:
+                if entry.name.startswith(".") and entry.name.endswith(".tmp.npz") and entry.is_file():
+                    with contextlib.suppress(OSError):
+                        if time.time() - entry.stat().st_mtime > age:
+                            os.unlink(entry.path)
+    except OSError:  # no folder yet
+        pass
+
+
 class CachedFunction(Generic[_R]):
     """``func`` with its results kept on disk (see the module docstring). Made by :meth:`CacheStore.cache`.
 
@@ -298,6 +314,7 @@ class CachedFunction(Generic[_R]):
         self.location = Path(location) / re.sub(r"[^A-Za-z0-9_.-]", "_", name)
         self._name = name
         self._source = _source_digest(func)
+        _remove_stale_temporaries(self.location)
 
     def key(self, *args: Any, **kwargs: Any) -> str:
         """The entry's key of a call with these arguments (a hex digest)."""
@@ -343,7 +360,11 @@ class CachedFunction(Generic[_R]):
 
     def _compute(self, key: str, args: tuple, kwargs: dict[str, Any]) -> _R:
         value = self.func(*args, **kwargs)
-        write_entry(self.path(key), value, key)
+        path = self.path(key)
+        try:
+            write_entry(path, value, key)
+        except OSError as exc:  # a cache that cannot be written (read-only, full, a folder in the way): go on
+            logger.warning("cache entry %s not written (%s): it will be computed again next time", path, exc)
         return value
 
     def clear(self) -> None:
