@@ -474,7 +474,7 @@ def test_public_functions_check_their_parameters():
         (lambda: dense_sift(image, contrast_threshold=-1), "contrast_threshold must be a real number >= 0"),
         (lambda: dense_sift(image, rotation_invariant="yes"), "rotation_invariant must be a bool"),
         (lambda: superpixel_colors(image, n_segments=0), "superpixel_colors: n_segments must be an int >= 1"),
-        (lambda: superpixel_colors(image, compactness=0), "compactness must be a real number > 0"),
+        (lambda: superpixel_colors(image, compactness=0), "compactness must be a real number >= 1e-06"),
         (lambda: neighbour_tuples(np.zeros((3, 2)), order=4), "neighbour_tuples: order must be one of 2, 3"),
         (lambda: neighbour_tuples(np.zeros((3, 2)), n_neighbors=0), "n_neighbors must be an int >= 1"),
         (lambda: n_tuple_columns(4, 0), "n_tuple_columns: order must be an int >= 1"),

@@ -19,8 +19,6 @@ from __future__ import annotations
 import importlib
 import json
 import numbers
-import zipfile
-import zlib
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -205,7 +203,8 @@ class SaveLoadMixin:
         try:
             z = np.load(path, allow_pickle=False)
             header = json.loads(str(z["header"]))
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as e:  # empty, truncated
+        except Exception as e:  # noqa: BLE001 - empty, truncated, bytes flipped: numpy's parsers raise OSError,
+            # ValueError, KeyError, EOFError, BadZipFile, zlib.error, tokenize.TokenError, SyntaxError...
             raise DataFormatError(f"{path}: not a saved mmconcepts {cls.__name__} ({e}).") from None
         if not isinstance(header, dict) or header.get("format") != f"mmconcepts.{cls.__name__}":
             fmt = header.get("format") if isinstance(header, dict) else None
@@ -232,12 +231,29 @@ class SaveLoadMixin:
             if version != cls._save_format_version:
                 return cls._load_other_version(path, header, z)
             try:
-                obj = cls(**decode(header["params"], z))
-                obj._set_state(decode(header["state"], z))
-            except (KeyError, TypeError, ValueError, AttributeError, IndexError, OSError, EOFError,
-                    zipfile.BadZipFile, zlib.error) as e:  # an edited header, an array cut short
+                params = decode(header["params"], z)
+                if not isinstance(params, dict):
+                    raise TypeError(f"the parameters are a {type(params).__name__}, not a mapping")
+                obj = cls(**params)
+                state = decode(header["state"], z)
+                if not isinstance(state, dict):
+                    raise TypeError(f"the fitted state is a {type(state).__name__}, not a mapping")
+                obj._set_state(state)
+                obj._check_loaded_state()
+            except Exception as e:  # noqa: BLE001 - an edited header, an array cut short or damaged, a bad state
+                if isinstance(e, DataFormatError) and str(path) in str(e):
+                    raise
                 raise DataFormatError(f"{path}: a corrupt saved {cls.__name__} ({type(e).__name__}: {e}).") from None
         return obj
+
+    def _check_loaded_state(self) -> None:
+        """Check a loaded state for consistency; raise ``ValueError`` (or a subclass) if it is not.
+
+        Called by :meth:`load` after :meth:`_set_state`, whose errors it turns into a
+        :class:`~mmconcepts.errors.DataFormatError` naming the file, so that an edited file
+        fails at load time rather than at the first use of the model. The default checks
+        nothing; classes whose state has invariants (shapes that must agree) override it.
+        """
 
     @classmethod
     def _load_other_version(cls, path: Path, header: dict, z: Any):

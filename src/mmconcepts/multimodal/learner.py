@@ -31,7 +31,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
 from .._validation import Interval, Options, check_nonnegative_matrix, validate_params
-from ..errors import DataError, DataFormatError
+from ..errors import DataError, DataFormatError, MMConceptsError
 from ..nmf import NMF
 
 __all__ = ["MultimodalNMF", "FORMAT_VERSION"]
@@ -154,7 +154,12 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         for name, Xm in X.items():
             if not isinstance(name, str):
                 raise DataError(f"modality names must be strings; got {name!r}.")
-            Xm = check_nonnegative_matrix(Xm, f"modality {name!r}")
+            try:
+                Xm = check_nonnegative_matrix(Xm, f"modality {name!r}")
+            except MMConceptsError:
+                raise
+            except (TypeError, ValueError) as exc:  # e.g. an object array holding text
+                raise DataError(f"modality {name!r} must be a numeric matrix ({exc}).") from None
             if n is None:
                 n = Xm.shape[0]
             elif Xm.shape[0] != n:
@@ -279,10 +284,22 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         ndarray of shape (n_samples, sum of the modalities' n_features)
         """
         check_is_fitted(self)
-        names = [modality] if isinstance(modality, str) else list(modality)
-        W = np.asarray(W, dtype=np.float64)
+        if isinstance(modality, str):
+            names = [modality]
+        elif isinstance(modality, Sequence) and modality and all(isinstance(m, str) for m in modality):
+            names = list(modality)
+        else:
+            raise DataError(f"modality must be a modality name or a non-empty sequence of names among "
+                            f"{self.modalities_}; got {modality!r}.")
+        try:
+            W = np.asarray(W, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise DataError(f"W must be a numeric array of shape (n_samples, {self.components_.shape[0]}) ({exc}).") \
+                from None
         if W.ndim != 2 or W.shape[1] != self.components_.shape[0]:
             raise DataError(f"W must be (n_samples, {self.components_.shape[0]}); got shape {W.shape}.")
+        if not np.isfinite(W).all() or (W < 0).any():
+            raise DataError("W must be finite and nonnegative (internal representations from transform).")
         out = []
         for name in names:
             out.append(W @ self.components_[:, self._slice(name)] * self.scales_[name])
@@ -302,6 +319,29 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
     def _set_state(self, state: dict[str, Any]) -> None:
         super()._set_state(state)
         self.components_ = self.nmf_.components_
+
+    def _check_loaded_state(self) -> None:
+        """The loaded modalities, widths, scales and dictionary agree (an edited file fails here, naming itself)."""
+        names = self.modalities_
+        if not (isinstance(names, list) and names and all(isinstance(m, str) for m in names)
+                and len(set(names)) == len(names)):
+            raise DataError(f"modalities_ must be a non-empty list of distinct names; got {names!r}.")
+        for what, table in (("n_features_", self.n_features_), ("scales_", self.scales_)):
+            if not isinstance(table, dict) or sorted(table) != sorted(names):
+                raise DataError(f"{what} must have one entry per modality {names}; got {table!r}.")
+        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in self.n_features_.values()):
+            raise DataError(f"n_features_ must be positive integers; got {self.n_features_!r}.")
+        if not all(isinstance(v, float) and np.isfinite(v) and v > 0 for v in self.scales_.values()):
+            raise DataError(f"scales_ must be finite positive numbers; got {self.scales_!r}.")
+        if not isinstance(self.nmf_, NMF):
+            raise DataError(f"nmf_ must be a fitted NMF; got {type(self.nmf_).__name__}.")
+        H = self.components_
+        want = (int(self.n_components), sum(self.n_features_.values()))
+        if not isinstance(H, np.ndarray) or H.dtype.kind != "f" or H.shape != want:
+            raise DataError(f"the dictionary must be a float array of shape {want}; got "
+                            f"{getattr(H, 'shape', type(H).__name__)}.")
+        if not np.isfinite(H).all() or (H < 0).any():
+            raise DataError("the dictionary holds negative, NaN or infinite values.")
 
     @classmethod
     def _load_other_version(cls, path: Path, header: dict, z: Any) -> MultimodalNMF:
@@ -324,4 +364,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         nmf._set_state({"components_": components, "n_components_": components.shape[0],
                         "n_features_in_": components.shape[1]})
         model._set_state({"modalities_": names, "n_features_": n_features, "scales_": scales, "nmf_": nmf})
+        try:
+            model._check_loaded_state()
+        except ValueError as e:
+            raise DataFormatError(f"{path}: a corrupt saved MultimodalNMF ({e}).") from None
         return model

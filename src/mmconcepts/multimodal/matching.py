@@ -80,11 +80,26 @@ def pairwise_divergence(A: Any, B: Any, metric: str = "kl") -> np.ndarray:
     ndarray of shape (n_a, n_b)
     """
     validate_params({"metric": metric}, _PAIRWISE_CONSTRAINTS, owner="pairwise_divergence")
-    A, B = _dense(A), _dense(B)
+    try:
+        A, B = _dense(A), _dense(B)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"A and B must be numeric arrays ({exc}).") from None
     if A.ndim != 2 or B.ndim != 2 or A.shape[1] != B.shape[1]:
         raise DataError(f"A and B must be 2-D with the same number of columns; got {A.shape} and {B.shape}.")
+    for name, M in (("A", A), ("B", B)):
+        if not np.isfinite(M).all():
+            raise DataError(f"{name} holds NaN or infinite values.")
+        if metric != "euclidean" and metric != "cosine" and (M < 0).any():
+            raise DataError(f"{name} holds negative values; the {metric!r} divergence compares nonnegative "
+                            "histograms (use 'euclidean' or 'cosine' for signed data).")
+        if metric == "euclidean" and M.size and np.abs(M).max() > _MAX_EUCLIDEAN:
+            raise DataError(f"{name} holds values up to {np.abs(M).max():.3g}, whose squares overflow; rescale it.")
     if metric == "idiv":
-        return _idiv(A, B)
+        with np.errstate(over="ignore"):
+            D = _idiv(A, B)
+        if not np.isfinite(D).all():
+            raise DataError("the I-divergence overflows on these values; rescale A and B.")
+        return D
     if metric == "kl":
         return _kl(A, B)
     if metric == "kl_reversed":
@@ -94,10 +109,17 @@ def pairwise_divergence(A: Any, B: Any, metric: str = "kl") -> np.ndarray:
     if metric == "euclidean":
         sq = (A * A).sum(1)[:, None] + (B * B).sum(1)[None, :] - 2 * A @ B.T
         return np.sqrt(np.maximum(sq, 0.0))
-    # "cosine", the last metric the constraints admit
+    # "cosine", the last metric the constraints admit; scale-invariant, so rows too large to square are scaled first
+    if max(np.abs(A).max(initial=0.0), np.abs(B).max(initial=0.0)) > _MAX_EUCLIDEAN:
+        A = A / np.maximum(np.abs(A).max(axis=1, keepdims=True), _EPS)
+        B = B / np.maximum(np.abs(B).max(axis=1, keepdims=True), _EPS)
     na = np.linalg.norm(A, axis=1)[:, None]
     nb = np.linalg.norm(B, axis=1)[None, :]
     return 1.0 - (A @ B.T) / np.maximum(na * nb, _EPS)
+
+
+#: Largest |value| the Euclidean distance takes: its squares (and their sums) must stay finite.
+_MAX_EUCLIDEAN = 1e150
 
 
 def _names(X: Mapping[str, Any], what: str) -> list[str]:
@@ -182,6 +204,8 @@ def matching_success_rate(
         raise DataError(f"D must be (len(y_test), len(y_ref)) = ({len(y_test)}, {len(y_ref)}); got {D.shape}.")
     if np.isnan(D).any():
         raise DataError("D contains NaN distances.")
+    if len(y_test) == 0 or len(y_ref) == 0:
+        raise DataError(f"need at least one test and one reference example; got {len(y_test)} and {len(y_ref)}.")
     classes = np.unique(y_ref)
     missing = set(np.unique(y_test)) - set(classes)
     if missing:
