@@ -229,3 +229,24 @@ def test_two_runs_into_one_folder(tmp_path):
     # run a reads the records and writes its report 4 s later; b's report (both records) comes in
     # between: a must not then replace it with its own (without b)
     _both(tmp_path, env, tmp_path / "out2", (), slow_a=4.0, delay_b=2.0)
+
+
+def test_folder_lock_makes_a_second_holder_wait(tmp_path):
+    import threading
+
+    from mmconcepts._io import folder_lock
+
+    events = []
+
+    def second():
+        with folder_lock(tmp_path / "out", ".report.lock"):
+            events.append(("second", time.monotonic()))
+
+    with folder_lock(tmp_path / "out", ".report.lock"):
+        thread = threading.Thread(target=second)
+        thread.start()
+        time.sleep(0.5)
+        events.append(("first leaves", time.monotonic()))
+    thread.join(10)
+    assert [e for e, _ in events] == ["first leaves", "second"]
+    assert (tmp_path / "out" / ".report.lock").is_file()

@@ -452,7 +452,9 @@ class RunContext:
         module level) and each item must carry its own seed. Order is preserved. Warnings
         raised in a worker process are raised again here, in this process, so that the
         caller (and the runner's record of the run's warnings) sees the same warnings
-        whatever the number of workers.
+        whatever the number of workers. The worker processes end with this process, even
+        when it is killed (SIGKILL) in the middle of a task: at once on Linux, elsewhere
+        within about a second (as soon as the worker runs Python code).
 
         Parameters
         ----------
@@ -487,7 +489,7 @@ class RunContext:
         return out
 
     def memory(self, name: str) -> CacheStore:
-        """A disk cache under ``cache_dir/name`` that never unpickles (a :class:`~._store.CacheStore`).
+        """A disk cache under ``cache_dir/name`` that never unpickles (a ``CacheStore``).
 
         ``ctx.memory(name).cache(f, ignore=[...])`` is ``f`` with its results kept on disk:
         an entry is reused only for the same arguments (hashed; leave out with ``ignore=``
