@@ -93,12 +93,12 @@ def no_env_root(monkeypatch):
 
 def test_registry_names_and_fields():
     assert list(ds.DATASETS) == ["fsdd", "msr-action3d", "eth80", "coil20", "choreo1", "choreo2", "acorns",
-                                 "audio", "images"]
+                                 "audio", "motion", "images"]
     assert ds.DATASETS["eth80"].folders == ("eth80", "eth80-96px")
     for info in ds.DATASETS.values():
         assert info.modality in ("speech", "motion", "images")
         assert info.title and info.layout and info.source and info.licence and info.obtain
-        assert info.real == (info.name not in ("audio", "images"))
+        assert info.real == (info.name not in ("audio", "motion", "images"))
         assert (info.url is None) or (info.sha256 is not None and len(info.sha256) == 64)
         assert info.citation or not info.real
     # Only FSDD has a stable public download with a published hash.

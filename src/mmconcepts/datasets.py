@@ -8,7 +8,7 @@ A *data root* is one folder holding the real data sets under their names::
         eth80/           ETH-80 PNGs (the folder may also be named eth80-96px)
         coil20/          COIL20.mat
         choreo1/ choreo2/ acorns/    the thesis' own formats
-        audio/ images/   a user's own data in the generic layouts
+        audio/ motion/ images/   a user's own data in the generic layouts
 
 The data root is given explicitly (``--data-root DIR``), else by the environment variable
 ``MMCONCEPTS_DATA_ROOT``; nothing else is ever searched. :data:`DATASETS` describes each
@@ -240,6 +240,18 @@ def _check_images(path: Path) -> str | None:
     return _check_labels_csv(path, ("file", "label"), "generic image")
 
 
+def _check_motion(path: Path) -> str | None:
+    labels = path / "labels.csv"
+    if not labels.is_file():
+        return "no labels.csv (the generic motion layout needs one with columns file,labels)"
+    header = _csv_header(labels)
+    if header is None:
+        return f"{labels} is empty or unreadable"
+    if "file" not in header or not ({"labels", "label"} & set(header)):
+        return f"{labels} lacks the column file or labels; its header is {header}, expected file,labels"
+    return None
+
+
 def _count_labels_csv(path: Path) -> int:
     return _csv_rows(path / "labels.csv")
 
@@ -251,7 +263,7 @@ def _count_labels_csv(path: Path) -> int:
 class DatasetInfo:
     """A data set known by name: where it lives under a data root, its layout and provenance.
 
-    ``real`` is False for the generic layouts (``audio``, ``images``): they are formats for a
+    ``real`` is False for the generic layouts (``audio``, ``motion``, ``images``): they are formats for a
     user's own data, not published data sets.
     """
 
@@ -505,6 +517,25 @@ _LIST: tuple[DatasetInfo, ...] = (
         real=False,
         loader="mmconcepts.sound.data:load_generic_audio",
         _check=_check_audio,
+        _count=_count_labels_csv,
+    ),
+    DatasetInfo(
+        name="motion",
+        title="Your own motion recordings (generic motion layout)",
+        modality="motion",
+        folders=("motion",),
+        layout=(
+            "One CSV file per recording (in the folder or sub-folders): a header naming the columns "
+            "<joint>_x,<joint>_y,<joint>_z of every joint, then one row per frame; and labels.csv with "
+            "columns file,labels (labels separated by ';'; file relative to the folder)."
+        ),
+        source="your own data",
+        licence="yours",
+        citation="",
+        obtain="put your recordings and labels.csv in DATA_ROOT/motion",
+        real=False,
+        loader="mmconcepts.motion.data:load_motion_folder",
+        _check=_check_motion,
         _count=_count_labels_csv,
     ),
     DatasetInfo(

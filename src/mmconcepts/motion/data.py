@@ -16,6 +16,10 @@ Choreo2
 MSR Action3D
     ``aAA_sSS_eEE_skeleton3D.txt``, one joint per line ``x y z confidence``, 20 lines per
     frame (Li, Zhang and Liu, CVPR workshops 2010).
+Generic motion layout (your own recordings)
+    One CSV file per recording, a header ``<joint>_x,<joint>_y,<joint>_z`` for every joint
+    and one row per frame, plus ``labels.csv`` (``file,labels``): :func:`load_motion_folder`,
+    :func:`save_motion_folder`.
 
 Marker names are matched without regard to case, with spaces, hyphens and underscores
 treated alike (:func:`normalize_marker_name`).
@@ -53,11 +57,13 @@ __all__ = [
     "load_choreo1",
     "load_choreo1_text",
     "load_choreo2",
+    "load_motion_folder",
     "load_msr_action3d",
     "normalize_marker_name",
     "save_choreo1",
     "save_choreo1_text",
     "save_choreo2",
+    "save_motion_folder",
 ]
 
 # --------------------------------------------------------------------------- constants
@@ -290,6 +296,11 @@ class SkippedRecord:
     record_id: str
     reason: str
 
+    @property
+    def file(self) -> str:
+        """The file at fault (the same as ``source``; the name the audio and image loaders' ``SkippedFile`` use)."""
+        return self.source
+
 
 @dataclass(eq=False)
 class MotionDataset:
@@ -426,6 +437,7 @@ def _load_records(
         raise DataFormatError(f"{json_path}: 'records' must be a list; got {type(records).__name__}.")
     for k, rec in enumerate(records):
         rid = str(rec.get(id_key, f"#{k}")) if isinstance(rec, dict) else f"#{k}"
+        source = json_path  # the record's entry in the index is checked first, then its array
         try:
             if not isinstance(rec, dict) or id_key not in rec or "labels" not in rec:
                 raise DataFormatError(
@@ -434,6 +446,7 @@ def _load_records(
             labels = rec["labels"]
             if not isinstance(labels, list) or not all(isinstance(x, int) and not isinstance(x, bool) for x in labels):
                 raise DataFormatError(f"{json_path}: record {rid} has labels {labels!r}; expected a list of ints.")
+            source = npz_path
             try:
                 arr = npz[rid]
             except KeyError:
@@ -444,7 +457,8 @@ def _load_records(
                 raise DataFormatError(f"{npz_path}: record {rid} is corrupt ({type(exc).__name__}: {exc}).") from exc
             if arr.ndim != 3 or arr.shape[1:] != (len(marker_names), n_values):
                 raise DataFormatError(
-                    f"{npz_path}: record {rid} has shape {arr.shape}; expected (T, {len(marker_names)}, {n_values})."
+                    f"{npz_path}: record {rid} has shape {arr.shape}; expected (T, {len(marker_names)}, {n_values}) "
+                    f"({len(marker_names)} marker names in {json_path.name})."
                 )
             if arr.shape[0] == 0 or not np.issubdtype(arr.dtype, np.number) or not np.isfinite(arr).all():
                 raise DataFormatError(f"{npz_path}: record {rid} is empty or holds non-finite values.")
@@ -457,7 +471,7 @@ def _load_records(
         except DataFormatError as exc:
             if on_error == "raise":
                 raise
-            skipped.append(SkippedRecord(str(npz_path), rid, str(exc)))
+            skipped.append(SkippedRecord(str(source), rid, str(exc)))
     return out
 
 
@@ -533,7 +547,13 @@ def _load_choreo(path: str | os.PathLike[str], what: str, sep: str, *, n_values:
         raise DataFormatError(f"{json_path}: {names_key!r} must be a list of strings.")
     if check_meta is not None:
         check_meta(meta, json_path)
-    npz_path = json_path.parent / str(data_file)
+    if not isinstance(data_file, str) or not data_file or Path(data_file).name != data_file:
+        raise DataFormatError(
+            f"{json_path}: {f'data{sep}file'!r} must be the name of the NPZ file beside it; got {data_file!r}."
+        )
+    npz_path = json_path.parent / data_file
+    if not npz_path.is_file():
+        raise DataFormatError(f"{json_path} names the data file {data_file!r}, which is missing ({npz_path}).")
     npz = _open_npz(npz_path)
     skipped: list[SkippedRecord] = []
     with npz:
@@ -813,3 +833,255 @@ def load_msr_action3d(
             skipped.append(SkippedRecord(str(p), rid, str(exc)))
     _warn_skipped([k for k in skipped if "tracking lost in every frame" not in k.reason], str(folder))
     return MotionDataset(recs, dict(MSR_ACTIONS), name="msr-action3d", skipped=skipped)
+
+
+# --------------------------------------------------------------------------- generic CSV layout
+
+#: Name of the label table of the generic motion layout.
+MOTION_LABELS_FILE = "labels.csv"
+
+_AXES = ("x", "y", "z")
+
+
+def _csv_joints(header: list[str], path: Path) -> list[str]:
+    """Joint names, in order of first appearance, from a header of ``<joint>_x,<joint>_y,<joint>_z`` columns.
+
+    Every column must be such a column, every joint must have all three, once each.
+    """
+    where = f"{path}, line 1 (header)"
+    if not header or header == [""]:
+        raise DataFormatError(f"{where}: no header; the first line must name the columns <joint>_x,<joint>_y,"
+                              "<joint>_z of every joint.")
+    joints: list[str] = []
+    seen: dict[str, set[str]] = {}
+    for col in header:
+        joint, sep, axis = col.rpartition("_")
+        if not sep or not joint or axis.lower() not in _AXES:
+            raise DataFormatError(f"{where}: column {col!r} is not <joint>_x, <joint>_y or <joint>_z; every column "
+                                  "must be one coordinate of one joint.")
+        key = normalize_marker_name(joint)
+        if key not in seen:
+            seen[key] = set()
+            joints.append(joint)
+        if axis.lower() in seen[key]:
+            raise DataFormatError(f"{where}: column {col!r} appears twice.")
+        seen[key].add(axis.lower())
+    incomplete = [j for j in joints if seen[normalize_marker_name(j)] != set(_AXES)]
+    if incomplete:
+        j = incomplete[0]
+        missing = [a for a in _AXES if a not in seen[normalize_marker_name(j)]]
+        raise DataFormatError(f"{where}: joint {j!r} lacks column(s) {[f'{j}_{a}' for a in missing]}; every joint "
+                              "needs its x, y and z.")
+    return joints
+
+
+def _read_motion_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    """Joint names and positions (n_frames, n_joints, 3) of one recording file of the generic layout."""
+    import csv
+
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DataFormatError(f"Cannot read motion file {path}: {exc}.") from exc
+    if not rows:
+        raise DataFormatError(f"Motion file {path} is empty; it needs a header and one row per frame.")
+    header = [h.strip() for h in rows[0]]
+    joints = _csv_joints(header, path)
+    index = {}
+    for c, col in enumerate(header):
+        joint, _, axis = col.rpartition("_")
+        index[c] = (joints.index(next(j for j in joints if normalize_marker_name(j) == normalize_marker_name(joint))),
+                    _AXES.index(axis.lower()))
+    frames = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not any(cell.strip() for cell in row):
+            continue  # a blank line (a trailing newline, a spreadsheet's empty row)
+        if len(row) != len(header):
+            raise DataFormatError(f"{path}, line {line}: {len(row)} values for {len(header)} columns.")
+        frame = np.empty((len(joints), 3))
+        for c, cell in enumerate(row):
+            try:
+                value = float(cell)
+            except ValueError:
+                raise DataFormatError(f"{path}, line {line}, column {header[c]!r}: {cell.strip()!r} is not a "
+                                      "number.") from None
+            if not np.isfinite(value):
+                raise DataFormatError(f"{path}, line {line}, column {header[c]!r}: {cell.strip()!r}; positions "
+                                      "must be finite (leave lost frames out, or interpolate them).")
+            frame[index[c]] = value
+        frames.append(frame)
+    if not frames:
+        raise DataFormatError(f"Motion file {path} has a header but no frame.")
+    return joints, np.stack(frames)
+
+
+def _motion_label_ids(names: Iterable[str]) -> dict[str, int]:
+    """Label name -> id: the integer itself when every name is an integer, else the rank in sorted order."""
+    names = sorted(set(names))
+    try:
+        ids = {n: int(n) for n in names}
+    except ValueError:
+        return {n: i for i, n in enumerate(names)}
+    if len(set(ids.values())) != len(ids):  # "1" and "01": not one id per name
+        return {n: i for i, n in enumerate(names)}
+    return ids
+
+
+def load_motion_folder(
+    root: str | os.PathLike[str],
+    *,
+    joints: Sequence[str] | None = None,
+    frame_rate: float = 30.0,
+    on_error: str = "raise",
+    name: str | None = None,
+) -> MotionDataset:
+    """Load a folder in the generic motion layout: one CSV file per recording, and ``labels.csv``.
+
+    Each recording file has a header naming its columns ``<joint>_x,<joint>_y,<joint>_z`` for
+    every joint (joint names as in :func:`normalize_marker_name`: ``left_hand_x``,
+    ``Left Hand_x``...; the joint is what comes before the last ``_``) and one row per frame
+    of positions (metres, any fixed frame of reference). ``labels.csv`` has the columns
+    ``file`` (relative to ``root``) and ``labels`` (one label, or several separated by ``;``)
+    or ``label``; other columns are ignored, and only the files it lists are read.
+
+    Parameters
+    ----------
+    root : path-like
+        The folder holding ``labels.csv``.
+    joints : sequence of str, optional
+        The joints every recording must have, in the order of the loaded arrays (for
+        instance :data:`MSR_JOINTS`, so that the recordings feed the features of MSR
+        Action3D skeletons); other joints in a file are dropped. Default: the joints of the
+        first recording read, in its column order; every other recording must have the
+        same joints (in any column order).
+    frame_rate : float, default=30
+        Frames per second of every recording.
+    on_error : {"raise", "skip"}
+        ``"raise"``: a bad row of ``labels.csv``, a missing file, or a recording file that
+        cannot be read (missing joints, ragged rows, text or NaN among the numbers) raises
+        :class:`~mmconcepts.errors.DataFormatError` naming the file and the line.
+        ``"skip"``: those recordings are left out and listed in ``dataset.skipped``; a
+        :class:`RuntimeWarning` says how many.
+    name : str, optional
+        Data set name (default: the folder's name).
+
+    Returns
+    -------
+    MotionDataset
+        Recordings in the order of ``labels.csv``, ``positions`` of shape
+        (n_frames, n_joints, 3), ``record_id`` the file name without ``.csv``. Labels are
+        integer ids: the labels themselves when every label is an integer, else their
+        ranks in sorted order; ``label_names`` maps each id to the label as written.
+    """
+    from .._io import read_csv_rows
+
+    _check_on_error(on_error)
+    if not (isinstance(frame_rate, (int, float)) and not isinstance(frame_rate, bool)
+            and np.isfinite(frame_rate) and frame_rate > 0):
+        raise ParameterError(f"frame_rate must be a finite number > 0; got {frame_rate!r}.")
+    want = None if joints is None else list(joints)
+    if want is not None and (not want or not all(isinstance(j, str) for j in want)
+                             or len({normalize_marker_name(j) for j in want}) != len(want)):
+        raise ParameterError(f"joints must be a non-empty sequence of distinct joint names; got {joints!r}.")
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"Motion folder not found: {root}")
+    labels_path = root / MOTION_LABELS_FILE
+    if not labels_path.is_file():
+        raise DataFormatError(f"{root} has no {MOTION_LABELS_FILE}; the generic motion layout needs one with columns "
+                              "file,labels (or file,label) and one CSV file per recording.")
+    header, rows = read_csv_rows(labels_path)
+    label_col = "labels" if "labels" in header else "label" if "label" in header else None
+    if "file" not in header or label_col is None:
+        raise DataFormatError(f"{labels_path}: the header must have the columns file and labels (or label); found "
+                              f"{header}.")
+    read: list[tuple[str, tuple[str, ...], str, np.ndarray, str]] = []  # file, labels, record id, positions, where
+    skipped: list[SkippedRecord] = []
+    names: list[str] | None = want
+    for line, row in rows:
+        where = f"{labels_path}, line {line}"
+        rel = row.get("file", "")
+        try:
+            if not rel:
+                raise DataFormatError(f"{where}: empty 'file' cell.")
+            labels = tuple(l.strip() for l in row.get(label_col, "").split(";") if l.strip())
+            if not labels:
+                raise DataFormatError(f"{where}: no label for {rel!r}.")
+            path = root / rel
+            if not path.is_file():
+                raise DataFormatError(f"Motion file {path} not found ({where}).")
+            file_joints, P = _read_motion_csv(path)
+            have = {normalize_marker_name(j): k for k, j in enumerate(file_joints)}
+            if names is None:
+                names = file_joints
+            lacking = [j for j in names if normalize_marker_name(j) not in have]
+            extra = [j for j in file_joints if want is None and normalize_marker_name(j) not in
+                     {normalize_marker_name(n) for n in names}]
+            if lacking or extra:
+                raise DataFormatError(
+                    f"{path}, line 1 (header): "
+                    + (f"joint(s) {lacking} missing" if lacking else f"joint(s) {extra} not in the other recordings")
+                    + f"; {'the joints asked for' if want is not None else 'the first recording has'} {list(names)}."
+                )
+            P = P[:, [have[normalize_marker_name(j)] for j in names], :]
+            read.append((rel, labels, Path(rel).with_suffix("").as_posix(), P, where))
+        except DataFormatError as exc:
+            if on_error == "raise":
+                raise
+            skipped.append(SkippedRecord(str(root / rel), Path(rel).with_suffix("").as_posix() if rel else "",
+                                         str(exc)))
+    ids = _motion_label_ids(l for _, labels, _, _, _ in read for l in labels)
+    recs = [MotionRecording(P, tuple(names or ()), tuple(ids[l] for l in labels), frame_rate=float(frame_rate),
+                            source=str(root / rel), record_id=rid)
+            for rel, labels, rid, P, _ in read]
+    _warn_skipped(skipped, str(root))
+    return MotionDataset(recs, {i: n for n, i in ids.items()}, name=name if name is not None else root.name,
+                         skipped=skipped)
+
+
+def save_motion_folder(dataset: MotionDataset | Sequence[MotionRecording], root: str | os.PathLike[str], *,
+                       label_names: Mapping[int, str] | None = None) -> Path:
+    """Write recordings in the generic motion layout (:func:`load_motion_folder`): CSV files and ``labels.csv``.
+
+    Each recording goes to ``<record_id>.csv`` (``rec<i>.csv`` when it has no id, or ids
+    repeat), positions written with 17 significant digits so that loading gives back the
+    same floats. Labels are written by name (``label_names``, default the data set's) or
+    as their integer ids, several separated by ``;``. Each file is written atomically.
+    Returns the path of ``labels.csv``.
+
+    Raises
+    ------
+    DataError
+        If there is no recording, a recording has no label, or a label name holds ``;``.
+    """
+    import csv
+
+    recs = list(dataset)
+    if not recs:
+        raise DataError("Nothing to write: the dataset is empty.")
+    if label_names is None and isinstance(dataset, MotionDataset):
+        label_names = dataset.label_names
+    names = dict(label_names or {})
+    root = Path(root)
+    ids = [r.record_id for r in recs]
+    safe = all(i and Path(i).name == i and not i.startswith(".") for i in ids) and len(set(ids)) == len(ids)
+    rows = []
+    for i, r in enumerate(recs):
+        if not r.labels:
+            raise DataError(f"Recording {i}{r._where()} has no label; the generic motion layout needs one.")
+        labels = [names.get(l, str(l)) for l in r.labels]
+        if any(";" in l for l in labels):
+            raise DataError(f"Labels of recording {i} contain ';', the label separator: {labels}.")
+        fname = f"{r.record_id if safe else f'rec{i}'}.csv"
+        header = [f"{m}_{a}" for m in r.marker_names for a in _AXES]
+        with atomic_path(root / fname) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(header)
+            w.writerows([[f"{v:.17g}" for v in frame.ravel()] for frame in r.positions])
+        rows.append([fname, ";".join(labels)])
+    with atomic_path(root / MOTION_LABELS_FILE) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["file", "labels"])
+        w.writerows(rows)
+    return root / MOTION_LABELS_FILE
