@@ -147,21 +147,38 @@ def evaluate_mixed(config, ctx: RunContext, n_labels: str, *, learners=LEARNERS,
     return Y, folds, arrays
 
 
-def _bar_figure(metrics: dict, reference: dict, rows: list[tuple[str, str]], title: str) -> Figure:
-    fig = Figure(figsize=(8, 4))
+def _spread(samples: dict, key: str) -> float:
+    """The standard deviation of a metric's per-fold values (NaN without at least two)."""
+    v = np.asarray(samples.get(key, []), dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.std(v, ddof=1)) if v.size > 1 else np.nan
+
+
+def _bar_figure(metrics: dict, reference: dict, rows: list[tuple[str, str]], title: str,
+                samples: dict | None = None) -> Figure:
+    """Our scores (± their std over folds where the record has them) beside the thesis', with chance per bar."""
+    samples = samples or {}
+    fig = Figure(figsize=(9, 4.6), layout="constrained")
     ax = fig.subplots()
-    names = [f"{a}\n{b}" for a, b in rows]
+    names = [f"{a} labels\n{b}" for a, b in rows]
     ours = [metrics.get(f"{a}.{b}", np.nan) for a, b in rows]
     ref = [reference.get(f"{a}.{b}", np.nan) for a, b in rows]
+    err = np.array([_spread(samples, f"{a}.{b}") for a, b in rows])
     x = np.arange(len(rows))
-    ax.bar(x - 0.2, ours, 0.4, label="ours")
+    ax.bar(x - 0.2, ours, 0.4, yerr=err if np.isfinite(err).any() else None, capsize=2, error_kw={"lw": 0.8},
+           label="ours (± std over folds)" if np.isfinite(err).any() else "ours")
     ax.bar(x + 0.2, ref, 0.4, label="thesis")
+    # chance: the "chance" learner's score on the same set and score (the most frequent label set)
+    chance = [metrics.get(f"{a}.chance.{b.rsplit('.', 1)[-1]}", np.nan) for a, b in rows]
+    at = np.isfinite(chance)
+    if at.any():
+        ax.hlines(np.asarray(chance)[at], (x - 0.45)[at], (x + 0.45)[at], colors="k", linestyles=":", lw=1.2,
+                  label="chance (the most frequent label set)")
     ax.set_xticks(x, names, fontsize=6, rotation=45, ha="right")
     ax.set_ylim(0, 1)
-    ax.set_ylabel("score")
+    ax.set_ylabel("score (fraction of test examples\nwith the right label set)")
     ax.set_title(title)
     ax.legend(fontsize=8)
-    fig.tight_layout()
     return fig
 
 
@@ -173,7 +190,7 @@ def plot_rows(learners) -> list[tuple[str, str]]:
 
 def score_figure(result: Result, *, learners, reference, title) -> Figure:
     """Our scores beside the thesis' (the figure of Tables 3.2 and 3.3), from the metrics of :func:`score_table`."""
-    return _bar_figure(result.metrics, reference, plot_rows(learners), title)
+    return _bar_figure(result.metrics, reference, plot_rows(learners), title, result.samples)
 
 
 def score_table(config, ctx, *, learners, unseen, reference, title) -> Result:

@@ -138,21 +138,44 @@ def compute(config: Config, ctx: RunContext) -> Result:
 
 def present(result: Result, config: Config) -> dict[str, Figure]:
     """l_single by representation (single actions) and the scores on the mixtures."""
-    metrics = result.metrics
-    fig = Figure(figsize=(7, 4))
+    metrics, samples = result.metrics, result.samples
+
+    def spread(keys):  # std of each metric's per-fold values, NaN where there are none
+        out = []
+        for k in keys:
+            v = np.asarray(samples.get(k, []), dtype=float)
+            out.append(float(np.std(v, ddof=1)) if v.size > 1 else np.nan)
+        return np.array(out)
+
+    fig = Figure(figsize=(9, 4.6), layout="constrained")
     names = list(SINGLE_REPS)
-    ax1, ax2 = fig.subplots(1, 2)
-    ax1.bar(range(len(names)), [metrics[f"single.{n}.l_single"] for n in names])
-    ax1.axhline(metrics["single.chance.l_single"], color="k", ls=":")
+    ax1, ax2 = fig.subplots(1, 2, width_ratios=[1, 2.2])
+    keys = [f"single.{n}.l_single" for n in names]
+    err = spread(keys)
+    ax1.bar(range(len(names)), [metrics[k] for k in keys], yerr=err if np.isfinite(err).any() else None, capsize=3,
+            label="ours (± std over folds)")
+    ax1.axhline(metrics["single.chance.l_single"], color="k", ls=":", label="chance (the most frequent action)")
     ax1.set_xticks(range(len(names)), names, rotation=45, ha="right", fontsize=7)
-    ax1.set_ylabel("l_single")
-    ax1.set_title("single actions", fontsize=9)
+    ax1.set_xlabel("representation")
+    ax1.set_ylabel("score (fraction of test examples right)")
+    ax1.set_ylim(0, 1)
+    ax1.set_title("single actions (l_single)", fontsize=9)
+    ax1.legend(fontsize=7)
     keys = [f"{p}.{n}.{s}" for p in ("mixed", "unseen") for n in MIXED_LEARNERS for s in ("l_full", "l_given_number")]
-    ax2.bar(range(len(keys)), [metrics[k] for k in keys])
-    ax2.set_xticks(range(len(keys)), keys, rotation=60, ha="right", fontsize=6)
+    err = spread(keys)
+    x = np.arange(len(keys))
+    ax2.bar(x, [metrics[k] for k in keys], yerr=err if np.isfinite(err).any() else None, capsize=2,
+            label="ours (± std over folds)")
+    chance = [metrics.get(f"{k.split('.')[0]}.chance.{k.rsplit('.', 1)[-1]}", np.nan) for k in keys]
+    at = np.isfinite(chance)
+    if at.any():
+        ax2.hlines(np.asarray(chance)[at], (x - 0.45)[at], (x + 0.45)[at], colors="k", linestyles=":", lw=1.2,
+                   label="chance (a random pair of actions)")
+    ax2.set_xticks(x, keys, rotation=60, ha="right", fontsize=6)
     ax2.set_ylim(0, 1)
-    ax2.set_title("arms + legs mixtures", fontsize=9)
-    fig.tight_layout()
+    ax2.set_ylabel("score (fraction of test examples\nwith the right label set)")
+    ax2.set_title("arms + legs mixtures (all, and unseen combinations)", fontsize=9)
+    ax2.legend(fontsize=7)
     return {"msr": fig}
 
 

@@ -156,26 +156,37 @@ def compute(config: Config, ctx: RunContext) -> Result:
 
 def present(result: Result, config: Config) -> dict[str, Figure]:
     """Fig. 3.5 (KDE vs VQ against the number of bins) and Fig. 3.6 (what is histogrammed, against the delay)."""
-    metrics, fig6_delays = result.metrics, _fig6_delays(config)
-    fig5 = Figure(figsize=(6, 4))
+    metrics, samples, fig6_delays = result.metrics, result.samples, _fig6_delays(config)
+
+    def curve(ax, xs, keys, label):  # mean over folds ± their std, where the record has per-fold values
+        err = []
+        for k in keys:
+            v = np.asarray(samples.get(k, []), dtype=float)
+            err.append(float(np.std(v, ddof=1)) if v.size > 1 else np.nan)
+        ax.errorbar(xs, [metrics[k] for k in keys], yerr=err if np.isfinite(err).any() else None, fmt="o-",
+                    capsize=3, label=label)
+
+    chance = f"chance ({metrics['chance.l_single']:.2g}: the most frequent gesture)"
+    fig5 = Figure(figsize=(6, 4.2), layout="constrained")
     ax = fig5.subplots()
     for name in METHODS:
-        ax.plot(config.bins, [metrics[f"{name}.bins_{b}.l_single"] for b in config.bins], "o-", label=name)
-    ax.axhline(metrics["chance.l_single"], color="k", ls=":", label="chance")
+        curve(ax, config.bins, [f"{name}.bins_{b}.l_single" for b in config.bins], name)
+    ax.axhline(metrics["chance.l_single"], color="k", ls=":", label=chance)
     ax.set_xlabel("number of bins per degree of freedom (joint angle-velocity)")
-    ax.set_ylabel("l_single")
-    ax.set_title("Fig. 3.5: KDE vs vector quantisation")
+    ax.set_ylabel("l_single (fraction of test gestures right)")
+    ax.set_ylim(0, 1)
+    ax.set_title("Fig. 3.5: KDE vs vector quantisation (mean ± std over folds)", fontsize=10)
     ax.legend(fontsize=8)
-    fig5.tight_layout()
-    fig6 = Figure(figsize=(6, 4))
+    fig6 = Figure(figsize=(6, 4.2), layout="constrained")
     ax = fig6.subplots()
     for data in DATA:
-        ax.plot(fig6_delays, [metrics[f"{data}.delay_{d}.l_single"] for d in fig6_delays], "o-", label=data)
+        curve(ax, fig6_delays, [f"{data}.delay_{d}.l_single" for d in fig6_delays], data)
+    ax.axhline(metrics["chance.l_single"], color="k", ls=":", label=chance)
     ax.set_xlabel("velocity delay (frames)")
-    ax.set_ylabel("l_single")
-    ax.set_title(f"Fig. 3.6: what is histogrammed (KDE, {config.kde_bins} bins)")
+    ax.set_ylabel("l_single (fraction of test gestures right)")
+    ax.set_ylim(0, 1)
+    ax.set_title(f"Fig. 3.6: what is histogrammed (KDE, {config.kde_bins} bins; mean ± std over folds)", fontsize=10)
     ax.legend(fontsize=8)
-    fig6.tight_layout()
 
     return {"fig3_5": fig5, "fig3_6": fig6}
 

@@ -174,16 +174,52 @@ def _mean(point, split, learner, key="deviation"):
     return float(np.mean(d[key])) if d is not None else float("nan")
 
 
-def _vmap(ax, values, n, title, demo=None):
-    img = ax.imshow(values.reshape(n, n), cmap="viridis")
+def _vmap(ax, values, n, title, demo=None, *, vmin=None, vmax=None):
+    img = ax.imshow(values.reshape(n, n), cmap="viridis", vmin=vmin, vmax=vmax)
     if demo is not None:
         rows, cols = np.divmod(demo[:, 0], n)
         ax.plot(cols, rows, "w.-", lw=1)
         ax.plot(cols[0], rows[0], "r*", ms=9)
-    ax.set_title(title, fontsize=7)
+    ax.set_title(title, fontsize=8)
     ax.set_xticks([])
     ax.set_yticks([])
     return img
+
+
+#: How the figures name the learners.
+_LABELS = {"flat": "flat (GradIRL per task)", "factorial": "factorial IRL", "flat_pca": "flat on PCA features",
+           "flat_examples": "flat on example tasks' rewards", "flat_gt": "flat on the true primitives",
+           "maxent": "MaxEnt IRL"}
+_VALUE_LOSS = "value loss vs the optimal policy\n(mean over states; discounted return)"
+
+
+def _curve(ax, results, points, split, name, x_index):
+    """Mean value loss over tasks at each point, with its standard error as error bars."""
+    xs, means, errs = [], [], []
+    for key in points:
+        d = results[key][split].get(name)
+        if d is None:
+            continue
+        v = np.asarray(d["deviation"], dtype=float)
+        xs.append(key[x_index])
+        means.append(float(np.mean(v)))
+        errs.append(float(np.std(v, ddof=1) / np.sqrt(v.size)) if v.size > 1 else 0.0)
+    ax.errorbar(xs, means, yerr=errs, fmt="o-", capsize=3, label=_LABELS.get(name, name))
+
+
+def _random_policy(results, points, split, x_index):
+    """The value loss of the uniform random policy at each point (deviation / normalised deviation, per task)."""
+    xs, ys = [], []
+    for key in points:
+        d = results[key][split].get("flat")
+        if d is None:
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            loss = np.asarray(d["deviation"], dtype=float) / np.asarray(d["normalised"], dtype=float)
+        if np.isfinite(loss).any():
+            xs.append(key[x_index])
+            ys.append(float(np.nanmean(np.where(np.isfinite(loss), loss, np.nan))))
+    return xs, ys
 
 
 def compute(config: Config, ctx: RunContext) -> Result:
@@ -289,65 +325,91 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     demo_pts = sorted(k for k in results if k[1] == N0)
     tasks_pts = sorted(k for k in results if k[0] == m0)
     figures = {}
-    flat_tr = metrics["transfer.flat.deviation"]
-    fig = Figure(figsize=(10, 4))
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
-    for name in ("flat", "factorial", "flat_pca"):
-        ax1.plot([k[0] for k in demo_pts], [_mean(results[k], "train", name) for k in demo_pts], "o-", label=name)
-        ax2.plot([k[1] for k in tasks_pts], [_mean(results[k], "train", name) for k in tasks_pts], "o-", label=name)
-    ax1.axhline(metrics["train.flat_gt.deviation"], color="k", ls=":", label="flat_gt (default point)")
-    ax1.set_xlabel("demonstrations per task")
-    ax2.set_xlabel("number of training tasks")
+    for ax, points, x_index, xlabel in ((ax1, demo_pts, 0, "demonstrations per task"),
+                                        (ax2, tasks_pts, 1, "number of training tasks")):
+        for name in ("flat", "factorial", "flat_pca"):
+            _curve(ax, results, points, "train", name, x_index)
+        xs, ys = _random_policy(results, points, "train", x_index)
+        if xs:
+            ax.plot(xs, ys, color="0.5", ls="--", label="uniform random policy (chance)")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(_VALUE_LOSS)
+        ax.set_ylim(bottom=0)
+    ax1.axhline(metrics["train.flat_gt.deviation"], color="k", ls=":", label=f"{_LABELS['flat_gt']} (default point)")
     for ax in (ax1, ax2):
-        ax.set_ylabel("deviation from optimal (lower is better)")
         ax.legend(fontsize=7)
-    fig.suptitle("Fig 4.5: performance on training tasks")
-    fig.tight_layout()
+    fig.suptitle("Fig 4.5: performance on training tasks (mean ± standard error over tasks; lower is better)")
     figures["fig4_5_train_curves"] = fig
-    fig = Figure(figsize=(10, 4))
+
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
-    for name in ("factorial", "flat_pca"):
-        ax1.plot([k[0] for k in demo_pts], [_mean(results[k], "transfer", name) for k in demo_pts], "o-", label=name)
-        ax2.plot([k[1] for k in tasks_pts], [_mean(results[k], "transfer", name) for k in tasks_pts], "o-", label=name)
-    for ax in (ax1, ax2):
-        ax.axhline(flat_tr, color="C3", ls="--", label="flat (from scratch)")
-        ax.axhline(metrics["transfer.flat_examples.deviation"], color="C4", ls="-.", label="flat_examples (default)")
-        ax.axhline(metrics["transfer.flat_gt.deviation"], color="k", ls=":", label="flat_gt")
-        ax.set_ylabel("deviation from optimal (lower is better)")
+    for ax, points, x_index, xlabel in ((ax1, demo_pts, 0, "demonstrations per training task"),
+                                        (ax2, tasks_pts, 1, "number of training tasks")):
+        for name in ("factorial", "flat_pca"):
+            _curve(ax, results, points, "transfer", name, x_index)
+        ax.axhline(metrics["transfer.flat.deviation"], color="C3", ls="--", label=f"{_LABELS['flat']}, from scratch")
+        ax.axhline(metrics["transfer.flat_examples.deviation"], color="C4", ls="-.",
+                   label=f"{_LABELS['flat_examples']} (default point)")
+        ax.axhline(metrics["transfer.flat_gt.deviation"], color="k", ls=":", label=_LABELS["flat_gt"])
+        xs, ys = _random_policy(results, points, "transfer", x_index)
+        if ys:
+            ax.axhline(float(np.mean(ys)), color="0.5", ls="--", lw=1, label="uniform random policy (chance)")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(_VALUE_LOSS)
+        ax.set_ylim(bottom=0)
         ax.legend(fontsize=7)
-    ax1.set_xlabel("demonstrations per training task")
-    ax2.set_xlabel("number of training tasks")
-    fig.suptitle("Fig 4.6: new tasks from a single demonstration")
-    fig.tight_layout()
+    fig.suptitle("Fig 4.6: new tasks from a single demonstration (mean ± standard error over test tasks)")
     figures["fig4_6_transfer_curves"] = fig
 
     mdp = grid_world(config.grid_size, success_prob=config.success_prob, discount=config.discount)
     fd = result.figure_data["default"]
     n = config.grid_size
     k = config.n_primitives
-    fig = Figure(figsize=(2 * k, 4.4))
+    fig = Figure(figsize=(2.1 * k + 1.6, 5.2), layout="constrained")
     axes = fig.subplots(2, k, squeeze=False)
     Vt = value_iteration(mdp, fd["D_true"].reshape(k, mdp.n_states, mdp.n_actions))[0]
     Vf = value_iteration(mdp, fd["D_fact"].reshape(k, mdp.n_states, mdp.n_actions))[0]
-    for j in range(k):
-        _vmap(axes[0, j], Vt[j], n, f"primitive {j + 1}")
-        _vmap(axes[1, j], Vf[j], n, f"learnt atom {j + 1}")
-    fig.suptitle("Fig 4.4: optimal values of the primitive rewards (top) and of the factorial learner's atoms")
-    fig.tight_layout()
+    for row, (V, label) in enumerate(((Vt, "primitive"), (Vf, "learnt atom"))):
+        lo, hi = float(np.min(V)), float(np.max(V))
+        for j in range(k):
+            img = _vmap(axes[row, j], V[j], n, f"{label} {j + 1}", vmin=lo, vmax=hi)
+            if row == 1:
+                axes[row, j].set_xlabel("grid column")
+        axes[row, 0].set_ylabel("grid row")
+        bar = fig.colorbar(img, ax=list(axes[row, :]), shrink=0.9, pad=0.02)
+        bar.set_label("optimal value V*\n(discounted return)", fontsize=8)
+    fig.suptitle("Fig 4.4: optimal values of the primitive rewards (top) and of the factorial learner's atoms "
+                 "(bottom; in learnt order, up to scale)")
     figures["fig4_4_dictionaries"] = fig
 
-    fig = Figure(figsize=(9, 7))
+    fig = Figure(figsize=(10, 8), layout="constrained")
     axes = fig.subplots(3, 4, squeeze=False)
     Vtrue = value_iteration(mdp, np.asarray(fd["test_rewards"]))[0]
     Vflat = value_iteration(mdp, np.asarray(fd["flat_test"]))[0]
     Vfac = value_iteration(mdp, np.asarray(fd["fact_test"]))[0]
+    def scaled(v):  # learnt rewards are known up to scale: each map spans its own range
+        v = np.asarray(v, dtype=float)
+        span = float(v.max() - v.min())
+        return (v - v.min()) / span if span > 0 else np.zeros_like(v)
+
     for j in range(min(4, len(Vtrue))):
         demo = np.asarray(fd["test_demos"][j])
-        _vmap(axes[0, j], Vtrue[j], n, f"test task {j + 1}: true V*", demo)
-        _vmap(axes[1, j], Vflat[j], n, "flat learner", demo)
-        _vmap(axes[2, j], Vfac[j], n, "factorial learner", demo)
+        _vmap(axes[0, j], scaled(Vtrue[j]), n, f"test task {j + 1}: true V*", demo, vmin=0, vmax=1)
+        _vmap(axes[1, j], scaled(Vflat[j]), n, "flat learner", demo, vmin=0, vmax=1)
+        img = _vmap(axes[2, j], scaled(Vfac[j]), n, "factorial learner", demo, vmin=0, vmax=1)
+        axes[2, j].set_xlabel("grid column")
+    bar = fig.colorbar(img, ax=axes, location="right", shrink=0.6)
+    bar.set_label("V* of the task's (learnt) reward, scaled to each map's range (0 = lowest, 1 = highest)", fontsize=8)
+    for i in range(3):
+        axes[i, 0].set_ylabel("grid row")
+    from matplotlib.lines import Line2D
+
+    fig.legend(handles=[Line2D([], [], color="w", marker=".", mec="k", ls="-", label="the demonstration"),
+                        Line2D([], [], color="r", marker="*", ls="", ms=9, label="its start")],
+               loc="outside upper right", fontsize=8, facecolor="0.6")
     fig.suptitle("Fig 4.7: value functions of new tasks learnt from one demonstration")
-    fig.tight_layout()
     figures["fig4_7_value_functions"] = fig
 
     return figures

@@ -224,31 +224,43 @@ def compute(config: Config, ctx: RunContext) -> Result:
 def present(result: Result, config: Config) -> dict[str, Figure]:
     """Fig. 6.5 and 6.7 (box plots of every setup over the repetitions) and Fig. 6.6 (the effect of k)."""
     metrics, reps, setups = result.metrics, result.figure_data["repetitions"], _setups()
-    fig = Figure(figsize=(9, 4))
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import FixedLocator, NullLocator, ScalarFormatter
+
+    chance = metrics["chance"]
+    chance_label = f"chance ({chance:.2g}: one concept at random)"
+    fig = Figure(figsize=(10, 4.6), layout="constrained")
     ax = fig.subplots()
     labels_ = [f"{te}->{rf}\n({t})" for t, te, rf in setups]
-    ax.boxplot([[r[_key(*s)] for r in reps] for s in setups])
+    ax.boxplot([[r[_key(*s)] for r in reps] for s in setups], medianprops={"color": "C1"})
     ax.set_xticks(range(1, len(setups) + 1), labels_, fontsize=6)
-    ax.axhline(metrics["chance"], color="k", ls=":")
-    ax.set_ylabel("success rate")
+    ax.axhline(chance, color="k", ls=":")
+    ax.set_ylabel("success rate (fraction of test examples)")
+    ax.set_xlabel("test modality -> reference modality (modalities in training); S: sound, M: motion, I: image")
     ax.set_ylim(0, 1)
-    ax.set_title(f"Fig. 6.5, 6.7: {config.n_repeats} repetitions with random associations (training modalities in "
-                 "brackets)")
-    fig.tight_layout()
-    fig6 = Figure(figsize=(6, 4))
+    fig.legend(handles=[Patch(facecolor="white", edgecolor="k", label=f"quartiles over {len(reps)} repetitions "
+                              "(whiskers: range, circles: outliers)"),
+                        Line2D([], [], color="C1", label="median"),
+                        Line2D([], [], color="k", ls=":", label=chance_label)], fontsize=7, loc="outside lower center",
+               ncol=3)
+    ax.set_title(f"Fig. 6.5, 6.7: {config.n_repeats} repetitions with random associations")
+    fig6 = Figure(figsize=(6, 4), layout="constrained")
     ax = fig6.subplots()
     ks = list(config.k_sweep)
     for which in ("two", "three"):
         ax.errorbar(ks, [metrics[f"k_{k}.{which}"] for k in ks], yerr=[metrics[f"k_{k}.{which}_std"] for k in ks],
-                    marker="o", capsize=3, label=f"{which} modalities in training")
-    ax.axhline(metrics["chance"], color="k", ls=":")
+                    marker="o", capsize=3, label=f"{which} modalities in training (mean ± std over repetitions)")
+    ax.axhline(chance, color="k", ls=":", label=chance_label)
     ax.set_xscale("log")
-    ax.set_xlabel("number of atoms k")
+    ax.xaxis.set_major_locator(FixedLocator(ks))
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_xlabel("number of atoms k (log scale)")
     ax.set_ylabel("mean one-to-one success rate")
     ax.set_ylim(0, 1)
     ax.set_title("Fig. 6.6: effect of k")
     ax.legend(fontsize=7)
-    fig6.tight_layout()
     return {"fig6_5_6_7": fig, "fig6_6": fig6}
 
 

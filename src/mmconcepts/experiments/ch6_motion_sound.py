@@ -145,26 +145,40 @@ def _table(metrics: dict, prefix: str, title: str) -> Table:
     return Table(title, ["direction", "compared in"] + [METRIC_TITLES[m] for m in METRICS], rows)
 
 
-def _figure(metrics: dict, prefix: str, title: str) -> Figure:
-    fig = Figure(figsize=(7, 3.5))
+def _figure(metrics: dict, prefix: str, title: str, n_folds: int = 0) -> Figure:
+    """Success rates as bars (± their standard deviation over folds), with chance and the shuffled control."""
+    fig = Figure(figsize=(8, 4.2), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
+    chance = metrics.get("chance", np.nan)
     for ax, d in zip(axes, DIRECTIONS):
         spaces = _spaces(d)
         x = np.arange(len(spaces))
         w = 0.8 / len(METRICS)
         for j, m in enumerate(METRICS):
-            ax.bar(x + (j - (len(METRICS) - 1) / 2) * w, [metrics[f"{prefix}{d}.{s}.{m}"] for s in spaces], w,
+            keys = [f"{prefix}{d}.{s}.{m}" for s in spaces]
+            err = np.array([metrics.get(f"{k}_std", np.nan) for k in keys], dtype=float)
+            ax.bar(x + (j - (len(METRICS) - 1) / 2) * w, [metrics[k] for k in keys], w,
+                   yerr=err if np.isfinite(err).all() else None, capsize=2, error_kw={"lw": 0.8},
                    label=METRIC_TITLES[m])
-        ax.axhline(0.1, color="k", ls=":", lw=1)
-        ax.axhline(metrics.get(f"shuffled.{d}.internal.cosine", np.nan), color="r", ls="--", lw=1)
+        if np.isfinite(chance):
+            ax.axhline(chance, color="k", ls=":", lw=1, label=f"chance ({chance:.2g}: one keyword in {round(1 / chance)})")
+        shuffled = metrics.get(f"shuffled.{d}.internal.cosine", np.nan)
+        if np.isfinite(shuffled):
+            ax.axhline(shuffled, color="r", ls="--", lw=1, label="control: shuffled training pairs (internal, cosine)")
         ax.set_xticks(x, spaces)
+        ax.set_xlabel("space the two modalities are compared in")
         ax.set_title(d.replace("2", " -> "))
         ax.set_ylim(0, 1)
-    axes[0].set_ylabel("success rate")
-    axes[0].legend(fontsize=7)
-    fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
+    axes[0].set_ylabel("success rate (fraction of test examples)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=7, title="dissimilarity", title_fontsize=7)
+    spread = f"; bars: mean ± std over {n_folds} folds" if n_folds > 1 else ""
+    fig.suptitle(title + spread, fontsize=9)
     return fig
+
+
+def _n_folds(result: Result) -> int:
+    return max((len(v) for v in result.samples.values()), default=0)
 
 
 def compute_motion_sound(config: Config, ctx: RunContext) -> Result:
@@ -194,7 +208,7 @@ def compute_motion_sound(config: Config, ctx: RunContext) -> Result:
 
 def present_motion_sound(result: Result, config: Config) -> dict[str, Figure]:
     """Table 6.2 as bars, with the shuffled control and chance."""
-    return {"table6_2": _figure(result.metrics, "", "Table 6.2 (red: shuffled control, dotted: chance)")}
+    return {"table6_2": _figure(result.metrics, "", "Table 6.2: motion <-> sound", _n_folds(result))}
 
 
 def _best_note(metrics: dict) -> str:
@@ -227,7 +241,7 @@ def compute_symbolic(config: Config, ctx: RunContext) -> Result:
 
 def present_symbolic(result: Result, config: Config) -> dict[str, Figure]:
     """Table 6.3 as bars, with chance."""
-    return {"table6_3": _figure(result.metrics, "", "Table 6.3 (dotted: chance)")}
+    return {"table6_3": _figure(result.metrics, "", "Table 6.3: motion <-> sound, labels in training", _n_folds(result))}
 
 
 LABEL_KEYS = ("sound_labels.s2l", "motion_labels.m2l", "all.s2l", "all.m2l", "all.sm2l")

@@ -445,33 +445,46 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     fig8 = Figure(figsize=(6, 4))
     ax = fig8.subplots()
     ax.errorbar(widths, [metrics[f"{tag}.s2i"] for tag in tags], yerr=err["s2i"], fmt="o-", capsize=3,
-                label="S -> I")
+                label="sound -> image (S -> I)")
     ax.errorbar(widths, [metrics[f"{tag}.i2s"] for tag in tags], yerr=err["i2s"], fmt="s-", capsize=3,
-                label="I -> S")
-    ax.axhline(metrics["chance"], color="k", ls=":", label="chance")
-    ax.axvline(widths[fixed_at], color="grey", ls="--", lw=1, label="fixed width (claims)")
+                label="image -> sound (I -> S)")
+    ax.axhline(metrics["chance"], color="k", ls=":", label=f"chance ({metrics['chance']:.2g}: one concept at random)")
+    ax.axvline(widths[fixed_at], color="grey", ls="--", lw=1, label=f"fixed width of the claims ({widths[fixed_at]:g} s)")
     ax.set_xscale("log")
     ax.set_xlabel("window width (s)")
     ax.set_ylabel("success rate (full utterances vs single images)")
     ax.set_ylim(0, 1)
-    ax.set_title(f"Fig. 6.8: learning from sliding windows (mean +- std over {units})", fontsize=9)
+    ax.set_title(f"Fig. 6.8: learning from sliding windows (mean ± std over {units})", fontsize=9)
     ax.legend(fontsize=7)
     fig8.tight_layout()
-    fig9 = Figure(figsize=(8, 6))
-    axes = fig9.subplots(3, 2).ravel()
+    fig9 = Figure(figsize=(8, 6.4), layout="constrained")
+    grid = fig9.subplots(3, 2, sharey=True)
+    axes = grid.ravel()
     probe, y_probe, texts = fd["probe"], fd["y_probe"], fd["texts"]
     shown = [int(np.flatnonzero(y_probe == c)[0]) for c in np.unique(y_probe)][:6]  # six different concepts
     for ax, i in zip(axes, shown):
         (t, sim, span), text = probe["traces"][i], texts[i]
-        ax.plot(t, sim, "-")
+        ax.plot(t, sim, "-", color="C0", label="similarity of the window to the concept's image")
         if np.isfinite(span).all():
-            ax.axvspan(span[0], span[1], color="orange", alpha=0.3)
+            ax.axvspan(span[0], span[1], color="orange", alpha=0.3, label="the keyword (where it is said)")
         ax.set_title(text, fontsize=7)
         ax.set_ylim(0, 1)
         ax.tick_params(labelsize=6)
-    fig9.suptitle(f"Fig. 6.9: similarity to the concept's image along test utterances (keyword shaded, "
-                  f"{widths[fixed_at]:g} s windows, plotted at their start)", fontsize=8)
-    fig9.tight_layout()
+    for ax in axes[len(shown):]:
+        ax.set_visible(False)
+    for ax in grid[-1, :]:
+        ax.set_xlabel("window start (s)", fontsize=7)
+    for ax in grid[:, 0]:
+        ax.set_ylabel("cosine similarity", fontsize=7)
+    handles, labels = axes[0].get_legend_handles_labels()
+    for ax in axes[1:len(shown)]:  # the first panel may have no keyword span
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig9.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=7)
+    fig9.suptitle(f"Fig. 6.9: similarity to the concept's image along test utterances ({widths[fixed_at]:g} s windows, "
+                  f"plotted at their start; internal space)", fontsize=8)
     return {"fig6_8": fig8, "fig6_9": fig9}
 
 
