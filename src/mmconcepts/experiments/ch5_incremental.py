@@ -222,9 +222,9 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     ax = fig3.subplots()
     for j, r in enumerate(single, 1):
         ax.plot(r["seen"], r["accuracy"], marker="o", label=f"speaker {j}")
-    ax.axhline(chance, color="k", ls=":", label="chance")
+    ax.axhline(chance, color="k", ls=":", label=f"chance ({chance:.2g}: one keyword at random)")
     ax.set_xlabel("training utterances")
-    ax.set_ylabel("test accuracy")
+    ax.set_ylabel("test accuracy (fraction of test utterances)")
     ax.set_ylim(0, 1)
     ax.set_title("Fig. 5.3: single-speaker incremental learning")
     ax.legend(fontsize=7)
@@ -234,11 +234,11 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     ax.plot(multi["seen"], multi["accuracy"], "k-o", label="all speakers")
     for j, s in enumerate(speakers, 1):
         ax.plot(multi["seen"], [p[s] for p in multi["per_group"]], marker=".", label=f"speaker {j}")
-    for e in ends[:-1]:
-        ax.axvline(e, color="grey", lw=0.8, ls="--")
-    ax.axhline(chance, color="k", ls=":")
+    for i, e in enumerate(ends[:-1]):
+        ax.axvline(e, color="grey", lw=0.8, ls="--", label="the next speaker starts" if i == 0 else None)
+    ax.axhline(chance, color="k", ls=":", label=f"chance ({chance:.2g}: one keyword at random)")
     ax.set_xlabel("training utterances (speakers in sequence)")
-    ax.set_ylabel("test accuracy")
+    ax.set_ylabel("test accuracy (fraction of test utterances)")
     ax.set_ylim(0, 1)
     ax.set_title("Fig. 5.4: several speakers")
     ax.legend(fontsize=7)

@@ -273,18 +273,18 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     metrics, rows = result.metrics, result.tables["per_keyword"].rows
     keywords, chance = [r[0] for r in rows[:-1]], metrics["chance.accuracy"]
     spk, n_folds = result.figure_data["speaker"], int(metrics["n_folds"])
-    fig = Figure(figsize=(7, 3.5))
+    fig = Figure(figsize=(7, 4.2), layout="constrained")
     ax = fig.subplots()
     x = np.arange(len(keywords))
-    ax.bar(x - 0.2, [r[2] for r in rows[:-1]], 0.4, label=f"HAC + NMF ({metrics['nmf.accuracy']:.2f})")
-    ax.bar(x + 0.2, [r[3] for r in rows[:-1]], 0.4, label=f"tree + voting ({metrics['voting.accuracy']:.2f})")
-    ax.axhline(chance, color="k", ls=":", label="chance")
+    ax.bar(x - 0.2, [r[2] for r in rows[:-1]], 0.4, label=f"HAC + NMF (overall {metrics['nmf.accuracy']:.2f})")
+    ax.bar(x + 0.2, [r[3] for r in rows[:-1]], 0.4, label=f"tree + voting (overall {metrics['voting.accuracy']:.2f})")
+    ax.axhline(chance, color="k", ls=":", label=f"chance ({chance:.2g}: one keyword at random)")
     ax.set_xticks(x, keywords, rotation=30, fontsize=8)
-    ax.set_ylabel("recognition rate")
+    ax.set_xlabel("keyword")
+    ax.set_ylabel("recognition rate (fraction of its test utterances)")
     ax.set_ylim(0, 1)
-    ax.set_title(f"Keyword recognition, speaker {spk}, {n_folds}-fold CV")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
+    ax.set_title(f"Keyword recognition, speaker {spk}, {n_folds}-fold CV (pooled over the folds)")
+    fig.legend(fontsize=7, loc="outside lower center", ncol=3)
     return {"keywords": fig}
 
 

@@ -213,15 +213,15 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     res = result.figure_data  # the first repetition's matrix and matching order
     keywords = res["keywords"]
     mi_sorted = res["mi"][:, res["order"]]
-    fig = Figure(figsize=(7, 4))
+    fig = Figure(figsize=(7.5, 4.2), layout="constrained")
     ax = fig.subplots()
     im = ax.imshow(mi_sorted, aspect="auto", cmap="viridis")
     ax.set_yticks(range(len(keywords)), keywords, fontsize=8)
     ax.set_xticks(range(len(res["order"])), [str(j) for j in res["order"]], fontsize=7)
-    ax.set_xlabel("internal coefficient (matched ones first)")
-    ax.set_title(f"Fig. 6.10: mutual information (bits), k = {config.k}, repetition 1 of {config.n_repeats}")
-    fig.colorbar(im, ax=ax)
-    fig.tight_layout()
+    ax.set_xlabel("internal coefficient (its index; matched ones first)")
+    ax.set_ylabel("concept (keyword)")
+    ax.set_title(f"Fig. 6.10: mutual information, k = {config.k}, repetition 1 of {config.n_repeats}")
+    fig.colorbar(im, ax=ax).set_label("mutual information between the concept and the coefficient (bits)")
     return {"fig6_10": fig}
 
 

@@ -172,19 +172,20 @@ def compute(config: Config, ctx: RunContext) -> Result:
 def present(result: Result, config: Config) -> dict[str, Figure]:
     """Fig. 6.4: success rates by image descriptor set, in both directions."""
     metrics = result.metrics
-    fig = Figure(figsize=(7, 3.5))
+    fig = Figure(figsize=(7, 4), layout="constrained")
     ax = fig.subplots()
     x = np.arange(len(SETS))
     for j, key in enumerate(("i2s", "s2i")):
-        ax.bar(x + (j - 0.5) * 0.4, [metrics[f"{s}.{key}"] for s in SETS], 0.4,
-               yerr=[metrics[f"{s}.{key}_std"] for s in SETS], label={"i2s": "I -> S", "s2i": "S -> I"}[key])
-    ax.axhline(metrics["chance"], color="k", ls=":", label="chance")
+        ax.bar(x + (j - 0.5) * 0.4, [metrics[f"{s}.{key}"] for s in SETS], 0.4, capsize=3,
+               yerr=[metrics[f"{s}.{key}_std"] for s in SETS],
+               label={"i2s": "image -> sound (I -> S)", "s2i": "sound -> image (S -> I)"}[key])
+    ax.axhline(metrics["chance"], color="k", ls=":", label=f"chance ({metrics['chance']:.2g}: one concept at random)")
     ax.set_xticks(x, SETS, rotation=20, fontsize=8)
-    ax.set_ylabel("success rate")
+    ax.set_xlabel("image descriptor set")
+    ax.set_ylabel("success rate (fraction of test examples)")
     ax.set_ylim(0, 1)
-    ax.set_title("Fig. 6.4: image descriptor sets")
+    ax.set_title("Fig. 6.4: image descriptor sets (mean ± std over repetitions)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
     return {"fig6_4": fig}
 
 
