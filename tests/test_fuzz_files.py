@@ -457,3 +457,49 @@ def test_choreo_skip_names_the_index_for_a_bad_record_entry_and_the_archive_for_
     json_path.write_text(json.dumps(meta))
     with pytest.raises(DataFormatError, match=r"subset\.json names the data file 'gone\.npz', which is missing"):
         load_choreo1(json_path)
+
+
+# ----------------------------------------------------------------------------- COIL-20 .mat
+
+
+@fuzz_settings(60, **SETTINGS)
+@given(data=st.data(), kind=st.sampled_from(["bytes", "bytes", "fea", "gnd", "missing", "intact"]))
+def test_fuzz_coil20_mat(data, kind):
+    """A damaged or edited COIL20.mat: a DataFormatError naming it, or the images read right."""
+    import scipy.io
+
+    from mmconcepts.vision.data import load_coil20
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "COIL20.mat"
+        rng = np.random.default_rng(0)
+        fea, gnd = rng.random((4, 16)), np.array([[1], [1], [2], [2]])
+        if kind == "fea":
+            fea = data.draw(st.sampled_from([np.zeros((0, 16)), np.zeros((4, 0)), np.zeros((4, 15)), rng.random((4, 1)),
+                                             np.full((4, 16), np.nan), rng.random((4, 16)) * 300, -rng.random((4, 16)),
+                                             np.array([["a"] * 16] * 4), rng.random((4, 16)) > 0.5,
+                                             (rng.random((4, 16)) * 255).astype(np.uint8)]))
+        elif kind == "gnd":
+            gnd = data.draw(st.sampled_from([np.array([[np.nan]] * 4), np.array([["x"]] * 4), np.zeros((3, 1)),
+                                             np.array([[1.5]] * 4), np.zeros((0, 1)), np.array([[1e300]] * 4)]))
+        mdict = {"fea": fea, "gnd": gnd}
+        if kind == "missing":
+            del mdict[data.draw(st.sampled_from(["fea", "gnd"]))]
+        scipy.io.savemat(path, mdict)
+        if kind == "bytes":
+            _, raw = data.draw(byte_damage(path.read_bytes()))
+            path.write_bytes(raw)
+
+        def call():
+            try:
+                return load_coil20(path)
+            except DataFormatError as exc:
+                assert str(path) in str(exc), str(exc)
+                raise
+
+        def check(s):
+            n = len(s)
+            return (n == len(s.labels) and n >= 1 and all(im.ndim == 3 and im.shape[2] == 3 and im.shape[0] == im.shape[1]
+                                                           and im.min() >= 0 and im.max() <= 1 for im in s.images))
+
+        assert_typed_or_good("mmconcepts.vision.load_coil20", call, check=check)

@@ -9,9 +9,9 @@ a model that loads and fails later counts as an untyped error).
 
 from __future__ import annotations
 
+import functools
 import io
 import json
-import pickle
 import zipfile
 
 import numpy as np
@@ -73,10 +73,17 @@ def modality_sets(draw, n=None, *, names=("sound", "motion", "image"), valid=Non
     return {name: draw(modality(n, draw(st.integers(1, 6)), valid=i != bad)) for i, name in enumerate(names[:m])}
 
 
-def _fitted(n_components=2, seed=0, n=6):
+@functools.lru_cache(maxsize=None)
+def _fitted_once(n_components=2, seed=0, n=6):
     rng = np.random.default_rng(seed)
     X = {"sound": rng.random((n, 5)), "motion": rng.random((n, 4))}
     return MultimodalNMF(n_components, max_iter=20, random_state=0).fit(X), X
+
+
+def _fitted():
+    """One fitted learner (fit once per session: the examples only read it) and its training data."""
+    est, X = _fitted_once()
+    return est, {k: v.copy() for k, v in X.items()}
 
 
 @fuzz_settings(100, **SETTINGS)

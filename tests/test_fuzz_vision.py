@@ -102,8 +102,8 @@ def test_fuzz_as_rgb_image(image):
 
 
 @fuzz_settings(200, **SETTINGS)
-@given(image=images(), n_segments=st.sampled_from([-1, 0, 1, 5, 5, 5, 50, 2**40, 2.5, np.nan]),
-       compactness=st.sampled_from([10.0] * 5 + [0.0, -1.0, np.nan, np.inf, 1e-300]))
+@given(image=images(), n_segments=st.sampled_from([-1, 0, 2**40, 2.5, np.nan] + [1, 5, 50] * 4),
+       compactness=st.sampled_from([10.0] * 10 + [0.0, -1.0, np.nan, np.inf, 1e-300, 0.01]))
 def test_fuzz_superpixel_colors(image, n_segments, compactness):
     """Areas cover the image, centroids lie inside it, colours lie in the HSV cone, and the
     answer is the one on ``as_rgb_image(image)`` (one meaning of every image shape)."""
@@ -125,8 +125,8 @@ def test_fuzz_superpixel_colors(image, n_segments, compactness):
 
 
 @fuzz_settings(200, **SETTINGS)
-@given(image=images(max_side=32, min_side=8), patch_size=st.sampled_from([-4, 0, 3, 4, 8, 8, 8, 16, 2**40]),
-       step=st.sampled_from([-1, 0, 1, 4, 4, 4, 7]), contrast=st.sampled_from([0.0, 0.01, 0.01, -1.0, np.nan, np.inf]),
+@given(image=images(max_side=32, min_side=8), patch_size=st.sampled_from([-4, 0, 3, 2**40] + [4, 8, 16] * 4),
+       step=st.sampled_from([-1, 0] + [1, 4, 7] * 4), contrast=st.sampled_from([-1.0, np.nan, np.inf] + [0.0, 0.01] * 4),
        rotation_invariant=st.booleans())
 def test_fuzz_dense_sift(image, patch_size, step, contrast, rotation_invariant):
     """Unit-norm 128-d descriptors of patches inside the image, the same on ``as_rgb_image(image)``."""

@@ -175,10 +175,11 @@ def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_step
             raise ParameterError("settle_tol applies to method='euler' only; pass settle_tol=0 with method='ode'.")
         n = q.shape[0]
         calls = [0]
+        max_calls = max(_MAX_RHS_CALLS, 50 * (T + 1))
 
         def rhs(_t, y):
             calls[0] += 1
-            if calls[0] > _MAX_RHS_CALLS:
+            if calls[0] > max_calls:
                 raise _TooStiff
             return (-lam * np.einsum("nfk,nf->nk", features.jacobian(y.reshape(n, 2)), B)).reshape(-1)
 
@@ -188,7 +189,7 @@ def control_trajectories(features: RBFFeatures, beta: Any, start: Any, *, n_step
                             lband=1, uband=1)  # (x, y) pairs: a block-diagonal, hence banded, Jacobian
         except _TooStiff:
             raise DataError(
-                f"integrating eq. (4.1) needed more than {_MAX_RHS_CALLS} evaluations of the dynamics: the costs "
+                f"integrating eq. (4.1) needed more than {max_calls} evaluations of the dynamics: the costs "
                 f"(|beta| up to {np.abs(B).max():.3g}, lam={lam:g}) make them too stiff. Use smaller costs, or "
                 "method='euler'."
             ) from None
@@ -216,9 +217,10 @@ class _TooStiff(Exception):
     """Raised inside the ODE right-hand side when the integration takes too many evaluations."""
 
 
-#: Evaluations of the dynamics allowed per call of control_trajectories(method='ode'): smooth
-#: dynamics need a few per sampled step; millions mean costs so large the system is hopelessly stiff.
-_MAX_RHS_CALLS = 200_000
+#: Evaluations of the dynamics allowed per call of control_trajectories(method='ode') (at least 50 per
+#: sampled step): LSODA needs a few per step even for stiff costs (|beta| = 1e9); tens of thousands
+#: mean costs so large (|beta| ~ 1e300) that the integration would run for hours.
+_MAX_RHS_CALLS = 20_000
 
 
 def _design(features: RBFFeatures, traj: np.ndarray, lam: float, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -544,10 +544,17 @@ def load_coil20(path: str | os.PathLike[str]) -> ImageSet:
     if fea.ndim != 2 or not np.issubdtype(fea.dtype, np.number):
         raise DataFormatError(f"{path}: 'fea' must be a 2-D numeric matrix; got shape {fea.shape}, dtype {fea.dtype}.")
     side = math.isqrt(fea.shape[1])
-    if side * side != fea.shape[1]:
-        raise DataFormatError(f"{path}: 'fea' rows have {fea.shape[1]} values, not a square image.")
+    if side * side != fea.shape[1] or side < 2:
+        raise DataFormatError(f"{path}: 'fea' rows have {fea.shape[1]} values, not a square image of at least "
+                              "2 x 2 pixels.")
+    if fea.shape[0] == 0:
+        raise DataFormatError(f"{path}: 'fea' holds no image (0 rows).")
     if gnd.shape[0] != fea.shape[0]:
         raise DataFormatError(f"{path}: {gnd.shape[0]} 'gnd' labels for {fea.shape[0]} 'fea' rows.")
+    if not (np.issubdtype(gnd.dtype, np.number) and np.isfinite(gnd).all() and np.all(gnd == np.round(gnd))
+            and np.abs(gnd).max() < 2**53):
+        raise DataFormatError(f"{path}: 'gnd' must hold integer object ids; got dtype {gnd.dtype} "
+                              f"(first values {gnd[:3].tolist()!r}).")
     fea = fea.astype(np.float64)
     if not np.isfinite(fea).all():
         raise DataFormatError(f"{path}: 'fea' holds NaN or infinite values.")
