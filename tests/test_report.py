@@ -335,3 +335,118 @@ def test_missing_figure_is_named_not_an_image_that_cannot_load(results):
     html_text, md = (p.read_text() for p in write_report(results))
     assert "<img" not in html_text and "figure file missing: <code>toy-mean/hist.png</code>" in html_text
     assert "*Figure `hist`: file missing (`toy-mean/hist.png`)*" in md
+
+
+# --------------------------------------------------------------------------- the figures the report shows (issue 14)
+
+def _figure_problems(fig) -> list[str]:
+    """What a reader would miss: unlabelled data axes, images without a colour bar, unlabelled reference lines,
+    labelled curves without a legend."""
+    import numpy as np
+
+    problems = []
+    colorbar_axes = {id(a) for a in fig.axes if hasattr(a, "_colorbar")}
+    has_colorbar = bool(colorbar_axes)
+    fig_legend = bool(fig.legends)
+    for ax in fig.axes:
+        if id(ax) in colorbar_axes or not ax.get_visible():
+            continue
+        name = ax.get_title() or "an axes"
+        if ax.images:
+            if not has_colorbar:
+                problems.append(f"{name}: an image without a colour bar")
+            continue
+        if not (ax.get_ylabel() or any(ax is a or ax.get_shared_y_axes().joined(ax, a) for a in fig.axes
+                                        if a.get_ylabel())):
+            problems.append(f"{name}: no y label")
+        if not ax.get_xlabel() and not any(ax.get_shared_x_axes().joined(ax, a) for a in fig.axes if a.get_xlabel()):
+            problems.append(f"{name}: no x label")
+        for line in ax.lines:  # a horizontal line across the axes is a reference (chance, control): name it
+            x = np.asarray(line.get_xdata(), dtype=float)
+            y = np.asarray(line.get_ydata(), dtype=float)
+            if x.size == 2 and y.size == 2 and y[0] == y[1] and x.tolist() == [0.0, 1.0] and line.get_label().startswith("_"):
+                problems.append(f"{name}: an unlabelled horizontal line at {y[0]:.3g}")
+        labelled = [a for a in ax.get_children() if getattr(a, "get_label", lambda: "_")() and
+                    not str(a.get_label()).startswith("_") and a not in (ax.xaxis, ax.yaxis)]
+        if labelled and ax.get_legend() is None and not fig_legend:
+            problems.append(f"{name}: labelled curves but no legend")
+    return problems
+
+
+def _factorial_irl_result():
+    import numpy as np
+
+    from mmconcepts.experiments.base import Result
+    from mmconcepts.experiments.ch4_factorial_irl import Config
+
+    cfg = Config(grid_size=3, n_primitives=2, n_tasks=4, n_demos=2, demos_curve=(1, 2), tasks_curve=(2, 4))
+    S, A, rng = 9, 4, np.random.default_rng(0)
+    learners = ("flat", "factorial", "flat_pca", "flat_gt", "maxent", "flat_examples")
+
+    def scores(n):
+        return {name: {"deviation": rng.random(n).tolist(), "normalised": (rng.random(n) * 0.5).tolist()}
+                for name in learners}
+
+    points = {(m, N): {"train": scores(N), "transfer": scores(3)} for m, N in [(1, 4), (2, 4), (2, 2)]}
+    metrics = {f"{split}.{name}.deviation": 0.5 for split in ("train", "transfer") for name in learners}
+    demo = np.array([[0, 1], [1, 1], [4, 0]])
+    default = {"D_true": rng.standard_normal((2, S * A)), "D_fact": rng.standard_normal((2, S * A)),
+               "test_rewards": rng.standard_normal((4, S, A)), "test_demos": [demo] * 4,
+               "flat_test": rng.standard_normal((4, S, A)), "fact_test": rng.standard_normal((4, S, A))}
+    return Result(metrics=metrics, figure_data={"points": points, "default": default}), cfg
+
+
+def test_figures_of_chapter_4_have_colour_bars_labels_and_legends():
+    """Fig. 4.4 had no colour bar (and overlapping titles); every figure of ch4-factorial-irl is now readable."""
+    from mmconcepts.experiments.ch4_factorial_irl import present
+
+    figures = present(*_factorial_irl_result())
+    for name, fig in figures.items():
+        assert _figure_problems(fig) == [], name
+    fig44 = figures["fig4_4_dictionaries"]
+    assert fig44.get_layout_engine() is not None  # constrained: titles cannot overlap the row above
+    bars = [a for a in fig44.axes if hasattr(a, "_colorbar")]
+    assert len(bars) == 2 and all(b.get_ylabel() for b in bars)  # one labelled colour bar per row
+    curves = figures["fig4_5_train_curves"].axes[0]
+    assert any(c.__class__.__name__ == "ErrorbarContainer" for c in curves.containers)  # uncertainty drawn
+    assert any("chance" in t.get_text() for t in curves.get_legend().get_texts())
+
+
+def test_figures_of_chapter_6_name_their_chance_line():
+    """Fig. 6.5-6.6 drew an unlabelled chance line; Table 6.2's bars now carry their spread over folds."""
+    import numpy as np
+
+    from mmconcepts.experiments.base import Result
+    from mmconcepts.experiments.ch6_modalities import Config, _key, _setups, present
+    from mmconcepts.experiments.ch6_motion_sound import DIRECTIONS, METRICS, _figure, _spaces
+
+    cfg = Config(n_repeats=3, k_sweep=(5, 10))
+    reps = [{_key(*s): 0.5 + 0.1 * r for s in _setups()} for r in range(3)]
+    metrics = {"chance": 0.1, **{f"k_{k}.{w}": 0.5 for k in (5, 10) for w in ("two", "three")},
+               **{f"k_{k}.{w}_std": 0.05 for k in (5, 10) for w in ("two", "three")}}
+    for name, fig in present(Result(metrics=metrics, figure_data={"repetitions": reps}), cfg).items():
+        assert _figure_problems(fig) == [], name
+        texts = [t.get_text() for leg in [*fig.legends, *(a.get_legend() for a in fig.axes)] if leg
+                 for t in leg.get_texts()]
+        assert any(t.startswith("chance (0.1") for t in texts), (name, texts)
+    m = {f"{d}.{s}.{k}": 0.4 for d in DIRECTIONS for s in _spaces(d) for k in METRICS}
+    m.update({f"{k}_std": 0.05 for k in list(m)}, chance=0.1, **{f"shuffled.{d}.internal.cosine": 0.12 for d in DIRECTIONS})
+    fig = _figure(m, "", "Table 6.2", 5)
+    assert _figure_problems(fig) == []
+    assert len(fig.axes[0].containers) == 2 * len(METRICS) or np.any([len(c) for c in fig.axes[0].containers])
+    assert any(c.__class__.__name__ == "BarContainer" and c.errorbar is not None for c in fig.axes[0].containers)
+
+
+def test_figure_check_catches_what_it_is_for():
+    """The checker itself: an image without a colour bar, an unlabelled chance line, no axis labels."""
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.imshow([[0, 1], [1, 0]])
+    ax2.plot([0, 1], [0, 1], label="curve")
+    ax2.axhline(0.1, ls=":")
+    problems = _figure_problems(fig)
+    assert any("colour bar" in p for p in problems)
+    assert any("unlabelled horizontal line" in p for p in problems)
+    assert any("no y label" in p for p in problems) and any("no legend" in p for p in problems)

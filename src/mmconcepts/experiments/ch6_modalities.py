@@ -235,7 +235,7 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     labels_ = [f"{te}->{rf}\n({t})" for t, te, rf in setups]
     ax.boxplot([[r[_key(*s)] for r in reps] for s in setups], medianprops={"color": "C1"})
     ax.set_xticks(range(1, len(setups) + 1), labels_, fontsize=6)
-    ax.axhline(chance, color="k", ls=":")
+    ax.axhline(chance, color="k", ls=":", label=chance_label)
     ax.set_ylabel("success rate (fraction of test examples)")
     ax.set_xlabel("test modality -> reference modality (modalities in training); S: sound, M: motion, I: image")
     ax.set_ylim(0, 1)
