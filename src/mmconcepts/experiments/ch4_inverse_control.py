@@ -419,33 +419,50 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
 
 
 def _figures(feats: RBFFeatures, K: int, fd: dict) -> dict[str, Figure]:
+    from matplotlib.lines import Line2D
+
     grid = np.linspace(0, 1, 60)
     Qg = np.stack(np.meshgrid(grid, grid), -1)
-    fig1 = Figure(figsize=(2 * K, 6))
+    fig1 = Figure(figsize=(2 * K + 1.4, 6.4), layout="constrained")
     axes = fig1.subplots(3, K, squeeze=False)
     for r, (lab, Dm) in enumerate((("true", fd["D"]), ("supervised", fd["sup"]), ("unsupervised", fd["uns"]))):
+        costs = [feats.cost(Dm[j], Qg) for j in range(K)]
+        lo, hi = float(np.min(costs)), float(np.max(costs))
         for j in range(K):
-            axes[r, j].imshow(feats.cost(Dm[j], Qg), origin="lower", extent=(0, 1, 0, 1), cmap="gray_r")
+            img = axes[r, j].imshow(costs[j], origin="lower", extent=(0, 1, 0, 1), cmap="gray_r", vmin=lo, vmax=hi)
             axes[r, j].set_xticks([]); axes[r, j].set_yticks([])
             axes[r, j].set_title(f"{lab} {j + 1}", fontsize=7)
-    fig1.suptitle("Fig 4.1: primitive costs: true, supervised learner, unsupervised learner (dark = high cost)")
-    fig1.tight_layout()
+        axes[r, 0].set_ylabel("position y")
+        fig1.colorbar(img, ax=list(axes[r, :]), shrink=0.9, pad=0.01).set_label("cost", fontsize=8)
+    for ax in axes[-1, :]:
+        ax.set_xlabel("position x")
+    fig1.suptitle("Fig 4.1: primitive costs: true, supervised learner, unsupervised learner (dark = high cost; "
+                  "the unsupervised atoms are known up to a mixing)")
 
-    fig3 = Figure(figsize=(10, 5))
+    fig3 = Figure(figsize=(11, 5.4), layout="constrained")
     axes = fig3.subplots(2, 4, squeeze=False)
     for c, (lab, src) in enumerate((("demonstrator", None), ("flat", "flat"), ("supervised (inferred)", "supervised"),
                                     ("unsupervised", "unsupervised"))):
         for r, (demo, start) in enumerate(((fd["demo_te"], fd["s_te"]), (fd["demo_new"], fd["s_new"]))):
             ax = axes[r, c]
-            ax.imshow(feats.cost(fd["A_te"][0] @ fd["D"], Qg), origin="lower", extent=(0, 1, 0, 1), cmap="gray_r")
+            img = ax.imshow(feats.cost(fd["A_te"][0] @ fd["D"], Qg), origin="lower", extent=(0, 1, 0, 1),
+                            cmap="gray_r")
             ax.plot(*demo[0].T, "b.-", ms=2, lw=0.8, label="demonstrator")
             if src is not None:
                 ax.plot(*fd[src][r][0].T, "r.-", ms=2, lw=0.8, label="imitator")
             ax.plot(*start[0], "y*", ms=10)
             ax.set_xlim(0, 1); ax.set_ylim(0, 1); ax.set_xticks([]); ax.set_yticks([])
             ax.set_title(f"{lab}, {'demo start' if r == 0 else 'new start'}", fontsize=7)
+            if c == 0:
+                ax.set_ylabel("position y")
+            if r == 1:
+                ax.set_xlabel("position x")
+    fig3.colorbar(img, ax=axes, shrink=0.7, pad=0.01).set_label("cost of the test task (dark = high)", fontsize=8)
+    fig3.legend(handles=[Line2D([], [], color="b", marker=".", ms=4, lw=0.8, label="demonstrator's trajectory"),
+                         Line2D([], [], color="r", marker=".", ms=4, lw=0.8, label="imitator's trajectory"),
+                         Line2D([], [], color="y", marker="*", ms=10, ls="", mec="0.3", label="start")],
+                loc="outside lower center", ncol=3, fontsize=8)
     fig3.suptitle("Fig 4.2-4.3: a test task imitated from one demonstration")
-    fig3.tight_layout()
     return {"fig4_1_dictionaries": fig1, "fig4_3_trajectories": fig3}
 
 

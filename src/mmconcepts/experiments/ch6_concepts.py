@@ -221,7 +221,7 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
     ax.set_xlabel("internal coefficient (its index; matched ones first)")
     ax.set_ylabel("concept (keyword)")
     ax.set_title(f"Fig. 6.10: mutual information, k = {config.k}, repetition 1 of {config.n_repeats}")
-    fig.colorbar(im, ax=ax).set_label("mutual information between the concept and the coefficient (bits)")
+    fig.colorbar(im, ax=ax).set_label("mutual information with the concept (bits)")
     return {"fig6_10": fig}
 
 
