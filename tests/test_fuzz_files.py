@@ -503,3 +503,54 @@ def test_fuzz_coil20_mat(data, kind):
                                                            and im.min() >= 0 and im.max() <= 1 for im in s.images))
 
         assert_typed_or_good("mmconcepts.vision.load_coil20", call, check=check)
+
+
+# ----------------------------------------------------------------------------- ACORNS XML
+
+_ACORNS_XML = ('<?xml version="1.0"?>\n<utterance>\n  <audio-file value="u{i}"/>\n  <vistag value="w{i}"/>\n'
+               '  <trans>hello w{i}</trans>\n</utterance>\n')
+_XML_EDITS = [
+    "<utterance><vistag value='w'/></utterance>", "<utterance><audio-file value='u1'/></utterance>",
+    "<utterance><audio-file value='u1'/><audio-file value='u2'/><vistag value='w'/></utterance>",
+    "<utterance><audio-file value=''/><vistag value='w'/></utterance>",
+    "<utterance><audio-file value='u1'/><vistag value=' ,; '/></utterance>",
+    "<utterance><audio-file value='nowhere'/><vistag value='w'/></utterance>",
+    "<a>" * 50_000 + "</a>" * 50_000,
+    '<?xml version="1.0"?><!DOCTYPE l [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">'
+    '<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;&b;&b;"><!ENTITY d "&c;&c;&c;&c;&c;&c;&c;&c;&c;&c;">'
+    '<!ENTITY e "&d;&d;&d;&d;&d;&d;&d;&d;&d;&d;"><!ENTITY f "&e;&e;&e;&e;&e;&e;&e;&e;&e;&e;">'
+    '<!ENTITY g "&f;&f;&f;&f;&f;&f;&f;&f;&f;&f;"><!ENTITY h "&g;&g;&g;&g;&g;&g;&g;&g;&g;&g;">]>'
+    "<utterance><audio-file value='u1'/><vistag value='&h;'/></utterance>",
+    '<?xml version="1.0"?><!DOCTYPE u [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+    "<utterance><audio-file value='u1'/><vistag value='w'/><trans>&x;</trans></utterance>",
+]
+
+
+@fuzz_settings(60, **SETTINGS)
+@given(data=st.data(), kind=st.sampled_from(["bytes", "bytes", "edit"]))
+def test_fuzz_acorns_xml(data, kind):
+    """A damaged ACORNS XML file (cut, flipped, unknown structure, deep nesting, entity expansion, external entity)."""
+    from mmconcepts.sound.data import load_acorns
+
+    with tempfile.TemporaryDirectory() as d:
+        root = Path(d)
+        (root / "XML" / "Speaker-01").mkdir(parents=True)
+        (root / "WAV" / "Speaker-01").mkdir(parents=True)
+        rng = np.random.default_rng(0)
+        for i in range(N_FILES):
+            (root / "XML" / "Speaker-01" / f"u{i}.xml").write_text(_ACORNS_XML.format(i=i))
+            write_audio(root / "WAV" / "Speaker-01" / f"u{i}.wav", (0.1 * rng.standard_normal(4000)).astype(np.float32),
+                        16000)
+        target = root / "XML" / "Speaker-01" / "u1.xml"
+        if kind == "bytes":
+            _, raw = data.draw(byte_damage(target.read_bytes()))
+            target.write_bytes(raw)
+        else:
+            target.write_text(data.draw(st.sampled_from(_XML_EDITS)))
+
+        def equal(c):
+            return all(len(u.labels) >= 1 and "root:" not in u.transcription for u in c) and len(c) <= N_FILES
+
+        _load_both("mmconcepts.sound.load_acorns", lambda e: load_acorns(root, on_error=e), target, N_FILES - 1,
+                   count=len, skipped_files=lambda c: [s.file for s in c.skipped],
+                   equal_to_valid=equal)

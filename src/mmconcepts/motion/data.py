@@ -28,6 +28,7 @@ treated alike (:func:`normalize_marker_name`).
 from __future__ import annotations
 
 import json
+import logging
 import os
 import re
 import warnings
@@ -482,6 +483,8 @@ except ImportError:  # pragma: no cover
 
 
 def _warn_skipped(skipped: list[SkippedRecord], what: str) -> None:
+    for k in skipped:  # each record in the log, as the audio loaders do; one warning for them all
+        logging.getLogger(__name__).warning("skipped %s (record %s): %s", k.file, k.record_id, k.reason)
     if skipped:
         warnings.warn(
             f"{len(skipped)} record(s) of {what} could not be read and were skipped "

@@ -34,6 +34,7 @@ left out, listed as ``(file, reason)`` in ``image_set.skipped``, and a
 
 from __future__ import annotations
 
+import logging
 import math
 import numbers
 import os
@@ -310,6 +311,8 @@ def _check_on_error(on_error: str) -> None:
 
 
 def _report_skipped(skipped: list[SkippedFile], what: str) -> None:
+    for k in skipped:  # each file in the log, as the audio loaders do; one warning for them all
+        logging.getLogger(__name__).warning("skipped %s: %s", k.file, k.reason)
     if skipped:
         warnings.warn(
             f"{len(skipped)} file(s) of {what} could not be read and were skipped (see image_set.skipped); "
