@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from _fuzz import assert_typed_or_good, fuzz_settings
+import pytest
 from hypothesis import HealthCheck, given, note
 from hypothesis import strategies as st
 
@@ -210,3 +211,37 @@ def test_report_lists_a_damaged_record_and_shows_the_good_ones(damaged):
         unrecognisable = isinstance(content, dict) and not set(content) & set(RECORD_KEYS)
         assert_typed_or_good("mmconcepts report", lambda: _report(folder),
                              check=_good_report(name, bad_id, unrecognisable))
+
+
+def test_a_metric_no_float_holds_is_listed_not_a_traceback(tmp_path):
+    """Found by the census: a metric of 10**400 (valid JSON) raised OverflowError out of `mmconcepts report`."""
+    for good in GOOD:
+        shutil.copy(RECORDS / good, tmp_path / good)
+    record = dict(BASES[0], experiment="toy-huge", metrics={"a": 10**400})
+    (tmp_path / "huge.json").write_text(json.dumps(record))
+    code, output, html_text, md = _report(tmp_path)
+    assert code == 0 and "Traceback" not in output
+    assert "<td>huge.json</td><td>not a valid result record (OverflowError" in html_text
+    _good_report("huge.json", "toy-huge", False)((code, output, html_text, md))
+
+
+
+@pytest.mark.parametrize("name, raw, reason", [
+    # found by the fuzz test before the fixes: each crashed the report or was silently dropped
+    ("surrogate.json", json.dumps(BASES[0]).replace('"quick"', '"\\ud800quick"').encode(), "written"),
+    ("cesu.json", json.dumps(BASES[0]).encode().replace(b'"quick"', b'"\xed\xa0\x80quick"'), "not valid UTF-8"),
+    ("null-id.json", json.dumps(dict(BASES[0], experiment=None)).encode(), "experiment id must be a non-empty string"),
+    ("null.json", b"null", "not a valid result record"),
+    ("no-id.json", json.dumps({k: v for k, v in BASES[0].items() if k != "experiment"}).encode(),
+     "not a valid result record"),
+])
+def test_damaged_records_found_by_fuzzing(tmp_path, name, raw, reason):
+    for good in GOOD:
+        shutil.copy(RECORDS / good, tmp_path / good)
+    (tmp_path / name).write_bytes(raw)
+    code, output, html_text, md = _report(tmp_path)
+    assert code == 0 and "Traceback" not in output, output
+    if reason == "written":  # a lone surrogate from a JSON escape: shown, written as "?"
+        assert "?quick" in md
+    else:
+        assert f"| {name} | " in md and reason in md.split("### Records left out", 1)[1].split("## Summary", 1)[0]

@@ -303,6 +303,8 @@ def collect(results_dir: Path, problems: list[tuple[str, str]] | None = None) ->
             if not _looks_like_a_record(raw):
                 continue
             reason = f"not a valid result record: {exc}"
+        except Exception as exc:  # noqa: BLE001 -- e.g. OverflowError from a metric of 10**400: never a traceback
+            reason = f"not a valid result record ({type(exc).__name__}: {exc})"
         else:
             try:
                 views.append(build_view(record, results_dir, path))
