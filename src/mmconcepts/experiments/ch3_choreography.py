@@ -178,7 +178,7 @@ def _bar_figure(metrics: dict, reference: dict, rows: list[tuple[str, str]], tit
     ax.set_ylim(0, 1)
     ax.set_ylabel("score (fraction of test examples\nwith the right label set)")
     ax.set_title(title)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over them
     return fig
 
 
