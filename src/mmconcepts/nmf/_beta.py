@@ -120,6 +120,13 @@ def _sum_power_lowrank(W: np.ndarray, Ht: np.ndarray, power: float, mask=None) -
         return float(np.sum(np.asarray(mask @ Ht) * W))
     if power == 2.0 and mask is None:
         return float(np.sum((W.T @ W) * (Ht.T @ Ht)))
+    if sp.issparse(mask):  # only at the observed cells: a sparse mask is never densified
+        from ._kernels import lowrank_at_nonzeros
+
+        M = sp.csr_matrix(mask)
+        Y = lowrank_at_nonzeros(M.indptr, M.indices, W, Ht, np.empty(M.nnz, dtype=W.dtype))
+        np.maximum(Y, 0.0, out=Y)
+        return float(np.sum(Y**power * M.data, dtype=np.float64))
     total = 0.0
     for rows in _dense_blocks(W.shape[0], Ht.shape[0]):
         Y = W[rows] @ Ht.T
@@ -161,6 +168,8 @@ def check_beta_zeros(X, beta: float, mask=None, name: str = "X") -> None:
 def _gather(mask, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Mask values at the given cells (dense or sparse mask)."""
     if sp.issparse(mask):
+        if rows.size == 0:
+            return np.zeros(0, dtype=mask.dtype)
         return np.asarray(mask.tocsr()[rows, cols]).ravel()
     return mask[rows, cols]
 
@@ -197,13 +206,31 @@ def beta_divergence(
     Returns
     -------
     float
-        The divergence (``inf`` if WH is zero where X is not, for beta <= 1).
+        The divergence (``inf`` if WH is zero where X is not, for beta <= 1, or where it exceeds
+        the range of float64).
+
+    Raises
+    ------
+    DataError
+        X negative, NaN or infinite on observed cells, zero with beta <= 0, W or H of the wrong
+        shape, negative or not finite.
     """
     from ._problem import Problem  # the problem module builds on this one
 
+    from ._solver import validate_data  # the solver module builds on this one
+
     beta = resolve_beta(beta)
-    W = np.ascontiguousarray(W)
-    Ht = np.ascontiguousarray(np.asarray(H).T)
+    X, mask = validate_data(X, mask)
+    check_beta_zeros(X, beta, mask)
+    W = np.ascontiguousarray(W, dtype=np.result_type(np.asarray(W).dtype, np.float32))
+    Ht = np.ascontiguousarray(np.asarray(H, dtype=W.dtype).T)
+    if W.ndim != 2 or Ht.ndim != 2 or W.shape[0] != X.shape[0] or Ht.shape[0] != X.shape[1] or W.shape[1] != Ht.shape[1]:
+        raise DataError(
+            f"W and H must have shapes (n_samples, k) and (k, n_features) with X of shape {X.shape}; got "
+            f"{W.shape} and {np.shape(H)}."
+        )
+    if not (np.isfinite(W).all() and np.isfinite(Ht).all()) or (W < 0).any() or (Ht < 0).any():
+        raise DataError("W and H must be finite and nonnegative.")
     if sp.issparse(X):
         X = sp.csr_matrix(X)
         if X.dtype != W.dtype:

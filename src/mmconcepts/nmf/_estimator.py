@@ -17,7 +17,9 @@ from ._init import initialize
 from ._problem import Problem
 from ._solver import (
     BETA_NMF_CONSTRAINTS,
+    _data_scale,
     _resolve_penalties,
+    _scale_penalties,
     beta_nmf,
     constant_coefficients,
     mu_update,
@@ -139,8 +141,9 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         "forget_factor": [Interval("real", 0, 1)],
         "transform_max_iter": [Interval("int", 0), None],
     }
-    _persisted_private = ("_stats",)
+    _persisted_private = ("_stats", "_scale")
     _stats: tuple[np.ndarray, np.ndarray] | None  # partial_fit's pooled statistics (A, B); None before
+    _scale: float  # partial_fit: the power of two the batches are divided by (fixed by the first one)
 
     def __init__(
         self,
@@ -288,6 +291,12 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         Xv, maskv = validate_data(X, mask)
         check_beta_zeros(Xv, beta, maskv)
         n, m = Xv.shape
+        # As beta_nmf, the updates run on X / scale (a power of two, 1 at ordinary scales); the scale
+        # is fixed by the first batch, so that the pooled statistics of all batches share it.
+        stats_so_far = getattr(self, "_stats", None) if hasattr(self, "components_") else None
+        scale = float(getattr(self, "_scale", 1.0)) if stats_so_far is not None else _data_scale(Xv, beta)
+        if scale != 1.0:
+            Xv = Xv / scale if sp.issparse(Xv) else np.divide(Xv, Xv.dtype.type(scale))
         if not hasattr(self, "components_"):
             k = int(self.n_components if self.n_components is not None else min(n, m))
             init = self.init or ("nndsvda" if k <= min(n, m) else "random")
@@ -296,10 +305,12 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             self._stats = None
         else:
             self._check_n_features(m)
-            H = self.components_.astype(Xv.dtype, copy=True)
+            H = self.components_.astype(Xv.dtype, copy=True) / Xv.dtype.type(scale)
             W = constant_coefficients(Xv, H, maskv)
         gamma = mm_exponent(beta) if self.update_rule == "mm" else 1.0
         pen_W, pen_H = _resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, n, m)
+        if scale != 1.0:
+            pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, 1.0, scale, beta)
         problem = Problem(Xv, maskv)
         W = np.ascontiguousarray(W)
         Ht = np.ascontiguousarray(H.T)
@@ -321,10 +332,12 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
                 Ht **= gamma
         if A is not None and B is not None:
             self._stats = (A, B)
-        self._set_fitted(np.ascontiguousarray(Ht.T), X)
+        self._scale = scale
+        self._set_fitted(np.ascontiguousarray(Ht.T) * Ht.dtype.type(scale), X)
         self.n_iter_ = max_iter
         self.n_steps_ = getattr(self, "n_steps_", 0) + 1
-        loss = problem.divergence(W, Ht, beta)
+        with np.errstate(over="ignore", under="ignore"):
+            loss = float(problem.divergence(W, Ht, beta) * np.float64(scale) ** beta)
         self.loss_history_ = np.array([loss])
         self.loss_iterations_ = np.array([max_iter])
         self.reconstruction_err_ = float(np.sqrt(2.0 * max(loss, 0.0)))

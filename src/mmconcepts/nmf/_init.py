@@ -16,12 +16,57 @@ INITS = ("random", "nndsvd", "nndsvda", "nndsvdar", "custom")
 def _observed_mean(X, mask) -> float:
     if mask is None:
         return float(X.mean())
-    m = mask.toarray() if sp.issparse(mask) else np.asarray(mask)
+    if sp.issparse(mask):  # never densified; X is zero on unobserved cells (validate_data)
+        n_obs = float(mask.count_nonzero())
+        if n_obs == 0:
+            raise DataError("mask observes no cell of X; at least one cell must be True.")
+        total = X.sum() if sp.issparse(X) else float(mask.multiply(X).sum())
+        return float(total) / n_obs
+    m = np.asarray(mask)
     n_obs = float(m.sum())
     if n_obs == 0:
         raise DataError("mask observes no cell of X; at least one cell must be True.")
     total = X.multiply(m).sum() if sp.issparse(X) else float((X * m).sum())
     return float(total) / n_obs
+
+
+def _filled_svd(X, mask, fill: float, k: int, seed: int):
+    """Truncated SVD of X with its unobserved cells set to ``fill``, for a sparse X and sparse mask.
+
+    The filled matrix A = X - fill * M + fill * 1 1^T (X is zero off the mask) is never formed:
+    the steps of scikit-learn's ``randomized_svd`` (Halko, Martinsson & Tropp 2011: same random
+    draws, power iterations, LU normalisation and sign convention, so the same factors up to
+    rounding) multiply it by thin blocks only. Written by hand: ``randomized_svd`` takes arrays,
+    not operators.
+    """
+    from scipy import linalg
+    from sklearn.utils.extmath import svd_flip
+
+    M = sp.csr_matrix(mask, dtype=X.dtype)
+    transpose = X.shape[0] < X.shape[1]
+    Xo, Mo = (X.T.tocsr(), M.T.tocsr()) if transpose else (X, M)
+
+    def dot(Q):  # A Q
+        return np.asarray(Xo @ Q) - fill * np.asarray(Mo @ Q) + fill * Q.sum(axis=0, keepdims=True)
+
+    def tdot(Q):  # A^T Q
+        return np.asarray(Xo.T @ Q) - fill * np.asarray(Mo.T @ Q) + fill * Q.sum(axis=0, keepdims=True)
+
+    n_iter = 7 if k < 0.1 * min(X.shape) else 4
+    Q = np.random.RandomState(seed).normal(size=(Xo.shape[1], k + 10))
+    if X.dtype == np.float32:
+        Q = Q.astype(np.float32)
+    for _ in range(n_iter):
+        Q, _ = linalg.lu(dot(Q), permute_l=True)
+        Q, _ = linalg.lu(tdot(Q), permute_l=True)
+    Q, _ = linalg.qr(dot(Q), mode="economic")
+    Uhat, S, Vt = linalg.svd(tdot(Q).T, full_matrices=False, lapack_driver="gesdd")
+    U = Q @ Uhat
+    if transpose:
+        U, Vt = svd_flip(U, Vt, u_based_decision=False)
+        return Vt[:k].T, S[:k], U[:, :k].T
+    U, Vt = svd_flip(U, Vt)
+    return U[:, :k], S[:k], Vt[:k]
 
 
 def initialize(X, n_components: int, init: str, rng: np.random.Generator, *, mask=None, eps: float = 1e-6):
@@ -48,12 +93,15 @@ def initialize(X, n_components: int, init: str, rng: np.random.Generator, *, mas
             f"init={init!r} needs n_components <= min(n_samples, n_features) = {min(n, m)}; got {n_components}. "
             "Use init='random'."
         )
-    A = X
-    if mask is not None:
-        m_arr = mask.toarray() if sp.issparse(mask) else np.asarray(mask)
-        A = np.where(m_arr > 0, X.toarray() if sp.issparse(X) else X, avg_x)
     seed = int(rng.integers(0, 2**31 - 1))
-    U, S, V = randomized_svd(A, n_components, random_state=seed)
+    if mask is not None and sp.issparse(mask) and sp.issparse(X):  # stays sparse
+        U, S, V = _filled_svd(X, mask, avg_x, n_components, seed)
+    else:
+        A = X
+        if mask is not None:
+            m_arr = mask.toarray() if sp.issparse(mask) else np.asarray(mask)
+            A = np.where(m_arr > 0, X.toarray() if sp.issparse(X) else X, avg_x)
+        U, S, V = randomized_svd(A, n_components, random_state=seed)
     W = np.zeros((n, n_components), dtype=np.float64)
     H = np.zeros((n_components, m), dtype=np.float64)
     W[:, 0] = np.sqrt(S[0]) * np.abs(U[:, 0])

@@ -139,6 +139,14 @@ class Side:
             den = np.broadcast_to(R.sum(axis=0), L.shape) if M is None else np.asarray(M @ R)
         elif beta == 2.0 and M is None:
             den = L @ (R.T @ R)
+        elif sp.issparse(M):  # (M * max(Y, eps) ** (beta - 1)) R at the observed cells only
+            Ms = cast("sp.csr_matrix", M)
+            Y = _kernels.lowrank_at_nonzeros(Ms.indptr, Ms.indices, L, R, np.empty(Ms.nnz, dtype=L.dtype))
+            np.maximum(Y, EPSILON if beta < 2.0 else 0.0, out=Y)
+            if beta != 2.0:
+                Y **= beta - 1.0
+            Y *= Ms.data
+            den = np.asarray(sp.csr_matrix((Y, Ms.indices, Ms.indptr), shape=Ms.shape) @ R)
         else:
             den = np.empty_like(L)
             for rows in _dense_blocks(L.shape[0], R.shape[0]):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -240,7 +241,12 @@ def check_mask(mask: Any, shape: tuple[int, int], name: str = "mask"):
 def validate_data(X: Any, mask: Any = None, name: str = "X"):
     """Validate X (and its mask). With a mask, unobserved cells may hold anything (NaN too); they are zeroed."""
     if mask is None:
-        return check_nonnegative_matrix(X, name), None
+        try:
+            return check_nonnegative_matrix(X, name), None
+        except ValueError as exc:  # a TypeError (objects that are not numbers) stays one, as scikit-learn's
+            if isinstance(exc, DataError):
+                raise
+            raise DataError(f"{name} must be a nonnegative matrix of numbers; {exc}") from exc
     if sp.issparse(X):
         X = sp.csr_matrix(X, dtype=X.dtype if X.dtype in (np.float32, np.float64) else np.float64, copy=True)
         X.sum_duplicates()
@@ -255,10 +261,11 @@ def validate_data(X: Any, mask: Any = None, name: str = "X"):
         raise DataError(f"{name} must be 2-D (n_samples, n_features); got an array of shape {X.shape}.")
     mask = check_mask(mask, X.shape)
     if sp.issparse(X):
-        rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
-        observed = np.asarray(mask[rows, X.indices]).ravel() if sp.issparse(mask) else mask[rows, X.indices]
-        X.data[~observed.astype(bool)] = 0.0
-        X.eliminate_zeros()
+        if X.nnz:
+            rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
+            observed = np.asarray(mask[rows, X.indices]).ravel() if sp.issparse(mask) else mask[rows, X.indices]
+            X.data[~observed.astype(bool)] = 0.0
+            X.eliminate_zeros()
     else:
         dense_mask = mask.toarray() if sp.issparse(mask) else mask
         X[~dense_mask] = 0.0
@@ -432,25 +439,44 @@ def beta_nmf(
     k = int(n_components)
     _check_fits_in_memory(n, m, k, dtype)
 
+    # The fit runs on X / scale (scale = 1 for data at ordinary scales, else a power of two, so
+    # the division is exact) with W = scale_W * W' and H = scale_H * H', scale_W * scale_H = scale:
+    # the scale goes into H, or into W when H has unit-norm atoms (sparseness_H); a fixed H
+    # (update_H=False) is brought to an ordinary scale of its own.
+    scale = _data_scale(X, beta)
+    if not update_H:
+        scale_H = 1.0 if H is None else _data_scale(np.asarray(H, dtype=float), beta)
+    else:
+        scale_H = 1.0 if sparseness_H is not None else scale
+    scale_W = scale / scale_H
+    rescaled = scale != 1.0 or scale_H != 1.0
+    if scale != 1.0:
+        X = X / scale if sp.issparse(X) else np.divide(X, dtype.type(scale))
+    _check_dynamic_range(X, beta)
+
     if not update_H:
         if H is None:
             raise ParameterError("update_H=False needs the fixed dictionary H.")
-        H = _check_factor(H, (k, m), "H", dtype)
+        H = _check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
         if W is None:
             W = constant_coefficients(X, H, mask)
         else:
-            W = _check_factor(W, (n, k), "W", dtype)
+            W = _check_factor(W, (n, k), "W", dtype) / dtype.type(scale_W)
     elif init == "custom" or (init is None and W is not None and H is not None):
         if W is None or H is None:
             raise ParameterError("init='custom' needs both W and H.")
         W = _check_factor(W, (n, k), "W", dtype)
         H = _check_factor(H, (k, m), "H", dtype)
+        W /= dtype.type(scale_W)
+        H /= dtype.type(scale_H)
     else:
         if init is None:
             init = "nndsvda" if k <= min(n, m) else "random"
         W, H = initialize(X, k, init, check_random_state(random_state), mask=mask)
 
     pen_W, pen_H = _resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
+    if rescaled:
+        pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
     hoyer = (
         None if sparseness_W is None else _Hoyer(sparseness_W, keep_norm=True),
         None if sparseness_H is None else _Hoyer(sparseness_H, keep_norm=False),
@@ -463,7 +489,22 @@ def beta_nmf(
         W = hoyer[0].project(W)
     if hoyer[1] is not None and update_H:
         Ht = hoyer[1].project(Ht)
+    if hoyer[0] is not None or hoyer[1] is not None:
+        f_start = sol.objective(W, Ht)
+        if not np.isfinite(f_start):  # the Hoyer steps accept only a finite, not larger objective
+            raise DataError(
+                f"with sparseness_W={sparseness_W} and sparseness_H={sparseness_H} the projected starting factors "
+                f"leave W @ H zero where X is not, and the beta={beta:g} divergence is infinite there (beta <= 1). "
+                "Use a lower sparseness, more components, or beta_loss > 1."
+            )
+    if rescaled:
+        _check_objective_range(sol.objective(W, Ht), scale, beta)
     W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every)
+    if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
+        with np.errstate(over="ignore", under="ignore"):
+            hist = hist * np.float64(scale) ** beta
+        W = W * dtype.type(scale_W)
+        Ht = Ht * dtype.type(scale_H)
     if tol > 0 and not converged and max_iter > 0:
         warnings.warn(
             f"beta_nmf stopped at max_iter={max_iter} before the objective settled (tol={tol:g}); "
@@ -474,14 +515,89 @@ def beta_nmf(
     return NMFResult(W, np.ascontiguousarray(Ht.T), n_iter, hist, its, converged)
 
 
+#: Data whose largest observed value lies in [2 ** _SAFE_LO, 2 ** _SAFE_HI] is fitted as given;
+#: beyond, it is rescaled (the clipping of the low-rank product at EPSILON and the powers of it
+#: are not scale-invariant, and float64 overflows near 1e308).
+_SAFE_LO, _SAFE_HI = -10, 20
+
+
+def _data_scale(X, beta: float) -> float:
+    """The power of two X is divided by for the fit: 1 when X's largest value is at an ordinary scale.
+
+    Beta-divergences are homogeneous, d_beta(c x | c y) = c ** beta d_beta(x | y), so the
+    minimisers scale with X: fitting X / s and multiplying one factor by s gives the fit of X.
+    In floating point the updates are not scale-invariant at extreme scales (the product is
+    clipped below at EPSILON, powers of it overflow), so X far from 1 is brought near 1. A
+    power of two divides exactly; data at ordinary scales is not touched at all.
+    """
+    values = X.data if sp.issparse(X) else X
+    if values.size == 0:
+        return 1.0
+    xmax = float(values.max())
+    if not xmax > 0.0 or not np.isfinite(xmax):
+        return 1.0
+    exponent = math.frexp(xmax)[1]  # xmax = f * 2 ** exponent, 0.5 <= f < 1
+    hi = min(_SAFE_HI, int(100 / max(2.0, abs(beta), abs(beta - 1.0) + 1.0)))
+    if _SAFE_LO <= exponent <= hi:
+        return 1.0
+    return math.ldexp(1.0, exponent - 1)  # X / scale has its largest value in [1, 2); 2 ** 1024 would overflow
+
+
+def _check_dynamic_range(X, beta: float) -> None:
+    """Refuse subnormal values next to values near 1 when beta <= 1: their terms of the divergence
+    (x ** beta, x log x, 1 / x) and the factors that fit them leave the range of the float type."""
+    if beta > 1.0:
+        return
+    values = X.data if sp.issparse(X) else X
+    tiny = np.finfo(values.dtype).tiny
+    if values.size and bool(np.any((values > 0) & (values < tiny))):
+        raise DataError(
+            f"X spans more than the range of {values.dtype} (its smallest nonzero values are subnormal, below "
+            f"{tiny:.3g} times its largest); with beta_loss={beta:g} <= 1 their divergence terms overflow. Set them "
+            "to 0 (beta > 0) or use beta_loss > 1."
+        )
+
+
+def _scale_penalties(pen_W: _Penalty, pen_H: _Penalty, scale: float, scale_W: float, scale_H: float, beta: float):
+    """The penalties of the fit on X / scale that give the minimisers of the fit on X.
+
+    With W = a W', H = b H' (a = scale_W, b = scale_H, a b = scale) the objective is
+    scale ** beta * [D(X' | W' H') + (l1_W a |W'| + l2_W a^2 |W'|^2 / 2 + l1_H b |H'| + l2_H b^2 |H'|^2 / 2)
+    / scale ** beta].
+    """
+    s = np.float64(scale)
+
+    def times(value: float, factor) -> float:  # 0 stays 0 (no penalty), whatever the factor
+        return float(value * factor) if value else 0.0
+
+    with np.errstate(over="ignore", under="ignore"):
+        out = []
+        for pen, f in ((pen_W, np.float64(scale_W)), (pen_H, np.float64(scale_H))):
+            out.append(_Penalty(l1=times(pen.l1, f / s**beta), l2=times(pen.l2, f * f / s**beta)))
+    return out[0], out[1]
+
+
+def _check_objective_range(f0: float, scale: float, beta: float) -> None:
+    """Refuse data whose objective (in X's units) float64 cannot hold: the fit itself would be fine."""
+    with np.errstate(over="ignore", under="ignore"):
+        f = float(np.float64(f0) * np.float64(scale) ** beta) if f0 > 0 else 0.0
+    if f0 > 0 and (not np.isfinite(f) or f < np.finfo(np.float64).tiny):
+        raise DataError(
+            f"X's largest value is about {scale:.3g}: at that scale the beta={beta:g} objective (about "
+            f"{f0:.3g} * {scale:.3g} ** {beta:g}) is outside the range of float64. Rescale X by a constant c "
+            "first: the fit of c X is (W, c H)."
+        )
+
+
 def constant_coefficients(X, H: np.ndarray, mask=None) -> np.ndarray:
     """A flat start for W given a fixed H: every entry equal, so that mean(W H) = mean(X)."""
     n, k = X.shape[0], H.shape[0]
     if mask is None:
         x_mean = float(X.mean())
+    elif sp.issparse(mask):  # X is zero off the mask (validate_data); the mask is never densified
+        x_mean = float(X.sum() if sp.issparse(X) else mask.multiply(X).sum()) / max(float(mask.count_nonzero()), 1.0)
     else:
-        m = mask.toarray() if sp.issparse(mask) else mask
-        x_mean = float((X.multiply(m) if sp.issparse(X) else X * m).sum()) / max(float(m.sum()), 1.0)
+        x_mean = float((X.multiply(mask) if sp.issparse(X) else X * mask).sum()) / max(float(mask.sum()), 1.0)
     h_mean = float(H.mean())
     value = x_mean / (k * h_mean) if h_mean > 0 else 0.0
     return np.full((n, k), max(value, np.sqrt(np.finfo(X.dtype).eps)), dtype=X.dtype)

@@ -82,6 +82,8 @@ def _check_scores(scores: Any, shape: tuple[int, ...] | None, name: str = "score
 
 def _masked_extremes(S: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per row: the lowest score among true labels (+inf if none) and the highest among the others (-inf if none)."""
+    if S.shape[1] == 0:
+        raise DataError("the label matrix has 0 labels (columns); scores need at least one label.")
     min_true = np.where(Y, S, np.inf).min(axis=1)
     max_other = np.where(Y, -np.inf, S).max(axis=1)
     return min_true, max_other

@@ -30,20 +30,38 @@ def hoyer_sparseness(x: np.ndarray, axis: int | None = None) -> np.ndarray | flo
     Returns
     -------
     float or ndarray
-        NaN for an all-zero vector (the measure is undefined there).
+        In [0, 1]; NaN for an all-zero vector (the measure is undefined there).
+
+    Raises
+    ------
+    DataError
+        For NaN or infinite values, or vectors shorter than 2.
     """
-    x = np.asarray(x, dtype=float)
+    x = _finite_vector(x, "hoyer_sparseness")
     if axis is None:
         x = x.ravel()
         axis = 0
     n = x.shape[axis]
     if n < 2:
         raise DataError(f"sparseness needs vectors of length >= 2; got length {n}.")
-    l1 = np.abs(x).sum(axis=axis)
-    l2 = np.sqrt((x * x).sum(axis=axis))
+    peak = np.abs(x).max(axis=axis, keepdims=True) if x.size else np.ones(1)
     with np.errstate(divide="ignore", invalid="ignore"):
+        x = x / np.where(peak > 0, peak, 1.0)  # the measure is scale-invariant; unit scale keeps the squares finite
+        l1 = np.abs(x).sum(axis=axis)
+        l2 = np.sqrt((x * x).sum(axis=axis))
         s = (np.sqrt(n) - l1 / l2) / (np.sqrt(n) - 1.0)
+    s = np.clip(s, 0.0, 1.0)  # rounding can step just outside [0, 1] (NaN stays NaN)
     return float(s) if np.ndim(s) == 0 else s
+
+
+def _finite_vector(x, owner: str) -> np.ndarray:
+    try:
+        x = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{owner} needs an array of numbers; {exc}") from exc
+    if not np.isfinite(x).all():
+        raise DataError(f"{owner} needs finite values; got NaN or infinite entries.")
+    return x
 
 
 def l1_for_sparseness(sparseness: float, n: int, l2: float = 1.0) -> float:
@@ -68,9 +86,11 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
     ndarray of shape (n,)
         Nonnegative, with ``sum(s) == l1`` and ``norm(s) == l2`` up to rounding.
     """
-    x = np.asarray(x, dtype=float).ravel()
+    x = _finite_vector(x, "project_hoyer").ravel()
     n = x.size
-    if l2 <= 0 or not np.isfinite(l1) or not np.isfinite(l2):
+    if n == 0:
+        raise DataError("project_hoyer needs a vector of length >= 1; got an empty one.")
+    if not (l2 > 0) or not np.isfinite(l1) or not np.isfinite(l2):
         raise ParameterError(f"project_hoyer needs finite l1 and l2 > 0; got l1={l1}, l2={l2}.")
     if l1 < l2 * (1 - 1e-12) or l1 > np.sqrt(n) * l2 * (1 + 1e-12):
         raise ParameterError(
@@ -78,6 +98,16 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
         )
     if l1 >= np.sqrt(n) * l2 * (1 - 1e-12):  # sparseness 0: the constant vector is the only feasible one
         return np.full(n, l1 / n)
+    if l2 != 1.0:  # equivariant: P(x; l1, l2) = l2 P(x / l2; l1 / l2, 1), computed at unit scale (no overflow)
+        with np.errstate(over="ignore", under="ignore"):
+            unit = x / l2
+        if np.isfinite(unit).all():
+            return l2 * project_hoyer(unit, l1 / l2, 1.0)
+    if np.abs(x).max() > 1e150 * l2:  # its squares overflow
+        raise DataError(
+            f"project_hoyer: x is too large relative to l2 (max |x| = {np.abs(x).max():.3g}, l2 = {l2:g}); "
+            "divide x by a constant first."
+        )
     l2sq = l2 * l2
     v = x + (l1 - x.sum()) / n
     zero = np.zeros(n, dtype=bool)
