@@ -238,7 +238,12 @@ def delayed_velocity(x: np.ndarray, delay: int = 1, *, period: float | None = No
         raise ParameterError(f"delay must be an int >= 1; got {delay!r}.")
     if period is not None and not (isinstance(period, (int, float, np.number)) and 0 < float(period) < np.inf):
         raise ParameterError(f"period must be a finite number > 0 (2 * pi for angles) or None; got {period!r}.")
-    x = np.asarray(x, dtype=float)
+    try:
+        x = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"delayed_velocity needs an array of numbers; {exc}") from exc
+    if not np.isfinite(x).all():
+        raise DataError("delayed_velocity needs finite values; x holds NaN or infinite entries (missing frames?).")
     if x.ndim == 0 or x.shape[0] <= delay:
         raise DataError(
             f"A delayed velocity with delay={delay} needs more than {delay} frames; got shape {x.shape}."

@@ -712,7 +712,7 @@ def dtw(a: ArrayLike, b: ArrayLike, *, window: int | None = None, local: str = "
     status = _fixed_serial(a, b[None], radius, squared, out)
     if status != -1:
         raise DataError(f"{'a' if status == -2 else 'b'} contains NaN or infinite values; remove or impute them first.")
-    return float(out[0, 0])
+    return float(_finite_distances(out)[0, 0])
 
 
 def dtw_distance_matrix(
@@ -760,13 +760,23 @@ def dtw_distance_matrix(
     squared, radius = _check_params("dtw_distance_matrix", window, local, n_jobs)
     PX = _pack(X, "X")
     if Y is None:
-        return _run(PX, PX, True, radius, squared, n_jobs)
+        return _finite_distances(_run(PX, PX, True, radius, squared, n_jobs))
     PY = _pack(Y, "Y")
     if PY.d != PX.d:
         raise DataError(
             f"Y[0] has d = {PY.d} values per frame but X[0] has d = {PX.d}; X and Y must have the same d."
         )
-    return _run(PX, PY, False, radius, squared, n_jobs)
+    return _finite_distances(_run(PX, PY, False, radius, squared, n_jobs))
+
+
+def _finite_distances(D: np.ndarray) -> np.ndarray:
+    """The distances, or a DataError when they overflowed (inputs are finite and paths always exist)."""
+    if not np.isfinite(D).all():
+        raise DataError(
+            "DTW distances overflow float64: the frames are too large (their squared differences exceed "
+            "about 1e308); divide the sequences by a constant (DTW distances scale with it)."
+        )
+    return D
 
 
 def dtw_one_to_many(
@@ -830,7 +840,7 @@ def dtw_one_to_many(
         out = np.empty((1, X.shape[0]))
         status = _fixed_serial(q, X, radius, squared, out)
         if status == -1:
-            return out[0]
+            return _finite_distances(out)[0]
         if status >= 0:
             raise DataError(f"candidates[{status}] contains NaN or infinite values; remove or impute them first.")
     if not np.isfinite(q).all():
@@ -840,4 +850,4 @@ def dtw_one_to_many(
         raise DataError(
             f"candidates have d = {C.d} values per frame but query has d = {q.shape[1]}; they must match."
         )
-    return _run(_Packed.single(q), C, False, radius, squared, n_jobs)[0]
+    return _finite_distances(_run(_Packed.single(q), C, False, radius, squared, n_jobs))[0]

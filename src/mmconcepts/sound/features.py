@@ -43,6 +43,12 @@ _MFCC_CONSTRAINTS: dict[str, list] = {
 }
 
 #: The parameters of the window functions below.
+#: Longest analysis window or hop accepted, in samples (about 17 minutes at 16 kHz).
+_MAX_FRAME_SAMPLES = 2**24
+
+#: Largest sample magnitude accepted: the power spectrum of louder samples overflows.
+_MAX_SAMPLE = 1e100
+
 _WINDOW_CONSTRAINTS: dict[str, list] = {
     "duration_ms": [Interval("real", 0, None, closed="neither")],
     "hop_ms": [Interval("real", 0, None, closed="neither")],
@@ -103,6 +109,27 @@ class MFCCConfig:
             raise ParameterError(
                 f"MFCCConfig needs 0 <= fmin < fmax <= sr/2; got fmin={self.fmin}, fmax={self.fmax}, sr={self.sr}."
             )
+        for name in ("win_ms", "hop_ms"):
+            samples = getattr(self, name) * self.sr / 1000
+            if not samples <= _MAX_FRAME_SAMPLES:
+                raise ParameterError(
+                    f"MFCCConfig: {name}={getattr(self, name)} ms is {samples:.3g} samples at sr={self.sr}, more than "
+                    f"{_MAX_FRAME_SAMPLES:.0e}; frames and hops are milliseconds long (25 and 10 in the thesis)."
+                )
+        if self.win_length < 1:
+            raise ParameterError(
+                f"MFCCConfig: win_ms={self.win_ms} ms is less than one sample at sr={self.sr}; raise win_ms."
+            )
+        if not self.lifter <= _MAX_FRAME_SAMPLES:
+            raise ParameterError(f"MFCCConfig: lifter must be a finite number >= 0 (0: none); got {self.lifter}.")
+        from scipy.signal import get_window
+
+        try:
+            get_window(self.window, 8)
+        except (ValueError, TypeError) as exc:
+            raise ParameterError(
+                f"MFCCConfig: window={self.window!r} is not a scipy.signal.get_window window ({exc}); e.g. 'hamming'."
+            ) from exc
 
     @property
     def win_length(self) -> int:
@@ -136,6 +163,11 @@ def _check_audio(y: np.ndarray, config: MFCCConfig) -> np.ndarray:
         )
     if not np.all(np.isfinite(y)):
         raise DataError("audio contains NaN or infinite samples.")
+    if y.size and float(np.max(np.abs(y))) > _MAX_SAMPLE:
+        raise DataError(
+            f"audio samples reach {float(np.max(np.abs(y))):.3g}: their power spectrum overflows. Audio is expected "
+            "as floats in [-1, 1] (or integer PCM); divide it by its peak."
+        )
     return y
 
 
@@ -208,6 +240,8 @@ def delta(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x)
     if x.ndim == 0 or x.shape[0] == 0:
         raise DataError(f"delta needs at least one frame along axis 0; got shape {x.shape}.")
+    if not np.issubdtype(x.dtype, np.number) or not np.all(np.isfinite(x)):
+        raise DataError("delta needs finite numbers; the frames hold NaN, infinite or non-numeric values.")
     pad = [(2, 2)] + [(0, 0)] * (x.ndim - 1)
     p = np.pad(x, pad, mode="edge")
     n = x.shape[0]
@@ -216,6 +250,8 @@ def delta(x: np.ndarray) -> np.ndarray:
 
 def add_deltas(x: np.ndarray) -> np.ndarray:
     """Stack a sequence with its delta and delta-delta: (n, d) -> (n, 3 d) (Thesis 5.3)."""
+    if np.ndim(x) != 2:
+        raise DataError(f"add_deltas needs a (n_frames, d) sequence; got shape {np.shape(x)}.")
     d1 = delta(x)
     return np.concatenate([x, d1, delta(d1)], axis=1)
 
@@ -223,7 +259,13 @@ def add_deltas(x: np.ndarray) -> np.ndarray:
 def window_frames(duration_ms: float, hop_ms: float = 10.0) -> int:
     """Number of MFCC frames in a window of ``duration_ms`` (at least 1)."""
     validate_params({"duration_ms": duration_ms, "hop_ms": hop_ms}, _WINDOW_CONSTRAINTS, owner="window_frames")
-    return max(1, int(round(duration_ms / hop_ms)))
+    frames = duration_ms / hop_ms
+    if not frames <= _MAX_FRAME_SAMPLES:
+        raise ParameterError(
+            f"window_frames: a {duration_ms} ms window at a {hop_ms} ms hop is {frames:.3g} frames, more than "
+            f"{_MAX_FRAME_SAMPLES:.0e}; give both in milliseconds."
+        )
+    return max(1, int(round(frames)))
 
 
 def sliding_windows(seq: np.ndarray, width: int, shift: int | None = None) -> np.ndarray:
@@ -246,6 +288,8 @@ def sliding_windows(seq: np.ndarray, width: int, shift: int | None = None) -> np
     seq = np.asarray(seq)
     if seq.ndim != 2:
         raise DataError(f"seq must be (n_frames, d); got shape {seq.shape}.")
+    if not np.issubdtype(seq.dtype, np.number) or not np.all(np.isfinite(seq)):
+        raise DataError("seq must hold finite numbers; it holds NaN, infinite or non-numeric values.")
     validate_params({"width": width, "shift": shift}, _WINDOW_CONSTRAINTS, owner="sliding_windows")
     shift = max(1, int(round(width / 3))) if shift is None else shift
     n, d = seq.shape

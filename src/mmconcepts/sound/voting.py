@@ -142,6 +142,8 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     def fit(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> EventVoting:
         """Forget everything, then :meth:`partial_fit`."""
         self._check_params()
+        if len(bags) == 0:
+            raise DataError("EventVoting.fit got no training utterance; it needs at least one bag with its tag(s).")
         self._init()
         return self._count(bags, tags)
 
@@ -390,6 +392,10 @@ class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     def fit(self, utterances, tags) -> TreeVotingClassifier:
         """Forget everything, then :meth:`partial_fit`."""
         self._check_params()
+        if len(utterances) == 0:
+            raise DataError(
+                "TreeVotingClassifier.fit got no training utterance; it needs at least one utterance with its tag(s)."
+            )
         self._init()
         return self._learn(utterances, tags)
 
