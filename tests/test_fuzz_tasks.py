@@ -475,3 +475,11 @@ def test_rewards_whose_values_overflow_are_refused():
         policy_evaluation(mdp, [[1.0]], [[-1e307]])
     V, _ = value_iteration(mdp, [[1e290]])  # large but representable: the exact answer
     np.testing.assert_allclose(V, [1e292])
+
+
+def test_boltzmann_policy_limits_and_overflow():
+    """Known answers: +inf actions share their state, huge beta * Q does not overflow to NaN (found in a 10x run)."""
+    pi = boltzmann_policy(np.array([[np.inf, 1e300], [1e300, 1e300], [1e300, -1e300], [-np.inf, -np.inf]]), 1e300)
+    np.testing.assert_array_equal(pi, [[1, 0], [0.5, 0.5], [1, 0], [0.5, 0.5]])
+    np.testing.assert_allclose(boltzmann_policy(np.array([[0.0, np.log(3.0)]]), 1.0), [[0.25, 0.75]])
+    np.testing.assert_array_equal(boltzmann_policy(np.array([[np.inf, 0.0]]), 0.0), [[0.5, 0.5]])

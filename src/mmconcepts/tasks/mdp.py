@@ -491,7 +491,8 @@ def boltzmann_policy(Q: Any, beta: float = 1.0) -> np.ndarray:
         best = Q.max(axis=-1, keepdims=True)
         finite_rows = np.isfinite(best)
         Qf = np.where(finite_rows, Q, 0.0)
-        pi = _boltzmann_policy(Qf, beta)
+        with np.errstate(over="ignore"):  # shifted by the row maximum: beta * Qf cannot overflow to +inf
+            pi = _boltzmann_policy(Qf - Qf.max(axis=-1, keepdims=True), beta)
         return np.where(finite_rows, pi, _greedy_policy(Q, tie_tol=0.0))
     with np.errstate(over="ignore"):
         if not np.isfinite(beta * Q).all():  # beta Q overflows: shift first (-inf differences weigh 0, as they should)
