@@ -17,6 +17,7 @@ import copy
 import io
 import json
 import math
+import re
 import shutil
 import tempfile
 from html.parser import HTMLParser
@@ -167,7 +168,8 @@ def _good_report(bad_name: str, bad_id: Any, unrecognisable: bool):
             assert f"`{exp_id}`" in md, f"good record {exp_id} not shown in the Markdown"
         left_out = html_text.split('id="records-left-out"', 1)
         listed = len(left_out) == 2 and f"<td>{_esc(bad_name)}</td>" in left_out[1].split("</table>", 1)[0]
-        shown = isinstance(bad_id, str) and bad_id and _esc(bad_id) in html_text
+        # (a lone surrogate is written as "?")
+        shown = isinstance(bad_id, str) and bad_id and _esc(bad_id.encode("utf-8", "replace").decode()) in html_text
         if not unrecognisable:
             assert listed or shown, "the damaged record is neither listed nor shown"
         parser = _Balanced()
@@ -175,8 +177,9 @@ def _good_report(bad_name: str, bad_id: Any, unrecognisable: bool):
         parser.close()
         assert not parser.errors and not parser.stack, f"unbalanced HTML: {parser.errors} {parser.stack[-5:]}"
         assert parser.tags <= ALLOWED_TAGS, f"unexpected tags in the HTML: {parser.tags - ALLOWED_TAGS}"
+        prose = re.sub(r"(`+)[^\n]*?\1", "", md)  # inside a code span (an id, a path) text is verbatim, not HTML
         for snippet in ("<script>alert", "<img src=x", "<b>xxx", "<h1>x", "<!--"):
-            assert snippet not in md, f"raw HTML {snippet!r} in report.md"
+            assert snippet not in prose, f"raw HTML {snippet!r} in report.md"
             assert snippet not in html_text, f"raw HTML {snippet!r} in report.html"
 
     return check
@@ -247,3 +250,21 @@ def test_damaged_records_found_by_fuzzing(tmp_path, name, raw, reason):
         assert "?quick" in md
     else:
         assert f"| {name} | " in md and reason in md.split("### Records left out", 1)[1].split("## Summary", 1)[0]
+
+
+@pytest.mark.parametrize("text", INJECTED)
+def test_markup_in_every_shown_field_stays_text(tmp_path, text):
+    """Markup in the fields the report shows (id, title, status, variant, preset, thesis, message) is shown as text."""
+    for good in GOOD:
+        shutil.copy(RECORDS / good, tmp_path / good)
+    fields = ("experiment", "title", "status", "variant", "preset", "thesis_ref", "message")
+    record = dict(BASES[0], **{field: text for field in fields})
+    (tmp_path / "zz-markup.json").write_text(json.dumps(record))
+    check = _good_report("zz-markup.json", text, False)
+    notes: list[str] = []
+    global note
+    saved, note = note, notes.append
+    try:
+        assert check(_report(tmp_path)), notes
+    finally:
+        note = saved
