@@ -120,8 +120,19 @@ class MFCCConfig:
             raise ParameterError(
                 f"MFCCConfig: win_ms={self.win_ms} ms is less than one sample at sr={self.sr}; raise win_ms."
             )
-        if not self.lifter <= _MAX_FRAME_SAMPLES:
-            raise ParameterError(f"MFCCConfig: lifter must be a finite number >= 0 (0: none); got {self.lifter}.")
+        if not (self.lifter == 0 or 1 <= self.lifter <= _MAX_FRAME_SAMPLES):
+            raise ParameterError(
+                f"MFCCConfig: lifter must be 0 (none) or a finite number >= 1 (22 is usual); got {self.lifter}."
+            )
+        if fmax - self.fmin < 1.0:
+            raise ParameterError(
+                f"MFCCConfig: the mel band [fmin, fmax] = [{self.fmin}, {fmax}] Hz is narrower than 1 Hz; widen it."
+            )
+        if self.n_mels > 1 + self.n_fft // 2:
+            raise ParameterError(
+                f"MFCCConfig: n_mels={self.n_mels} mel filters on {1 + self.n_fft // 2} FFT bins (n_fft={self.n_fft}) "
+                "leave filters empty; lower n_mels or lengthen win_ms."
+            )
         from scipy.signal import get_window
 
         try:
