@@ -411,11 +411,26 @@ def beta_nmf(
     NMFResult
         W, H, n_iter, loss_history, loss_iterations, converged.
 
+    Notes
+    -----
+    Beta-divergences are homogeneous, :math:`d_\\beta(c x | c y) = c^\\beta d_\\beta(x | y)`, so
+    the fit of c X from (W0, c H0) is (W, c H) up to rounding (c W with ``update_H=False`` or
+    ``sparseness_H``), and the objective scales by :math:`c^\\beta`. (The 'random' start
+    scales both factors by sqrt(c), which changes only the diagonal scaling of the result;
+    'nndsvda' fills the zeros of its SVD start with the mean of X, as scikit-learn, which is not
+    scale-equivariant.) X whose largest value lies outside about [1e-3, 1e6] (a narrower
+    upper bound for beta > 5 or beta < -3) is divided by a power of two for the updates (exactly) and the
+    result scaled back, so that the clipping of W H at machine epsilon and overflow do not
+    depend on the units of X; data in that range is fitted as given. ``loss_history`` is in
+    X's units.
+
     Raises
     ------
     DataError
         Negative, NaN or infinite values in observed cells, empty input, a mask or
-        factor of the wrong shape, zeros with beta <= 0.
+        factor of the wrong shape, zeros with beta <= 0; an X whose objective float64
+        cannot hold (e.g. Frobenius at 1e300); subnormal values next to ordinary ones with
+        beta <= 1; Hoyer-projected starting factors with an infinite objective (beta <= 1).
     ParameterError
         An unknown solver, init or update rule, or a value out of range.
     """

@@ -85,6 +85,14 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
     -------
     ndarray of shape (n,)
         Nonnegative, with ``sum(s) == l1`` and ``norm(s) == l2`` up to rounding.
+
+    Raises
+    ------
+    DataError
+        An empty x, NaN or infinite entries, or entries beyond 1e150 times l2 (their squares
+        overflow).
+    ParameterError
+        l1, l2 not finite, l2 <= 0, or no vector of length n with these norms.
     """
     x = _finite_vector(x, "project_hoyer").ravel()
     n = x.size
