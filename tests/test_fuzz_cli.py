@@ -133,6 +133,8 @@ _PATH_OPTIONS = ("-o", "--output", "--data-root", "--cache-dir")
 
 def _empty_path(argv):
     """Whether ``argv`` gives an empty folder name (which must not silently mean the current folder)."""
+    if {"-h", "--help", "--version"} & set(argv):  # help (or the version) is all that is done
+        return False
     if any(a == "" and i and argv[i - 1] in _PATH_OPTIONS for i, a in enumerate(argv)):
         return True
     return argv[:1] == ["report"] and "" in argv[1:] and argv[argv.index("", 1) - 1] not in ("--bogus",)
