@@ -17,6 +17,7 @@ from _fuzz import assert_typed_or_good, fuzz_settings
 from hypothesis import HealthCheck, given
 from hypothesis import strategies as st
 
+from mmconcepts.errors import DataError
 from mmconcepts.nmf import (
     NMF,
     LabelNMF,
@@ -512,3 +513,40 @@ def test_masked_sparse_fit_stays_sparse():
     assert out.returncode == 0, out.stderr[-2000:]
     peak = int(out.stdout.split()[-1])
     assert peak < 300 * 2**20, f"the masked sparse fit grew the peak memory by {peak / 2**20:.0f} MiB"
+
+
+@pytest.mark.parametrize("beta, c", [(1.0, 1e-8), (2.0, 1e-8), (2.0, 1e150), (1.0, 1e250), (0.0, 1e-200), (0.5, 1e12)])
+def test_the_issue_scales_give_the_unscaled_fit(beta, c):
+    """Issue 14: KL-NMF of X * 1e-8 rose under the monotone updates and ended at inf, Frobenius of
+    X * 1e300 gave NaN factors. Now fit(c X) = (W, c H) from the start (W0, c H0), the objective is
+    c ** beta times the unscaled one, and it never rises."""
+    rng = np.random.default_rng(0)
+    X = rng.random((30, 20)) + 0.01
+    W0, H0 = rng.random((30, 5)) + 0.1, rng.random((5, 20)) + 0.1
+    ref = beta_nmf(X, 5, beta_loss=beta, W=W0, H=H0, max_iter=50, tol=0, loss_every=1)
+    res = beta_nmf(X * c, 5, beta_loss=beta, W=W0, H=H0 * c, max_iter=50, tol=0, loss_every=1)
+    np.testing.assert_allclose(res.W, ref.W, rtol=1e-7)
+    np.testing.assert_allclose(res.H / c, ref.H, rtol=1e-7)
+    np.testing.assert_allclose(res.loss_history / c**beta, ref.loss_history, rtol=1e-7)
+    assert np.all(np.diff(res.loss_history) <= 1e-9 * res.loss_history[0])
+
+
+def test_an_objective_beyond_float64_is_named():
+    X = np.random.default_rng(0).random((30, 20))
+    with pytest.raises(DataError, match="outside the range of float64"):
+        beta_nmf(X * 1e300, 5, beta_loss=2, max_iter=5)
+    res = beta_nmf(X * 1e300, 5, beta_loss=1, max_iter=5, tol=0)  # the I-divergence scales by c only
+    assert np.isfinite(res.W).all() and np.isfinite(res.H).all() and np.isfinite(res.loss_history).all()
+
+
+@pytest.mark.parametrize("side", ["W", "H"])
+def test_hoyer_sparseness_on_ordinary_data(side):
+    """Issue 14: sparseness_H=0.5 (or sparseness_W) on random data raised ZeroDivisionError."""
+    from mmconcepts.nmf import hoyer_sparseness
+
+    X = np.random.default_rng(0).random((30, 20))
+    res = beta_nmf(X, 5, max_iter=30, tol=0, loss_every=1, random_state=0, **{f"sparseness_{side}": 0.5})
+    assert np.isfinite(res.W).all() and np.isfinite(res.H).all()
+    assert np.all(np.diff(res.loss_history) <= 1e-12 * res.loss_history[0])
+    vectors = res.H if side == "H" else res.W.T
+    np.testing.assert_allclose(hoyer_sparseness(vectors, axis=1), 0.5, atol=1e-6)
