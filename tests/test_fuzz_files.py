@@ -554,3 +554,42 @@ def test_fuzz_acorns_xml(data, kind):
         _load_both("mmconcepts.sound.load_acorns", lambda e: load_acorns(root, on_error=e), target, N_FILES - 1,
                    count=len, skipped_files=lambda c: [s.file for s in c.skipped],
                    equal_to_valid=equal)
+
+
+_CRASH_SCRIPT = """
+import sys
+from pathlib import Path
+from mmconcepts.vision.data import load_coil20
+raw, path = Path(sys.argv[1]).read_bytes(), Path(sys.argv[2])
+cases = [raw[:i] + bytes([raw[i] ^ x]) + raw[i + 1:] for i in range(len(raw)) for x in (0x01, 0x80, 0xFF)]
+cases += [raw[:n] for n in range(len(raw))]
+for k, damaged in enumerate(cases):
+    path.write_bytes(damaged)
+    print(k, flush=True)
+    try:
+        load_coil20(path)
+    except Exception:  # any exception is fine here; a crash is not
+        pass
+print("done", len(cases))
+"""
+
+
+@pytest.mark.parametrize("compressed", [False, True])
+def test_no_damaged_coil20_mat_crashes_the_process(tmp_path, compressed):
+    """scipy.io.loadmat dies with SIGSEGV/SIGBUS on some flipped bytes (matrix dimensions); load_coil20 checks
+    the file's structure first. Every single-byte flip (three masks) and every truncation, loaded one after the
+    other in a child process that must reach the end."""
+    import subprocess
+    import sys
+
+    import scipy.io
+
+    valid = tmp_path / "valid.mat"
+    rng = np.random.default_rng(0)
+    scipy.io.savemat(valid, {"fea": rng.random((4, 16)), "gnd": np.array([[1], [1], [2], [2]])},
+                     do_compression=compressed)
+    proc = subprocess.run([sys.executable, "-c", _CRASH_SCRIPT, str(valid), str(tmp_path / "COIL20.mat")],
+                          capture_output=True, text=True, timeout=300)
+    last = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else "nothing"
+    assert proc.returncode == 0 and last.startswith("done"), (
+        f"the child died (return code {proc.returncode}) after case {last}: {proc.stderr[-500:]}")

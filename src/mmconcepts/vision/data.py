@@ -505,6 +505,98 @@ def load_eth80(
     return ImageSet(images, labels, views, cats, paths, "eth80", skipped)
 
 
+_MAT5_ITEMSIZE = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 9: 8, 12: 8, 13: 8, 16: 1, 17: 2, 18: 4}
+_MAT5_NUMERIC_CLASSES = set(range(6, 16))  # mxDOUBLE .. mxUINT64
+_MAT5_MAX_INFLATED = 1 << 30  # 1 GiB: COIL-20 at 128 x 128 is 190 MB
+
+
+def _check_mat5(path: Path) -> None:
+    """Check the structure of a MATLAB 5 (``-v6``/``-v7``) file before :func:`scipy.io.loadmat` reads it.
+
+    scipy's compiled reader trusts the sizes a file declares, and a damaged file (a flipped
+    byte in a matrix's dimensions) crashes the interpreter with SIGSEGV or SIGBUS instead of
+    raising. This walks the data elements (inflating compressed ones up to 1 GiB) and checks
+    that every element fits in its container and that the data of every numeric matrix has
+    exactly the bytes its dimensions call for; the contents of cells, structs and objects are
+    left to scipy. Files in other versions (v4, v7.3/HDF5) are left to scipy.
+
+    Raises
+    ------
+    DataFormatError
+        Naming the file and what does not fit.
+    """
+    import struct
+    import zlib
+
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
+    if len(raw) < 128 or raw[126:128] not in (b"IM", b"MI"):
+        return  # not a MATLAB 5 file: scipy reads v4 files or says what it is
+    e = "<" if raw[126:128] == b"IM" else ">"
+
+    def bad(msg: str) -> DataFormatError:
+        return DataFormatError(f"{path}: damaged MATLAB file ({msg}).")
+
+    def elements(buf: bytes, start: int, end: int, depth: int):
+        pos = start
+        while pos < end:
+            if pos + 8 > end:
+                raise bad(f"an element tag is cut at byte {pos}")
+            u1, u2 = struct.unpack_from(e + "II", buf, pos)
+            if u1 >> 16:  # small data element: type and size in one word, 4 bytes of data
+                dtype, nbytes, data = u1 & 0xFFFF, u1 >> 16, pos + 4
+                if nbytes > 4:
+                    raise bad(f"a small element at byte {pos} declares {nbytes} bytes")
+                nxt = pos + 8
+            else:
+                dtype, nbytes, data = u1, u2, pos + 8
+                nxt = data + nbytes + ((-nbytes) % 8 if dtype != 15 else 0)
+                if data + nbytes > end:
+                    raise bad(f"an element at byte {pos} declares {nbytes} bytes, {end - data} are left")
+            yield dtype, buf, data, nbytes
+            pos = min(nxt, end) if depth == 0 else nxt
+
+    def matrix(buf: bytes, data: int, nbytes: int, depth: int) -> None:
+        subs = list(elements(buf, data, data + nbytes, depth + 1))
+        if len(subs) < 3 or subs[0][0] != 6 or subs[0][3] < 8 or subs[1][0] != 5:
+            raise bad("a matrix without array flags, dimensions and name")
+        flags = struct.unpack_from(e + "I", subs[0][1], subs[0][2])[0]
+        cls, complex_ = flags & 0xFF, bool(flags & 0x0800)
+        if subs[1][3] % 4 or subs[1][3] < 8:
+            raise bad("matrix dimensions of a wrong size")
+        dims = struct.unpack_from(e + f"{subs[1][3] // 4}i", subs[1][1], subs[1][2])
+        if min(dims) < 0:
+            raise bad(f"negative matrix dimensions {dims}")
+        if cls in _MAT5_NUMERIC_CLASSES:
+            parts = subs[3:5] if complex_ else subs[3:4]
+            if len(parts) != (2 if complex_ else 1):
+                raise bad(f"a numeric matrix of dimensions {dims} without its data")
+            n = int(np.prod(dims, dtype=np.float64))
+            for dtype, _, _, size in parts:
+                if dtype not in _MAT5_ITEMSIZE or size != n * _MAT5_ITEMSIZE[dtype]:
+                    raise bad(f"a matrix of dimensions {dims} holds {size} bytes of type {dtype}")
+
+    def walk(buf: bytes, start: int, end: int, depth: int) -> None:
+        if depth > 3:
+            raise bad("compressed elements nested too deeply")
+        for dtype, b, data, nbytes in elements(buf, start, end, depth):
+            if dtype == 15:  # miCOMPRESSED: one element, deflated
+                z = zlib.decompressobj()
+                try:
+                    inner = z.decompress(b[data:data + nbytes], _MAT5_MAX_INFLATED)
+                except zlib.error as exc:
+                    raise bad(f"a compressed element does not inflate: {exc}") from None
+                if z.unconsumed_tail:
+                    raise bad("a compressed element inflates beyond 1 GiB")
+                walk(inner, 0, len(inner), depth + 1)
+            elif dtype == 14:
+                matrix(b, data, nbytes, depth)
+
+    walk(raw, 128, len(raw), 0)
+
+
 def load_coil20(path: str | os.PathLike[str]) -> ImageSet:
     """Load COIL-20 (Nene, Nayar and Murase, 1996) from ``COIL20.mat`` (``fea``, ``gnd``).
 
@@ -534,6 +626,7 @@ def load_coil20(path: str | os.PathLike[str]) -> ImageSet:
         path = path / "COIL20.mat"
     if not path.is_file():
         raise FileNotFoundError(f"COIL-20 file not found: {path}")
+    _check_mat5(path)  # scipy's reader crashes the process (SIGSEGV/SIGBUS) on some damaged files
     try:
         mat = scipy.io.loadmat(path)
     except Exception as exc:  # scipy raises ValueError, TypeError, OSError, MatReadError on bad files
