@@ -96,7 +96,7 @@ def elementwise_beta_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np
             return np.where(x > 0, x * np.log(np.where(x > 0, x, 1.0) / y), 0.0) - x + y
         if beta == 0.0:
             r = x / y
-            return r - np.log(r) - 1.0
+            return np.where(r == np.inf, np.inf, r - np.log(r) - 1.0)  # inf - log(inf) would be NaN
         cross = np.where(x > 0, x * y ** (beta - 1.0), 0.0)  # 0 * y**(beta-1) = 0, even at y = 0
         return (x**beta + (beta - 1.0) * y**beta - beta * cross) / (beta * (beta - 1.0))
 

@@ -17,6 +17,9 @@ from ._init import initialize
 from ._problem import Problem
 from ._solver import (
     BETA_NMF_CONSTRAINTS,
+    _check_dynamic_range,
+    _check_objective_range,
+    _in_units_of_X,
     _data_scale,
     _resolve_penalties,
     _scale_penalties,
@@ -297,6 +300,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         scale = float(getattr(self, "_scale", 1.0)) if stats_so_far is not None else _data_scale(Xv, beta)
         if scale != 1.0:
             Xv = Xv / scale if sp.issparse(Xv) else np.divide(Xv, Xv.dtype.type(scale))
+        _check_dynamic_range(Xv, beta)
         if not hasattr(self, "components_"):
             k = int(self.n_components if self.n_components is not None else min(n, m))
             init = self.init or ("nndsvda" if k <= min(n, m) else "random")
@@ -330,14 +334,16 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             Ht = A / B
             if gamma != 1.0:
                 Ht **= gamma
+        internal_loss = problem.divergence(W, Ht, beta)
+        if scale != 1.0:
+            _check_objective_range(internal_loss, scale, beta)
         if A is not None and B is not None:
             self._stats = (A, B)
         self._scale = scale
         self._set_fitted(np.ascontiguousarray(Ht.T) * Ht.dtype.type(scale), X)
         self.n_iter_ = max_iter
         self.n_steps_ = getattr(self, "n_steps_", 0) + 1
-        with np.errstate(over="ignore", under="ignore"):
-            loss = float(problem.divergence(W, Ht, beta) * np.float64(scale) ** beta)
+        loss = float(_in_units_of_X(internal_loss, scale, beta))
         self.loss_history_ = np.array([loss])
         self.loss_iterations_ = np.array([max_iter])
         self.reconstruction_err_ = float(np.sqrt(2.0 * max(loss, 0.0)))

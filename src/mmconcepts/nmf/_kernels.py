@@ -117,7 +117,7 @@ def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
                     d += x * np.log(x / y)
             elif beta == 0.0:
                 r = x / y
-                d = r - np.log(r) - 1.0
+                d = r - np.log(r) - 1.0 if r != np.inf else np.inf  # inf - log(inf) would be NaN
             else:
                 d = x**beta + (beta - 1.0) * y**beta
                 if x > 0.0:

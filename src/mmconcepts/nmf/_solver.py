@@ -375,8 +375,10 @@ def beta_nmf(
         with Armijo step sizes along the projection arc (Lin 2007).
     update_rule : {'mm', 'heuristic'}, default='mm'
         ``'mm'`` raises the multiplicative factor to gamma(beta) of Table 2.2, which
-        guarantees that the objective never increases; ``'heuristic'`` uses exponent 1
-        (eq. 2.17), the same for 1 <= beta <= 2.
+        guarantees that the objective never increases (with no L2 penalty: an L2 penalty's
+        gradient is added to the denominator as scikit-learn does, and with a strong one the
+        objective can rise); ``'heuristic'`` uses exponent 1 (eq. 2.17), the same for
+        1 <= beta <= 2.
     init : {'random', 'nndsvd', 'nndsvda', 'nndsvdar', 'custom'}, optional
         Default: 'nndsvda' if n_components <= min(X.shape), else 'random'; 'custom'
         (or giving W and H) starts from W and H.
@@ -516,8 +518,7 @@ def beta_nmf(
         _check_objective_range(sol.objective(W, Ht), scale, beta)
     W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every)
     if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
-        with np.errstate(over="ignore", under="ignore"):
-            hist = hist * np.float64(scale) ** beta
+        hist = _in_units_of_X(hist, scale, beta)
         W = W * dtype.type(scale_W)
         Ht = Ht * dtype.type(scale_H)
     if tol > 0 and not converged and max_iter > 0:
@@ -585,11 +586,27 @@ def _scale_penalties(pen_W: _Penalty, pen_H: _Penalty, scale: float, scale_W: fl
     def times(value: float, factor) -> float:  # 0 stays 0 (no penalty), whatever the factor
         return float(value * factor) if value else 0.0
 
-    with np.errstate(over="ignore", under="ignore"):
+    with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):
         out = []
         for pen, f in ((pen_W, np.float64(scale_W)), (pen_H, np.float64(scale_H))):
             out.append(_Penalty(l1=times(pen.l1, f / s**beta), l2=times(pen.l2, f * f / s**beta)))
+    if not all(np.isfinite(v) for p in out for v in (p.l1, p.l2)):
+        raise DataError(
+            f"X's largest value is about {scale:.3g}: at that scale the penalties (alpha_W, alpha_H) outweigh the "
+            f"beta={beta:g} divergence by more than the range of float64 (the fit would be W = 0). Rescale X by a "
+            "constant c first (the divergence scales as c ** beta) or lower the penalties."
+        )
     return out[0], out[1]
+
+
+def _in_units_of_X(values, scale: float, beta: float) -> np.ndarray:
+    """Objectives of the fit on X / scale in X's units: times scale ** beta.
+
+    A divergence is >= 0: values at or below 0 are 0 up to rounding and stay 0 (a rounding error
+    times a huge scale ** beta would otherwise read -inf)."""
+    values = np.maximum(np.asarray(values, dtype=np.float64), 0.0)
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        return np.where(values == 0, 0.0, values * np.float64(scale) ** beta)
 
 
 def _check_objective_range(f0: float, scale: float, beta: float) -> None:
