@@ -168,3 +168,11 @@ def test_image_descriptors_take_gray_and_rgba_and_name_other_shapes():
     g = superpixel_colors(gray, n_segments=9)
     np.testing.assert_allclose(g.vectors[:, :2], 0.0, atol=1e-12)
     np.testing.assert_allclose(dense_sift(gray).vectors, dense_sift(np.stack([gray] * 3, axis=2)).vectors, atol=1e-12)
+
+
+def test_an_object_array_of_text_is_a_data_error():
+    from mmconcepts._validation import check_nonnegative_matrix
+    from mmconcepts.errors import DataError
+
+    with pytest.raises(DataError, match="must hold numbers"):
+        check_nonnegative_matrix(np.array([["a", "b"]], dtype=object), "X")

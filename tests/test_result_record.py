@@ -167,3 +167,11 @@ def test_json_round_trip_property(record):
     view = dict(back)  # the mapping view is the JSON dict, metrics aside
     assert {k: v for k, v in view.items() if k != "metrics"} == {k: v for k, v in json.loads(text).items()
                                                                  if k != "metrics"}
+
+
+def test_a_metric_too_big_for_a_float_is_an_experiment_error():
+    from mmconcepts.errors import ExperimentError
+    from mmconcepts.experiments.record import ResultRecord
+
+    with pytest.raises(ExperimentError, match="OverflowError"):
+        ResultRecord.from_dict({"schema_version": 2, "experiment": "x", "status": "ok", "metrics": {"a": 10**400}})

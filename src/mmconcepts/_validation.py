@@ -124,7 +124,10 @@ def check_nonnegative_matrix(
         if np.iscomplexobj(X):
             raise DataError(f"Complex data not supported: {name} holds complex numbers; give real nonnegative data.")
         if X.dtype == object:
-            X = X.astype(np.float64)  # a TypeError names any element that is not a number
+            try:  # a TypeError (kept, as scikit-learn's checks expect) names an element that is not a number
+                X = X.astype(np.float64)
+            except ValueError as exc:  # text that is not a number
+                raise DataError(f"{name} must hold numbers; got an object array with {exc}.") from exc
         elif not (np.issubdtype(X.dtype, np.number) or X.dtype == bool):
             raise DataError(f"{name} must hold numbers; got dtype {X.dtype}.")
         if dtype is None:

@@ -19,7 +19,7 @@ Thesis section 3.3. What the experiments have in common:
 - :func:`evaluate_folds` runs one fold per task through ``ctx.parallel``: histograms
   (grids / codebooks) are fitted on the fold's training recordings only, then each learner
   is fitted on the training examples and scores the test examples. Fold results are cached
-  on disk, one entry per fold written as the fold ends (a :class:`joblib.Memory` under
+  on disk, one entry per fold written as the fold ends (the disk cache of :meth:`RunContext.memory <mmconcepts.experiments.base.RunContext.memory>` under
   ``ctx.cache_dir/ch3-folds``), under a hash of everything they depend on (data, split,
   features, learner parameters, seed, :func:`~mmconcepts._fingerprint.code_fingerprint`),
   so experiments sharing a protocol (Table 3.2, Fig. 3.7, Fig. 3.8) fit each fold once, an

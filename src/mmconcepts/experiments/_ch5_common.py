@@ -180,7 +180,7 @@ def _cached_mfcc(ctx: RunContext, files: list[str], config: dict, stamps: list[t
 def corpus_mfcc(ctx: RunContext, corpus, config: MFCCConfig) -> list[np.ndarray]:
     """MFCC sequence of every utterance of ``corpus`` (computed in parallel, cached on disk).
 
-    The cache (a :class:`joblib.Memory` under ``ctx.cache_dir/ch5-mfcc``) is keyed on the
+    The cache (the disk cache of :meth:`RunContext.memory <mmconcepts.experiments.base.RunContext.memory>` under ``ctx.cache_dir/ch5-mfcc``) is keyed on the
     files (path, size, modification time), the MFCC configuration and
     :func:`~mmconcepts._fingerprint.code_fingerprint`.
     """

@@ -417,7 +417,7 @@ def _cached_fold(task: dict, key: tuple, code: str) -> dict:
 def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | None = None) -> tuple[dict, list[dict]]:
     """Pairs and per-fold results.
 
-    Each fold's result is cached on disk as the fold ends (a :class:`joblib.Memory` under
+    Each fold's result is cached on disk as the fold ends (the disk cache of :meth:`RunContext.memory <mmconcepts.experiments.base.RunContext.memory>` under
     ``ctx.cache_dir/ch6-folds``), so experiments sharing the folds compute them once and an
     interrupted run resumes from the folds it finished. ``seeds`` replaces the streams
     spawned from ``config.seed`` (to vary one alone).
@@ -467,7 +467,7 @@ def image_locals(ctx: RunContext, ims, *, chunk: int = 40) -> tuple[list, list]:
 
     They do not depend on any codebook, so the experiments fit their codebooks on each
     repetition's training images from these (:meth:`ImageFeatures.fit_locals`) instead of
-    extracting them again. The cache is a :class:`joblib.Memory` under
+    extracting them again. The cache is the disk cache of :meth:`RunContext.memory <mmconcepts.experiments.base.RunContext.memory>` under
     ``ctx.cache_dir/ch6-image-locals``; key: the images (shapes, types and bytes) and
     :func:`code_fingerprint`.
     """

@@ -295,7 +295,7 @@ class ResultRecord(Mapping[str, Any]):
         try:
             metric_values = {str(k): math.nan if v is None else float(v) for k, v in metrics.items()}
             table_values = {str(name): Table.from_dict(t) for name, t in tables.items()}
-        except (TypeError, ValueError, KeyError) as exc:
+        except (TypeError, ValueError, KeyError, OverflowError) as exc:
             raise ExperimentError(f"malformed metrics or tables in a result record ({type(exc).__name__}: "
                                   f"{exc}).") from exc
         fields: dict[str, Any] = {key: d[key] for key in RECORD_KEYS if key in d}

@@ -6,7 +6,8 @@ Contents
 --------
 data
     :class:`MotionRecording`, :class:`MotionDataset`; loaders and writers for Choreo1
-    (JSON + NPZ, text layout), Choreo2 (JSON + NPZ with orientations) and MSR Action3D.
+    (JSON + NPZ, text layout), Choreo2 (JSON + NPZ with orientations), MSR Action3D and
+    the generic layout (:func:`load_motion_folder`: one CSV per recording + ``labels.csv``).
 kinematics
     :func:`joint_angles` (16 angles of a geometric limb model), :func:`orientation_angles`
     (relative rotations along the limbs as Euler angles), :func:`delayed_velocity`.
@@ -27,6 +28,7 @@ from .data import (
     CHOREO1_SMALL_GESTURES,
     CHOREO2_GESTURES,
     CHOREO2_MARKERS,
+    MOTION_LABELS_FILE,
     MSR_JOINTS,
     MotionDataset,
     MotionRecording,
@@ -34,11 +36,13 @@ from .data import (
     load_choreo1,
     load_choreo1_text,
     load_choreo2,
+    load_motion_folder,
     load_msr_action3d,
     normalize_marker_name,
     save_choreo1,
     save_choreo1_text,
     save_choreo2,
+    save_motion_folder,
 )
 from .kinematics import (
     JOINT_ANGLE_NAMES,
@@ -55,6 +59,7 @@ __all__ = [
     "CHOREO2_GESTURES",
     "CHOREO2_MARKERS",
     "JOINT_ANGLE_NAMES",
+    "MOTION_LABELS_FILE",
     "MSR_JOINTS",
     "MotionDataset",
     "MotionRecording",
@@ -64,12 +69,14 @@ __all__ = [
     "load_choreo1",
     "load_choreo1_text",
     "load_choreo2",
+    "load_motion_folder",
     "load_msr_action3d",
     "normalize_marker_name",
     "orientation_angles",
     "save_choreo1",
     "save_choreo1_text",
     "save_choreo2",
+    "save_motion_folder",
 ]
 
 from .histograms import MotionHistograms
