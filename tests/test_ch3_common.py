@@ -84,7 +84,7 @@ def test_evaluate_folds_caches_and_pools(rng, tmp_path):
     feats = {"data": "joint", "method": "kde", "n_bins": 9, "delay": 1}
     f1 = common.evaluate_folds(ctx, angles, Y, splits, features=feats, learners=("nmf_frobenius",), params=params,
                                seed=0, single=True)
-    assert len(list((tmp_path / "ch3-folds").rglob("output.pkl"))) == 4
+    assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 4
     f2 = common.evaluate_folds(ctx, angles, Y, splits, features=feats, learners=("nmf_frobenius",), params=params,
                                seed=0, single=True)
     np.testing.assert_array_equal(f1[0]["nmf_frobenius"]["scores"], f2[0]["nmf_frobenius"]["scores"])
@@ -111,7 +111,7 @@ def test_an_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, mo
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
     with pytest.raises(KeyboardInterrupt):
         common.evaluate_folds(ctx, angles, Y, splits, **args)
-    assert len(list((tmp_path / "ch3-folds").rglob("output.pkl"))) == 2
+    assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 2
     calls.clear()
     monkeypatch.setattr(common, "_fold", lambda task: (calls.append(1), real_fold(task))[1])
     resumed = common.evaluate_folds(ctx, angles, Y, splits, **args)
@@ -182,10 +182,10 @@ def test_fold_cache_key_follows_the_code_fingerprint(rng, tmp_path, monkeypatch)
     args = dict(features={"data": "angles", "method": "kde", "n_bins": 4}, learners=("chance",), params={}, seed=0,
                 single=True)
     common.evaluate_folds(ctx, angles, Y, common.kfold_splits(8, 2, 0), **args)
-    assert len(list((tmp_path / "ch3-folds").rglob("output.pkl"))) == 2
+    assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 2
     monkeypatch.setattr(common, "code_fingerprint", lambda: "0123456789abcdef")
     common.evaluate_folds(ctx, angles, Y, common.kfold_splits(8, 2, 0), **args)
-    assert len(list((tmp_path / "ch3-folds").rglob("output.pkl"))) == 4
+    assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 4
 
 
 def test_msr_corrupt_file_is_skipped_and_named(tmp_path):

@@ -184,12 +184,12 @@ def test_mfcc_cache_is_keyed_on_the_code_fingerprint(fake_fsdd, tmp_path, monkey
     ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False)
     corpus = common.load_corpus(ctx, n_per_speaker=1).subset(range(3))
     common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
-    assert len(list((tmp_path / "ch5-mfcc").rglob("output.pkl"))) == 1
+    assert len(list((tmp_path / "ch5-mfcc").rglob("*.npz"))) == 1
     common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
-    assert len(list((tmp_path / "ch5-mfcc").rglob("output.pkl"))) == 1  # reused
+    assert len(list((tmp_path / "ch5-mfcc").rglob("*.npz"))) == 1  # reused
     monkeypatch.setattr(common, "code_fingerprint", lambda: "0" * 16)  # other code: recomputed
     common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
-    assert len(list((tmp_path / "ch5-mfcc").rglob("output.pkl"))) == 2
+    assert len(list((tmp_path / "ch5-mfcc").rglob("*.npz"))) == 2
 
 
 # -- independent random streams (issue 12) ------------------------------------------------

@@ -17,7 +17,7 @@ from ._init import initialize
 from ._problem import Problem
 from ._solver import (
     BETA_NMF_CONSTRAINTS,
-    _check_dynamic_range,
+    _check_fit_in_range,
     _check_objective_range,
     _in_units_of_X,
     _data_scale,
@@ -300,7 +300,6 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         scale = float(getattr(self, "_scale", 1.0)) if stats_so_far is not None else _data_scale(Xv, beta)
         if scale != 1.0:
             Xv = Xv / scale if sp.issparse(Xv) else np.divide(Xv, Xv.dtype.type(scale))
-        _check_dynamic_range(Xv, beta)
         if not hasattr(self, "components_"):
             k = int(self.n_components if self.n_components is not None else min(n, m))
             init = self.init or ("nndsvda" if k <= min(n, m) else "random")
@@ -335,6 +334,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             if gamma != 1.0:
                 Ht **= gamma
         internal_loss = problem.divergence(W, Ht, beta)
+        _check_fit_in_range(Xv, beta, W, Ht, [internal_loss])  # before any state changes
         if scale != 1.0:
             _check_objective_range(internal_loss, scale, beta)
         if A is not None and B is not None:

@@ -469,7 +469,6 @@ def beta_nmf(
     rescaled = scale != 1.0 or scale_H != 1.0
     if scale != 1.0:
         X = X / scale if sp.issparse(X) else np.divide(X, dtype.type(scale))
-    _check_dynamic_range(X, beta)
 
     if not update_H:
         if H is None:
@@ -517,6 +516,7 @@ def beta_nmf(
     if rescaled:
         _check_objective_range(sol.objective(W, Ht), scale, beta)
     W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every)
+    _check_fit_in_range(X, beta, W, Ht, hist)
     if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
         hist = _in_units_of_X(hist, scale, beta)
         W = W * dtype.type(scale_W)
@@ -559,19 +559,25 @@ def _data_scale(X, beta: float) -> float:
     return math.ldexp(1.0, exponent - 1)  # X / scale has its largest value in [1, 2); 2 ** 1024 would overflow
 
 
-def _check_dynamic_range(X, beta: float) -> None:
-    """Refuse subnormal values next to values near 1 when beta <= 1: their terms of the divergence
-    (x ** beta, x log x, 1 / x) and the factors that fit them leave the range of the float type."""
-    if beta > 1.0:
+def _check_fit_in_range(X, beta: float, W: np.ndarray, Ht: np.ndarray, hist) -> None:
+    """Refuse a fit whose factors left the range of the float type.
+
+    Checked after the fit rather than refused up front: data with subnormal values beside
+    ordinary ones (e.g. the tails of kernel density histograms, chapter 3) gives finite
+    factors in practice, though its beta <= 1 objective may overflow (``hist`` is then
+    infinite, which is not refused here: the factors are usable). Only non-finite factors
+    are refused, naming the subnormal values when they are the likely cause.
+    """
+    if np.isfinite(W).all() and np.isfinite(Ht).all():
         return
     values = X.data if sp.issparse(X) else X
     tiny = np.finfo(values.dtype).tiny
-    if values.size and bool(np.any((values > 0) & (values < tiny))):
-        raise DataError(
-            f"X spans more than the range of {values.dtype} (its smallest nonzero values are subnormal, below "
-            f"{tiny:.3g} times its largest); with beta_loss={beta:g} <= 1 their divergence terms overflow. Set them "
-            "to 0 (beta > 0) or use beta_loss > 1."
-        )
+    cause = ""
+    if beta <= 1.0 and values.size and bool(np.any((values > 0) & (values < tiny))):
+        cause = (f" X spans more than the range of {values.dtype}: its smallest nonzero values are subnormal "
+                 f"(below {tiny:.3g} times its largest), and with beta_loss={beta:g} <= 1 their divergence terms "
+                 "overflow. Set them to 0 (beta > 0) or use beta_loss > 1.")
+    raise DataError(f"the fit left the range of {values.dtype}: its factors are not finite.{cause}")
 
 
 def _scale_penalties(pen_W: _Penalty, pen_H: _Penalty, scale: float, scale_W: float, scale_H: float, beta: float):
