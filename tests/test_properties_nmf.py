@@ -9,6 +9,7 @@ multiplicative updates with the MM exponent never increase the beta-divergence
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -85,3 +86,14 @@ def test_multiplicative_updates_never_increase_the_beta_divergence(beta, n, m, k
     h = np.asarray(res.loss_history)
     assert np.isfinite(h).all()
     assert np.diff(h).max() <= 1e-9 * h[0]
+
+
+@pytest.mark.parametrize("value, l2", [(-46.16003937, 0.1), (-50.0, 0.1015625), (3.0, 1.0), (1e-300, 1.0)])
+def test_hoyer_projection_of_a_constant_vector(value, l2):
+    """Found by hypothesis in CI: a constant vector was projected to the constant (sparseness 0, not the
+    target) or to nothing (ZeroDivisionError), depending on the rounding noise of x - mean(x)."""
+    x = np.full(21, value)
+    l1 = l1_for_sparseness(0.5, 21, l2)
+    p = project_hoyer(x, l1, l2)
+    assert (p >= 0).all() and np.isclose(p.sum(), l1) and np.isclose(np.linalg.norm(p), l2)
+    np.testing.assert_allclose(project_hoyer(p, l1, l2), p, atol=1e-8 * l2)

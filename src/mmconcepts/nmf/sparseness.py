@@ -117,7 +117,13 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
             "divide x by a constant first."
         )
     l2sq = l2 * l2
-    v = x + (l1 - x.sum()) / n
+    if np.ptp(x) <= 1e-12 * max(float(np.abs(x).max()), l1 / n):
+        # x is constant up to rounding: every direction is as close; start from the exact midpoint so the
+        # zero-sum tie-break direction below is taken (rounding noise of x - mean(x), scaled by |x|, would
+        # otherwise pick an arbitrary direction and may zero every entry).
+        v = np.full(n, l1 / n)
+    else:
+        v = x + (l1 - x.sum()) / n
     zero = np.zeros(n, dtype=bool)
     for _ in range(n + 1):
         n_free = n - int(zero.sum())
