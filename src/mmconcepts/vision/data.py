@@ -93,6 +93,14 @@ def as_rgb_image(image: object, *, name: str = "image") -> np.ndarray:
         alpha channel is dropped). Integer images are scaled by their type's maximum
         (255 for uint8, 65535 for uint16); boolean images become 0/1; float images must
         already lie in [0, 1].
+    name : str
+        How to call the image in error messages.
+
+    Raises
+    ------
+    DataError
+        If the array is not an image of one of these shapes, is smaller than 2 x 2, holds
+        NaN or infinite values, or float values outside [0, 1].
 
     Notes
     -----
@@ -102,14 +110,6 @@ def as_rgb_image(image: object, *, name: str = "image") -> np.ndarray:
     through it. Two channels are gray + alpha, as PNG's "LA" mode and Pillow/imageio give
     them (not two colour channels); the alpha channel is dropped, not composited over a
     background, so a transparent pixel keeps the colour stored under it.
-    name : str
-        How to call the image in error messages.
-
-    Raises
-    ------
-    DataError
-        If the array is not an image of one of these shapes, is smaller than 2 x 2, holds
-        NaN or infinite values, or float values outside [0, 1].
     """
     try:
         a = np.asarray(image)
