@@ -413,3 +413,22 @@ class Plan:
                     self.table[(id(view), j)] = anchors.make(f"{run}-table-{slug_part(table['name'])}")
                 for j, (name, _rel, _ok) in enumerate(view.figures):
                     self.figure[(id(view), j)] = anchors.make(f"{run}-fig-{slug_part(name)}")
+
+
+def variant_summaries(views: "list[ExperimentView]") -> list[tuple[str, str]]:
+    """One summary line per variant with runs, as ``(variant label, text)``; the text is plain (not escaped).
+
+    E.g. ``("generated data", "5 run(s) ran (1 failed); claims: 7 holds, 2 fails, 1 inconclusive")``.
+    """
+    lines = []
+    for variant in ("real", "synthetic"):
+        runs = [v for v in views if v.variant == variant]
+        if runs:
+            ran = [v for v in runs if v.status == "ok"]
+            counts = ", ".join(f"{sum(v.count(x) for v in ran)} {x}" for x in VERDICTS)
+            others = ", ".join(f"{n} {label}" for label, n in (
+                ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
+                if n)
+            lines.append((VARIANT_LABELS[variant], f"{len(ran)} run(s) ran" + (f" ({others})" if others else "")
+                          + f"; claims: {counts}"))
+    return lines

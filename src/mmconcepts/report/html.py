@@ -18,7 +18,7 @@ from urllib.parse import quote
 
 from .. import __version__
 from ._model import (STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group,
-                     slug_part)
+                     slug_part, variant_summaries)
 
 __all__ = ["render_html"]
 
@@ -239,16 +239,8 @@ def _summary(views: list[ExperimentView], plan: Plan) -> str:
             )
     out.append("</tbody></table></div>")
     out.append("<ul>")
-    for variant in ("real", "synthetic"):
-        runs = [v for v in views if v.variant == variant]
-        if runs:
-            ran = [v for v in runs if v.status == "ok"]
-            counts = ", ".join(f"{sum(v.count(x) for v in ran)} {x}" for x in VERDICTS)
-            others = ", ".join(f"{n} {label}" for label, n in (
-                ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
-                if n)
-            out.append(f"<li>On {_e(VARIANT_LABELS[variant])}: {len(ran)} run(s) ran"
-                       + (f" ({_e(others)})" if others else "") + f"; claims: {_e(counts)}.</li>")
+    for label, text in variant_summaries(views):
+        out.append(f"<li>On {_e(label)}: {_e(text)}.</li>")
     out.append("</ul>")
     return "\n".join(out)
 

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group
+from ._model import VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group, variant_summaries
 
 __all__ = ["render_markdown"]
 
@@ -142,16 +142,8 @@ def _summary(views: list[ExperimentView], plan: Plan) -> list[str]:
             rows.append([_link(view.id, plan.run[id(view)], cell=True), view.title, view.data_label, view.status_label]
                         + [str(n_by_verdict[v]) if n_by_verdict[v] else "" for v in VERDICTS] + [view.elapsed])
     out += _table(["experiment", "title", "data", "ran", *VERDICTS, "run time"], rows, raw=1)
-    for variant in ("real", "synthetic"):
-        runs = [v for v in views if v.variant == variant]
-        if runs:
-            ran = [v for v in runs if v.status == "ok"]
-            counts = ", ".join(f"{sum(v.count(x) for v in ran)} {x}" for x in VERDICTS)
-            others = ", ".join(f"{n} {label}" for label, n in (
-                ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
-                if n)
-            out.append(f"- On {VARIANT_LABELS[variant]}: {len(ran)} run(s) ran" + (f" ({others})" if others else "")
-                       + f"; claims: {counts}.")
+    for label, text in variant_summaries(views):
+        out.append(f"- On {label}: {text}.")
     out.append("")
     columns, rows = claims_by_data(views)
     if rows:
