@@ -173,3 +173,20 @@ def write_census(path: str) -> None:
     }
     with open(path, "w", encoding="utf-8") as fh:
         json.dump(payload, fh, indent=1)
+
+
+class PickleBomb:
+    """An object whose unpickling would run code (here it only sets ``PickleBomb.ran``).
+
+    Planted in saved files by the fuzz tests: loading must never unpickle, so ``ran`` stays False.
+    """
+
+    ran = False
+
+    def __reduce__(self):
+        return (PickleBomb._run, ())
+
+    @staticmethod
+    def _run():
+        PickleBomb.ran = True
+        return "ran"

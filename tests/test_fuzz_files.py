@@ -23,7 +23,7 @@ import pytest
 from hypothesis import HealthCheck, given
 from hypothesis import strategies as st
 
-from _fuzz import assert_typed_or_good, fuzz_settings
+from _fuzz import PickleBomb, assert_typed_or_good, fuzz_settings
 from mmconcepts.errors import DataFormatError
 from mmconcepts.motion.data import MotionRecording, load_choreo1, load_msr_action3d, save_choreo1
 from mmconcepts.sound.audio import load_audio, write_audio
@@ -34,18 +34,6 @@ SETTINGS = dict(suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_to
 N_FILES = 3
 
 
-class _Boom:
-    """Unpickling this sets a flag (it would run code)."""
-
-    ran = False
-
-    def __reduce__(self):
-        return (_Boom._run, ())
-
-    @staticmethod
-    def _run():
-        _Boom.ran = True
-        return "ran"
 
 
 def _pickle_npz(entries: dict) -> bytes:
@@ -86,7 +74,7 @@ def _load_both(name, load, damaged: Path, n_good: int, *, count, skipped_files, 
             raise
 
     def check_raise(res):
-        return not _Boom.ran and (n_good is None or count(res) == n_good + 1) and equal_to_valid(res)
+        return not PickleBomb.ran and (n_good is None or count(res) == n_good + 1) and equal_to_valid(res)
 
     def call_skip():
         with warnings.catch_warnings(record=True) as w:
@@ -97,18 +85,18 @@ def _load_both(name, load, damaged: Path, n_good: int, *, count, skipped_files, 
     def check_skip(out):
         res, warned = out
         skipped = skipped_files(res)
-        if _Boom.ran:
+        if PickleBomb.ran:
             return False
         if not skipped:  # the damage left the file readable
             return (n_good is None or count(res) == n_good + 1) and equal_to_valid(res)
         return ((n_good is None or count(res) == n_good) and any(damaged.name in s for s in skipped)
                 and bool(warned))
 
-    _Boom.ran = False
+    PickleBomb.ran = False
     assert_typed_or_good(f"{name}(on_error='raise')", call_raise, check=check_raise)
-    _Boom.ran = False
+    PickleBomb.ran = False
     assert_typed_or_good(f"{name}(on_error='skip')", call_skip, check=check_skip)
-    assert not _Boom.ran
+    assert not PickleBomb.ran
 
 
 # ----------------------------------------------------------------------------- WAV
@@ -306,7 +294,7 @@ def test_fuzz_choreo_files(data, target):
                 _, raw = data.draw(byte_damage(npz_path.read_bytes()))
                 npz_path.write_bytes(raw)
             elif target == "npz_pickle":
-                entries[data.draw(st.sampled_from(sorted(entries)))] = np.array([_Boom()], dtype=object)
+                entries[data.draw(st.sampled_from(sorted(entries)))] = np.array([PickleBomb()], dtype=object)
                 npz_path.write_bytes(_pickle_npz(entries))
             elif target == "npz_shape":
                 entries["1"] = data.draw(st.sampled_from([np.zeros((0, 3, 3)), np.zeros((5, 3)), np.zeros((5, 2, 3)),
@@ -421,18 +409,18 @@ def test_fuzz_saved_model_with_pickle(data, kind):
         with np.load(path) as z:
             entries = {k: z[k] for k in z.files}
         if kind == "pickle_header":
-            entries["header"] = np.array([_Boom()], dtype=object)
+            entries["header"] = np.array([PickleBomb()], dtype=object)
             path.write_bytes(_pickle_npz(entries))
         elif kind == "pickle_array":
             entries[data.draw(st.sampled_from(sorted(k for k in entries if k != "header")))] = np.array(
-                [_Boom()], dtype=object)
+                [PickleBomb()], dtype=object)
             path.write_bytes(_pickle_npz(entries))
         elif kind == "truncate":
             raw = path.read_bytes()
             path.write_bytes(raw[: data.draw(st.integers(0, len(raw) - 1))])
         else:
             path.write_text("text")
-        _Boom.ran = False
+        PickleBomb.ran = False
 
         def call():
             try:
@@ -441,8 +429,8 @@ def test_fuzz_saved_model_with_pickle(data, kind):
                 assert str(path) in str(exc), str(exc)
                 raise
 
-        assert_typed_or_good(f"{cls.__name__}.load of a damaged file", call, check=lambda m: not _Boom.ran)
-        assert not _Boom.ran
+        assert_typed_or_good(f"{cls.__name__}.load of a damaged file", call, check=lambda m: not PickleBomb.ran)
+        assert not PickleBomb.ran
 
 
 def test_choreo_skip_names_the_index_for_a_bad_record_entry_and_the_archive_for_a_bad_array(tmp_path):

@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from _fuzz import assert_typed_or_good, fuzz_settings
+from _fuzz import PickleBomb, assert_typed_or_good, fuzz_settings
 from mmconcepts.errors import DataFormatError
 from mmconcepts.multimodal import MultimodalNMF, crossmodal_distances, matching_success_rate, pairwise_divergence
 
@@ -221,18 +221,6 @@ def _npz_with(entries: dict) -> bytes:
     return buf.getvalue()
 
 
-class _Boom:
-    """Unpickling this would run code (here: set a flag)."""
-
-    ran = False
-
-    def __reduce__(self):
-        return (_Boom._run, ())
-
-    @staticmethod
-    def _run():
-        _Boom.ran = True
-        return "ran"
 
 
 _HEADER_EDITS = [
@@ -286,11 +274,11 @@ def test_fuzz_multimodal_load(tmp_path_factory, data, kind):
         entries["header"] = np.array(json.dumps(_edit(header, dotted, value)))
         raw = _npz_with(entries)
     elif kind == "pickle_header":
-        entries["header"] = np.array([_Boom()], dtype=object)
+        entries["header"] = np.array([PickleBomb()], dtype=object)
         raw = _npz_with(entries)
     elif kind == "pickle_array":
         name = data.draw(st.sampled_from(sorted(k for k in entries if k != "header")))
-        entries[name] = np.array([_Boom()], dtype=object)
+        entries[name] = np.array([PickleBomb()], dtype=object)
         raw = _npz_with(entries)
     elif kind == "bad_array":
         name = data.draw(st.sampled_from(sorted(k for k in entries if k != "header")))
@@ -311,7 +299,7 @@ def test_fuzz_multimodal_load(tmp_path_factory, data, kind):
         raw = _npz_with(entries)
     bad = tmp / "damaged.npz"
     bad.write_bytes(raw)
-    _Boom.ran = False
+    PickleBomb.ran = False
     expected = est.transform(X)
 
     def call():
@@ -324,11 +312,11 @@ def test_fuzz_multimodal_load(tmp_path_factory, data, kind):
 
     def check(res):
         model, W, R = res
-        if _Boom.ran:
+        if PickleBomb.ran:
             return False
         if kind == "intact":
             return np.allclose(W, expected)
         return W.shape == expected.shape and (W >= 0).all() and (R >= 0).all()
 
     assert_typed_or_good("mmconcepts.multimodal.MultimodalNMF.load", call, check=check)
-    assert not _Boom.ran, "loading unpickled an object"
+    assert not PickleBomb.ran, "loading unpickled an object"
