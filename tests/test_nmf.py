@@ -323,6 +323,48 @@ def test_convergence_warning_and_tol(rng):
     assert model.loss_iterations_[-1] == model.n_iter_
 
 
+class _ScriptedSolver:
+    """A solver whose updates change nothing and whose objective follows a script."""
+
+    def __init__(self, values):
+        self.values = list(values)
+
+    def update(self, side, A, B):
+        return A
+
+    def objective(self, W, Ht):
+        return self.values.pop(0)
+
+
+@pytest.mark.parametrize("script, n_iter, converged", [
+    # finite -> infinite (a subnormal cell whose reconstruction underflows): not a decrease
+    ([100.0, 90.0, np.inf, np.inf, np.inf, np.inf], 5, False),
+    # infinite, then two finite objectives that settle: converged at the second finite one
+    ([100.0, 90.0, np.inf, 50.0, 50.0, 50.0], 4, True),
+    # an overflowing start waits for the first finite error as its reference
+    ([np.inf, 90.0, 90.0, 10.0, 10.0, 10.0], 2, True),
+    ([100.0, 90.0, 80.0, 70.0, 70.0, 70.0], 4, True),
+])
+def test_stopping_rule_never_reads_an_infinite_objective_as_progress(script, n_iter, converged):
+    from mmconcepts.nmf._solver import _iterate
+
+    W, Ht = np.ones((2, 1)), np.ones((3, 1))
+    out = _iterate(_ScriptedSolver(script), W, Ht, True, 5, 1e-3, 1)
+    assert (out[2], out[5]) == (n_iter, converged)
+
+
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")
+def test_kl_fit_with_subnormal_cells_runs_until_it_settles():
+    """Soft-VQ histograms hold cells of about 1e-319; the KL objective can become infinite."""
+    rng = np.random.default_rng(3)
+    X = rng.random((30, 12)) * (rng.random((30, 12)) < 0.5)
+    X[:, -1] = 0.0
+    X[0, -1] = 6e-319  # the only mass of the last column: its dictionary entries underflow
+    model = NMF(3, beta_loss=1, init="random", random_state=0, max_iter=60, tol=1e-4).fit(X)
+    hist = model.loss_history_
+    assert not (np.isinf(hist[-1]) and model.n_iter_ < 60), (model.n_iter_, hist)
+
+
 # --------------------------------------------------------------------------- comparison
 def test_matching_distance_zero_for_scaled_permuted_copy(rng):
     A = rng.random((6, 20))

@@ -647,7 +647,9 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
     hist, its = [f0], [0]
     # Stopping rule of scikit-learn, on the error sqrt(2 * objective). An objective that
     # overflows (KL against a dictionary column of denormal size) cannot measure progress:
-    # the rule waits for finite errors and takes the first one as its reference.
+    # the rule waits for finite errors and takes the first one as its reference, and an
+    # objective that becomes infinite later (a subnormal data cell whose reconstruction
+    # underflows to 0) is never read as a decrease: the rule waits for two finite ones again.
     err0 = np.sqrt(2.0 * max(f0, 0.0))
     prev = err0
     converged = False
@@ -663,7 +665,7 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
             err = np.sqrt(2.0 * max(f, 0.0))
             if not np.isfinite(err0):
                 err0 = err
-            elif tol > 0 and err0 > 0 and np.isfinite(prev) and (prev - err) / err0 < tol:
+            elif tol > 0 and err0 > 0 and np.isfinite(prev) and np.isfinite(err) and (prev - err) / err0 < tol:
                 converged = True
                 break
             prev = err
