@@ -246,7 +246,8 @@ BAD = [
     (MotionHistograms, "max_fit_samples", 0), (MotionHistograms, "n_init", 0), (MotionHistograms, "random_state", 1.5),
     (MultimodalNMF, "n_components", 0), (MultimodalNMF, "beta_loss", "manhattan"), (MultimodalNMF, "max_iter", -1),
     (MultimodalNMF, "transform_max_iter", 2.5), (MultimodalNMF, "tol", -1e-3), (MultimodalNMF, "normalize", "l2"),
-    (MultimodalNMF, "init", "custom"), (MultimodalNMF, "random_state", "x"),
+    (MultimodalNMF, "init", "custom"), (MultimodalNMF, "random_state", "x"), (MultimodalNMF, "forget", 0.0),
+    (MultimodalNMF, "forget", 1.5), (MultimodalNMF, "partial_max_iter", 0),
 ]
 
 
@@ -353,7 +354,7 @@ def test_multimodal_nmf_is_a_scikit_learn_estimator():
     assert twin is not model and twin.get_params() == model.get_params()
     assert model.get_params(deep=True) == model.get_params(deep=False) == dict(
         n_components=3, beta_loss="kullback-leibler", max_iter=20, transform_max_iter=None, tol=0.0,
-        normalize="l1", init="random", random_state=0)
+        normalize="l1", init="random", random_state=0, forget=1.0, partial_max_iter=None)
     X = _modalities()
     fitted = clone(model).set_params(n_components=4).fit(X)  # set_params reaches fit
     assert fitted.components_.shape == (4, 16) and fitted.nmf_.n_components == 4
