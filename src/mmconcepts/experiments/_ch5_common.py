@@ -17,6 +17,13 @@
   concatenating recordings of one speaker (:func:`mmconcepts.sound.data.compose_utterances`).
 - :func:`keyword_targets` gives the keyword of each utterance (the thesis' tasks have one
   keyword per utterance).
+- :func:`keyword_sets` gives the set of keywords of each utterance as a label matrix
+  (section 5.4: "one or several keywords"), :func:`check_label_sets` checks one, and
+  :func:`check_words_per_utterance` refuses more distinct keywords per utterance than the
+  vocabulary holds.
+- :func:`label_set_corpus` gives utterances of one or several keywords of one speaker with
+  their label sets and folds: real recordings of one word composed into utterances (or
+  real utterances as recorded), or the generated corpus' one- and two-keyword sentences.
 """
 
 from __future__ import annotations
@@ -26,16 +33,19 @@ import json
 import os
 from pathlib import Path
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 
 from .._fingerprint import code_fingerprint
-from ..errors import DataError
+from ..errors import DataError, ParameterError
 from ..sound.features import MFCCConfig, mfcc
 from .base import RunContext, Streams, cached_call, streams
 
 __all__ = ["CORPUS_SEED", "Streams", "streams", "load_corpus", "data_source", "data_source_note", "corpus_mfcc",
-           "composed_corpus", "keyword_targets", "speaker_ids"]
+           "composed_corpus", "keyword_targets", "speaker_ids", "keyword_sets", "check_label_sets",
+           "check_words_per_utterance", "label_set_corpus", "LabelSetData"]
 
 #: Seed of the generated corpus, shared by all experiments (chapters 5 and 6).
 CORPUS_SEED = 0
@@ -157,6 +167,238 @@ def keyword_targets(corpus) -> np.ndarray:
             )
         out.append(str(labels[0]))
     return np.asarray(out)
+
+
+def keyword_sets(corpus, keywords=None) -> tuple[np.ndarray, list[str]]:
+    """The keywords said in each utterance, as a label matrix (thesis sections 3.3.1 and 5.4).
+
+    Parameters
+    ----------
+    corpus : SpeechCorpus
+        Utterances whose ``labels`` are the keywords they say (one or several).
+    keywords : sequence of str, optional
+        The vocabulary, in column order (default: every label of the corpus, sorted).
+
+    Returns
+    -------
+    Y : ndarray of float of shape (n_utterances, n_keywords)
+        1 where the utterance says the keyword.
+    keywords : list of str
+
+    Raises
+    ------
+    DataError
+        If an utterance says no keyword (or none of ``keywords``): a label set is required
+        for every utterance of these experiments.
+    """
+    labels = [tuple(dict.fromkeys(str(l) for l in ls)) for ls in corpus.labels]
+    vocab = sorted({l for ls in labels for l in ls}) if keywords is None else [str(k) for k in keywords]
+    if len(set(vocab)) != len(vocab):
+        raise ParameterError(f"keywords must not repeat; got {vocab!r}. Fix: pass each keyword once.")
+    col = {k: j for j, k in enumerate(vocab)}
+    Y = np.zeros((len(labels), len(vocab)))
+    for i, ls in enumerate(labels):
+        cols = [col[l] for l in ls if l in col]
+        if not cols:
+            got = f"labels {ls}" if ls else "no label"
+            raise DataError(
+                f"utterance {i} ({corpus.paths[i]}) says no keyword: expected at least one of the {len(vocab)} "
+                f"keywords per utterance (its label set); got {got}. Fix: leave that utterance out "
+                "(corpus.subset) or give it its keyword(s) in labels.csv."
+            )
+        Y[i, cols] = 1.0
+    return Y, vocab
+
+
+def check_label_sets(Y, n_utterances: int, n_keywords: int) -> np.ndarray:
+    """``Y`` as a float 0/1 label matrix of shape (n_utterances, n_keywords), every row holding a keyword.
+
+    Raises
+    ------
+    DataError
+        If ``Y`` is not 2-D of that shape, not binary, or a row is empty.
+    """
+    A = np.asarray(Y)
+    if A.ndim != 2 or A.shape != (n_utterances, n_keywords):
+        raise DataError(
+            f"label sets must be a binary matrix of shape (n_utterances, n_keywords) = ({n_utterances}, "
+            f"{n_keywords}); got shape {A.shape}. Fix: one row per utterance, one column per keyword "
+            "(keyword_sets(corpus) or sklearn.preprocessing.MultiLabelBinarizer builds it from label sets)."
+        )
+    if not (A.dtype == bool or np.issubdtype(A.dtype, np.number)) or not np.isin(A, (0, 1)).all():
+        raise DataError(f"label sets must hold 0/1 values; got dtype {A.dtype} with other values. Fix: a 1 "
+                        "where the utterance says the keyword, else 0.")
+    empty = np.flatnonzero(A.sum(axis=1) == 0)
+    if empty.size:
+        raise DataError(f"utterance {int(empty[0])} has an empty label set ({empty.size} such rows): expected at least "
+                        "one keyword per utterance; got none. Fix: leave those utterances out.")
+    return A.astype(np.float64)
+
+
+def check_words_per_utterance(n_words, n_keywords: int) -> tuple[int, int]:
+    """``n_words = (fewest, most)`` distinct keywords per utterance, checked against the vocabulary.
+
+    Raises
+    ------
+    ParameterError
+        If the bounds are not ints with ``1 <= fewest <= most``, or ``most`` is above the
+        number of keywords (the keywords of an utterance are distinct).
+    """
+    try:
+        lo, hi = (int(v) for v in n_words)
+        ok = all(float(v) == int(v) for v in n_words)
+    except (TypeError, ValueError):
+        lo = hi = 0
+        ok = False
+    if not ok or not 1 <= lo <= hi:
+        raise ParameterError(f"words per utterance must be (fewest, most) ints with 1 <= fewest <= most; got "
+                             f"{n_words!r}. Fix: e.g. (1, 3).")
+    if hi > n_keywords:
+        raise ParameterError(
+            f"utterances of up to {hi} distinct keywords were asked for, but the vocabulary has {n_keywords} keywords; "
+            f"expected at most {n_keywords}. Fix: lower the largest number of words per utterance to {n_keywords} or "
+            "use a corpus with more keywords."
+        )
+    return lo, hi
+
+
+@dataclass
+class LabelSetData:
+    """Utterances of one or several keywords of one speaker (see :func:`label_set_corpus`).
+
+    corpus : SpeechCorpus of the utterances; Y : (n, n_keywords) label matrix; keywords : its columns;
+    fold : int array (n,), the test fold of each utterance (-1: no folds); kind : "composed",
+    "as-recorded" or "generated"; speaker : the speaker id; description : what it is, in words;
+    n_source : the number of the speaker's recordings it was built from.
+    """
+
+    corpus: object
+    Y: np.ndarray
+    keywords: list[str]
+    fold: np.ndarray
+    kind: str
+    speaker: str
+    description: str
+    n_source: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def _concat(corpora, name: str):
+    from ..sound.data import SpeechCorpus
+
+    return SpeechCorpus([u for c in corpora for u in c.utterances], name, None, [])
+
+
+def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0, n_folds: int | None,
+                     n_per_speaker: int, n_composed: int, n_words=(1, 3), pause_s=(0.1, 0.3),
+                     n_single: int = 0, n_double: int = 0) -> LabelSetData:
+    """Utterances of one or several keywords of one speaker, their label sets and test folds.
+
+    What the data root holds decides (nothing is named here):
+
+    - a real corpus whose utterances say one keyword each (FSDD: one digit per file): the
+      speaker's recordings are split into ``n_folds`` stratified folds (``seeds.splits``)
+      and ``n_composed`` utterances of ``n_words`` recordings in a row (pauses
+      ``pause_s``) are composed from each fold's recordings (:func:`composed_corpus`,
+      ``seeds.data``), so a test fold's utterances hold only that fold's recordings;
+      ``n_folds=None``: ``n_composed`` utterances composed from all of them, no folds;
+    - a real corpus with several keywords per utterance: its utterances as recorded,
+      split into folds stratified by the number of keywords;
+    - no real speech: the generated corpus' speaker (one keyword per sentence, cached and
+      shared with the other chapter 5 experiments), ``n_single`` of its sentences drawn by
+      ``seeds.data``, and ``n_double`` sentences of two keywords said by the same voice
+      (:func:`~mmconcepts.sound.synthetic.fetch_caregiver` with
+      ``keywords_per_utterance=2``, generated once and cached), folds stratified by the
+      number of keywords.
+
+    Raises
+    ------
+    DataError
+        Too few recordings, a speaker index beyond the speakers found, an utterance with
+        no keyword.
+    ParameterError
+        ``n_words`` above the vocabulary (see :func:`check_words_per_utterance`).
+    """
+    from sklearn.model_selection import StratifiedKFold
+
+    source = data_source(ctx)
+    corpus = load_corpus(ctx, n_per_speaker=n_per_speaker)
+    spk = speaker_ids(corpus)
+    order = sorted(set(spk))
+    if not 0 <= speaker_index < len(order):
+        raise DataError(f"speaker_index {speaker_index} asks for speaker {speaker_index + 1} in sorted order, but the "
+                        f"corpus has {len(order)} speaker(s) {order}. Fix: speaker_index in [0, {len(order) - 1}].")
+    speaker = order[speaker_index]
+    sub = corpus.subset(np.flatnonzero(spk == speaker))
+    n_labels = [len(set(ls)) for ls in sub.labels]
+
+    def folds_by_size(Y: np.ndarray) -> np.ndarray:
+        fold = np.full(len(Y), -1)
+        if n_folds is None:
+            return fold
+        size = Y.sum(axis=1).astype(int)
+        k = min(int(n_folds), int(np.unique(size, return_counts=True)[1].min()))
+        if k < 2:
+            raise DataError(f"{len(Y)} utterances of speaker {speaker} cannot be split into {n_folds} folds (got {k} "
+                            "possible); expected at least 2 utterances of each number of keywords. Fix: fewer folds "
+                            "or more data.")
+        for i, (_, te) in enumerate(StratifiedKFold(k, shuffle=True, random_state=seeds.splits).split(size, size)):
+            fold[te] = i
+        return fold
+
+    if source != "synthetic" and all(n == 1 for n in n_labels):
+        y = keyword_targets(sub)
+        keywords = sorted(set(y))
+        lo, hi = check_words_per_utterance(n_words, len(keywords))
+        if n_folds is None:
+            parts = [composed_corpus(ctx, sub, n_utterances=n_composed, seed=sub_seed(seeds.data, 0),
+                                     n_words=(lo, hi), pause_s=tuple(pause_s))]
+        else:
+            counts = np.unique(y, return_counts=True)[1]
+            k = min(int(n_folds), int(counts.min()))
+            if k < 2:
+                raise DataError(f"speaker {speaker} has {int(counts.min())} recording(s) of some keyword; expected at "
+                                f"least 2 per keyword for {n_folds}-fold composition. Fix: fewer folds or more "
+                                "recordings.")
+            splits = StratifiedKFold(k, shuffle=True, random_state=seeds.splits).split(np.zeros(len(y)), y)
+            parts = [composed_corpus(ctx, sub.subset(te), n_utterances=n_composed, seed=sub_seed(seeds.data, i),
+                                     n_words=(lo, hi), pause_s=tuple(pause_s)) for i, (_, te) in enumerate(splits)]
+        fold = (np.full(sum(len(p) for p in parts), -1) if n_folds is None
+                else np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]))
+        utts = _concat(parts, f"{corpus.name or 'corpus'}-composed")
+        Y, _ = keyword_sets(utts, keywords)
+        desc = (f"{len(Y)} utterances of {lo}-{hi} real recordings of speaker {speaker} said in a row (pauses "
+                f"{pause_s[0]:g}-{pause_s[1]:g} s), composed "
+                + ("from all of the speaker's recordings" if n_folds is None else
+                   f"fold by fold from {len(parts)} stratified folds of the speaker's {len(sub)} recordings (a test "
+                   "fold's utterances hold only that fold's recordings)"))
+        return LabelSetData(utts, Y, keywords, fold, "composed", speaker, desc, len(sub))
+    if source != "synthetic":
+        Y, keywords = keyword_sets(sub)
+        desc = f"{len(Y)} utterances of speaker {speaker} as recorded ({int(Y.sum(1).min())}-{int(Y.sum(1).max())} keywords)"
+        return LabelSetData(sub, Y, keywords, folds_by_size(Y), "as-recorded", speaker, desc, len(sub))
+
+    # generated: the speaker's one-keyword sentences and two-keyword sentences of the same voice
+    from ..sound.synthetic import fetch_caregiver
+
+    if n_single < 0 or n_double < 0 or n_single + n_double == 0:
+        raise ParameterError(f"n_single and n_double must be >= 0 and not both 0; got {n_single}, {n_double}. Fix: "
+                             "e.g. n_single=150, n_double=150.")
+    rng = np.random.default_rng(seeds.data)
+    if n_single > len(sub):
+        raise DataError(f"n_single={n_single} one-keyword sentences asked for, but the generated speaker {speaker} "
+                        f"has {len(sub)}. Fix: n_single <= {len(sub)} or a larger n_per_speaker.")
+    parts = [sub.subset(np.sort(rng.choice(len(sub), n_single, replace=False)))] if n_single else []
+    if n_double:
+        doubles = fetch_caregiver(ctx.cache_dir, n_utterances_per_speaker=n_double, n_speakers=speaker_index + 1,
+                                  keywords_per_utterance=2, random_state=CORPUS_SEED, n_jobs=ctx.workers)
+        parts.append(doubles.subset(np.flatnonzero(speaker_ids(doubles) == speaker)))
+    utts = _concat(parts, "caregiver-synth-1+2")
+    Y, keywords = keyword_sets(utts, sorted(set(sub.keywords)))
+    n_one = int(np.sum(Y.sum(axis=1) == 1))
+    desc = (f"{len(Y)} generated sentences of speaker {speaker}: {n_one} with one keyword (drawn from the shared "
+            f"generated corpus) and {len(Y) - n_one} with two (generated with keywords_per_utterance=2, same voice)")
+    return LabelSetData(utts, Y, keywords, folds_by_size(Y), "generated", speaker, desc, len(sub))
 
 
 def _mfcc_one(task: tuple[str, dict]) -> np.ndarray:

@@ -9,6 +9,13 @@ With ``f_i^t = n_{i,t} / n_t`` and the weights
 (``N^{(i)}_{tags}``: the number of tags whose examples contain ``i`` at least once), an
 event appearing ``q_i`` times in a query utterance votes ``V_i = q_i f_i^t w_i`` for tag
 ``t``; the utterance gets the tag with the largest summed vote.
+
+Label sets (thesis section 5.4: "simple sentences containing one or several keywords"):
+a training utterance tagged with a set of tags counts its events for each tag of the set
+(``n_{i,t}`` and ``n_t`` grow for every ``t`` in the set; a tag repeated in a set counts
+once). The thesis defines the vote for one keyword per utterance; for a set, the tags are
+ranked by their votes (the n best for the chapter 3 score l_given_number) or thresholded
+relative to the best vote of the utterance (:meth:`EventVoting.predict_sets`, for l_full).
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ from .._validation import InstanceOf, Interval, Options, validate_params
 from ..errors import DataError, ParameterError
 from .tree import SEARCHES, ClusterTree
 
-__all__ = ["EventVoting", "TreeVotingClassifier"]
+__all__ = ["EventVoting", "TreeVotingClassifier", "relative_votes"]
 
 _WEIGHTINGS = ("tfidf", "uniform")
 
@@ -40,6 +47,50 @@ def _sequence_input_tags(tags: Any) -> Any:
     """
     tags.input_tags.two_d_array = False
     return tags
+
+
+def _tag_set(tag: Any, j: int) -> tuple:
+    """The tags of training utterance ``j``: a tuple of distinct tags (first occurrence kept).
+
+    A tuple, list, set or frozenset is a set of tags; anything else is one tag.
+
+    Raises
+    ------
+    DataError
+        If the set is empty: an utterance must say at least one tag to be counted.
+    """
+    if isinstance(tag, (tuple, list, set, frozenset)):
+        items = sorted(tag, key=repr) if isinstance(tag, (set, frozenset)) else list(tag)
+        out = tuple(dict.fromkeys(items))
+        if not out:
+            raise DataError(
+                f"utterance {j} has an empty tag set; expected at least one tag per training utterance (its "
+                "keyword(s)); got (). Fix: leave out the utterances without keyword, or give each its keyword(s)."
+            )
+        return out
+    return (tag,)
+
+
+def relative_votes(scores: Any) -> np.ndarray:
+    """Votes divided by the largest vote of their row, shape (n_utterances, n_tags).
+
+    A row with no positive vote is all zeros. Votes are nonnegative (eq. 5.1 with the
+    weights of :meth:`EventVoting.weights`), so the result is in [0, 1] with a 1 at the
+    best-voted tag(s).
+
+    Parameters
+    ----------
+    scores : array-like of shape (n_utterances, n_tags)
+        Summed votes (:meth:`EventVoting.decision_function`).
+    """
+    S = np.asarray(scores, dtype=np.float64)
+    if S.ndim != 2:
+        raise DataError(f"scores must be 2-D (n_utterances, n_tags); got shape {S.shape}.")
+    if S.size and not np.isfinite(S).all():
+        raise DataError("scores must be finite votes; got NaN or infinite values.")
+    top = S.max(axis=1, keepdims=True) if S.shape[1] else np.zeros((S.shape[0], 1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(top > 0, S / np.where(top > 0, top, 1.0), 0.0)
 
 
 class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
@@ -125,7 +176,7 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
             raise DataError(f"got {len(bags)} bags but {len(tags)} tag entries.")
         for j, (bag, tag) in enumerate(zip(bags, tags)):
             b = self._check_bag(bag, j)
-            tag_set = tag if isinstance(tag, (tuple, list, set, frozenset)) else (tag,)
+            tag_set = _tag_set(tag, j)
             cols = []
             for t in tag_set:
                 if t not in self._index:
@@ -166,9 +217,19 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
         super()._set_state(state)
         self._index = {t: i for i, t in enumerate(self.classes_)}
 
-    def decision_function(self, bags: Sequence[np.ndarray]) -> np.ndarray:
-        """Summed votes ``sum_i q_i f_i^t w_i``, shape (n_utterances, n_tags)."""
+    def decision_function(self, bags: Sequence[np.ndarray], *, classes: Sequence[Any] | None = None) -> np.ndarray:
+        """Summed votes ``sum_i q_i f_i^t w_i``, shape (n_utterances, n_tags).
+
+        Parameters
+        ----------
+        bags : sequence of 1-D int arrays
+        classes : sequence of tags, optional
+            The columns to return, in this order (default :attr:`classes_`); a tag never
+            seen in training gets no vote (0).
+        """
         self._check_fitted()
+        if classes is not None:
+            return self._align(self.decision_function(bags), classes)
         n_tags = len(self.classes_)
         freq = self.counts_[:, :n_tags] / np.maximum(self.tag_counts_[:n_tags], 1)
         table = freq * self.weights()[:, None]
@@ -183,10 +244,54 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
                 out[j] = q[nz] @ table[nz]
         return out
 
+    def _align(self, scores: np.ndarray, classes: Sequence[Any]) -> np.ndarray:
+        """The columns of ``scores`` (order of :attr:`classes_`) for ``classes``; unseen tags score 0."""
+        if isinstance(classes, (str, bytes)):
+            raise ParameterError(f"classes must be a sequence of tags, not one string; got {classes!r}. "
+                                 "Write classes=[tag, ...].")
+        wanted = list(classes)
+        if len(set(wanted)) != len(wanted):
+            raise ParameterError(f"classes must not repeat a tag; got {wanted!r}.")
+        out = np.zeros((scores.shape[0], len(wanted)))
+        for c, t in enumerate(wanted):
+            k = self._index.get(t)
+            if k is not None:
+                out[:, c] = scores[:, k]
+        return out
+
     def predict(self, bags: Sequence[np.ndarray]) -> list:
         """The tag with the largest vote for each utterance (ties: first-seen tag)."""
         scores = self.decision_function(bags)
         return [self.classes_[k] for k in scores.argmax(axis=1)]
+
+    def predict_sets(self, bags: Sequence[np.ndarray], *, threshold: float,
+                     classes: Sequence[Any] | None = None) -> np.ndarray:
+        """Label sets: the tags whose vote is at least ``threshold`` times the utterance's best vote.
+
+        The thesis' ``threshold(y_hat, eta)`` (section 3.3.3) applied to the relative votes
+        :func:`relative_votes` (votes divided by the utterance's largest vote), so that
+        one threshold serves utterances of every length. The best-voted tag is always in
+        the set (for ``threshold <= 1``); an utterance with no vote gets the empty set.
+
+        Parameters
+        ----------
+        bags : sequence of 1-D int arrays
+        threshold : float
+            eta, in (0, 1] in practice (a fraction of the best vote).
+        classes : sequence of tags, optional
+            The columns, in this order (default :attr:`classes_`).
+
+        Returns
+        -------
+        ndarray of int of shape (n_utterances, n_tags)
+            1 where the tag is predicted.
+        """
+        if isinstance(threshold, bool) or not isinstance(threshold, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(threshold):
+            raise ParameterError(f"threshold must be a finite number (a fraction of the best vote, e.g. 0.5); "
+                                 f"got {threshold!r}.")
+        rel = relative_votes(self.decision_function(bags, classes=classes))
+        return (rel >= float(threshold)).astype(np.int64)
 
     def score(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> float:
         """Accuracy: the predicted tag is (one of) the utterance's tag(s)."""
@@ -405,10 +510,15 @@ class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
         utts = self._check(utterances)
         return [self._bag(self.tree_.predict(u)) if len(u) else np.zeros(0, np.int64) for u in utts]
 
-    def decision_function(self, utterances) -> np.ndarray:
-        """Summed votes per tag, shape (n_utterances, n_tags) (order of ``classes_``)."""
+    def decision_function(self, utterances, *, classes=None) -> np.ndarray:
+        """Summed votes per tag, shape (n_utterances, n_tags) (order of ``classes_``, or of ``classes``)."""
         bags = self.bags(utterances)
-        return self.voting_.decision_function(bags)
+        return self.voting_.decision_function(bags, classes=classes)
+
+    def predict_sets(self, utterances, *, threshold: float, classes=None) -> np.ndarray:
+        """Label sets by relative votes (:meth:`EventVoting.predict_sets`), shape (n_utterances, n_tags)."""
+        bags = self.bags(utterances)
+        return self.voting_.predict_sets(bags, threshold=threshold, classes=classes)
 
     @property
     def classes_(self) -> list:
