@@ -1,0 +1,104 @@
+"""ch7-online: the online multimodal learner along a stream (issue 15, section 2).
+
+Small configs on generated data (the tiny synthetic corpus) and on a small real subset (skips
+without the real sets); the building blocks against outside answers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from sklearn.metrics import mutual_info_score
+
+from conftest import real_data_path
+
+import mmconcepts.experiments.ch7_online as ch7  # importing registers ch7-online
+from mmconcepts.experiments import RunContext
+
+_TINY = dict(n_per_speaker=50, n_motion=60, n_folds=2, k=10, n_iter=20, batch_size=10, partial_max_iter=5,
+             points=(0.3, 1.0))
+
+
+def _check_result(res, n_folds):
+    from mmconcepts.experiments.rules import parse_rule
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    res.validate()
+    m = res.metrics
+    assert m["chance"] == pytest.approx(0.1)
+    for learner in ("online", "batch"):
+        for name in ("success", "sound2motion", "motion2sound"):
+            assert 0.0 <= m[f"{learner}.{name}.last"] <= 1.0
+        assert m[f"{learner}.success.last"] == pytest.approx(
+            (m[f"{learner}.sound2motion.last"] + m[f"{learner}.motion2sound.last"]) / 2)
+    # the online learner's state is the same size at every point; the batch learner's kept data grows
+    assert m["online.memory_mb.first"] == pytest.approx(m["online.memory_mb.last"])
+    assert m["batch.memory_mb.last"] > m["batch.memory_mb.first"]
+    assert m["online.time.last"] >= m["online.time.first"] > 0
+    for claim in ch7.EXPERIMENT.claims:  # every claim is decided by the paired bootstrap over folds
+        for name in set(parse_rule(claim.rule).metrics) - {"chance"}:
+            assert len(res.samples[name]) == n_folds
+        v = claim_verdict(claim.rule, m, res.samples, units=res.sample_units)
+        assert v.verdict in ("holds", "fails", "inconclusive")
+        assert v.basis.startswith("t-calibrated paired bootstrap")
+
+
+@pytest.mark.slow
+def test_ch7_online_small_generated(tiny_speech_corpus, tmp_path):
+    ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(ch7.Config.quick(), **_TINY)
+    res = ch7.compute(cfg, ctx)
+    _check_result(res, 2)
+    assert "stream" in ch7.present(res, cfg)
+    assert len(res.tables["stream"].rows) == 2
+
+
+@pytest.mark.slow
+def test_ch7_online_small_real(tmp_path):
+    ctx = RunContext(data={"fsdd": real_data_path("fsdd"), "msr-action3d": real_data_path("msr-action3d")},
+                     cache_dir=tmp_path, show_progress=False)
+    cfg = dataclasses.replace(ch7.Config.quick(), **{**_TINY, "n_per_speaker": 60})
+    res = ch7.compute(cfg, ctx)
+    _check_result(res, 2)
+    assert any("FSDD" in n for n in res.notes)
+
+
+def test_stream_segments_end_at_every_point():
+    segs = ch7._segments(23, [3, 10, 23], 4)
+    assert [(s.start, s.stop) for s in segs] == [(0, 3), (3, 7), (7, 10), (10, 14), (14, 18), (18, 22), (22, 23)]
+
+
+def test_matched_information_is_the_kuhn_munkres_mean_of_sklearns_mutual_information():
+    """Outside answer: scikit-learn's mutual_info_score per (concept indicator, binned coefficient), brute-force
+    best assignment over all permutations (3 concepts, 4 coefficients)."""
+    import itertools
+
+    rng = np.random.default_rng(0)
+    y = rng.integers(0, 3, 90)
+    W = rng.random((90, 4))
+    W[:, 2] += 2.0 * (y == 1)
+    W[:, 0] += 1.0 * (y == 2)
+    mi = np.zeros((3, 4))
+    for c in range(3):
+        for j in range(4):
+            edges = np.linspace(W[:, j].min(), W[:, j].max(), 11)[1:-1]
+            mi[c, j] = mutual_info_score(y == c, np.digitize(W[:, j], edges)) / np.log(2)
+    best = max(np.mean([mi[c, p[c]] for c in range(3)]) for p in itertools.permutations(range(4), 3))
+    assert ch7.matched_information(y, W, 10) == pytest.approx(best, rel=1e-9)
+
+
+def test_crossmodal_success_is_one_on_separable_representations_and_near_chance_on_noise():
+    from mmconcepts.multimodal import MultimodalNMF
+
+    rng = np.random.default_rng(1)
+    y = np.repeat(np.arange(5), 20)
+    P = rng.random((5, 30)) ** 6
+    Q = rng.random((5, 8)) ** 6
+    X = {"sound": P[y] + 1e-3, "motion": Q[y] + 1e-3}
+    model = MultimodalNMF(5, max_iter=100, random_state=0).fit(X)
+    assert ch7.crossmodal_success(model, X, y, random_state=0)["mean"] > 0.95
+    noise = {"sound": rng.random((100, 30)), "motion": rng.random((100, 8))}
+    low = MultimodalNMF(5, max_iter=30, random_state=0).fit(noise)
+    assert ch7.crossmodal_success(low, noise, y, random_state=0)["mean"] < 0.45
