@@ -70,6 +70,27 @@ def _workers(text: str) -> int:
     return value
 
 
+def _scheduler(text: str) -> str:
+    from .errors import ParameterError
+    from .experiments.cluster import parse_scheduler
+
+    try:
+        parse_scheduler(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {value}")
+    return value
+
+
 def _data_root_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--data-root", metavar="DIR", type=_folder, default=None,
@@ -111,6 +132,13 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         help="parallel worker processes (default: %(default)s; -1 for one per CPU)",
     )
     parser.add_argument(
+        "--scheduler", metavar="ADDRESS", type=_scheduler, default=None,
+        help="run the experiments' repetitions, folds and sweep points on a Dask cluster instead of "
+             "--workers: 'local:N' starts N worker processes on this machine, 'tcp://HOST:PORT' uses a "
+             "running dask.distributed scheduler whose workers see the same data root and cache folder "
+             "(the dask extra; same numbers as a local run)",
+    )
+    parser.add_argument(
         "--force", action="store_true",
         help="recompute even when an up-to-date result exists",
     )
@@ -133,6 +161,8 @@ def build_parser() -> argparse.ArgumentParser:
               mmconcepts list
               mmconcepts run ch2-nmf-recovery
               mmconcepts run ch2-nmf-recovery --full --seed 3 --workers 8
+              mmconcepts run ch6-modalities --full --scheduler local:8
+              mmconcepts reproduce --full --scheduler tcp://head-node:8786 --concurrent 4
               mmconcepts reproduce --full --data choreo1=~/data/choreo1
               mmconcepts report results
 
@@ -181,6 +211,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="do not also run the experiments that have real data on generated data",
     )
     p.add_argument("--only", metavar="ID", nargs="+", default=None, help="run only these experiments")
+    p.add_argument(
+        "--concurrent", metavar="N", type=_positive, default=1,
+        help="run up to N experiments at the same time, each in its own process (sharing the --scheduler "
+             "cluster, else each with --workers processes; default: %(default)s)",
+    )
     p.set_defaults(func=_cmd_reproduce)
 
     p = sub.add_parser(
@@ -346,7 +381,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise _UsageError(str(exc)) from exc
     record = run_experiment(
         exp, preset=args.preset, seed=args.seed, output=args.output, data=data, data_root=args.data_root,
-        variant=args.variant, workers=args.workers, force=args.force, progress=not args.quiet, raise_errors=False,
+        variant=args.variant, workers=args.workers, scheduler=args.scheduler, force=args.force, progress=not args.quiet,
+        raise_errors=False,
     )
     secondary = record.get("variant") == "synthetic" and bool(resolve_data(exp, data, args.data_root))
     _print_record(record, record_path(args.output, exp.id, secondary=secondary))
@@ -369,7 +405,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         raise _UsageError(str(exc)) from exc
     records = reproduce(
         preset=args.preset, output=args.output, data=data, data_root=args.data_root, synthetic=args.synthetic,
-        workers=args.workers, force=args.force, ids=args.only, progress=not args.quiet,
+        workers=args.workers, scheduler=args.scheduler, concurrent=args.concurrent, force=args.force, ids=args.only,
+        progress=not args.quiet,
     )
     html_path, md_path = _write_report(args.output)
     rows = [["experiment", "data", "ran", "claims"]]

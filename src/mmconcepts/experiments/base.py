@@ -409,6 +409,9 @@ class RunContext:
         Where to log (default ``logging.getLogger("mmconcepts.experiments")``).
     show_progress : bool, default=True
         Show progress bars; they are shown only when stderr is a terminal.
+    client : distributed.Client, optional
+        A Dask client: :meth:`parallel` then runs its items on that cluster's workers
+        (``workers`` is not used). See :mod:`mmconcepts.experiments.cluster`.
     """
 
     workers: int = 1
@@ -416,6 +419,7 @@ class RunContext:
     cache_dir: Path = field(default_factory=lambda: data_home())
     logger: logging.Logger = field(default_factory=lambda: logging.getLogger("mmconcepts.experiments"))
     show_progress: bool = True
+    client: Any = None
 
     def __post_init__(self) -> None:
         if isinstance(self.workers, bool) or not isinstance(self.workers, numbers.Integral):
@@ -449,7 +453,10 @@ class RunContext:
 
         With ``workers == 1`` this is a plain loop in this process. Otherwise joblib's
         process pool is used, so ``fn`` and the items must pickle (define ``fn`` at
-        module level) and each item must carry its own seed. Order is preserved. Warnings
+        module level) and each item must carry its own seed. With a :attr:`client`, the
+        items run on the Dask cluster's workers instead (even a single item), each result
+        fetched as soon as it is ready (:func:`~mmconcepts.experiments.cluster.map_in_order`).
+        Order is preserved. Warnings
         raised in a worker process are raised again here, in this process, so that the
         caller (and the runner's record of the run's warnings) sees the same warnings
         whatever the number of workers. The worker processes end with this process, even
@@ -469,6 +476,8 @@ class RunContext:
         """
         items = list(items)
         out: list[_R] = []
+        if self.client is not None:
+            return self._parallel_dask(fn, items, desc=desc, on_result=on_result)
         if self.workers == 1 or len(items) <= 1:
             for item in self.progress(items, total=len(items), desc=desc):
                 out.append(fn(item))
@@ -487,6 +496,21 @@ class RunContext:
                 if on_result is not None:
                     on_result(len(out) - 1, result)
         return out
+
+    def _parallel_dask(self, fn: Callable[[_T], _R], items: list[_T], *, desc: str | None,
+                       on_result: Callable[[int, _R], None] | None) -> list[_R]:
+        from .cluster import map_in_order
+
+        def emit(i: int, carried: tuple[_R, list]) -> None:
+            result, caught = carried
+            for category, message, filename, lineno in caught:
+                warnings.warn_explicit(message, category, filename, lineno)
+            if on_result is not None:
+                on_result(i, result)
+
+        carried = map_in_order(self.client, _WarningsCarried(fn), items,
+                               progress=lambda it, n: self.progress(it, total=n, desc=desc), on_result=emit)
+        return [result for result, _ in carried]
 
     def memory(self, name: str) -> CacheStore:
         """A disk cache under ``cache_dir/name`` that never unpickles (a ``CacheStore``).

@@ -4,6 +4,12 @@ Each module named in :data:`mmconcepts.experiments.EXPERIMENT_MODULES` calls
 :func:`register` when imported. The modules are imported lazily, on the first call of
 :func:`get` or :func:`all_experiments`, so importing :mod:`mmconcepts.experiments` stays
 cheap. A module that fails to import is an error, never silently skipped.
+
+Your own experiments: a module of yours that calls :func:`register` on import is loaded
+with the package's when its name is in the environment variable
+``MMCONCEPTS_EXPERIMENT_MODULES`` (comma-separated module names, importable from
+``sys.path``); the command line (``mmconcepts run``, ``reproduce``, ``list``) then knows
+them, and so do the processes ``reproduce --concurrent`` starts.
 """
 
 from __future__ import annotations
@@ -11,11 +17,15 @@ from __future__ import annotations
 import difflib
 import importlib
 import logging
+import os
 
 from ..errors import ExperimentError
 from .base import Experiment
 
-__all__ = ["register", "unregister", "get", "all_experiments", "load_experiments"]
+__all__ = ["register", "unregister", "get", "all_experiments", "load_experiments", "EXTRA_MODULES_ENV"]
+
+#: Environment variable naming more experiment modules to load (comma-separated).
+EXTRA_MODULES_ENV = "MMCONCEPTS_EXPERIMENT_MODULES"
 
 logger = logging.getLogger("mmconcepts.experiments")
 
@@ -54,7 +64,7 @@ def unregister(experiment_id: str) -> None:
 
 
 def load_experiments() -> None:
-    """Import every module of ``EXPERIMENT_MODULES`` (once).
+    """Import every module of ``EXPERIMENT_MODULES`` and of ``$MMCONCEPTS_EXPERIMENT_MODULES`` (once).
 
     Raises
     ------
@@ -65,7 +75,8 @@ def load_experiments() -> None:
     if _LOADED:
         return
     package = importlib.import_module("mmconcepts.experiments")
-    for name in package.EXPERIMENT_MODULES:
+    extra = [m.strip() for m in os.environ.get(EXTRA_MODULES_ENV, "").split(",") if m.strip()]
+    for name in dict.fromkeys([*package.EXPERIMENT_MODULES, *extra]):
         try:
             importlib.import_module(name)
         except ExperimentError:
@@ -73,7 +84,7 @@ def load_experiments() -> None:
         except Exception as exc:
             raise ExperimentError(
                 f"could not import the experiment module {name!r} ({type(exc).__name__}: {exc}). "
-                "Fix it or remove it from mmconcepts.experiments.EXPERIMENT_MODULES."
+                f"Fix it or remove it from mmconcepts.experiments.EXPERIMENT_MODULES or ${EXTRA_MODULES_ENV}."
             ) from exc
     _LOADED = True
     logger.debug("loaded %d experiment(s)", len(_REGISTRY))

@@ -49,6 +49,7 @@ In Python a record is a :class:`~mmconcepts.experiments.record.ResultRecord`, wh
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
 import io
@@ -72,6 +73,7 @@ from .._io import atomic_write, check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
 from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext, Table, check_seed
+from .cluster import open_client, parse_scheduler
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, to_jsonable
 from .registry import all_experiments, get
 from .uncertainty import claim_verdict, t_interval
@@ -497,6 +499,7 @@ def run_experiment(
     data_root: str | os.PathLike[str] | None = None,
     variant: str = "auto",
     workers: int = 1,
+    scheduler: Any = None,
     force: bool = False,
     progress: bool = True,
     raise_errors: bool = True,
@@ -536,6 +539,11 @@ def run_experiment(
         has real data is written to ``<id>.synthetic.json``.
     workers : int, default=1
         Processes for :meth:`RunContext.parallel`; -1 for one per CPU.
+    scheduler : str or distributed.Client, optional
+        Run the experiment's parallel parts on a Dask cluster instead (then ``workers``
+        is not used): ``"local:N"`` starts N worker processes on this machine for the
+        run, ``"tcp://HOST:PORT"`` connects to a running scheduler, a ``Client`` is used
+        as it is (see :mod:`mmconcepts.experiments.cluster`). The numbers are the same.
     force : bool, default=False
         Recompute even if an up-to-date result exists.
     progress : bool, default=True
@@ -564,6 +572,8 @@ def run_experiment(
     if variant not in ("auto", *VARIANTS):
         raise ParameterError(f"variant must be 'auto', 'real' or 'synthetic'; got {variant!r}.")
     config, preset = _config_and_preset(exp, preset, config, seed)
+    if isinstance(scheduler, str):
+        parse_scheduler(scheduler)  # a malformed address fails before any work
     check_data(data, [exp])
     output = check_output_dir(output)  # before any work: a file or an unwritable folder fails now
     target = _target(exp, variant, data, data_root, output)
@@ -595,7 +605,9 @@ def run_experiment(
             _remove_stale_figures(stale.with_suffix(""), ())
     logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
     t0 = time.perf_counter()
-    error = _execute(exp, config, ctx, record, target)
+    with _client(scheduler) as client:
+        ctx.client = client
+        error = _execute(exp, config, ctx, record, target)
     record.elapsed_s = round(time.perf_counter() - t0, 3)
     atomic_write(target.json_path, record.to_json().encode("utf-8"))
     _remove_stale_figures(target.fig_dir, (Path(p).name for p in record.figures.values()))
@@ -606,6 +618,13 @@ def run_experiment(
     return record
 
 
+def _client(scheduler: Any) -> contextlib.AbstractContextManager[Any]:
+    """A context giving the Dask client of ``scheduler`` (None: no cluster; a str: opened and closed here)."""
+    if isinstance(scheduler, str):
+        return open_client(scheduler)
+    return contextlib.nullcontext(scheduler)
+
+
 def reproduce(
     *,
     preset: str = "quick",
@@ -614,6 +633,8 @@ def reproduce(
     data_root: str | os.PathLike[str] | None = None,
     synthetic: bool = True,
     workers: int = 1,
+    scheduler: Any = None,
+    concurrent: int = 1,
     force: bool = False,
     ids: Sequence[str] | None = None,
     progress: bool = True,
@@ -641,6 +662,13 @@ def reproduce(
     synthetic : bool, default=True
         Also run the experiments that have real data on generated data.
     workers : int, default=1
+    scheduler : str or distributed.Client, optional
+        Run the experiments' parallel parts on a Dask cluster (see :func:`run_experiment`);
+        a ``"local:N"`` cluster is started once for the whole reproduction.
+    concurrent : int, default=1
+        Run up to this many experiments at the same time, each in its own process
+        (``python -m mmconcepts run ...``, sharing the cluster when there is one, else
+        each with ``workers`` processes); the records are the same as one at a time.
     force : bool, default=False
         Recompute up-to-date results too.
     ids : sequence of str, optional
@@ -657,22 +685,95 @@ def reproduce(
     experiments = [get(i) for i in dict.fromkeys(ids)] if ids else all_experiments()
     if not experiments:
         raise ExperimentError("no experiments are registered; nothing to reproduce.")
+    if isinstance(concurrent, bool) or not isinstance(concurrent, int) or concurrent < 1:
+        raise ParameterError(f"concurrent must be an int >= 1 (experiments run at the same time); got {concurrent!r}.")
+    if isinstance(scheduler, str):
+        parse_scheduler(scheduler)
     check_output_dir(output)
     checked = check_data(data, all_experiments())
-    records: list[ResultRecord] = []
-    common: dict[str, Any] = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers, force=force,
-                  progress=progress, raise_errors=False)
+    runs: list[tuple[Experiment, str]] = []
     for exp in experiments:
         has_real = bool(resolve_data(exp, checked, data_root))
-        records.append(run_experiment(exp, variant="auto", **common))
+        runs.append((exp, "auto"))
         if has_real and synthetic and exp.synthetic:
-            records.append(run_experiment(exp, variant="synthetic", **common))
+            runs.append((exp, "synthetic"))
         else:  # a secondary record this run does not refresh would be shown as current
             stale = record_path(output, exp.id, secondary=True)
             if stale.exists():
                 logger.info("%s: removing %s (not part of this run)", exp.id, stale)
                 stale.unlink()
                 _remove_stale_figures(stale.with_suffix(""), ())
+    with _client(scheduler) as client:
+        common: dict[str, Any] = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers,
+                                      scheduler=client, force=force, progress=progress, raise_errors=False)
+        if concurrent == 1 or len(runs) <= 1:
+            records = [run_experiment(exp, variant=variant, **common) for exp, variant in runs]
+        else:
+            records = _run_concurrently(runs, concurrent, common)
     counts = {s: sum(r.status == s for r in records) for s in ("ok", "failed", "skipped")}
     logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
+    return records
+
+
+def _subprocess_command(exp: Experiment, variant: str, common: Mapping[str, Any]) -> list[str]:
+    """The ``python -m mmconcepts run`` command of one run of :func:`reproduce`."""
+    import sys
+
+    cmd = [sys.executable, "-m", "mmconcepts", "run", exp.id, f"--{common['preset']}", "--variant", variant,
+           "--output", str(Path(common["output"]).resolve()), "--quiet"]
+    if common["data_root"] is not None:
+        cmd += ["--data-root", str(Path(common["data_root"]).resolve())]
+    for name, path in sorted((common["data"] or {}).items()):
+        cmd += ["--data", f"{name}={Path(path).resolve()}"]
+    client = common["scheduler"]
+    if client is not None:
+        cmd += ["--scheduler", str(client.scheduler.address)]
+    else:
+        cmd += ["--workers", str(common["workers"])]
+    if common["force"]:
+        cmd.append("--force")
+    return cmd
+
+
+def _run_in_subprocess(exp: Experiment, variant: str, common: Mapping[str, Any]) -> ResultRecord:
+    """One run of :func:`reproduce` in its own process; its record is read back from disk."""
+    import subprocess
+
+    cmd = _subprocess_command(exp, variant, common)
+    target = _target(exp, variant, common["data"], common["data_root"], Path(common["output"]))
+    logger.info("%s (%s data): running in a subprocess", exp.id, target.variant)
+    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, check=False)
+    record = load_record(target.json_path) if target.json_path.exists() else None
+    if proc.returncode in (0, 1) and record is not None:
+        return record
+    config, preset = _config_and_preset(exp, common["preset"], None, None)
+    record = _new_record(exp, preset, config, target)
+    record.status = "failed"
+    tail = "\n".join(proc.stderr.strip().splitlines()[-20:])
+    record.message = f"the run's process ended with exit code {proc.returncode} and no record: {tail}"
+    _clear_results(record)
+    logger.error("%s: failed: %s", exp.id, record.message)
+    return record
+
+
+def _run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
+                      common: Mapping[str, Any]) -> list[ResultRecord]:
+    """Run ``runs`` (experiment, variant) up to ``concurrent`` at a time, each in its own process."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from tqdm.auto import tqdm
+
+    from .base import _progress_enabled
+
+    with ThreadPoolExecutor(max_workers=concurrent) as pool:
+        futures = [pool.submit(_run_in_subprocess, exp, variant, common) for exp, variant in runs]
+        bar = tqdm(total=len(futures), desc="experiments", leave=False,
+                   disable=not _progress_enabled(bool(common["progress"])))
+        try:
+            records = []
+            for fut in futures:
+                records.append(fut.result())
+                bar.update(1)
+        finally:
+            bar.close()
     return records
