@@ -1,0 +1,280 @@
+"""ch7-compositional: its data builders, scorers, bad input, a reduced run, and real data (skips without it)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from conftest import real_data_path
+
+from mmconcepts.errors import DataError, ParameterError
+from mmconcepts.experiments import RunContext
+from mmconcepts.experiments import _ch7_common as common
+from mmconcepts.experiments import ch7_compositional as ch7
+from mmconcepts.experiments.base import Streams
+
+WORDS = ("eight", "five", "four", "nine", "one", "seven", "six", "three", "two", "zero")
+
+
+@pytest.fixture(scope="module")
+def tone_corpus(tmp_path_factory):
+    """One speaker saying ten 'words' (a tone pair each, with noise), 6 times each, in the generic audio layout."""
+    from mmconcepts.sound.audio import write_audio
+
+    root = tmp_path_factory.mktemp("tones")
+    rng = np.random.default_rng(0)
+    sr = 16000
+    rows = []
+    for w, word in enumerate(WORDS):
+        for r in range(6):
+            t = np.arange(int(sr * rng.uniform(0.3, 0.45))) / sr
+            y = 0.3 * np.sin(2 * np.pi * (300 + 150 * w) * t) + 0.2 * np.sin(2 * np.pi * (2500 - 120 * w) * t)
+            y = (y + 0.02 * rng.standard_normal(t.size)).astype(np.float32)
+            name = f"{word}_{r}.wav"
+            write_audio(root / name, y, sr)
+            rows.append([name, "s1", word, word])
+    with open(root / "labels.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows([["file", "speaker", "labels", "transcription"], *rows])
+    return root
+
+
+TINY = dataclasses.replace(ch7.Config.quick(), n_compositional=48, n_single=40, n_folds=2, k=10, n_iter=20,
+                           n_candidates=5, n_draws=3, n_calibration=20)
+
+
+def _ctx(tone_corpus, tmp_path, **data):
+    return RunContext(data={"audio": tone_corpus, **data}, cache_dir=tmp_path, workers=1, show_progress=False)
+
+
+# --------------------------------------------------------------------------- the builders
+def test_bijection_is_a_bijection_and_refuses_unequal_vocabularies():
+    for seed in range(20):
+        g = common.concept_bijection(10, 10, np.random.default_rng(seed))
+        assert sorted(g.tolist()) == list(range(10))
+    with pytest.raises(DataError, match="bijection needs as many"):
+        common.concept_bijection(9, 10, np.random.default_rng(0))
+
+
+def test_possible_combinations_brute_force():
+    slots = common.MSR_VOCABULARY.slots
+    for n, expected in ((1, 10), (2, 4 * 3 + 4 * 3 + 3 * 3), (3, 4 * 3 * 3)):
+        brute = [c for c in itertools.combinations(range(10), n) if len({slots[i] for i in c}) == n]
+        assert common.possible_combinations(slots, n) == brute
+        assert len(brute) == expected
+
+
+def test_draw_combinations_distinct_limbs_counts_in_turn_and_bad_counts():
+    slots = common.SYNTHETIC_VOCABULARY.slots
+    combos = common.draw_combinations(300, (2, 3), slots, np.random.default_rng(1))
+    assert [len(c) for c in combos] == [2, 3] * 150
+    assert all(len({slots[i] for i in c}) == len(c) and list(c) == sorted(c) for c in combos)
+    assert len(set(combos)) > 40  # many of the 69 combinations occur
+    with pytest.raises(ParameterError, match="no keyword"):
+        common.draw_combinations(5, (0,), slots, np.random.default_rng(0))
+    with pytest.raises(ParameterError, match="above the vocabulary"):
+        common.draw_combinations(5, (11,), slots, np.random.default_rng(0))
+    with pytest.raises(ParameterError, match="limb groups"):
+        common.draw_combinations(5, (4,), slots, np.random.default_rng(0))
+
+
+def test_check_pairing_bad_input():
+    mapping = {"one": 3, "two": 7}
+    common.check_pairing([["one", "two"]], [[7, 3]], mapping)
+    with pytest.raises(DataError, match="1 utterances but 2 motions"):
+        common.check_pairing([["one"]], [[3], [7]], mapping)
+    with pytest.raises(DataError, match="no keyword"):
+        common.check_pairing([[]], [[3]], mapping)
+    with pytest.raises(DataError, match="motion shows"):
+        common.check_pairing([["one", "two"]], [[3]], mapping)
+    with pytest.raises(DataError, match="at least one recording"):
+        common.compose_utterance([], [], 16000)
+
+
+def test_compose_utterance_known_answer():
+    a, b = np.ones(5, np.float32), 2 * np.ones(3, np.float32)
+    y = common.compose_utterance([a, b], [0.25], 8)
+    assert y.tolist() == [1.0] * 5 + [0.0] * 2 + [2.0] * 3
+
+
+def test_compose_msr_motion_takes_each_limb_from_its_recording():
+    from mmconcepts.experiments._ch3_common import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
+
+    rec = {name: np.full((10 + i, 16), float(i + 1)) for i, name in enumerate(("right", "left", "legs", "donor"))}
+    rec["donor"][:, LEFT_ARM_COLUMNS] = 9.0
+    rest = np.setdiff1d(np.arange(16), ARM_COLUMNS)
+    x = common.compose_msr_motion({"right_arm": rec["right"], "left_arm": rec["left"], "legs": rec["legs"]},
+                                  rec["donor"])
+    assert x.shape == (10, 16)
+    assert (x[:, RIGHT_ARM_COLUMNS] == 1).all() and (x[:, LEFT_ARM_COLUMNS] == 2).all() and (x[:, rest] == 3).all()
+    idle = common.compose_msr_motion({"left_arm": rec["left"]}, rec["donor"])
+    assert (idle[:, RIGHT_ARM_COLUMNS] == 9).all() and (idle[:, LEFT_ARM_COLUMNS] == 2).all()
+    assert (idle[:, rest] == 4).all()
+
+
+# --------------------------------------------------------------------------- the scorers
+def test_combination_retrieval_known_answers_and_chance():
+    rng = np.random.default_rng(0)
+    combos = [(i % 12, 20) for i in range(120)]
+    same = np.array([[a == b for b in combos] for a in combos])
+    perfect = np.where(same, 0.0, 1.0)
+    assert common.combination_retrieval(perfect, combos, combos, n_candidates=10, n_draws=5, rng=rng).tolist() == \
+        [1.0] * 120
+    # a tie for the smallest distance is a failure
+    assert common.combination_retrieval(np.zeros((120, 120)), combos, combos, n_candidates=10, n_draws=5,
+                                        rng=rng).max() == 0.0
+    # the opposite ordering never succeeds
+    assert common.combination_retrieval(-perfect, combos, combos, n_candidates=10, n_draws=5, rng=rng).max() == 0.0
+    rand = common.combination_retrieval(rng.random((120, 120)), combos, combos, n_candidates=4, n_draws=50, rng=rng)
+    assert abs(rand.mean() - 0.25) < 0.03
+
+
+def test_combination_retrieval_brute_force_with_one_candidate_per_combination():
+    """With every combination present once and n_candidates = all of them, no draw is random: argmin is the answer."""
+    rng = np.random.default_rng(3)
+    combos = [(i,) for i in range(8)]
+    D = rng.random((8, 8))
+    got = common.combination_retrieval(D, combos, combos, n_candidates=8, n_draws=4, rng=rng)
+    assert got.tolist() == [float(np.argmin(D[i]) == i) for i in range(8)]
+    with pytest.raises(DataError, match="combinations"):
+        common.combination_retrieval(D, combos, combos, n_candidates=9, n_draws=1, rng=rng)
+
+
+def test_decompose_on_references_recovers_mixtures_as_beta_nmf_does():
+    from mmconcepts.nmf import beta_nmf
+
+    rng = np.random.default_rng(0)
+    R = rng.random((6, 200)) * (rng.random((6, 200)) < 0.5)
+    A = np.zeros((30, 6))
+    for i in range(30):
+        A[i, rng.choice(6, 1 + i % 3, replace=False)] = rng.random(1 + i % 3) + 0.5
+    X = A @ (R / R.sum(1, keepdims=True))
+    got = common.decompose_on_references(X, R, n_iter=400)
+    np.testing.assert_allclose(got, A / A.sum(1, keepdims=True), atol=1e-3)
+    # the library solver with the dictionary fixed gives the same shares on noisy data
+    Xn = X + 0.01 * rng.random(X.shape)
+    keep = R.max(0) > 0
+    ref = beta_nmf(Xn[:, keep], 6, beta_loss=1.0, H=(R / R.sum(1, keepdims=True))[:, keep], update_H=False,
+                   W=np.full((30, 6), 0.1), init="custom", max_iter=400, tol=0.0).W
+    np.testing.assert_allclose(common.decompose_on_references(Xn, R, n_iter=400), ref / ref.sum(1, keepdims=True),
+                               atol=2e-3)
+    with pytest.raises(DataError, match="all zero"):
+        common.decompose_on_references(X, np.vstack([R, np.zeros(200)]))
+
+
+def test_given_number_chance_known_values():
+    assert common.given_number_chance(10, [1]) == pytest.approx(0.1)
+    assert common.given_number_chance(10, [2, 3]) == pytest.approx((1 / 45 + 1 / 120) / 2)
+    # a random ranking's success rate, by simulation
+    rng = np.random.default_rng(0)
+    hits = np.mean([set(rng.permutation(10)[:2]) == {0, 1} for _ in range(20000)])
+    assert abs(hits - 1 / math.comb(10, 2)) < 0.006
+
+
+# --------------------------------------------------------------------------- data of the experiment
+def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus, tmp_path):
+    ctx = _ctx(tone_corpus, tmp_path)
+    st = Streams(1, 2, 3, 4, 5)
+    data = ch7.build_data(ctx, TINY, st)
+    n = TINY.n_compositional + TINY.n_single
+    assert len(data["angles"]) == len(data["sound_plan"]) == len(data["combos"]) == n
+    assert sorted(data["mapping"].values()) == sorted(common.SYNTHETIC_VOCABULARY.gestures)  # a bijection
+    for kws, gs, combo in zip(data["keyword_sets"], data["gesture_sets"], data["combos"]):
+        assert sorted(data["mapping"][k] for k in kws) == sorted(gs)  # keyword set -> gesture set
+        assert sorted(data["keywords"].index(k) for k in kws) == list(combo)
+        assert len({data["slots"][c] for c in combo}) == len(combo)
+    # no source utterance serves in two folds
+    owner: dict[int, int] = {}
+    for (srcs, _), f in zip(data["sound_plan"], data["fold"]):
+        for s in srcs:
+            assert owner.setdefault(s, int(f)) == int(f)
+    # the held-out combinations partition the possible pairs and triples
+    held = data["held_out"]
+    assert sum(len(h) for h in held) == data["n_possible"] == len(set().union(*held))
+
+
+def test_streams_are_independent(tone_corpus, tmp_path):
+    ctx = _ctx(tone_corpus, tmp_path)
+    a = ch7.build_data(ctx, TINY, Streams(1, 2, 3, 4, 5))
+    b = ch7.build_data(ctx, TINY, Streams(1, 99, 3, 77, 55))  # learner, reference, composition changed
+    assert a["combos"] == b["combos"] and a["sound_plan"] == b["sound_plan"] and (a["fold"] == b["fold"]).all()
+    assert all(np.array_equal(x, y) for x, y in zip(a["angles"], b["angles"]))
+    c = ch7.build_data(ctx, TINY, Streams(8, 2, 3, 4, 5))  # the data stream changed
+    assert c["combos"] != a["combos"]
+    ta = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, Streams(1, 2, 3, 4, 5))
+    tc = ch7.fold_tasks(c, [None] * len(c["combos"]), TINY, Streams(8, 2, 3, 4, 5))
+    assert [t["learner_seed"] for t in ta] == [t["learner_seed"] for t in tc]
+    tb = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, Streams(1, 99, 3, 4, 5))
+    assert [t["learner_seed"] for t in tb] != [t["learner_seed"] for t in ta]
+    assert [t["calibration"].tolist() for t in tb] == [t["calibration"].tolist() for t in ta]
+
+
+def test_fold_tasks_hold_out_combinations_and_match_training_sizes(tone_corpus, tmp_path):
+    data = ch7.build_data(_ctx(tone_corpus, tmp_path), TINY, Streams(1, 2, 3, 4, 5))
+    for f, t in enumerate(ch7.fold_tasks(data, [None] * len(data["combos"]), TINY, Streams(1, 2, 3, 4, 5))):
+        assert not {tuple(data["combos"][i]) for i in t["train_comp"]} & data["held_out"][f]
+        assert (data["fold"][t["train_comp"]] != f).all() and (data["fold"][t["test"]] == f).all()
+        assert len(t["train_single"]) == min(len(t["train_comp"]), int(((data["kind"] == "single")
+                                                                        & (data["fold"] != f)).sum()))
+        assert (data["Y"][t["train_single"]].sum(1) == 1).all()
+
+
+def test_config_bad_input(tone_corpus, tmp_path):
+    ctx = _ctx(tone_corpus, tmp_path)
+    with pytest.raises(ParameterError, match="limb groups"):
+        ch7.build_data(ctx, dataclasses.replace(TINY, max_concepts=4))
+    with pytest.raises(ParameterError, match="above the vocabulary"):
+        ch7.build_data(ctx, dataclasses.replace(TINY, max_concepts=11))
+    with pytest.raises(ParameterError, match="n_folds"):
+        ch7.build_data(ctx, dataclasses.replace(TINY, n_folds=1))
+
+
+# --------------------------------------------------------------------------- a reduced run
+@pytest.mark.slow
+def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus, tmp_path):
+    from mmconcepts.experiments.rules import parse_rule
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    ctx = _ctx(tone_corpus, tmp_path)
+    res = ch7.compute(TINY, ctx)
+    res.validate()
+    m = res.metrics
+    assert m["chance.retrieval"] == pytest.approx(1 / TINY.n_candidates)
+    for key, values in res.samples.items():
+        assert len(values) == TINY.n_folds, key
+        if not key.endswith("threshold"):
+            assert all(0.0 <= v <= 1.0 for v in values), key
+    assert m["n2.chance.l_given_number"] == pytest.approx(1 / 45)
+    assert m["n3.chance.l_given_number"] == pytest.approx(1 / 120)
+    assert m["unseen.chance.l_full"] == 0.0
+    for claim in ch7.EXPERIMENT.claims:
+        for name in parse_rule(claim.rule).metrics:
+            assert name == "chance.retrieval" or len(res.samples[name]) == TINY.n_folds
+        verdict = claim_verdict(claim.rule, m, res.samples, units=res.sample_units)
+        assert verdict.verdict in ("holds", "fails", "inconclusive")
+    figs = ch7.present(res, TINY)
+    assert set(figs) == {"retrieval", "l_given_number", "l_full"}
+    bars = figs["retrieval"].axes[0].patches
+    assert [b.get_height() for b in bars][:len(ch7.SUBSETS)] == [m[f"{s}s2m.retrieval"] for s in ch7.SUBSETS]
+
+
+# --------------------------------------------------------------------------- real data
+def test_real_data_builders(tmp_path):
+    fsdd, msr = real_data_path("fsdd"), real_data_path("msr-action3d")
+    ctx = RunContext(data={"fsdd": fsdd, "msr-action3d": msr}, cache_dir=tmp_path, workers=1, show_progress=False)
+    cfg = dataclasses.replace(ch7.Config.quick(), n_compositional=30, n_single=20)
+    data = ch7.build_data(ctx, cfg)
+    assert data["real_motion"] and data["speech_source"] == "fsdd" and len(data["keywords"]) == 10
+    assert sorted(data["mapping"].values()) == sorted(common.MSR_VOCABULARY.gestures)
+    for kws, gs in zip(data["keyword_sets"], data["gesture_sets"]):
+        assert sorted(data["mapping"][k] for k in kws) == sorted(gs)
+    assert all(a.ndim == 2 and a.shape[1] == 16 and np.isfinite(a).all() for a in data["angles"])
+    mf = ch7.utterance_mfcc(ctx, data)
+    assert len(mf) == 50 and all(x.shape[1] == 22 for x in mf)
+    # an utterance of 3 words lasts about 3 words and 2 pauses: longer on average than twice a single word
+    frames = {n: np.mean([len(mf[i]) for i, c in enumerate(data["combos"]) if len(c) == n]) for n in (1, 3)}
+    assert frames[3] > 2 * frames[1]
