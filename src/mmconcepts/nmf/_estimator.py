@@ -17,6 +17,7 @@ from ._init import initialize
 from ._problem import Problem
 from ._solver import (
     BETA_NMF_CONSTRAINTS,
+    _is_dask_array,
     _check_fit_in_range,
     _check_objective_range,
     _in_units_of_X,
@@ -81,6 +82,13 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
     (eq. 2.9-2.13), Hoyer sparseness constraints (eq. 2.20), masks of observed cells in
     :meth:`fit` and :meth:`transform`, and transforms and reconstructions restricted to a
     subset of features (e.g. from motion features only, to reconstruct labels).
+
+    A ``dask.array`` X of row chunks (dense or scipy.sparse chunks) is fitted by the
+    distributed solver (see :func:`~mmconcepts.nmf.beta_nmf`): :meth:`fit_transform` and
+    :meth:`transform` return a dask array with X's row chunks (W stays in the cluster),
+    ``components_`` is a numpy array, and the iterates equal those of the in-memory fit from the
+    same start. ``solver='pg'``, the Hoyer constraints and :meth:`partial_fit` take in-memory
+    data only.
 
     Parameters
     ----------
@@ -216,10 +224,11 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
 
         Parameters
         ----------
-        X : {array-like, sparse matrix} of shape (n_samples, n_features)
+        X : {array-like, sparse matrix, dask.array.Array} of shape (n_samples, n_features)
+            A dask array has row chunks only (one chunk of all the columns).
         y : ignored
-        mask : array-like of bool of shape (n_samples, n_features), optional
-            True where X is observed; unobserved cells have no influence.
+        mask : {array-like of bool, dask.array.Array} of shape (n_samples, n_features), optional
+            True where X is observed; unobserved cells have no influence. A dask mask has X's chunks.
         W, H : ndarray, optional
             Starting factors for ``init='custom'``.
 
@@ -231,9 +240,12 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         return self
 
     def fit_transform(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> np.ndarray:
-        """Learn the dictionary and return the coefficients W of X, shape (n_samples, n_components)."""
+        """Learn the dictionary and return the coefficients W of X, shape (n_samples, n_components).
+
+        W is a dask array with X's row chunks when X is a dask array.
+        """
         validate_params(self, self._parameter_constraints)
-        res = beta_nmf(
+        res = beta_nmf(  # a dask array goes to the distributed solver (nmf/_dask.py); W is then a dask array
             X,
             self.n_components,
             init=self.init,
@@ -249,7 +261,10 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         self.n_iter_ = res.n_iter
         self.loss_history_ = res.loss_history
         self.loss_iterations_ = res.loss_iterations
-        self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
+        if "divergence" in res.extra:  # dask: the divergence of the last pass over the chunks, X not read again
+            self.reconstruction_err_ = float(np.sqrt(2.0 * max(res.extra["divergence"], 0.0)))
+        else:
+            self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
         self.n_steps_ = 0
         self._stats = None
         return res.W
@@ -286,6 +301,11 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         ``solver`` says; ``tol`` is not used (each call runs ``max_iter`` iterations).
         """
         validate_params(self, self._parameter_constraints)
+        if _is_dask_array(X) or _is_dask_array(mask):
+            raise DataError(
+                "partial_fit takes one in-memory batch; got a dask array. Pass X.compute() for a batch, or fit the "
+                "whole dask array with fit (each pass goes over all its chunks)."
+            )
         if self.sparseness_W is not None or self.sparseness_H is not None:
             raise ParameterError("partial_fit does not support Hoyer sparseness constraints; use fit.")
         beta = resolve_beta(self.beta_loss)
@@ -361,8 +381,10 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
 
         Parameters
         ----------
-        X : {array-like, sparse matrix} of shape (n_samples, n_features) or (n_samples, n_selected)
-            With ``features``, X holds only the selected columns, in that order.
+        X : {array-like, sparse matrix, dask.array.Array} of shape (n_samples, n_features) or (n_samples, n_selected)
+            With ``features``, X holds only the selected columns, in that order. A dask array
+            of row chunks is transformed chunk by chunk (the updates between two evaluations of
+            the stopping rule run in one pass over each chunk).
         features : slice, array of int or array of bool, optional
             Which columns of ``components_`` X corresponds to. The coefficients are fit on
             that sub-dictionary with the full multiplicative update, whose denominator
@@ -372,10 +394,13 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
 
         Returns
         -------
-        W : ndarray of shape (n_samples, n_components)
+        W : ndarray or dask.array.Array of shape (n_samples, n_components)
+            A dask array with X's row chunks when X is one.
         """
         check_is_fitted(self)
         idx = resolve_features(features, self.n_features_in_)
+        if _is_dask_array(X) or _is_dask_array(mask):
+            return self._transform_dask(X, idx, features is None, mask)
         Xv, maskv = validate_data(X, mask)
         if features is None:
             self._check_n_features(Xv.shape[1])
@@ -404,6 +429,35 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         )
         return res.W
 
+    def _transform_dask(self, X: Any, idx: np.ndarray, all_features: bool, mask: Any) -> Any:
+        """transform() of a dask array of row chunks: the same steps, chunk by chunk (nmf/_dask.py)."""
+        from ._dask import beta_nmf_dask
+
+        if not _is_dask_array(X):
+            raise DataError(
+                "mask is a dask array but X is not; give X as a dask array chunked like the mask "
+                "(dask.array.from_array(X, chunks=mask.chunks)), or the mask in memory."
+            )
+        if X.ndim != 2:
+            raise DataError(f"X must be 2-D (n_samples, n_features); got a dask array of shape {X.shape}.")
+        if all_features:
+            self._check_n_features(X.shape[1])
+        elif X.shape[1] != idx.size:
+            raise DataError(
+                f"X has {X.shape[1]} columns but features selects {idx.size}; give X only the selected columns."
+            )
+        H = self.components_[:, idx]
+        live = H.sum(axis=0) > 0  # as in memory: columns where every atom is zero carry no information
+        columns = None
+        if not live.all() and live.any():
+            H, columns = H[:, live], np.flatnonzero(live)
+        max_iter = self.transform_max_iter if self.transform_max_iter is not None else self.max_iter
+        kwargs = self._solver_kwargs()
+        beta = resolve_beta(kwargs.pop("beta_loss"))
+        res = beta_nmf_dask(X, self.components_.shape[0], beta=beta, H=H, update_H=False, mask=mask,
+                            max_iter=int(max_iter), columns=columns, **kwargs)
+        return res.W
+
     def inverse_transform(self, W: Any, *, features: Any = None) -> np.ndarray:
         """Reconstruction W @ H, restricted to the selected features when given.
 
@@ -414,9 +468,14 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
 
         Returns
         -------
-        ndarray of shape (n_samples, n_selected)
+        ndarray or dask.array.Array of shape (n_samples, n_selected)
+            A dask array when W is one.
         """
         check_is_fitted(self)
+        if _is_dask_array(W):  # a dask array of coefficients (transform of a dask array): stays one
+            if W.ndim != 2 or W.shape[1] != self.components_.shape[0]:
+                raise DataError(f"W must have shape (n_samples, {self.components_.shape[0]}); got {W.shape}.")
+            return W @ self.components_[:, resolve_features(features, self.n_features_in_)]
         W = np.asarray(W.toarray() if sp.issparse(W) else W)
         if W.ndim != 2 or W.shape[1] != self.components_.shape[0]:
             raise DataError(

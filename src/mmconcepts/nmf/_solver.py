@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -299,6 +300,12 @@ BETA_NMF_CONSTRAINTS: dict[str, list] = {
 }
 
 
+def _is_dask_array(x: Any) -> bool:
+    """Whether x is a dask array; dask is never imported here (an array of it means it is loaded)."""
+    mod = sys.modules.get("dask.array")
+    return mod is not None and isinstance(x, mod.Array)
+
+
 def _physical_memory() -> int | None:
     """Bytes of physical memory (None where the platform does not say)."""
     try:
@@ -362,9 +369,11 @@ def beta_nmf(
 
     Parameters
     ----------
-    X : {array-like, sparse matrix} of shape (n_samples, n_features)
+    X : {array-like, sparse matrix, dask.array.Array} of shape (n_samples, n_features)
         Nonnegative data. A sparse X is never densified: the product WH is evaluated
-        at its nonzeros only (numba kernels).
+        at its nonzeros only (numba kernels). A dask array of row chunks (dense or
+        scipy.sparse chunks, one chunk of all the columns) is fitted chunk by chunk on
+        dask's current scheduler, never gathered (see Notes).
     n_components : int, optional
         Number of atoms k. Default: min(n_samples, n_features), or H's when given.
     beta_loss : float or {'frobenius', 'kullback-leibler', 'itakura-saito'}, default=2
@@ -386,10 +395,10 @@ def beta_nmf(
         Starting factors (copied). With ``update_H=False``, H is required and kept fixed.
     update_H : bool, default=True
         False fits only W with the dictionary H fixed.
-    mask : {array-like of bool, sparse matrix} of shape (n_samples, n_features), optional
+    mask : {array-like of bool, sparse matrix, dask.array.Array} of shape (n_samples, n_features), optional
         True where X is observed. Unobserved cells have no influence at all: the
         updates and the loss are weighted by the mask, and their values (NaN included)
-        are ignored.
+        are ignored. With a dask X: a dask array with X's chunks, or an in-memory mask.
     max_iter : int, default=200
     tol : float, default=1e-4
         Stop when the error sqrt(2 * objective), evaluated every ``loss_every``
@@ -411,10 +420,22 @@ def beta_nmf(
     Returns
     -------
     NMFResult
-        W, H, n_iter, loss_history, loss_iterations, converged.
+        W, H, n_iter, loss_history, loss_iterations, converged. For a dask X, W is a dask
+        array with X's row chunks (held by the cluster) and ``extra['divergence']`` the final
+        divergence.
 
     Notes
     -----
+    A dask array X is fitted by row chunks (``mmconcepts.nmf._dask``): each chunk's rows of W
+    are updated where the chunk lives, and the numerator and denominator of the H update
+    (eq. 2.16), sums over rows, are summed over the chunks in a tree; one pass over X per
+    iteration. From the same start the iterates are those of the in-memory fit up to the order
+    of the sums, for every option but ``solver='pg'`` and the Hoyer constraints (refused);
+    'random' draws the same start; the NNDSVD starts use dask's randomized SVD
+    (``dask.array.linalg.svd_compressed``), which approximates the in-memory SVD with other
+    random draws. X is checked in a first pass; an error names the chunk. Out of core, see
+    ``mmconcepts.nmf.beta_nmf_out_of_core``.
+
     Beta-divergences are homogeneous, :math:`d_\\beta(c x | c y) = c^\\beta d_\\beta(x | y)`, so
     the fit of c X from (W0, c H0) is (W, c H) up to rounding (c W with ``update_H=False`` or
     ``sparseness_H``), and the objective scales by :math:`c^\\beta`. (The 'random' start
@@ -434,7 +455,8 @@ def beta_nmf(
         cannot hold (e.g. Frobenius at 1e300); subnormal values next to ordinary ones with
         beta <= 1; Hoyer-projected starting factors with an infinite objective (beta <= 1).
     ParameterError
-        An unknown solver, init or update rule, or a value out of range.
+        An unknown solver, init or update rule, or a value out of range; for a dask X,
+        ``solver='pg'`` or Hoyer constraints.
     """
     validate_params(
         dict(n_components=n_components, beta_loss=beta_loss, solver=solver, update_rule=update_rule, init=init,
@@ -442,6 +464,19 @@ def beta_nmf(
              sparseness_W=sparseness_W, sparseness_H=sparseness_H, loss_every=loss_every, random_state=random_state),
         BETA_NMF_CONSTRAINTS, owner="beta_nmf")
     beta = resolve_beta(beta_loss)
+    if _is_dask_array(X) or _is_dask_array(mask):  # distributed / out of core (nmf/_dask.py)
+        if not _is_dask_array(X):
+            raise DataError(
+                "mask is a dask array but X is not; give X as a dask array chunked like the mask "
+                "(dask.array.from_array(X, chunks=mask.chunks)), or the mask in memory."
+            )
+        from ._dask import beta_nmf_dask
+
+        return beta_nmf_dask(
+            X, n_components, beta=beta, solver=solver, update_rule=update_rule, init=init, W=W, H=H,
+            update_H=update_H, mask=mask, max_iter=int(max_iter), tol=float(tol), alpha_W=alpha_W, alpha_H=alpha_H,
+            l1_ratio=l1_ratio, sparseness_W=sparseness_W, sparseness_H=sparseness_H, loss_every=int(loss_every),
+            random_state=random_state)
     max_iter, loss_every, tol = int(max_iter), int(loss_every), float(tol)
     sparseness_W = None if sparseness_W is None else float(sparseness_W)
     sparseness_H = None if sparseness_H is None else float(sparseness_H)

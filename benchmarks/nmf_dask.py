@@ -1,0 +1,331 @@
+"""Benchmark: distributed and out-of-core beta-NMF (mmconcepts.nmf on dask arrays, issue 16).
+
+Two measurements, each compared with a reference in the same run (ratios, not timed tests):
+
+``outofcore``
+    A sparse matrix of HAC-like counts (default 2 000 000 x 110 000, 0.05 % nonzeros, about
+    1.3 GB of nonzeros) is written to disk as a folder of ``.npz`` chunks and fitted with
+    ``beta_nmf_out_of_core`` (k = 50, KL, 10 iterations, synchronous scheduler: one chunk at a
+    time), in a child process whose peak resident memory is read from ``getrusage``. The
+    reference is the in-memory ``beta_nmf`` of a row slice that fits (``--slice-rows``), and the
+    out-of-core fit of that same slice, each in its own child process: time per iteration and
+    peak memory.
+``scaling``
+    The sparse KL case of ``benchmarks/nmf.py`` grown 10x (200 000 x 2 000, 1 % nonzeros,
+    k = 50), persisted on a ``LocalCluster`` (127.0.0.1, worker processes with one thread, numba
+    and BLAS on one thread) of 1 and of 2 workers, fitted in alternation ``--repeats`` times:
+    median time per iteration, the ratio, and the bytes moved per iteration (the model: H to every
+    chunk and each chunk's numerator/denominator back; and the worker-to-worker transfers the
+    workers logged). From those, the projected time per iteration on 8, 32 and 128 machines.
+
+Run:  .venv/bin/python benchmarks/nmf_dask.py [--quick] [--cases outofcore scaling] [--json out.json]
+      (--quick: 100 000 x 11 000 out of core, 40 000 x 2 000 scaling, 3 iterations: under a minute)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+
+SINGLE_THREAD_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                     "MKL_NUM_THREADS": "1"}
+
+
+# ---------------------------------------------------------------------------------------------- data
+
+
+def hac_like_chunks(n: int, m: int, density: float, chunk_rows: int, seed: int = 0):
+    """Row chunks of a sparse count matrix: Zipf-like column popularity, Poisson(1) + 1 counts.
+
+    Each chunk comes from its own stream (SeedSequence(seed).spawn), so any slice of rows can be
+    regenerated alone. HAC histograms of speech are counts of co-occurring codewords: a few
+    codewords are frequent, most rare; the column weights follow 1 / rank ** 0.7.
+    """
+    weights = 1.0 / np.arange(1, m + 1) ** 0.7
+    cdf = np.cumsum(weights / weights.sum())
+    perm = np.random.default_rng(seed).permutation(m)  # frequent columns are not the first ones
+    per_row = density * m
+    for c, ss in enumerate(np.random.SeedSequence(seed).spawn((n + chunk_rows - 1) // chunk_rows)):
+        rng = np.random.default_rng(ss)
+        rows = min(chunk_rows, n - c * chunk_rows)
+        counts = rng.poisson(per_row, rows)
+        nnz = int(counts.sum())
+        cols = perm[np.minimum(np.searchsorted(cdf, rng.random(nnz)), m - 1)]
+        indptr = np.concatenate(([0], np.cumsum(counts)))
+        X = sp.csr_matrix((rng.poisson(1.0, nnz) + 1.0, cols, indptr), shape=(rows, m))
+        X.sum_duplicates()  # a repeated codeword adds up
+        yield X
+
+
+def peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
+# ---------------------------------------------------------------------------------------------- children
+
+
+def child_outofcore(folder: str, out: str, k: int, iterations: int) -> dict:
+    """Out-of-core fit of a folder (synchronous scheduler); time of each pass over the chunks."""
+    import dask
+
+    from mmconcepts.nmf import _dask as nd
+
+    passes: list[float] = []
+    inner = nd._objective_pass
+
+    def timed(*args, **kwargs):
+        t = time.perf_counter()
+        res = inner(*args, **kwargs)
+        passes.append(time.perf_counter() - t)
+        return res
+
+    nd._objective_pass = timed
+    before = peak_rss_mb()
+    t = time.perf_counter()
+    with dask.config.set(scheduler="synchronous"):
+        res = nd.beta_nmf_out_of_core(folder, k, out=out, beta_loss=1.0, init="random", random_state=0,
+                                      max_iter=iterations, tol=0, loss_every=iterations)
+    total = time.perf_counter() - t
+    return dict(total_s=total, pass_s=passes, iteration_s=statistics.median(passes[:iterations]),
+                final_loss=float(res.loss_history[-1]), peak_rss_mb=peak_rss_mb(), rss_before_fit_mb=before,
+                n_chunks=int(res.extra["n_chunks"]))
+
+
+def child_inmemory(folder: str, rows: int, k: int, iterations: int) -> dict:
+    """In-memory fit of the first ``rows`` rows of a folder of chunks (read chunk by chunk, then stacked)."""
+    from mmconcepts.nmf import _dask as nd
+    from mmconcepts.nmf import beta_nmf
+
+    X = nd.load_npz_chunks(folder)[:rows].compute()
+    X = sp.csr_matrix(X)
+    beta_nmf(X[:200], k, beta_loss=1.0, init="random", random_state=0, max_iter=1, tol=0)  # compile first
+    t = time.perf_counter()
+    res = beta_nmf(X, k, beta_loss=1.0, init="random", random_state=0, max_iter=iterations, tol=0,
+                   loss_every=iterations)
+    total = time.perf_counter() - t
+    return dict(total_s=total, iteration_s=total / iterations, final_loss=float(res.loss_history[-1]),
+                peak_rss_mb=peak_rss_mb(), nnz=int(X.nnz))
+
+
+def _run_child(kind: str, payload: dict, threads: int) -> dict:
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", kind, json.dumps(payload)]
+    env = {**os.environ, "NUMBA_NUM_THREADS": str(threads), "OMP_NUM_THREADS": str(threads),
+           "OPENBLAS_NUM_THREADS": str(threads)}
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+# ---------------------------------------------------------------------------------------------- cases
+
+
+def case_outofcore(args) -> dict:
+    from mmconcepts.nmf import _dask as nd
+
+    root = tempfile.mkdtemp(prefix="mmc-ooc-", dir=args.tmp)
+    try:
+        t = time.perf_counter()
+        folder = nd.save_npz_chunks(hac_like_chunks(args.rows, args.cols, args.density, args.chunk_rows),
+                                    os.path.join(root, "X"))
+        write_s = time.perf_counter() - t
+        disk = sum(os.path.getsize(os.path.join(folder, f)) for f in os.listdir(folder))
+        print(f"outofcore: wrote {args.rows} x {args.cols} ({disk / 2**30:.2f} GiB on disk) in {write_s:.0f} s",
+              flush=True)
+        slice_folder = os.path.join(root, "Xslice")
+        nd.save_npz_chunks(hac_like_chunks(args.slice_rows, args.cols, args.density, args.chunk_rows),
+                           slice_folder)  # the same rows as the first slice_rows of X (same streams)
+        payload = dict(k=args.k, iterations=args.iterations)
+        mem = _run_child("inmemory", dict(payload, folder=str(folder), rows=args.slice_rows), args.threads)
+        print(f"  in memory, {args.slice_rows} rows ({mem['nnz']} nonzeros): {mem['iteration_s']:.2f} s/it, "
+              f"peak {mem['peak_rss_mb']:.0f} MB", flush=True)
+        ooc_slice = _run_child("outofcore", dict(payload, folder=slice_folder, out=os.path.join(root, "Wslice")), args.threads)
+        print(f"  out of core, same slice: {ooc_slice['iteration_s']:.2f} s/it, peak {ooc_slice['peak_rss_mb']:.0f} MB"
+              f" (loss rel. diff to in memory {abs(ooc_slice['final_loss'] - mem['final_loss']) / mem['final_loss']:.1e})",
+              flush=True)
+        full = _run_child("outofcore", dict(payload, folder=str(folder), out=os.path.join(root, "W")), args.threads)
+        print(f"  out of core, all {args.rows} rows: {full['iteration_s']:.2f} s/it over {full['n_chunks']} chunks, "
+              f"peak {full['peak_rss_mb']:.0f} MB, total {full['total_s']:.0f} s", flush=True)
+        return dict(case="outofcore", threads=args.threads, rows=args.rows, cols=args.cols, density=args.density, k=args.k,
+                    iterations=args.iterations, chunk_rows=args.chunk_rows, disk_bytes=disk, write_s=write_s,
+                    slice_rows=args.slice_rows, inmemory_slice=mem, outofcore_slice=ooc_slice, outofcore_full=full,
+                    slice_overhead=ooc_slice["iteration_s"] / mem["iteration_s"],
+                    full_vs_slice_per_row=(full["iteration_s"] / args.rows) / (mem["iteration_s"] / args.slice_rows))
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def case_scaling(args) -> dict:
+    import dask
+    import dask.array as da
+    import distributed
+
+    from mmconcepts.nmf import beta_nmf
+
+    n, m, k = args.scaling_rows, 2000, 50
+    rng = np.random.default_rng(0)
+    X = sp.random(n, m, density=0.01, format="csr", random_state=np.random.RandomState(0),
+                  data_rvs=lambda size: rng.poisson(2.0, size) + 1.0)
+    s = np.sqrt(X.mean() / k)
+    W0 = np.abs(s * rng.standard_normal((n, k)))
+    H0 = np.abs(s * rng.standard_normal((k, m)))
+    chunk = n // args.scaling_chunks
+    env = {**os.environ, **SINGLE_THREAD_ENV}
+    old_env = dict(os.environ)
+    os.environ.update(SINGLE_THREAD_ENV)  # inherited by the worker processes
+    clusters = {}
+    try:
+        for w in (1, 2):
+            cluster = distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                               dashboard_address=":0", memory_limit="4GiB")
+            clusters[w] = (cluster, distributed.Client(cluster, set_as_default=False))
+        del env
+        times: dict[int, list[float]] = {1: [], 2: []}
+        traffic: dict[int, list[float]] = {1: [], 2: []}
+        model = 0
+        results = {}
+        for rep in range(args.repeats + 1):  # the first round warms the workers up (numba compilation)
+            for w in (1, 2):
+                cluster, client = clusters[w]
+                Xd = client.persist(da.from_array(X, chunks=(chunk, -1), asarray=False))
+                with client.as_current():
+                    distributed.wait(Xd)
+                client.run(_reset_transfer_counters)
+                its = 2 if rep == 0 else args.iterations
+                with dask.config.set(scheduler=client), warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Sending large graph")  # W0, once, at the start
+                    t = time.perf_counter()
+                    res = beta_nmf(Xd, k, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=its, tol=0,
+                                   loss_every=its)
+                    dt = time.perf_counter() - t
+                moved = sum(client.run(_transfer_bytes).values())
+                if rep > 0:
+                    times[w].append(dt / (its + 1))  # its + 1 passes (the last one evaluates the objective)
+                    traffic[w].append(moved / (its + 1))
+                    model = res.extra["bytes_per_iteration"]
+                    results[w] = float(res.loss_history[-1])
+        t1, t2 = statistics.median(times[1]), statistics.median(times[2])
+        row = dict(case="scaling", shape=[n, m], k=k, nnz=int(X.nnz), chunks=args.scaling_chunks,
+                   iterations=args.iterations, repeats=args.repeats, s_per_iter_1=t1, s_per_iter_2=t2,
+                   speedup_2_vs_1=t1 / t2, model_bytes_per_iter=model,
+                   worker_transfer_bytes_per_iter_1=statistics.median(traffic[1]),
+                   worker_transfer_bytes_per_iter_2=statistics.median(traffic[2]),
+                   loss_rel_diff_1_vs_2=abs(results[1] - results[2]) / results[1])
+        row["projection"] = project(row, bandwidth=args.bandwidth, latency=args.latency)
+        print(f"scaling: {n} x {m}, {args.scaling_chunks} chunks: 1 worker {t1 * 1e3:.0f} ms/it, 2 workers "
+              f"{t2 * 1e3:.0f} ms/it, speedup x{t1 / t2:.2f}; model {model / 1e6:.1f} MB/it, worker-to-worker "
+              f"{row['worker_transfer_bytes_per_iter_2'] / 1e6:.1f} MB/it (2 workers)", flush=True)
+        for p, v in row["projection"].items():
+            print(f"  projected on {p:>3} machines: {v['s_per_iter'] * 1e3:.0f} ms/it "
+                  f"(compute {v['compute_s'] * 1e3:.0f}, communication {v['comm_s'] * 1e3:.0f})")
+        return row
+    finally:
+        for cluster, client in clusters.values():
+            client.close()
+            cluster.close()
+        os.environ.clear()
+        os.environ.update(old_env)
+
+
+def _reset_transfer_counters(dask_worker=None):
+    dask_worker._mmc_base = _transfer_bytes(dask_worker)  # type: ignore[union-attr]
+
+
+def _transfer_bytes(dask_worker=None) -> float:
+    total = float(getattr(dask_worker, "transfer_outgoing_bytes_total", 0) or 0)
+    return total - float(getattr(dask_worker, "_mmc_base", 0.0))
+
+
+def project(row: dict, *, bandwidth: float, latency: float, machines=(8, 32, 128)) -> dict:
+    """Time per iteration on p machines from the 1- and 2-worker measurements.
+
+    compute(p) = t1 / p (the chunk work divides; at least one chunk per machine), plus the
+    overhead the 2-worker run showed beyond t1 / 2 (scheduling, serialisation), plus the
+    communication of one iteration: H (k x n_features) sent by the scheduler to each of the p
+    machines in turn, and the chunks' numerators/denominators summed in a tree of fan-in 8
+    (ceil(log8 p) levels, each receiving 8 of them), at ``bandwidth`` bytes/s and ``latency``
+    per message.
+    """
+    import math
+
+    t1, t2 = row["s_per_iter_1"], row["s_per_iter_2"]
+    overhead = max(t2 - t1 / 2, 0.0)
+    per_chunk = row["model_bytes_per_iter"] / row["chunks"]  # H + one partial
+    h_bytes = row["k"] * row["shape"][1] * 8
+    part_bytes = max(per_chunk - h_bytes, 0)
+    out = {}
+    for p in machines:
+        levels = max(1, math.ceil(math.log(p, 8)))
+        comm = p * (h_bytes / bandwidth + latency) + levels * (8 * part_bytes / bandwidth + latency)
+        compute = t1 / p
+        out[str(p)] = dict(compute_s=compute, overhead_s=overhead, comm_s=comm, s_per_iter=compute + overhead + comm)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- main
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cases", nargs="+", default=["outofcore", "scaling"])
+    ap.add_argument("--quick", action="store_true", help="small sizes, 3 iterations (under a minute)")
+    ap.add_argument("--rows", type=int, default=2_000_000)
+    ap.add_argument("--cols", type=int, default=110_000)
+    ap.add_argument("--density", type=float, default=0.0005)
+    ap.add_argument("--k", type=int, default=50)
+    ap.add_argument("--iterations", type=int, default=10)
+    ap.add_argument("--chunk-rows", type=int, default=50_000)
+    ap.add_argument("--slice-rows", type=int, default=200_000)
+    ap.add_argument("--scaling-rows", type=int, default=200_000)
+    ap.add_argument("--scaling-chunks", type=int, default=16)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--bandwidth", type=float, default=1.25e9, help="bytes/s between machines (10 GbE)")
+    ap.add_argument("--latency", type=float, default=5e-4, help="seconds per message")
+    ap.add_argument("--threads", type=int, default=1,
+                    help="numba/BLAS threads of the out-of-core and in-memory children (default 1)")
+    ap.add_argument("--tmp", default=None, help="folder for the data on disk (default: the system's)")
+    ap.add_argument("--json", help="also write the results to this file")
+    ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        kind, payload = args.child[0], json.loads(args.child[1])
+        fn = {"outofcore": child_outofcore, "inmemory": child_inmemory}[kind]
+        print(json.dumps(fn(**payload)))
+        return None
+    if args.quick:
+        args.rows, args.cols, args.chunk_rows, args.slice_rows = 100_000, 11_000, 20_000, 40_000
+        args.scaling_rows, args.iterations, args.repeats = 40_000, 3, 1
+    load = os.getloadavg()
+    print(f"load average before: {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} cores", flush=True)
+    rows = []
+    if "outofcore" in args.cases:
+        rows.append(case_outofcore(args))
+    if "scaling" in args.cases:
+        rows.append(case_scaling(args))
+    import dask
+
+    import mmconcepts
+
+    meta = dict(mmconcepts=mmconcepts.__version__, dask=dask.__version__, numpy=np.__version__,
+                python=platform.python_version(), machine=platform.machine(), cpus=os.cpu_count(),
+                loadavg_before=load, loadavg_after=os.getloadavg(), quick=args.quick)
+    print(f"load average after: {meta['loadavg_after'][0]:.1f}", flush=True)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(dict(meta=meta, results=rows), fh, indent=2)
+    return rows
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1169 @@
+"""Beta-NMF of a ``dask.array`` by row chunks: distributed and out of core (thesis section 2.1.3).
+
+The factorization X ~ W @ H (X: n_samples x n_features, one example per row) splits along the
+rows of X: the rows of W that belong to a row chunk X_c depend on X_c and on the dictionary H
+only, and the numerator and denominator of the multiplicative update of H (thesis eq. 2.16,
+written with our orientation: the thesis' V, W, H are our X.T, H.T, W.T) are sums over rows,
+
+.. math::
+    N = \\sum_c (M_c \\odot X_c \\odot (W_c H)^{\\beta-2})^T W_c, \\qquad
+    D = \\sum_c (M_c \\odot (W_c H)^{\\beta-1})^T W_c .
+
+So each iteration is one pass over the chunks: a task per chunk, run where the chunk lives,
+updates its W_c with exactly the in-memory update (:func:`mmconcepts.nmf._solver.mu_update` on
+the chunk's :class:`~mmconcepts.nmf._problem.Problem`), and returns its (N_c, D_c), two
+n_features x k arrays (D_c is a k-vector for the I-divergence and a k x k Gram matrix for the
+Frobenius loss without a mask, as in memory); the sums are reduced in a tree, and H is updated
+on the client. W never leaves the workers (or the disk); H and the sums are the only traffic,
+k x n_features per chunk and per iteration. The objective of iteration i is computed in the
+pass of iteration i + 1 (one extra pass after the last), so the stopping rule and the iterates
+are those of :func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of the sums.
+
+Out of core
+-----------
+A matrix too large for memory is stored as a folder of ``.npz`` row chunks (the layout of
+:func:`save_npz_chunks`) and read lazily by :func:`load_npz_chunks`;
+:func:`beta_nmf_out_of_core` fits it with W kept on disk between passes (one ``.npy`` file per
+chunk) and writes the final W to a folder of the same layout, chunk by chunk, only once the fit
+has succeeded.
+
+Written by hand: no maintained library computes beta-divergence NMF on Dask (dask-ml has no NMF).
+dask is imported lazily: the rest of :mod:`mmconcepts.nmf` works without it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import uuid
+import warnings
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._io import atomic_path, replace_dir
+from .._validation import check_nonnegative_matrix, check_random_state
+from ..errors import ConvergenceWarning, DataError, DataFormatError, ParameterError
+from ._beta import check_beta_zeros, mm_exponent
+from ._problem import Problem, Side
+from ._solver import (
+    NMFResult,
+    _check_objective_range,
+    _data_scale,
+    _in_units_of_X,
+    _Penalty,
+    _resolve_penalties,
+    _scale_penalties,
+    check_mask,
+    constant_coefficients,
+    mu_update,
+    validate_data,
+)
+
+__all__ = [
+    "NPZ_CHUNKS_FORMAT",
+    "beta_nmf_dask",
+    "beta_nmf_out_of_core",
+    "is_dask_array",
+    "load_npz_chunks",
+    "save_npz_chunks",
+]
+
+#: The ``format`` field of the manifest of a folder of ``.npz`` chunks, and its version.
+NPZ_CHUNKS_FORMAT = "mmconcepts-npz-chunks"
+NPZ_CHUNKS_VERSION = 1
+_MANIFEST = "manifest.json"
+
+
+# ---------------------------------------------------------------------------------------------
+# dask, imported lazily
+
+
+def is_dask_array(x: Any) -> bool:
+    """Whether ``x`` is a ``dask.array.Array`` (False, without importing dask, when dask is not loaded)."""
+    mod = sys.modules.get("dask.array")
+    return mod is not None and isinstance(x, mod.Array)
+
+
+def _require_dask(what: str):
+    try:
+        import dask
+        import dask.array
+    except ImportError as exc:  # pragma: no cover - dask is installed in the test environment
+        raise ImportError(
+            f"{what} needs dask, which is not installed. Install the extra: pip install 'mmconcepts[dask]'."
+        ) from exc
+    return dask
+
+
+# ---------------------------------------------------------------------------------------------
+# The on-disk layout: a folder of .npz row chunks
+
+
+def save_npz_chunks(X: Any, folder: str | os.PathLike[str], *, chunk_rows: int | None = None,
+                    overwrite: bool = False) -> Path:
+    """Write a matrix to ``folder`` as ``.npz`` row chunks, one chunk in memory at a time.
+
+    Layout (version 1)::
+
+        folder/manifest.json      {"format": "mmconcepts-npz-chunks", "version": 1,
+                                   "shape": [n_samples, n_features], "dtype": "float64",
+                                   "sparse": true, "chunks": [{"file": "chunk-000000.npz",
+                                   "rows": 1000}, ...]}
+        folder/chunk-000000.npz   rows 0 .. 999: a CSR matrix as written by
+                                  scipy.sparse.save_npz (uncompressed) when "sparse",
+                                  else numpy.savez with the one array "X"
+        ...
+
+    The chunks are listed in row order; every chunk has all the columns. The folder is written
+    beside its final place and moved there when complete: a reader never sees a half-written
+    folder.
+
+    Parameters
+    ----------
+    X : {ndarray, sparse matrix, dask.array.Array} of shape (n_samples, n_features), or an iterable of 2-D chunks
+        The matrix. A dask array keeps its row chunks (each computed in turn); an iterable
+        (e.g. a generator) gives the chunks in row order, each with all the columns, all
+        dense or all sparse.
+    folder : path
+    chunk_rows : int, optional
+        Rows per chunk for an ndarray or a sparse matrix (default: all in one chunk).
+    overwrite : bool, default=False
+        Replace an existing folder (only once the new one is complete).
+
+    Returns
+    -------
+    Path
+        The folder.
+
+    Raises
+    ------
+    FileExistsError
+        ``folder`` exists and ``overwrite`` is False.
+    DataError
+        Chunks that are not 2-D, disagree on the number of columns, or mix dense and sparse.
+    """
+    folder = Path(folder)
+    if folder.exists() and not overwrite:
+        raise FileExistsError(f"{folder} exists; pass overwrite=True to replace it, or choose another folder.")
+    if chunk_rows is not None and (isinstance(chunk_rows, bool) or int(chunk_rows) < 1):
+        raise ParameterError(f"chunk_rows must be an int >= 1; got {chunk_rows!r}.")
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-", dir=folder.parent))
+    try:
+        entries: list[dict] = []
+        n_cols: int | None = None
+        sparse: bool | None = None
+        dtype: np.dtype | None = None
+        for i, chunk in enumerate(_iter_chunks(X, chunk_rows)):
+            is_sparse = sp.issparse(chunk)
+            chunk = sp.csr_matrix(chunk) if is_sparse else np.asarray(chunk)
+            if chunk.ndim != 2:
+                raise DataError(f"chunk {i} must be 2-D; got shape {chunk.shape}.")
+            if n_cols is None:
+                n_cols, sparse, dtype = chunk.shape[1], is_sparse, chunk.dtype
+            if chunk.shape[1] != n_cols:
+                raise DataError(f"every chunk must have the {n_cols} columns of chunk 0; chunk {i} has {chunk.shape[1]}.")
+            if is_sparse != sparse:
+                raise DataError(f"chunk 0 is {'sparse' if sparse else 'dense'} but chunk {i} is not: give one kind.")
+            dtype = np.result_type(dtype, chunk.dtype)
+            name = f"chunk-{i:06d}.npz"
+            if is_sparse:
+                sp.save_npz(tmp / name, chunk, compressed=False)
+            else:
+                np.savez(tmp / name, X=chunk)
+            entries.append({"file": name, "rows": int(chunk.shape[0])})
+        if n_cols is None:
+            raise DataError("X has no chunk to write; give at least one row.")
+        manifest = {"format": NPZ_CHUNKS_FORMAT, "version": NPZ_CHUNKS_VERSION,
+                    "shape": [sum(e["rows"] for e in entries), n_cols], "dtype": str(np.dtype(dtype)),
+                    "sparse": bool(sparse), "chunks": entries}
+        (tmp / _MANIFEST).write_text(json.dumps(manifest, indent=1))
+        replace_dir(tmp, folder)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return folder
+
+
+def _iter_chunks(X: Any, chunk_rows: int | None) -> Iterator[Any]:
+    if is_dask_array(X):
+        _check_row_chunks(X, "X")
+        for i in range(X.numblocks[0]):
+            yield X.blocks[i].compute()
+        return
+    if sp.issparse(X) or isinstance(X, np.ndarray):
+        n = X.shape[0]
+        step = n if chunk_rows is None else int(chunk_rows)
+        X = sp.csr_matrix(X) if sp.issparse(X) else X
+        for start in range(0, max(n, 1), max(step, 1)):
+            yield X[start:start + step]
+        return
+    if isinstance(X, Iterable):
+        yield from X
+        return
+    yield np.asarray(X)
+
+
+def _read_manifest(folder: Path) -> dict:
+    path = folder / _MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise DataFormatError(
+            f"{folder} is not a folder of .npz chunks: it has no {_MANIFEST}. Write one with save_npz_chunks."
+        ) from exc
+    except (OSError, ValueError) as exc:
+        raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
+    if not isinstance(manifest, dict) or manifest.get("format") != NPZ_CHUNKS_FORMAT:
+        raise DataFormatError(f"{path} is not a manifest of format {NPZ_CHUNKS_FORMAT!r}.")
+    if manifest.get("version") != NPZ_CHUNKS_VERSION:
+        raise DataFormatError(
+            f"{path} has version {manifest.get('version')!r}; this mmconcepts reads version {NPZ_CHUNKS_VERSION}."
+        )
+    try:
+        n, m = (int(v) for v in manifest["shape"])
+        rows = [int(e["rows"]) for e in manifest["chunks"]]
+        files = [str(e["file"]) for e in manifest["chunks"]]
+        np.dtype(manifest["dtype"])
+        bool(manifest["sparse"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataFormatError(f"{path} lacks or garbles a field (shape, dtype, sparse, chunks): {exc}.") from exc
+    if sum(rows) != n or not rows or any(r < 0 for r in rows) or m < 1:
+        raise DataFormatError(f"{path}: the chunks' rows {rows} do not add up to the shape {[n, m]}.")
+    if any(os.sep in f or f.startswith(".") for f in files):
+        raise DataFormatError(f"{path}: chunk files must be plain names inside the folder; got {files}.")
+    return manifest
+
+
+def _load_chunk(path: str, rows: int, n_cols: int, dtype: str, sparse: bool, index: int):
+    """One chunk of a folder of .npz chunks, checked against the manifest."""
+    try:
+        if sparse:
+            out = sp.csr_matrix(sp.load_npz(path))
+        else:
+            with np.load(path, allow_pickle=False) as f:
+                out = f["X"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise DataFormatError(f"Cannot read chunk {index} ({path}): {exc}.") from exc
+    if out.shape != (rows, n_cols):
+        raise DataFormatError(
+            f"chunk {index} ({path}) has shape {out.shape}; the manifest says {(rows, n_cols)}."
+        )
+    return out.astype(dtype, copy=False)
+
+
+def load_npz_chunks(folder: str | os.PathLike[str]):
+    """A folder of ``.npz`` row chunks (:func:`save_npz_chunks`) as a lazy ``dask.array``.
+
+    Nothing is read until a chunk is computed; each chunk is read from its file alone.
+
+    Parameters
+    ----------
+    folder : path
+
+    Returns
+    -------
+    dask.array.Array of shape (n_samples, n_features)
+        Row chunks as stored, one column chunk; scipy.sparse CSR chunks when stored sparse.
+
+    Raises
+    ------
+    DataFormatError
+        No manifest, an unknown format or version, or chunks that disagree with the manifest
+        (when read).
+    ImportError
+        dask is not installed (the ``dask`` extra).
+    """
+    _require_dask("load_npz_chunks")
+    import dask.array as da
+    from dask.highlevelgraph import HighLevelGraph
+
+    folder = Path(folder)
+    man = _read_manifest(folder)
+    n, m = (int(v) for v in man["shape"])
+    rows = tuple(int(e["rows"]) for e in man["chunks"])
+    dtype, sparse = str(np.dtype(man["dtype"])), bool(man["sparse"])
+    name = "npz-chunks-" + uuid.uuid4().hex
+    layer = {(name, i, 0): (_load_chunk, str(folder / e["file"]), rows[i], m, dtype, sparse, i)
+             for i, e in enumerate(man["chunks"])}
+    graph = HighLevelGraph.from_collections(name, layer, dependencies=[])
+    meta = sp.csr_matrix((0, 0), dtype=dtype) if sparse else np.empty((0, 0), dtype=dtype)
+    return da.Array(graph, name, chunks=(rows, (m,)), dtype=dtype, meta=meta)
+
+
+# ---------------------------------------------------------------------------------------------
+# Checks of the dask input
+
+
+def _check_row_chunks(X: Any, name: str) -> None:
+    if X.ndim != 2:
+        raise DataError(f"{name} must be 2-D (n_samples, n_features); got a dask array of shape {X.shape}.")
+    rows, cols = X.chunks
+    if any(isinstance(c, float) and math.isnan(c) for c in (*rows, *cols)):
+        raise DataError(
+            f"{name} has unknown chunk sizes ({name}.chunks holds NaN, e.g. after boolean indexing); the fit needs "
+            f"known row chunks. Fix: {name} = {name}.compute_chunk_sizes()."
+        )
+    if len(cols) != 1:
+        raise DataError(
+            f"{name} must be chunked along rows only, each chunk holding all {X.shape[1]} columns; got "
+            f"{len(cols)} column chunks {tuple(cols)}. Fix: {name} = {name}.rechunk({{1: -1}})."
+        )
+
+
+def _chunk_bounds(X: Any) -> list[tuple[int, int]]:
+    out, start = [], 0
+    for r in X.chunks[0]:
+        out.append((start, start + int(r)))
+        start += int(r)
+    return out
+
+
+def _mask_blocks(mask: Any, X: Any, bounds: list[tuple[int, int]], dask) -> list[Any]:
+    """One mask piece per row chunk of X: the blocks of a dask mask chunked like X, or slices of an in-memory one."""
+    if mask is None:
+        return [None] * len(bounds)
+    if is_dask_array(mask):
+        if mask.ndim != 2 or mask.shape != X.shape:
+            raise DataError(f"mask must have the shape of X, {X.shape}; got {mask.shape}.")
+        _check_row_chunks(mask, "mask")
+        if tuple(mask.chunks[0]) != tuple(X.chunks[0]):
+            raise DataError(
+                f"mask must be chunked like X: expected row chunks {tuple(X.chunks[0])}; got {tuple(mask.chunks[0])}. "
+                "Fix: mask = mask.rechunk(X.chunks)."
+            )
+        return list(mask.to_delayed().ravel())
+    mask = check_mask(mask, X.shape)
+    token = uuid.uuid4().hex
+    return [dask.delayed(mask[a:b], name=f"mask-{token}-{i}", traverse=False) for i, (a, b) in enumerate(bounds)]
+
+
+# ---------------------------------------------------------------------------------------------
+# Work on one chunk (runs on a worker)
+
+
+@dataclass(frozen=True)
+class _ChunkSpec:
+    """What a chunk task needs to know besides its data (small, sent with every task)."""
+
+    index: int
+    start: int
+    stop: int
+    columns: np.ndarray | None = None  # columns of the chunk to keep (transform drops dead features)
+
+    def where(self) -> str:
+        return f"chunk {self.index} (rows {self.start} to {self.stop - 1})"
+
+
+def _as_matrix(x: Any) -> Any:
+    if sp.issparse(x):
+        return x
+    if hasattr(x, "tocsr") and not isinstance(x, np.ndarray):  # pydata/sparse and friends
+        return sp.csr_matrix(x.tocsr())
+    return x
+
+
+def _prepare(x: Any, m: Any, spec: _ChunkSpec, beta: float, scale: float = 1.0):
+    """The chunk as the in-memory fit sees its rows: :func:`validate_data`, then X / scale.
+
+    Returns ``(Xv, Mv)``, or ``None`` for a chunk with no rows. Errors name the chunk.
+    """
+    x = _as_matrix(x)
+    if spec.columns is not None:
+        x = x[:, spec.columns]
+        if m is not None:
+            m = _as_matrix(m)[:, spec.columns]
+    if x.shape[0] == 0:
+        return None
+    try:
+        if m is not None and not _observes_any(m):  # valid, but validate_data refuses a mask that observes nothing
+            mv = sp.csr_matrix(m.shape, dtype=bool) if sp.issparse(m) else np.zeros(np.shape(m), dtype=bool)
+            if mv.shape != x.shape:
+                raise DataError(f"mask must have the shape of X, {x.shape}; got {mv.shape}.")
+            dtype = x.dtype if x.dtype in (np.float32, np.float64) else np.float64
+            Xv = sp.csr_matrix(x.shape, dtype=dtype) if sp.issparse(x) else np.zeros(x.shape, dtype=dtype)
+            return Xv, mv
+        Xv, Mv = validate_data(x, m)
+        check_beta_zeros(Xv, beta, Mv)
+    except DataError as exc:
+        raise DataError(f"{spec.where()} of X: {exc}") from exc
+    if scale != 1.0:
+        Xv = Xv / scale if sp.issparse(Xv) else np.divide(Xv, Xv.dtype.type(scale))
+    return Xv, Mv
+
+
+def _observes_any(m: Any) -> bool:
+    if sp.issparse(m):
+        return bool(sp.csr_matrix(m).count_nonzero())
+    return bool(np.any(np.asarray(m)))
+
+
+@dataclass
+class _Stats:
+    """One pass of checks and sums over the chunks (before any fitting)."""
+
+    rows: int = 0
+    cols: int | None = None
+    dtype: str | None = None
+    xmax: float = -np.inf
+    total: float = 0.0
+    observed: float = 0.0
+    errors: list = field(default_factory=list)
+
+
+def _chunk_stats(x: Any, m: Any, spec: _ChunkSpec, beta: float) -> _Stats:
+    prep = _prepare(x, m, spec, beta)
+    if prep is None:
+        return _Stats(rows=0, cols=int(x.shape[1]) if spec.columns is None else len(spec.columns))
+    Xv, Mv = prep
+    values = Xv.data if sp.issparse(Xv) else Xv
+    if Mv is None:
+        observed = float(Xv.shape[0]) * float(Xv.shape[1])
+    else:
+        observed = float(Mv.count_nonzero()) if sp.issparse(Mv) else float(np.count_nonzero(Mv))
+    return _Stats(rows=Xv.shape[0], cols=Xv.shape[1], dtype=str(Xv.dtype),
+                  xmax=float(values.max()) if values.size else -np.inf,
+                  total=float(Xv.sum(dtype=np.float64)), observed=observed)
+
+
+def _merge_stats(parts: Sequence[_Stats]) -> _Stats:
+    out = _Stats()
+    dtypes = {p.dtype for p in parts if p.dtype is not None}
+    if len(dtypes) > 1:
+        raise DataError(f"the chunks of X hold different dtypes {sorted(dtypes)}; give one (X.astype(...)).")
+    out.dtype = dtypes.pop() if dtypes else "float64"
+    for p in parts:
+        out.rows += p.rows
+        out.cols = p.cols if out.cols is None else out.cols
+        out.xmax = max(out.xmax, p.xmax)
+        out.total += p.total
+        out.observed += p.observed
+    return out
+
+
+class _Row:
+    """A denominator whose rows are all equal (the I-divergence without a mask): only the k-vector travels."""
+
+    def __init__(self, v: np.ndarray):
+        self.v = v
+
+
+class _Gram:
+    """The Frobenius denominator without a mask, Ht @ (W^T W): only the k x k Gram matrix travels."""
+
+    def __init__(self, G: np.ndarray):
+        self.G = G
+
+
+@dataclass
+class _Partial:
+    """A chunk's contribution to the dictionary update and to the objective (summed in a tree)."""
+
+    num: np.ndarray | None = None
+    den: Any = None  # ndarray, _Row, _Gram or None
+    div: float = 0.0
+    pen: float = 0.0
+    finite: bool = True
+    update_bytes: int = 0  # the size of one chunk's (N_c, D_c), for the traffic model
+
+    def nbytes(self) -> int:
+        den = self.den.v if isinstance(self.den, _Row) else self.den.G if isinstance(self.den, _Gram) else self.den
+        return sum(int(a.nbytes) for a in (self.num, den) if a is not None)
+
+
+def _add(a: Any, b: Any) -> Any:
+    if a is None:
+        return b
+    if b is None:
+        return a
+    if isinstance(a, _Row):
+        return _Row(a.v + cast(_Row, b).v)
+    if isinstance(a, _Gram):
+        return _Gram(a.G + cast(_Gram, b).G)
+    return a + b
+
+
+def _add_into(a: Any, b: Any) -> Any:
+    """a + b, in place in ``a`` when it is an array this sum owns."""
+    if a is None or b is None or not isinstance(a, np.ndarray):
+        return _add(a, b)
+    a += b
+    return a
+
+
+def _sum_partials(*parts: _Partial) -> _Partial:
+    out = _Partial()
+    for i, p in enumerate(parts):
+        if i == 0:  # the first is copied, the others added into the copy (never into a task's result)
+            out.num = None if p.num is None else np.array(p.num, copy=True)
+            out.den = np.array(p.den, copy=True) if isinstance(p.den, np.ndarray) else p.den
+        else:
+            out.num = _add_into(out.num, p.num)
+            out.den = _add_into(out.den, p.den)
+        out.div += p.div
+        out.pen += p.pen
+        out.finite = out.finite and p.finite
+    return out
+
+
+def _h_partial(side: Side, Ht: np.ndarray, W: np.ndarray, beta: float):
+    """(N_c, D_c) of the dictionary update from one chunk: the in-memory side-1 formulas on its rows."""
+    if side.mask is None and beta == 2.0:
+        X = side.X
+        num = np.asarray(X @ W) if side.sparse else X.T @ W  # sparse: X is the chunk's X.T in CSR
+        return num, _Gram(W.T @ W)
+    num, den = side.numerator_denominator(Ht, W, beta)
+    if den.ndim == 2 and den.shape[0] > 1 and den.strides[0] == 0:  # np.broadcast_to of one row
+        return num, _Row(np.array(den[0]))
+    return num, np.array(den)
+
+
+def _full_den(den: Any, Ht: np.ndarray) -> np.ndarray:
+    if isinstance(den, _Row):
+        return np.broadcast_to(den.v, Ht.shape)
+    if isinstance(den, _Gram):
+        return Ht @ den.G
+    return den
+
+
+class _Summed:
+    """Stands for a :class:`Side` whose numerator and denominator were summed over chunks."""
+
+    def __init__(self, num: np.ndarray, den: np.ndarray):
+        self.num, self.den = num, den
+
+    def numerator_denominator(self, L, R, beta):
+        return self.num, self.den
+
+
+@dataclass(frozen=True)
+class _Rule:
+    """The update settings sent to the chunk tasks."""
+
+    beta: float
+    gamma: float
+    pen_W: _Penalty
+    scale: float
+    k: int
+    dtype: str
+
+
+def _load_w(w: Any) -> np.ndarray:
+    if isinstance(w, str):
+        return np.load(w, allow_pickle=False)
+    return np.array(w, copy=True)  # never update a persisted chunk in place
+
+
+def _store_w(W: np.ndarray, out: str | None) -> Any:
+    if out is None:
+        return W
+    with atomic_path(out, suffix=".tmp.npy") as tmp:
+        np.save(tmp, W)
+    return out
+
+
+def _empty_w(rule: _Rule) -> np.ndarray:
+    return np.zeros((0, rule.k), dtype=rule.dtype)
+
+
+def _make_problem(x: Any, m: Any, spec: _ChunkSpec, beta: float, scale: float) -> Problem | None:
+    """The chunk's :class:`Problem` (its rows of X / scale, and their transpose for a sparse X); None if empty."""
+    prep = _prepare(x, m, spec, beta, scale)
+    return None if prep is None else Problem(*prep)
+
+
+def _fit_chunk(problem: Problem | None, w, Ht, rule: _Rule, spec: _ChunkSpec, evaluate: bool, update: bool,
+               w_out: str | None):
+    """One pass over one chunk: [objective of (W_c, H)], [W_c update, (N_c, D_c) with the new W_c]."""
+    W = _load_w(w)
+    part = _Partial()
+    if problem is None:
+        return (_store_w(_empty_w(rule), w_out) if update else w), part
+    if evaluate:
+        part.div = problem.divergence(W, Ht, rule.beta)
+        part.pen = rule.pen_W.value(W)
+        part.finite = bool(np.isfinite(W).all())
+    if not update:
+        return w, part
+    W = mu_update(problem.sides[0], np.ascontiguousarray(W), Ht, rule.beta, rule.gamma, rule.pen_W)
+    part.num, part.den = _h_partial(problem.sides[1], Ht, W, rule.beta)
+    return _store_w(W, w_out), part
+
+
+def _transform_chunk(problem: Problem | None, w, Ht, rule: _Rule, spec: _ChunkSpec, first: bool, n_steps: int,
+                     w_out: str | None):
+    """``n_steps`` W updates with H fixed, then the objective; with ``first``, the objective before them too."""
+    W = np.ascontiguousarray(_load_w(w))
+    part0, part = _Partial(), _Partial()
+    if problem is None:
+        return _store_w(_empty_w(rule), w_out), part0, part
+    if first:
+        part0.div, part0.pen = problem.divergence(W, Ht, rule.beta), rule.pen_W.value(W)
+    for _ in range(n_steps):
+        W = mu_update(problem.sides[0], W, Ht, rule.beta, rule.gamma, rule.pen_W)
+    part.div, part.pen = problem.divergence(W, Ht, rule.beta), rule.pen_W.value(W)
+    part.finite = bool(np.isfinite(W).all())
+    return _store_w(W, w_out), part0, part
+
+
+def _prepare_w(w: Any, spec: _ChunkSpec, k: int, dtype: str, divide: float, w_out: str | None):
+    """A given starting W chunk: checked as in memory (_check_factor), in X's dtype, divided by the W scale."""
+    try:
+        A = check_nonnegative_matrix(w, "W", accept_sparse=False)
+    except DataError as exc:
+        raise DataError(f"{spec.where()} of W: {exc}") from exc
+    if A.shape != (spec.stop - spec.start, k):
+        raise DataError(f"{spec.where()} of W must have shape {(spec.stop - spec.start, k)}; got {A.shape}.")
+    A = np.array(A, dtype=dtype, copy=True)
+    if divide != 1.0:
+        A /= A.dtype.type(divide)
+    return _store_w(A, w_out)
+
+
+def _scaled(w: Any, factor: float, dtype: str) -> np.ndarray:
+    W = np.load(w, allow_pickle=False) if isinstance(w, str) else w
+    return W * np.dtype(dtype).type(factor) if factor != 1.0 else W
+
+
+def _tree(parts: list, dask, split_every: int):
+    """Sum :class:`_Partial` objects in a tree of fan-in ``split_every``."""
+    level = 0
+    while len(parts) > 1:
+        parts = [dask.delayed(_sum_partials, pure=True)(*parts[i:i + split_every],
+                                                       dask_key_name=f"sum-{uuid.uuid4().hex}-{level}-{i}")
+                 for i in range(0, len(parts), split_every)]
+        level += 1
+    return parts[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# Where the W chunks live between passes
+
+
+class _WStore:
+    """W chunks between passes: persisted in the cluster's memory (``folder=None``) or ``.npy`` files."""
+
+    def __init__(self, dask, n_chunks: int, folder: Path | None, in_flight: int = 2):
+        self.dask = dask
+        self.n_chunks = n_chunks
+        self.folder = folder
+        self.in_flight = max(1, int(in_flight))
+        self.buffer = 0
+
+    def path(self, c: int, buffer: int | None = None) -> str | None:
+        if self.folder is None:
+            return None
+        return str(self.folder / f"w{self.buffer if buffer is None else buffer}-{c:06d}.npy")
+
+    def next_path(self, c: int) -> str | None:
+        return self.path(c, 1 - self.buffer)
+
+    def flip(self) -> None:
+        self.buffer = 1 - self.buffer
+
+    def put(self, chunks: Iterable[Any]) -> list[Any]:
+        """Refs to starting chunks given as numpy arrays or delayed values (computed one at a time on disk)."""
+        token = uuid.uuid4().hex
+        refs = []
+        for c, W in enumerate(chunks):
+            if self.folder is None:
+                refs.append(W if hasattr(W, "dask") else self.dask.delayed(W, name=f"W0-{token}-{c}", traverse=False))
+            else:
+                if hasattr(W, "dask"):
+                    W = W.compute()
+                refs.append(_store_w(np.asarray(W), self.path(c)))
+        if self.folder is None:
+            refs = list(self.dask.persist(*refs))
+        return refs
+
+
+# ---------------------------------------------------------------------------------------------
+# The solver
+
+
+def beta_nmf_dask(
+    X: Any,
+    n_components: int | None = None,
+    *,
+    beta: float,
+    solver: str = "mu",
+    update_rule: str = "mm",
+    init: str | None = None,
+    W: Any = None,
+    H: Any = None,
+    update_H: bool = True,
+    mask: Any = None,
+    max_iter: int = 200,
+    tol: float = 1e-4,
+    alpha_W: float = 0.0,
+    alpha_H: float | str = "same",
+    l1_ratio: float = 0.0,
+    sparseness_W: float | None = None,
+    sparseness_H: float | None = None,
+    loss_every: int = 10,
+    random_state: Any = None,
+    columns: np.ndarray | None = None,
+    w_folder: str | os.PathLike[str] | None = None,
+    split_every: int = 8,
+    in_flight: int = 2,
+) -> NMFResult:
+    """:func:`~mmconcepts.nmf.beta_nmf` of a dask array X of row chunks (parameters checked by the caller).
+
+    Same parameters and results as ``beta_nmf`` (same iterates up to the order of the sums),
+    except that ``W`` comes back as a dask array with X's row chunks, and that the solver is
+    the multiplicative update only (``solver='pg'`` and the Hoyer constraints need the whole
+    W at every line-search step: refused). ``columns`` keeps only those columns of each chunk
+    (:meth:`NMF.transform`); ``w_folder`` keeps W as ``.npy`` files in that folder between passes
+    instead of in the cluster's memory, and reads X anew in every pass (out of core), ``in_flight``
+    chunks at a time; ``split_every`` is the fan-in of the tree that sums the chunks' statistics.
+
+    Without ``w_folder``, each chunk's prepared rows (and their CSR transpose when sparse, as the
+    in-memory solver keeps) are persisted in the cluster's memory for the whole fit, with W.
+    """
+    dask = _require_dask("beta_nmf of a dask array")
+    _check_row_chunks(X, "X")
+    if solver != "mu":
+        raise ParameterError(
+            f"solver={solver!r} is not available for a dask array: its line search needs the whole of W at every "
+            "trial step. Use solver='mu' (multiplicative updates), or compute X into memory."
+        )
+    if sparseness_W is not None or sparseness_H is not None:
+        raise ParameterError(
+            "sparseness_W/sparseness_H are not available for a dask array (Hoyer's projection is a gradient step "
+            "with a line search over the whole of W). Use alpha_W/alpha_H (L1 penalties) or compute X into memory."
+        )
+    if mask is not None and not is_dask_array(mask) and not (sp.issparse(mask) or hasattr(mask, "__array__")):
+        mask = np.asarray(mask)
+    bounds = _chunk_bounds(X)
+    x_blocks = list(X.to_delayed().ravel())
+    m_blocks = _mask_blocks(mask, X, bounds, dask)
+    specs = [_ChunkSpec(i, a, b, columns) for i, (a, b) in enumerate(bounds)]
+
+    stats = _merge_stats(dask.compute(*[dask.delayed(_chunk_stats)(x, mb, s, beta)
+                                        for x, mb, s in zip(x_blocks, m_blocks, specs)]))
+    n, m = stats.rows, int(stats.cols if stats.cols is not None else X.shape[1])
+    if n == 0:
+        raise DataError(f"X is empty: 0 sample(s) (shape={(n, m)}) while a minimum of 1 is required.")
+    if mask is not None and stats.observed == 0:
+        raise DataError("mask observes no cell of X; at least one cell must be True.")
+    dtype = np.dtype(stats.dtype)
+    if n_components is None:
+        n_components = H.shape[0] if H is not None else (W.shape[1] if W is not None else min(n, m))
+    k = int(n_components)
+
+    # The scales of beta_nmf: X / scale for the updates, scale = scale_W * scale_H.
+    scale = _data_scale(np.array([[stats.xmax]]), beta) if np.isfinite(stats.xmax) else 1.0
+    if not update_H:
+        scale_H = 1.0 if H is None else _data_scale(np.asarray(H, dtype=float), beta)
+    else:
+        scale_H = scale
+    scale_W = scale / scale_H
+    rescaled = scale != 1.0 or scale_H != 1.0
+    x_mean = (stats.total / scale) / max(stats.observed, 1.0)
+
+    folder = None
+    if w_folder is not None:
+        w_folder = Path(w_folder)
+        w_folder.parent.mkdir(parents=True, exist_ok=True)
+        folder = Path(tempfile.mkdtemp(prefix=f".{w_folder.name}.work-", dir=w_folder.parent))
+    try:
+        store = _WStore(dask, len(specs), folder, in_flight)
+        W_refs, Ht = _start(store, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
+                            scale, scale_W, scale_H, x_mean, random_state, dask)
+        pen_W, pen_H = _resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
+        if rescaled:
+            pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
+        gamma = mm_exponent(beta) if update_rule == "mm" else 1.0
+        rule = _Rule(beta, gamma, pen_W, scale, k, str(dtype))
+        # Each chunk's Problem (its validated rows of X / scale, and their CSR transpose for sparse data) is
+        # built once and kept in the cluster's memory; out of core, it is rebuilt from the file in every pass.
+        sources = [dask.delayed(_make_problem)(x, mb, s, beta, scale) for x, mb, s in zip(x_blocks, m_blocks, specs)]
+        if folder is None:
+            sources = list(dask.persist(*sources))
+        loop = _fit_loop if update_H else _transform_loop
+        W_refs, Ht, n_iter, hist, its, converged, final = loop(
+            store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every, dask,
+            scale if rescaled else None)
+        del sources
+        if not (final.finite and np.isfinite(Ht).all()):
+            raise DataError(f"the fit left the range of {dtype}: its factors are not finite (X spans more than the "
+                            "range of its dtype, e.g. subnormal values beside ordinary ones with beta_loss <= 1). "
+                            "Set such values to 0, or use beta_loss > 1.")
+        divergence = float(_in_units_of_X(final.div, scale, beta)) if rescaled else float(final.div)
+        if rescaled:
+            hist = _in_units_of_X(hist, scale, beta)
+            Ht = Ht * dtype.type(scale_H)
+        W_out = _finish_w(store, W_refs, specs, k, dtype, scale_W, w_folder, dask)
+    finally:
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
+    if tol > 0 and not converged and max_iter > 0:
+        warnings.warn(
+            f"beta_nmf stopped at max_iter={max_iter} before the objective settled (tol={tol:g}); "
+            "increase max_iter or tol.",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+    extra = {"divergence": divergence, "n_chunks": len(specs), "bytes_per_iteration": _traffic_bytes(final, Ht, specs)}
+    return NMFResult(W_out, np.ascontiguousarray(Ht.T), n_iter, np.asarray(hist), np.asarray(its, dtype=int),
+                     converged, extra)
+
+
+def _traffic_bytes(final: _Partial, Ht: np.ndarray, specs: Sequence[_ChunkSpec]) -> int:
+    """The model of the traffic of one iteration: H to every chunk, (N_c, D_c) back (before the tree's sums)."""
+    return int(len(specs) * (Ht.nbytes + final.update_bytes))
+
+
+def _start(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
+           scale, scale_W, scale_H, x_mean, random_state, dask):
+    """The starting W chunks (in ``store``) and Ht, as beta_nmf starts on the whole matrix."""
+    from ._solver import _check_factor
+
+    if not update_H:
+        if H is None:
+            raise ParameterError("update_H=False needs the fixed dictionary H.")
+        Hs = _check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
+        if W is None:
+            value = constant_coefficients(np.full((1, 1), x_mean, dtype=dtype), Hs)[0, 0]
+            W_refs = store.put(np.full((b.stop - b.start, k), value, dtype=dtype) for b in specs)
+        else:
+            W_refs = _given_w(store, W, specs, n, k, dtype, scale_W, dask)
+        return W_refs, np.ascontiguousarray(Hs.T)
+    if init == "custom" or (init is None and W is not None and H is not None):
+        if W is None or H is None:
+            raise ParameterError("init='custom' needs both W and H.")
+        Hs = _check_factor(H, (k, m), "H", dtype)
+        Hs /= dtype.type(scale_H)
+        return _given_w(store, W, specs, n, k, dtype, scale_W, dask), np.ascontiguousarray(Hs.T)
+    if init is None:
+        init = "nndsvda" if k <= min(n, m) else "random"
+    rng = check_random_state(random_state)
+    if init == "random":  # initialize(): H, then W, from one stream; W drawn chunk by chunk in row order
+        s = np.sqrt(max(x_mean, 0.0) / k)
+        Hs = np.abs(s * rng.standard_normal((k, m))).astype(dtype, copy=False)
+        W_refs = store.put(np.abs(s * rng.standard_normal((b.stop - b.start, k))).astype(dtype, copy=False)
+                           for b in specs)
+        return W_refs, np.ascontiguousarray(Hs.T)
+    return _nndsvd(store, x_blocks, m_blocks, specs, n, m, k, dtype, beta, init, scale, x_mean, rng, dask)
+
+
+def _given_w(store: _WStore, W: Any, specs, n: int, k: int, dtype, scale_W: float, dask) -> list:
+    if is_dask_array(W):
+        if W.shape != (n, k):
+            raise DataError(f"W must have shape {(n, k)}; got {W.shape}.")
+        W = W.rechunk(([s.stop - s.start for s in specs], (k,)))
+        blocks = list(W.to_delayed().ravel())
+        if store.folder is None:
+            return store.put(dask.delayed(_prepare_w)(b, s, k, str(dtype), scale_W, None)
+                             for b, s in zip(blocks, specs))
+        dask.compute(*[dask.delayed(_prepare_w)(b, s, k, str(dtype), scale_W, store.path(s.index))
+                       for b, s in zip(blocks, specs)])
+        return [store.path(s.index) for s in specs]
+    from ._solver import _check_factor
+
+    Wa = _check_factor(W, (n, k), "W", dtype)
+    Wa /= dtype.type(scale_W)
+    return store.put(Wa[s.start:s.stop] for s in specs)
+
+
+def _nndsvd(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, init, scale, x_mean, rng, dask):
+    """NNDSVD (Boutsidis & Gallopoulos 2008) from dask's randomized SVD (Halko et al. 2011).
+
+    dask.array.linalg.svd_compressed replaces scikit-learn's randomized_svd: the same algorithm
+    (10 oversamples, 7 or 4 power iterations as scikit-learn) with its own random draws and QR
+    normalisation, so the start approximates the in-memory one without equalling it. U (n x k)
+    is kept in the cluster's memory while W is built from it.
+    """
+    import dask.array as da
+
+    if init not in ("nndsvd", "nndsvda", "nndsvdar"):
+        raise ParameterError(f"init must be one of ('random', 'nndsvd', 'nndsvda', 'nndsvdar', 'custom') or None; "
+                             f"got {init!r}.")
+    if k > min(n, m):
+        raise ParameterError(
+            f"init={init!r} needs n_components <= min(n_samples, n_features) = {min(n, m)}; got {k}. "
+            "Use init='random'."
+        )
+    seed = int(rng.integers(0, 2**31 - 1))
+    fill = x_mean if m_blocks[0] is not None else None
+    blocks = []
+    for x, mb, s in zip(x_blocks, m_blocks, specs):
+        blocks.append(da.from_delayed(dask.delayed(_svd_block)(x, mb, s, beta, scale, fill),
+                                      shape=(s.stop - s.start, m), dtype=np.float64))
+    A = da.concatenate(blocks, axis=0) if len(blocks) > 1 else blocks[0]
+    n_iter = 7 if k < 0.1 * min(n, m) else 4
+    U, S, V = da.linalg.svd_compressed(A, k, n_power_iter=n_iter, n_oversamples=10, seed=seed, compute=False)
+    U = U.rechunk(([s.stop - s.start for s in specs], (k,))).persist()
+    pos, neg = da.maximum(U, 0), da.abs(da.minimum(U, 0))
+    S, V, xpn, xnn = dask.compute(S, V, da.sqrt((pos * pos).sum(axis=0)), da.sqrt((neg * neg).sum(axis=0)))
+    eps = 1e-6
+    Hs = np.zeros((k, m))
+    coef = np.zeros(k)  # W[:, j] = coef[j] * max(sign[j] * U[:, j], 0)
+    sign = np.zeros(k)
+    Hs[0] = np.sqrt(S[0]) * np.abs(V[0])
+    coef[0], sign[0] = np.sqrt(S[0]), 0.0  # column 0: sqrt(S0) |U0|
+    for j in range(1, k):
+        y = V[j]
+        yp, yn = np.maximum(y, 0), np.abs(np.minimum(y, 0))
+        ypn, ynn = np.linalg.norm(yp), np.linalg.norm(yn)
+        mp, mn = xpn[j] * ypn, xnn[j] * ynn
+        if mp > mn:
+            lbd = np.sqrt(S[j] * mp)
+            coef[j], sign[j], Hs[j] = lbd / xpn[j], 1.0, lbd * yp / ypn
+        elif mn > 0:
+            lbd = np.sqrt(S[j] * mn)
+            coef[j], sign[j], Hs[j] = lbd / xnn[j], -1.0, lbd * yn / ynn
+        else:
+            coef[j], sign[j] = 0.0, 1.0
+    Hs[Hs < eps] = 0
+
+    def chunks() -> Iterator[np.ndarray]:
+        for c in range(len(specs)):  # in row order: nndsvdar's draws are those of one W in memory
+            Uc = np.asarray(U.blocks[c].compute())
+            Wc = np.where(sign == 0, np.abs(Uc), np.maximum(sign * Uc, 0)) * coef
+            Wc[Wc < eps] = 0
+            if init == "nndsvda":
+                Wc[Wc == 0] = x_mean
+            elif init == "nndsvdar":
+                Wc[Wc == 0] = np.abs(x_mean * rng.standard_normal(int((Wc == 0).sum())) / 100)
+            yield Wc.astype(dtype, copy=False)
+
+    W_refs = store.put(chunks())
+    if init == "nndsvda":
+        Hs[Hs == 0] = x_mean
+    elif init == "nndsvdar":
+        Hs[Hs == 0] = np.abs(x_mean * rng.standard_normal(int((Hs == 0).sum())) / 100)
+    return W_refs, np.ascontiguousarray(Hs.astype(dtype, copy=False).T)
+
+
+def _svd_block(x, m, spec: _ChunkSpec, beta: float, scale: float, fill: float | None):
+    """A chunk as the SVD of the in-memory init sees it: X / scale, unobserved cells set to ``fill``."""
+    prep = _prepare(x, m, spec, beta, scale)
+    if prep is None:
+        return np.zeros((0, np.shape(x)[1] if spec.columns is None else len(spec.columns)))
+    Xv, Mv = prep
+    if Mv is None:
+        return Xv.astype(np.float64)
+    dense_m = Mv.toarray() if sp.issparse(Mv) else Mv
+    return np.where(dense_m, Xv.toarray() if sp.issparse(Xv) else Xv, fill).astype(np.float64)
+
+
+def _run_pass(store: _WStore, tasks: list, n_parts: int, update: bool, split_every: int, dask):
+    """Run one delayed task per chunk, each returning ``(W ref, part_1, ..., part_n)``; sum each part over chunks.
+
+    In memory, one graph: the new W chunks are persisted where they were computed, the sums
+    come back to the client. On disk (``store.folder``), the chunks go in waves of
+    ``store.in_flight``, each wave's parts summed before the next starts, so that at most that many
+    chunks and (n_features x k) parts are in memory at once whatever the scheduler's order; the
+    new W chunks are the files of the other buffer.
+    """
+    if store.folder is None:
+        totals = [_tree([t[1 + j] for t in tasks], dask, split_every) for j in range(n_parts)]
+        if update:
+            *new, totals_p = dask.persist(*[t[0] for t in tasks], totals)
+            return new, list(dask.compute(*totals_p))
+        return None, list(dask.compute(*totals))
+    sums: list = [None] * n_parts
+    for a in range(0, len(tasks), store.in_flight):
+        wave = tasks[a:a + store.in_flight]
+        parts = dask.compute(*[_tree([t[1 + j] for t in wave], dask, split_every) for j in range(n_parts)])
+        sums = [p if s is None else _sum_partials(s, p) for s, p in zip(sums, parts)]
+    if not update:
+        return None, sums
+    new = [store.next_path(c) for c in range(len(tasks))]
+    store.flip()
+    return new, sums
+
+
+def _objective_pass(store, sources, specs, W_refs, Ht, rule, evaluate, update, split_every, dask):
+    """One pass of :func:`_fit_chunk` over the chunks: new W refs (the old ones without ``update``) and the sum."""
+    Ht_d = dask.delayed(Ht, name=f"Ht-{uuid.uuid4().hex}", traverse=False)
+    tasks = [dask.delayed(_fit_chunk, nout=2)(src, w, Ht_d, rule, s, evaluate, update,
+                                              store.next_path(s.index) if update else None)
+             for src, w, s in zip(sources, W_refs, specs)]
+    new, (total,) = _run_pass(store, tasks, 1, update, split_every, dask)
+    return (new if update else W_refs), total, int(update)
+
+
+def _objective(part: _Partial, Ht: np.ndarray, pen_H: _Penalty) -> float:
+    return part.div + part.pen + pen_H.value(Ht)
+
+
+class _Stopping:
+    """scikit-learn's rule on sqrt(2 * objective), as in :func:`mmconcepts.nmf._solver._iterate`."""
+
+    def __init__(self, f0: float, tol: float):
+        self.err0 = np.sqrt(2.0 * max(f0, 0.0))
+        self.prev = self.err0
+        self.tol = tol
+
+    def converged(self, f: float) -> bool:
+        err = np.sqrt(2.0 * max(f, 0.0))
+        if not np.isfinite(self.err0):
+            self.err0 = err
+        elif (self.tol > 0 and self.err0 > 0 and np.isfinite(self.prev) and np.isfinite(err)
+              and (self.prev - err) / self.err0 < self.tol):
+            return True
+        self.prev = err
+        return False
+
+
+def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
+              dask, check_scale):
+    """W and H updates, one pass per iteration; the objective of iteration i comes with the pass of i + 1."""
+    hist: list[float] = []
+    its: list[int] = []
+    stop: _Stopping | None = None
+    converged = False
+    i = 0
+    update_bytes = 0
+    while True:
+        check = i == 0 or i % loss_every == 0 or i == max_iter
+        if i == max_iter:
+            _, part, _ = _objective_pass(store, sources, specs, W_refs, Ht, rule, True, False, split_every, dask)
+        else:
+            new_refs, part, _ = _objective_pass(store, sources, specs, W_refs, Ht, rule, check, True, split_every,
+                                                dask)
+        if check:
+            f = _objective(part, Ht, pen_H)
+            hist.append(f)
+            its.append(i)
+            if i == 0:
+                stop = _Stopping(f, tol)
+                if check_scale is not None:
+                    _check_objective_range(f, check_scale, rule.beta)
+            elif cast(_Stopping, stop).converged(f):
+                converged = True
+            final = part
+        if converged or i == max_iter:
+            break
+        update_bytes = part.nbytes()
+        num = cast(np.ndarray, part.num)
+        Ht_new = mu_update(cast(Side, _Summed(num, _full_den(part.den, Ht))), Ht.copy(), None, rule.beta,
+                           rule.gamma, pen_H)
+        W_refs, Ht = new_refs, Ht_new
+        i += 1
+    final.update_bytes = update_bytes
+    return W_refs, Ht, i, hist, its, converged, final
+
+
+def _transform_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every,
+                    split_every, dask, check_scale):
+    """W updates with H fixed: the updates between two evaluations of the objective run in one pass."""
+    Ht_d = dask.delayed(Ht, name=f"Ht-{uuid.uuid4().hex}", traverse=False)
+    checks = sorted({*range(loss_every, max_iter + 1, loss_every), max_iter})
+    hist: list[float] = []
+    its: list[int] = []
+    stop: _Stopping | None = None
+    converged = False
+    done = 0
+    final = _Partial()
+    for c in checks:
+        first = done == 0
+        tasks = [dask.delayed(_transform_chunk, nout=3)(src, w, Ht_d, rule, s, first, c - done,
+                                                        store.next_path(s.index))
+                 for src, w, s in zip(sources, W_refs, specs)]
+        W_refs, (part0, part) = _run_pass(store, tasks, 2, True, split_every, dask)
+        if first:
+            f0 = _objective(part0, Ht, pen_H)
+            hist.append(f0)
+            its.append(0)
+            stop = _Stopping(f0, tol)
+            if check_scale is not None:
+                _check_objective_range(f0, check_scale, rule.beta)
+            if c == 0:  # max_iter == 0
+                final = part0
+                final.finite = part.finite
+                break
+        f = _objective(part, Ht, pen_H)
+        hist.append(f)
+        its.append(c)
+        done = c
+        final = part
+        if cast(_Stopping, stop).converged(f):
+            converged = True
+            break
+    final.update_bytes = 0
+    return W_refs, Ht, done, hist, its, converged, final
+
+
+def _finish_w(store: _WStore, W_refs, specs, k: int, dtype, scale_W: float, w_folder, dask):
+    """W in X's units: a dask array with X's row chunks (in memory), or written to ``w_folder`` chunk by chunk."""
+    import dask.array as da
+
+    if w_folder is None:
+        blocks = [da.from_delayed(dask.delayed(_scaled)(w, scale_W, str(dtype)), shape=(s.stop - s.start, k),
+                                  dtype=dtype) for w, s in zip(W_refs, specs)]
+        out = da.concatenate(blocks, axis=0) if len(blocks) > 1 else blocks[0]
+        return out.persist() if scale_W != 1.0 else out
+    save_npz_chunks((_scaled(w, scale_W, str(dtype)) for w in W_refs), w_folder, overwrite=True)
+    return load_npz_chunks(w_folder)
+
+
+# ---------------------------------------------------------------------------------------------
+# Out of core
+
+
+def beta_nmf_out_of_core(
+    X: Any,
+    n_components: int | None = None,
+    *,
+    out: str | os.PathLike[str],
+    mask: Any = None,
+    **kwargs: Any,
+) -> NMFResult:
+    """Fit :func:`~mmconcepts.nmf.beta_nmf` to a matrix on disk, never holding X or W whole.
+
+    Each pass reads the chunks one by one (with dask's scheduler: the synchronous one reads
+    one chunk at a time), W stays on disk between passes (``.npy`` files beside ``out``), and
+    the final W is written to ``out`` in the layout of :func:`save_npz_chunks`, chunk by chunk,
+    once the fit has succeeded: an error (negative values found in a late chunk, say) leaves no
+    W behind. Memory: one chunk of X and of W at a time per worker thread, plus H and the sums
+    of the dictionary update (a few n_features x n_components arrays).
+
+    Parameters
+    ----------
+    X : path or dask.array.Array of shape (n_samples, n_features)
+        A folder of ``.npz`` chunks (:func:`save_npz_chunks`), or a dask array of row chunks.
+    n_components : int, optional
+    out : path
+        The folder W is written to (replaced if it exists, only once the fit succeeded).
+    mask : path or dask.array.Array, optional
+        A folder of chunks, or a dask array, chunked like X; True where X is observed.
+    **kwargs
+        The options of :func:`~mmconcepts.nmf.beta_nmf` (multiplicative updates only).
+        Default ``init='random'`` (NNDSVD would hold its SVD's U in memory).
+
+    Returns
+    -------
+    NMFResult
+        ``W`` is ``load_npz_chunks(out)`` (lazy), ``H`` a numpy array.
+    """
+    from .._validation import validate_params
+    from ._solver import BETA_NMF_CONSTRAINTS
+
+    if isinstance(X, (str, os.PathLike)):
+        X = load_npz_chunks(X)
+    if isinstance(mask, (str, os.PathLike)):
+        mask = load_npz_chunks(mask)
+    if not is_dask_array(X):
+        raise DataError(f"X must be a folder of .npz chunks or a dask array; got {type(X).__name__}. Write it with "
+                        "save_npz_chunks first.")
+    kwargs.setdefault("init", "random")
+    params = dict(n_components=n_components, **kwargs)
+    beta_loss = params.pop("beta_loss", 2.0)
+    validate_params({**params, "beta_loss": beta_loss},
+                    {name: BETA_NMF_CONSTRAINTS[name] for name in (*params, "beta_loss")
+                     if name in BETA_NMF_CONSTRAINTS},
+                    owner="beta_nmf_out_of_core")
+    from ._beta import resolve_beta
+
+    return beta_nmf_dask(X, beta=resolve_beta(beta_loss), mask=mask, w_folder=out, **params)

@@ -1,0 +1,348 @@
+"""Distributed and out-of-core beta-NMF (nmf/_dask.py) against the in-memory solver (issue 16, part 2).
+
+The outside answer is the in-memory :func:`beta_nmf` on the whole matrix: from the same start,
+the iterates of the chunked solver must equal its iterates to 1e-10 (relative), for beta in
+{0, 0.5, 1, 2}, dense and sparse, with and without a mask.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+import weakref
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+dask = pytest.importorskip("dask")
+da = pytest.importorskip("dask.array")
+
+from mmconcepts.errors import DataError, DataFormatError, ParameterError  # noqa: E402
+from mmconcepts.nmf import NMF, beta_nmf  # noqa: E402
+from mmconcepts.nmf import _dask as nd  # noqa: E402
+
+ROW_CHUNKS = (23, 40, 1, 36)  # uneven, one single-row chunk
+N, M, K = sum(ROW_CHUNKS), 17, 4
+RTOL = 1e-10
+
+
+@pytest.fixture(autouse=True)
+def _synchronous_and_one_numba_thread():
+    """The synchronous scheduler (deterministic, in this thread), numba kernels on one thread.
+
+    numba's parallel kernels on tiny chunks cost more in thread wake-ups than in work on a busy
+    machine; the results do not depend on the number of threads (rows are independent).
+    """
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    with dask.config.set(scheduler="synchronous"):
+        yield
+    numba.set_num_threads(before)
+
+
+def rel(a, b) -> float:
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+
+def make_data(rng, sparse: bool, beta: float, masked: bool):
+    if sparse:
+        X = sp.random(N, M, density=0.35, format="csr", random_state=np.random.RandomState(1),
+                      data_rvs=lambda size: rng.poisson(2.0, size) + 1.0)
+        if beta <= 0:  # beta <= 0 needs positive observed cells
+            X = sp.csr_matrix(X.toarray() + 0.25)
+    else:
+        X = rng.poisson(2.0, (N, M)).astype(np.float64) + (0.25 if beta <= 0 else 0.0)
+    mask = rng.random((N, M)) > 0.25 if masked else None
+    if masked and not sparse:
+        X = X.copy()
+        X[~mask] = np.nan  # unobserved cells may hold anything
+    W0 = rng.random((N, K)) + 0.1
+    H0 = rng.random((K, M)) + 0.1
+    return X, mask, W0, H0
+
+
+def to_dask(X, chunks=ROW_CHUNKS):
+    return da.from_array(X, chunks=(chunks, -1), asarray=not sp.issparse(X))
+
+
+def assert_same_fit(r_mem, r_dask, tol=RTOL):
+    W = r_dask.W.compute() if nd.is_dask_array(r_dask.W) else r_dask.W
+    assert isinstance(r_dask.H, np.ndarray)
+    assert rel(W, r_mem.W) < tol
+    assert rel(r_dask.H, r_mem.H) < tol
+    assert list(r_dask.loss_iterations) == list(r_mem.loss_iterations)
+    assert rel(r_dask.loss_history, r_mem.loss_history) < tol
+    assert r_dask.n_iter == r_mem.n_iter and r_dask.converged == r_mem.converged
+
+
+# ------------------------------------------------------------------------------ equality
+
+
+@pytest.mark.parametrize("masked", [False, True], ids=["nomask", "mask"])
+@pytest.mark.parametrize("sparse", [False, True], ids=["dense", "sparse"])
+@pytest.mark.parametrize("beta", [0.0, 0.5, 1.0, 2.0])
+def test_same_iterates_as_in_memory(rng, beta, sparse, masked):
+    X, mask, W0, H0 = make_data(rng, sparse, beta, masked)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=beta, max_iter=12, tol=0, loss_every=5)
+    r_mem = beta_nmf(X, K, mask=mask, **kw)
+    r_dask = beta_nmf(to_dask(X), K, mask=None if mask is None else to_dask(mask), **kw)
+    assert r_dask.W.chunks == (ROW_CHUNKS, (K,))
+    assert_same_fit(r_mem, r_dask)
+    assert list(r_mem.loss_iterations) == [0, 5, 10, 12]
+
+
+@pytest.mark.parametrize("beta, update_rule", [(0.5, "heuristic"), (3.0, "mm"), (1.0, "mm")])
+def test_same_iterates_update_rules_penalties_stopping(rng, beta, update_rule):
+    """Heuristic / MM exponents, L1+L2 penalties, and the stopping rule (tol > 0) stop at the same iteration."""
+    X, _, W0, H0 = make_data(rng, True, beta, False)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=beta, update_rule=update_rule, max_iter=200, tol=1e-3,
+              loss_every=3, alpha_W=0.01, alpha_H=0.02, l1_ratio=0.3)
+    r_mem = beta_nmf(X, K, **kw)
+    r_dask = beta_nmf(to_dask(X), K, **kw)
+    assert r_mem.converged and r_mem.n_iter < 200
+    assert_same_fit(r_mem, r_dask)
+
+
+def test_same_random_start_and_rescaled_data(rng):
+    """init='random' draws H then W chunk by chunk from one stream: the start of the in-memory fit.
+
+    X far from 1 goes through the power-of-two rescaling of beta_nmf (scale computed from the chunks' maxima).
+    """
+    X = rng.poisson(2.0, (N, M)).astype(np.float64) * 2.0**40
+    kw = dict(init="random", random_state=7, beta_loss=1.0, max_iter=8, tol=0, loss_every=4)
+    r_mem = beta_nmf(X, K, **kw)
+    r_dask = beta_nmf(to_dask(X), K, **kw)
+    assert_same_fit(r_mem, r_dask)
+    assert r_mem.loss_history[0] > 1e10  # in X's units
+
+
+def test_max_iter_zero_and_float32(rng):
+    X, _, W0, H0 = make_data(rng, False, 1.0, False)
+    r = beta_nmf(to_dask(X), K, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=0, tol=0)
+    assert r.n_iter == 0 and rel(r.W.compute(), W0) == 0 and rel(r.H, H0) == 0
+    X32, W32, H32 = X.astype(np.float32), W0.astype(np.float32), H0.astype(np.float32)
+    kw = dict(init="custom", W=W32, H=H32, beta_loss=0.5, max_iter=15, tol=0)
+    r_mem = beta_nmf(X32, K, **kw)
+    r_dask = beta_nmf(to_dask(X32), K, **kw)
+    assert r_dask.H.dtype == np.float32 and r_dask.W.dtype == np.float32 and r_dask.W.compute().dtype == np.float32
+    assert rel(r_dask.W.compute(), r_mem.W) < 1e-4 and rel(r_dask.H, r_mem.H) < 1e-4
+
+
+def test_nndsvd_start_from_dask_svd(rng):
+    """NNDSVD from dask's randomized SVD: not the in-memory start, but an SVD start as good as it."""
+    X = sp.random(N, M, density=0.4, format="csr", random_state=np.random.RandomState(3),
+                  data_rvs=lambda size: rng.poisson(3.0, size) + 1.0)
+    for init in ("nndsvd", "nndsvda", "nndsvdar"):
+        r_mem = beta_nmf(X, K, init=init, random_state=0, beta_loss=2.0, max_iter=0)
+        r_dask = beta_nmf(to_dask(X), K, init=init, random_state=0, beta_loss=2.0, max_iter=0)
+        assert r_dask.loss_history[0] == pytest.approx(r_mem.loss_history[0], rel=0.02)
+        assert (r_dask.H >= 0).all() and (r_dask.W.compute() >= 0).all()
+    with pytest.raises(ParameterError, match="n_components <= min"):
+        beta_nmf(to_dask(X), M + 1, init="nndsvd")
+
+
+# ------------------------------------------------------------------------------ the estimator
+
+
+def test_estimator_fit_transform_transform_features_mask(rng):
+    X, mask, W0, H0 = make_data(rng, True, 1.0, True)
+    Xd, Md = to_dask(X), to_dask(mask)
+    a = NMF(K, beta_loss=1.0, init="custom", max_iter=10, tol=0)
+    b = NMF(K, beta_loss=1.0, init="custom", max_iter=10, tol=0)
+    Wa = a.fit_transform(X, mask=mask, W=W0, H=H0)
+    Wb = b.fit_transform(Xd, mask=Md, W=W0, H=H0)
+    assert nd.is_dask_array(Wb) and Wb.chunks[0] == ROW_CHUNKS
+    assert isinstance(b.components_, np.ndarray)
+    assert rel(Wb.compute(), Wa) < RTOL and rel(b.components_, a.components_) < RTOL
+    assert b.reconstruction_err_ == pytest.approx(a.reconstruction_err_, rel=1e-10)
+    # transform with a feature subset, a mask, and a dead column (every atom zero there)
+    b.components_[:, 3] = 0.0
+    a.components_ = b.components_.copy()
+    cols = np.r_[1:9, 12]
+    for m_mem, m_dask in ((None, None), (mask[:, cols], to_dask(mask[:, cols])), (mask[:, cols], mask[:, cols])):
+        Ta = a.transform(X[:, cols], features=cols, mask=m_mem)
+        Tb = b.transform(to_dask(X[:, cols]), features=cols, mask=m_dask)
+        assert nd.is_dask_array(Tb) and Tb.chunks[0] == ROW_CHUNKS
+        assert rel(Tb.compute(), Ta) < RTOL
+    R = b.inverse_transform(Tb, features=[0, 2])
+    assert nd.is_dask_array(R) and rel(R.compute(), a.inverse_transform(Ta, features=[0, 2])) < RTOL
+
+
+def test_transform_stopping_rule_matches(rng):
+    X, _, _, _ = make_data(rng, False, 0.5, False)
+    model = NMF(K, beta_loss=0.5, init="random", random_state=0, max_iter=30, tol=0).fit(X)
+    model.set_params(tol=1e-2, max_iter=500, loss_every=4)
+    Ta = model.transform(X)
+    Tb = model.transform(to_dask(X)).compute()
+    assert rel(Tb, Ta) < RTOL
+
+
+def test_local_cluster_equals_in_memory(rng):
+    """A LocalCluster of two single-threaded workers (threads, 127.0.0.1): the same fit."""
+    distributed = pytest.importorskip("distributed")
+    X, mask, W0, H0 = make_data(rng, True, 1.0, True)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0)
+    r_mem = beta_nmf(X, K, mask=mask, **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1", protocol="tcp://",
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        Xd = client.persist(to_dask(X))
+        Md = client.persist(to_dask(mask))
+        with dask.config.set(scheduler=client):
+            r_dask = beta_nmf(Xd, K, mask=Md, **kw)
+            W = r_dask.W.compute()
+    assert rel(W, r_mem.W) < RTOL and rel(r_dask.H, r_mem.H) < RTOL
+
+
+# ------------------------------------------------------------------------------ out of core
+
+
+@pytest.mark.parametrize("sparse", [False, True], ids=["dense", "sparse"])
+def test_npz_chunks_round_trip(tmp_path, rng, sparse):
+    X, _, _, _ = make_data(rng, sparse, 1.0, False)
+    folder = nd.save_npz_chunks(X, tmp_path / "x", chunk_rows=30)
+    Xd = nd.load_npz_chunks(folder)
+    assert Xd.chunks == ((30, 30, 30, 10), (M,)) and Xd.dtype == X.dtype
+    back = Xd.compute()
+    assert sp.issparse(back) == sparse
+    assert np.array_equal(back.toarray() if sparse else back, X.toarray() if sparse else X)
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        nd.save_npz_chunks(X, folder)
+    # a dask array keeps its chunks; a generator of chunks works
+    nd.save_npz_chunks(to_dask(X), tmp_path / "y")
+    assert nd.load_npz_chunks(tmp_path / "y").chunks[0] == ROW_CHUNKS
+    nd.save_npz_chunks((X[a:a + 50] for a in range(0, N, 50)), tmp_path / "z")
+    assert nd.load_npz_chunks(tmp_path / "z").chunks[0] == (50, 50)
+
+
+def test_out_of_core_fit_equals_in_memory_never_whole(tmp_path, rng, monkeypatch):
+    X, mask, W0, H0 = make_data(rng, True, 1.0, True)
+    folder = nd.save_npz_chunks(X, tmp_path / "x", chunk_rows=20)
+    mfolder = nd.save_npz_chunks(mask.astype(np.float64), tmp_path / "m", chunk_rows=20)
+    live: list = []
+    peak = [0]
+    load = nd._load_chunk
+
+    def counting_load(*args):
+        out = load(*args)
+        live.append(weakref.ref(out))
+        peak[0] = max(peak[0], sum(r() is not None for r in live))
+        return out
+
+    monkeypatch.setattr(nd, "_load_chunk", counting_load)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=7, tol=0, loss_every=3)
+    r_mem = beta_nmf(X, K, mask=mask, **kw)
+    r_ooc = nd.beta_nmf_out_of_core(folder, K, out=tmp_path / "W", mask=mfolder, **kw)
+    assert peak[0] == 2  # one chunk of X and its chunk of the mask at a time, never the 5 + 5
+    assert rel(r_ooc.W.compute(), r_mem.W) < RTOL and rel(r_ooc.H, r_mem.H) < RTOL
+    assert rel(r_ooc.loss_history, r_mem.loss_history) < RTOL
+    written = nd.load_npz_chunks(tmp_path / "W")
+    assert written.chunks == ((20,) * 5, (K,))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["W", "m", "x"]  # no working folder left behind
+
+
+def test_out_of_core_random_start(tmp_path, rng):
+    X = rng.poisson(1.0, (N, M)).astype(np.float64)
+    folder = nd.save_npz_chunks(X, tmp_path / "x", chunk_rows=33)
+    r_mem = beta_nmf(X, K, init="random", random_state=3, beta_loss=2.0, max_iter=5, tol=0)
+    r_ooc = nd.beta_nmf_out_of_core(folder, K, out=tmp_path / "W", random_state=3, beta_loss=2.0, max_iter=5, tol=0)
+    assert rel(r_ooc.W.compute(), r_mem.W) < RTOL and rel(r_ooc.H, r_mem.H) < RTOL
+
+
+# ------------------------------------------------------------------------------ bad input
+
+
+def test_unknown_chunk_sizes(rng):
+    X = to_dask(rng.random((N, M)))
+    Xn = X[X[:, 0] > 0.3]
+    with pytest.raises(DataError, match=r"unknown chunk sizes.*compute_chunk_sizes"):
+        beta_nmf(Xn, K)
+
+
+def test_column_chunks(rng):
+    X = da.from_array(rng.random((N, M)), chunks=(50, 8))
+    with pytest.raises(DataError, match=r"rows only.*3 column chunks.*rechunk\(\{1: -1\}\)"):
+        beta_nmf(X, K)
+    with pytest.raises(DataError, match="column chunks"):
+        NMF(K).fit(X)
+
+
+def test_mask_chunks_must_match(rng):
+    X, mask, _, _ = make_data(rng, False, 1.0, True)
+    with pytest.raises(DataError, match=r"chunked like X.*expected row chunks \(23, 40, 1, 36\).*rechunk"):
+        beta_nmf(to_dask(X), K, mask=da.from_array(mask, chunks=(50, -1)))
+    with pytest.raises(DataError, match="shape of X"):
+        beta_nmf(to_dask(X), K, mask=to_dask(mask[:, :5]))
+    with pytest.raises(DataError, match="X is not"):
+        beta_nmf(X, K, mask=to_dask(mask))
+
+
+def test_negative_value_in_late_chunk_names_it_and_writes_no_w(tmp_path, rng):
+    X = rng.random((N, M))
+    X[95, 3] = -1.0  # in the last chunk (rows 64 to 99)
+    with pytest.raises(DataError, match=r"chunk 3 \(rows 64 to 99\).*Negative"):
+        beta_nmf(to_dask(X), K, init="random", random_state=0)
+    folder = nd.save_npz_chunks(sp.csr_matrix(X), tmp_path / "x", chunk_rows=25)
+    with pytest.raises(DataError, match=r"chunk 3 \(rows 75 to 99\)"):
+        nd.beta_nmf_out_of_core(folder, K, out=tmp_path / "W", beta_loss=1.0, max_iter=3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x"]  # no W, no working folder
+
+
+def test_zero_with_beta_nonpositive_names_chunk(rng):
+    X = rng.random((N, M)) + 0.5
+    X[70, 0] = 0.0
+    with pytest.raises(DataError, match=r"chunk 3 .*beta_loss=0 is undefined"):
+        beta_nmf(to_dask(X), K, beta_loss=0.0, init="random")
+
+
+def test_unsupported_options_and_partial_fit(rng):
+    X = to_dask(rng.random((N, M)))
+    with pytest.raises(ParameterError, match="solver='pg'.*solver='mu'"):
+        beta_nmf(X, K, solver="pg")
+    with pytest.raises(ParameterError, match="sparseness_W/sparseness_H"):
+        beta_nmf(X, K, sparseness_H=0.5)
+    with pytest.raises(DataError, match="partial_fit takes one in-memory batch"):
+        NMF(K).partial_fit(X)
+
+
+def test_broken_chunk_folders(tmp_path, rng):
+    with pytest.raises(DataFormatError, match="no manifest.json"):
+        nd.load_npz_chunks(tmp_path)
+    folder = nd.save_npz_chunks(rng.random((10, 3)), tmp_path / "x", chunk_rows=4)
+    (folder / "manifest.json").write_text('{"format": "something else"}')
+    with pytest.raises(DataFormatError, match="not a manifest"):
+        nd.load_npz_chunks(folder)
+    folder = nd.save_npz_chunks(rng.random((10, 3)), tmp_path / "y", chunk_rows=4)
+    np.savez(folder / "chunk-000001.npz", X=np.ones((5, 3)))
+    with pytest.raises(DataFormatError, match=r"chunk 1 .* has shape \(5, 3\); the manifest says \(4, 3\)"):
+        nd.load_npz_chunks(folder).compute()
+
+
+def test_package_works_without_dask():
+    code = (
+        "import sys; sys.modules['dask'] = None; sys.modules['dask.array'] = None\n"
+        "import numpy as np\n"
+        "from mmconcepts.nmf import NMF, _dask\n"
+        "W = NMF(2, max_iter=5, tol=0, init='random', random_state=0).fit_transform(np.ones((6, 4)) + np.eye(6, 4))\n"
+        "assert W.shape == (6, 2)\n"
+        "try:\n"
+        "    _dask.load_npz_chunks('.')\n"
+        "except ImportError as exc:\n"
+        "    assert 'mmconcepts[dask]' in str(exc), exc\n"
+        "else:\n"
+        "    raise SystemExit('no ImportError')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+
+
+def test_warns_like_in_memory(rng):
+    X, _, W0, H0 = make_data(rng, False, 2.0, False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        beta_nmf(to_dask(X), K, init="custom", W=W0, H=H0, max_iter=2, tol=1e-12)
+    assert any("max_iter=2" in str(w.message) for w in caught)
