@@ -192,6 +192,11 @@ def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus
     for (srcs, _), f in zip(data["sound_plan"], data["fold"]):
         for s in srcs:
             assert owner.setdefault(s, int(f)) == int(f)
+    # every fold has single-concept examples of every concept (its references), each concept equally often
+    single = data["kind"] == "single"
+    for f in range(TINY.n_folds):
+        assert (data["Y"][single & (data["fold"] == f)].sum(0) >= 1).all()
+    assert np.ptp(data["Y"][single].sum(0)) <= 1
     # the held-out combinations partition the possible pairs and triples
     held = data["held_out"]
     assert sum(len(h) for h in held) == data["n_possible"] == len(set().union(*held))
@@ -231,6 +236,8 @@ def test_config_bad_input(tone_corpus, tmp_path):
         ch7.build_data(ctx, dataclasses.replace(TINY, max_concepts=11))
     with pytest.raises(ParameterError, match="n_folds"):
         ch7.build_data(ctx, dataclasses.replace(TINY, n_folds=1))
+    with pytest.raises(ParameterError, match="references"):
+        ch7.build_data(ctx, dataclasses.replace(TINY, n_single=19))
 
 
 # --------------------------------------------------------------------------- a reduced run
@@ -266,7 +273,7 @@ def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus,
 def test_real_data_builders(tmp_path):
     fsdd, msr = real_data_path("fsdd"), real_data_path("msr-action3d")
     ctx = RunContext(data={"fsdd": fsdd, "msr-action3d": msr}, cache_dir=tmp_path, workers=1, show_progress=False)
-    cfg = dataclasses.replace(ch7.Config.quick(), n_compositional=30, n_single=20)
+    cfg = dataclasses.replace(ch7.Config.quick(), n_compositional=30, n_single=40)
     data = ch7.build_data(ctx, cfg)
     assert data["real_motion"] and data["speech_source"] == "fsdd" and len(data["keywords"]) == 10
     assert sorted(data["mapping"].values()) == sorted(common.MSR_VOCABULARY.gestures)
@@ -274,7 +281,24 @@ def test_real_data_builders(tmp_path):
         assert sorted(data["mapping"][k] for k in kws) == sorted(gs)
     assert all(a.ndim == 2 and a.shape[1] == 16 and np.isfinite(a).all() for a in data["angles"])
     mf = ch7.utterance_mfcc(ctx, data)
-    assert len(mf) == 50 and all(x.shape[1] == 22 for x in mf)
+    assert len(mf) == 70 and all(x.shape[1] == 22 for x in mf)
     # an utterance of 3 words lasts about 3 words and 2 pauses: longer on average than twice a single word
     frames = {n: np.mean([len(mf[i]) for i, c in enumerate(data["combos"]) if len(c) == n]) for n in (1, 3)}
     assert frames[3] > 2 * frames[1]
+
+
+def test_example_scores_average_to_the_chapter3_scorers():
+    from mmconcepts.nmf import l_full, l_given_number
+
+    rng = np.random.default_rng(5)
+    Y = np.zeros((400, 10), dtype=int)
+    for i in range(400):
+        Y[i, rng.choice(10, 1 + i % 3, replace=False)] = 1
+    A = np.round(rng.random((400, 10)) + 0.6 * Y, 1)  # rounding makes ties, which count as failures
+    for eta in (0.3, 0.6, 0.9):
+        gn, full = common.example_scores(Y, A, eta)
+        assert set(np.unique(gn)) <= {0.0, 1.0} and set(np.unique(full)) <= {0.0, 1.0}
+        assert gn.mean() == pytest.approx(l_given_number(Y, A))
+        assert full.mean() == pytest.approx(l_full(Y, A, threshold=eta))
+        for mask in (np.arange(400) % 3 == 0, Y.sum(1) == 2):  # subsets score as the scorers on the subset
+            assert gn[mask].mean() == pytest.approx(l_given_number(Y[mask], A[mask]))

@@ -60,7 +60,7 @@ from ..errors import DataError, ParameterError
 __all__ = ["SLOTS", "Vocabulary", "MSR_VOCABULARY", "MSR_IDLE_DONORS", "SYNTHETIC_VOCABULARY",
            "concept_bijection", "draw_combinations", "possible_combinations", "held_out_combinations",
            "check_pairing", "compose_utterance", "compose_msr_motion", "simulate_motion", "combination_retrieval",
-           "decompose_on_references", "given_number_chance", "label_matrix"]
+           "decompose_on_references", "example_scores", "given_number_chance", "label_matrix"]
 
 #: The limb groups a gesture is done with; a motion shows at most one gesture per slot.
 SLOTS = ("right_arm", "left_arm", "legs")
@@ -412,6 +412,34 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
     A = A.astype(np.float64)
     s = A.sum(axis=1, keepdims=True)
     return np.divide(A, s, out=np.zeros_like(A), where=s > 0)
+
+
+def example_scores(Y: np.ndarray, A: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-example l_given_number and l_full (thesis section 3.3.3) of concept shares ``A``.
+
+    The per-example terms whose means are :func:`mmconcepts.nmf.l_given_number` and
+    :func:`mmconcepts.nmf.l_full` (with ``threshold``), so that subsets of the test
+    examples can be scored from one decomposition: an example counts for
+    l_given_number when every true concept scores strictly higher than every other one,
+    for l_full when the concepts scoring ``>= threshold`` are exactly the true ones.
+
+    Parameters
+    ----------
+    Y : binary ndarray of shape (n_examples, n_concepts)
+    A : ndarray of shape (n_examples, n_concepts)
+    threshold : float
+
+    Returns
+    -------
+    given_number, full : float ndarrays of shape (n_examples,), 0 or 1
+    """
+    Yt = np.asarray(Y).astype(bool)
+    A = np.asarray(A, dtype=np.float64)
+    if Yt.shape != A.shape:
+        raise DataError(f"Y and A must have the same shape; got {Yt.shape} and {A.shape}.")
+    min_true = np.where(Yt, A, np.inf).min(axis=1)
+    max_other = np.where(Yt, -np.inf, A).max(axis=1)
+    return (min_true > max_other).astype(float), ((A >= float(threshold)) == Yt).all(axis=1).astype(float)
 
 
 def given_number_chance(n_labels: int, counts: Sequence[int]) -> float:

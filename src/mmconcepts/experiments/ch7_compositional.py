@@ -59,6 +59,8 @@ MEASURES = ("retrieval", "l_given_number", "l_full")
 SUBSET_TITLES = {"": "2-3 concepts (all)", "seen.": "2-3 concepts, combination seen in training",
                  "unseen.": "2-3 concepts, combination unseen in training", "n1.": "1 concept", "n2.": "2 concepts",
                  "n3.": "3 concepts"}
+SHORT_TITLES = {"": "2-3 concepts", "seen.": "2-3, seen\ncombination", "unseen.": "2-3, unseen\ncombination",
+                "n1.": "1 concept", "n2.": "2 concepts", "n3.": "3 concepts"}
 LEARNER_TITLES = {"": "compositional", "shuffled.": "shuffled pairs (control)",
                   "single_trained.": "single-concept trained"}
 _PAUSES_S = (0.1, 0.3)
@@ -159,17 +161,23 @@ def build_data(ctx: RunContext, config: Config, st: Streams | None = None) -> di
     counts = list(range(config.min_concepts, config.max_concepts + 1))
     if config.max_concepts > L:
         raise ParameterError(f"max_concepts = {config.max_concepts} is above the vocabulary of {L} concepts.")
-    combos = (common.draw_combinations(config.n_compositional, counts, slots, rng)
-              + common.draw_combinations(config.n_single, (1,), slots, rng))
+    F = config.n_folds
+    if config.n_single < L * F:
+        raise ParameterError(f"n_single = {config.n_single} is below n_concepts x n_folds = {L} x {F}: every test "
+                             "fold needs a single-concept example of every concept (its references); give more "
+                             "single-concept examples or fewer folds.")
+    # single concepts: every concept equally often (whole random permutations of the concepts)
+    cycle = np.concatenate([rng.permutation(L) for _ in range(-(-config.n_single // L))])[: config.n_single]
+    combos = common.draw_combinations(config.n_compositional, counts, slots, rng) + [(int(c),) for c in cycle]
     kind = np.array(["compositional"] * config.n_compositional + ["single"] * config.n_single)
     n = len(combos)
-    F = config.n_folds
-    # folds: sources split within each keyword / action, examples dealt round robin within each kind
+    # folds: sources split within each keyword / action; compositional examples dealt round robin, single-concept
+    # ones within each concept (so every fold has each concept's references)
     rec_fold = concept_parts(y_rec, F, frng)
     fold = np.empty(n, dtype=np.int64)
-    for k in ("compositional", "single"):
-        idx = frng.permutation(np.flatnonzero(kind == k))
-        fold[idx] = np.arange(idx.size) % F
+    idx = frng.permutation(np.flatnonzero(kind == "compositional"))
+    fold[idx] = np.arange(idx.size) % F
+    fold[kind == "single"] = concept_parts(cycle, F, frng)
     possible = [c for m in counts if m > 1 for c in common.possible_combinations(slots, m)]
     held_out = common.held_out_combinations(possible, F, frng)
     motion = _msr_sources(ctx.data["msr-action3d"]) if real_motion else None
@@ -352,22 +360,14 @@ def _fold(task: dict) -> dict:
                 A = _naming(model, W, target, refs["test"][target])
                 A_cal = _naming(model, W_cal, target, refs["cal"][target])
                 eta = _best_threshold(Y[cal], A_cal)
-                Yt = Y[te].astype(bool)
-                min_true = np.where(Yt, A, np.inf).min(axis=1)
-                max_other = np.where(Yt, -np.inf, A).max(axis=1)
-                out[f"{name}{d}.l_given_number"] = (min_true > max_other).astype(float)
-                out[f"{name}{d}.l_full"] = ((A >= eta) == Yt).all(axis=1).astype(float)
+                out[f"{name}{d}.l_given_number"], out[f"{name}{d}.l_full"] = common.example_scores(Y[te], A, eta)
                 out[f"{name}{d}.threshold"] = eta
         # ceiling of the naming protocol: the target modality *observed* (not reconstructed) decomposed on the
         # same references, threshold from the same calibration examples
         for d, (X, target) in {"s2m": (M, "motion"), "m2s": (S, "sound")}.items():
             A = _observed_shares(X, rows(te), refs["test"][target])
             eta = _best_threshold(Y[cal], _observed_shares(X, rows(cal), refs["cal"][target]))
-            Yt = Y[te].astype(bool)
-            min_true = np.where(Yt, A, np.inf).min(axis=1)
-            max_other = np.where(Yt, -np.inf, A).max(axis=1)
-            out[f"observed.{d}.l_given_number"] = (min_true > max_other).astype(float)
-            out[f"observed.{d}.l_full"] = ((A >= eta) == Yt).all(axis=1).astype(float)
+            out[f"observed.{d}.l_given_number"], out[f"observed.{d}.l_full"] = common.example_scores(Y[te], A, eta)
     return out
 
 
@@ -598,8 +598,9 @@ def present(result: Result, config: Config) -> dict[str, Figure]:
             else:
                 ax.scatter(x, [m[f"{s}chance.{measure}"] for s in SUBSETS], color="k", marker="_", s=200, zorder=3,
                            label="chance")
-            ax.set_xticks(x, [SUBSET_TITLES[s].replace(", combination ", "\n").replace(" concepts", "c")
-                              .replace(" concept", "c") for s in SUBSETS], fontsize=7)
+                ax.scatter(x, [m[f"{s}observed.{d}.{measure}"] for s in SUBSETS], color="0.4", marker="x", zorder=3,
+                           label="other modality observed (ceiling of the naming protocol)")
+            ax.set_xticks(x, [SHORT_TITLES[s] for s in SUBSETS], fontsize=7)
             ax.set_title({"s2m": "from the utterance (sound -> motion)", "m2s": "from the motion (motion -> sound)"}[d],
                          fontsize=9)
             ax.set_ylim(0, 1)
