@@ -15,6 +15,8 @@ import weakref
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
 dask = pytest.importorskip("dask")
 da = pytest.importorskip("dask.array")
@@ -94,6 +96,35 @@ def test_same_iterates_as_in_memory(rng, beta, sparse, masked):
     assert r_dask.W.chunks == (ROW_CHUNKS, (K,))
     assert_same_fit(r_mem, r_dask)
     assert list(r_mem.loss_iterations) == [0, 5, 10, 12]
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cuts=st.lists(st.integers(0, N), min_size=0, max_size=5), beta=st.sampled_from([0.5, 1.0, 2.0]),
+       sparse=st.booleans())
+@example(cuts=[N, 50], beta=1.0, sparse=True)  # an empty last chunk
+@example(cuts=[], beta=2.0, sparse=False)  # one chunk
+def test_any_row_chunking_gives_the_same_fit(cuts, beta, sparse):
+    """Property: however X is cut into row chunks (empty chunks included), the fit is the in-memory one."""
+    bounds = sorted({0, N, *cuts}) + ([N] if N in cuts else [])  # a repeated cut at N gives an empty last chunk
+    chunks = tuple(b - a for a, b in zip(bounds[:-1], bounds[1:]))
+    X, mask, W0, H0 = make_data(np.random.default_rng(len(cuts)), sparse, beta, True)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=beta, max_iter=4, tol=0, loss_every=2)
+    r_mem = beta_nmf(X, K, mask=mask, **kw)
+    r_dask = beta_nmf(to_dask(X, chunks), K, mask=to_dask(mask, chunks), **kw)
+    assert r_dask.W.chunks[0] == chunks
+    assert_same_fit(r_mem, r_dask)
+
+
+def test_chunk_with_no_observed_cell(rng):
+    """A mask chunk that observes nothing is valid (only a mask observing nothing at all is refused)."""
+    X, mask, W0, H0 = make_data(rng, False, 1.0, True)
+    mask[23:63] = False  # the whole second chunk
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=5, tol=0)
+    r_mem = beta_nmf(X, K, mask=mask, **kw)
+    r_dask = beta_nmf(to_dask(X), K, mask=to_dask(mask), **kw)
+    assert_same_fit(r_mem, r_dask)
+    with pytest.raises(DataError, match="observes no cell"):
+        beta_nmf(to_dask(X), K, mask=to_dask(np.zeros_like(mask)), **kw)
 
 
 @pytest.mark.parametrize("beta, update_rule", [(0.5, "heuristic"), (3.0, "mm"), (1.0, "mm")])

@@ -19,6 +19,13 @@ k x n_features per chunk and per iteration. The objective of iteration i is comp
 pass of iteration i + 1 (one extra pass after the last), so the stopping rule and the iterates
 are those of :func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of the sums.
 
+Memory
+------
+``beta_nmf`` of a dask array keeps, in the cluster's memory and for the whole fit, each chunk's
+validated rows (with their CSR transpose when sparse, as the in-memory solver does) and its rows
+of W: about twice the nonzeros of X plus n_samples x k, spread over the workers. The client
+holds H and the sums (a few n_features x k arrays).
+
 Out of core
 -----------
 A matrix too large for memory is stored as a folder of ``.npz`` row chunks (the layout of
@@ -292,7 +299,7 @@ def load_npz_chunks(folder: str | os.PathLike[str]):
     rows = tuple(int(e["rows"]) for e in man["chunks"])
     dtype, sparse = str(np.dtype(man["dtype"])), bool(man["sparse"])
     name = "npz-chunks-" + uuid.uuid4().hex
-    layer = {(name, i, 0): (_load_chunk, str(folder / e["file"]), rows[i], m, dtype, sparse, i)
+    layer: dict[Any, Any] = {(name, i, 0): (_load_chunk, str(folder / e["file"]), rows[i], m, dtype, sparse, i)
              for i, e in enumerate(man["chunks"])}
     graph = HighLevelGraph.from_collections(name, layer, dependencies=[])
     meta = sp.csr_matrix((0, 0), dtype=dtype) if sparse else np.empty((0, 0), dtype=dtype)
@@ -628,6 +635,10 @@ def _prepare_w(w: Any, spec: _ChunkSpec, k: int, dtype: str, divide: float, w_ou
     return _store_w(A, w_out)
 
 
+def _same(x: Any) -> Any:
+    return x
+
+
 def _scaled(w: Any, factor: float, dtype: str) -> np.ndarray:
     W = np.load(w, allow_pickle=False) if isinstance(w, str) else w
     return W * np.dtype(dtype).type(factor) if factor != 1.0 else W
@@ -953,7 +964,7 @@ def _svd_block(x, m, spec: _ChunkSpec, beta: float, scale: float, fill: float | 
     if Mv is None:
         return Xv.astype(np.float64)
     dense_m = Mv.toarray() if sp.issparse(Mv) else Mv
-    return np.where(dense_m, Xv.toarray() if sp.issparse(Xv) else Xv, fill).astype(np.float64)
+    return np.asarray(np.where(dense_m, Xv.toarray() if sp.issparse(Xv) else Xv, fill), dtype=np.float64)
 
 
 def _run_pass(store: _WStore, tasks: list, n_parts: int, update: bool, split_every: int, dask):
@@ -1100,10 +1111,16 @@ def _finish_w(store: _WStore, W_refs, specs, k: int, dtype, scale_W: float, w_fo
     import dask.array as da
 
     if w_folder is None:
-        blocks = [da.from_delayed(dask.delayed(_scaled)(w, scale_W, str(dtype)), shape=(s.stop - s.start, k),
-                                  dtype=dtype) for w, s in zip(W_refs, specs)]
-        out = da.concatenate(blocks, axis=0) if len(blocks) > 1 else blocks[0]
-        return out.persist() if scale_W != 1.0 else out
+        from dask.highlevelgraph import HighLevelGraph
+
+        parts = [dask.delayed(_scaled)(w, scale_W, str(dtype)) for w in W_refs]
+        if scale_W != 1.0:
+            parts = list(dask.persist(*parts))
+        name = "nmf-W-" + uuid.uuid4().hex  # built by hand: da.concatenate would drop empty chunks
+        layer: dict[Any, Any] = {(name, i, 0): (_same, p.key) for i, p in enumerate(parts)}
+        graph = HighLevelGraph.from_collections(name, layer, dependencies=parts)
+        return da.Array(graph, name, chunks=(tuple(s.stop - s.start for s in specs), (k,)), dtype=dtype,
+                        meta=np.empty((0, 0), dtype=dtype))
     save_npz_chunks((_scaled(w, scale_W, str(dtype)) for w in W_refs), w_folder, overwrite=True)
     return load_npz_chunks(w_folder)
 
@@ -1140,7 +1157,9 @@ def beta_nmf_out_of_core(
         A folder of chunks, or a dask array, chunked like X; True where X is observed.
     **kwargs
         The options of :func:`~mmconcepts.nmf.beta_nmf` (multiplicative updates only).
-        Default ``init='random'`` (NNDSVD would hold its SVD's U in memory).
+        Default ``init='random'`` (NNDSVD would hold its SVD's U in memory). Also
+        ``in_flight`` (default 2): chunks read and updated at once, and ``split_every``
+        (default 8): the fan-in of the tree summing their statistics.
 
     Returns
     -------
