@@ -31,9 +31,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from pathlib import Path
-
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -272,7 +272,7 @@ class LabelSetData:
     n_source : the number of the speaker's recordings it was built from.
     """
 
-    corpus: object
+    corpus: Any
     Y: np.ndarray
     keywords: list[str]
     fold: np.ndarray

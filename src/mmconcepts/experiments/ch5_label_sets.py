@@ -43,7 +43,7 @@ import warnings
 from collections import Counter
 from dataclasses import dataclass
 from math import comb
-from typing import Any
+from typing import cast
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -214,7 +214,7 @@ def _fold(task: dict) -> dict:
     n_conv = sum(issubclass(w.category, ConvergenceWarning) for w in caught)
     out = {"nmf": _scores(Yte, S, P), "voting": _scores(Yte, V, Pv), "chance_learner": _scores(Yte, Sc, Pc),
            "uniform": uniform_chance(Yte, Ytr)}
-    return {**out, "test": te, "S": S, "P": P, "V": V, "Pv": Pv, "nmf_threshold": float(model.threshold_),
+    return {**out, "test": te, "S": S, "P": P, "V": V, "Pv": Pv, "nmf_threshold": float(cast(float, model.threshold_)),
             "voting_threshold": eta, "zero_weight": zero_weight, "unsettled": n_conv}
 
 

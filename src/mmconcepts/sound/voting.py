@@ -164,7 +164,15 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     def partial_fit(self, bags: Sequence[np.ndarray], tags: Sequence[Any] | np.ndarray) -> EventVoting:
         """Add training utterances: ``bags[j]`` (event ids, repeats allowed) with ``tags[j]``.
 
-        A tag is any hashable; a tuple, list or set of tags marks an utterance with several.
+        A tag is any hashable; a tuple, list or set of tags marks an utterance with several
+        (each tag of the set counts the utterance's events; a tag repeated in the set counts
+        once).
+
+        Raises
+        ------
+        DataError
+            Different numbers of bags and tags, a bag that is not 1-D integer ids, or an
+            empty tag set (an utterance must say at least one tag to be counted).
         """
         self._check_params()
         if not hasattr(self, "classes_"):
