@@ -229,6 +229,23 @@ def test_local_cluster_equals_in_memory(rng):
     assert rel(W, r_mem.W) < RTOL and rel(r_dask.H, r_mem.H) < RTOL
 
 
+def test_hstack_row_chunks_for_modalities(rng):
+    """Modalities side by side, chunk by chunk: the in-memory stack, fitted alike."""
+    X1, _, _, _ = make_data(rng, True, 1.0, False)
+    X2 = rng.random((N, 5))
+    S = nd.hstack_row_chunks([to_dask(X1), to_dask(X2)], [0.5, 2.0], names=["sound", "motion"])
+    assert S.chunks == (ROW_CHUNKS, (M + 5,))
+    ref = sp.hstack([X1 * 0.5, sp.csr_matrix(X2 * 2.0)], format="csr")
+    assert rel(S.compute().toarray(), ref.toarray()) == 0
+    W0, H0 = rng.random((N, K)) + 0.1, rng.random((K, M + 5)) + 0.1
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=4, tol=0)
+    assert_same_fit(beta_nmf(ref, K, **kw), beta_nmf(S, K, **kw))
+    with pytest.raises(DataError, match=r"motion must have the row chunks of sound"):
+        nd.hstack_row_chunks([to_dask(X1), da.from_array(X2, chunks=(50, -1))], names=["sound", "motion"])
+    with pytest.raises(DataError, match="must be a dask array"):
+        nd.hstack_row_chunks([to_dask(X1), X2])
+
+
 # ------------------------------------------------------------------------------ out of core
 
 

@@ -79,6 +79,7 @@ __all__ = [
     "NPZ_CHUNKS_FORMAT",
     "beta_nmf_dask",
     "beta_nmf_out_of_core",
+    "hstack_row_chunks",
     "is_dask_array",
     "load_npz_chunks",
     "save_npz_chunks",
@@ -1123,6 +1124,70 @@ def _finish_w(store: _WStore, W_refs, specs, k: int, dtype, scale_W: float, w_fo
                         meta=np.empty((0, 0), dtype=dtype))
     save_npz_chunks((_scaled(w, scale_W, str(dtype)) for w in W_refs), w_folder, overwrite=True)
     return load_npz_chunks(w_folder)
+
+
+# ---------------------------------------------------------------------------------------------
+# Several dask arrays side by side (the modalities of a multimodal learner)
+
+
+def _hstack_chunk(weights: tuple[float, ...], *blocks: Any) -> Any:
+    scaled = [b * w if w != 1.0 else b for b, w in zip(blocks, weights)]
+    if any(sp.issparse(b) for b in scaled):
+        return sp.hstack([sp.csr_matrix(b) for b in scaled], format="csr")
+    return np.hstack([np.asarray(b) for b in scaled])
+
+
+def hstack_row_chunks(arrays: Sequence[Any], weights: Sequence[float] | None = None, *, names: Sequence[str] = ()):
+    """``[w_1 X_1, w_2 X_2, ...]`` side by side, chunk by chunk: a dask array with the row chunks of X_1.
+
+    For learners that fit several modalities with one factorization (the thesis' multimodal
+    NMF, section 6.1.2): each row chunk of the result stacks the matching row chunks of the
+    inputs (``scipy.sparse.hstack`` when any is sparse), so the fit still sees one column chunk.
+
+    Parameters
+    ----------
+    arrays : sequence of dask.array.Array of shape (n_samples, n_features_i)
+        Row chunks only, the same row chunks for all.
+    weights : sequence of float, optional
+        One factor per array (default 1).
+    names : sequence of str, optional
+        Names of the arrays for the error messages (e.g. the modalities).
+
+    Raises
+    ------
+    DataError
+        An array that is not a dask array, with unknown chunk sizes or column chunks, or whose row
+        chunks differ from the first one's.
+    """
+    _require_dask("hstack_row_chunks")
+    import dask.array as da
+    from dask.highlevelgraph import HighLevelGraph
+
+    arrays = list(arrays)
+    names = list(names) or [f"array {i}" for i in range(len(arrays))]
+    if not arrays:
+        raise DataError("hstack_row_chunks needs at least one array.")
+    for a, nm in zip(arrays, names):
+        if not is_dask_array(a):
+            raise DataError(f"{nm} must be a dask array like the others; got {type(a).__name__}. Convert it with "
+                            f"dask.array.from_array(..., chunks={arrays[0].chunks[0] if is_dask_array(arrays[0]) else '...'}).")
+        _check_row_chunks(a, nm)
+    rows = tuple(arrays[0].chunks[0])
+    for a, nm in zip(arrays[1:], names[1:]):
+        if tuple(a.chunks[0]) != rows:
+            raise DataError(f"{nm} must have the row chunks of {names[0]}, {rows}; got {tuple(a.chunks[0])}. "
+                            f"Fix: {nm} = {nm}.rechunk({{0: {rows}}}).")
+    w = tuple(float(v) for v in (weights if weights is not None else [1.0] * len(arrays)))
+    if len(w) != len(arrays):
+        raise ParameterError(f"weights must have one value per array ({len(arrays)}); got {len(w)}.")
+    name = "hstack-" + uuid.uuid4().hex
+    layer: dict[Any, Any] = {(name, i, 0): (_hstack_chunk, w, *[(a.name, i, 0) for a in arrays])
+                             for i in range(len(rows))}
+    graph = HighLevelGraph.from_collections(name, layer, dependencies=arrays)
+    sparse = any(sp.issparse(getattr(a, "_meta", None)) for a in arrays)
+    dtype = np.result_type(*[a.dtype for a in arrays], *[np.float64 for v in w if v != 1.0])
+    meta = sp.csr_matrix((0, 0), dtype=dtype) if sparse else np.empty((0, 0), dtype=dtype)
+    return da.Array(graph, name, chunks=(rows, (sum(a.shape[1] for a in arrays),)), dtype=dtype, meta=meta)
 
 
 # ---------------------------------------------------------------------------------------------
