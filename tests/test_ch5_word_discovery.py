@@ -61,6 +61,7 @@ def test_align_recovers_a_permuted_dictionary_and_the_control_does_not(rng):
     res = wd.align(Y, W)
     assert dict(zip(res["rows"], res["cols"])) == {int(p): j for j, p in enumerate(perm) if p < 5}
     assert np.all(res["fraction"] > 0.9) and 5 not in res["order"][:5]
+    assert [int(perm[j]) for j in res["order"][:5]] == res["word_order"]  # the figure's diagonal: matched pairs
     shuffled = wd.align(Y[rng.permutation(300)], W)
     assert shuffled["matched"].mean() < 0.2 * res["matched"].mean()
 
@@ -106,7 +107,11 @@ def test_ch5_word_discovery_small_on_tones(fake_fsdd, tmp_path):
     assert len(res.tables["matching"].rows) == 10
     for claim in wd.EXPERIMENT.claims:
         assert evaluate_rule(claim.rule, m) in (True, False)
-    assert set(wd.present(res, cfg)) == {"word_atoms"}
+    figs = wd.present(res, cfg)
+    assert set(figs) == {"word_atoms"}
+    image = figs["word_atoms"].axes[0].images[0].get_array()
+    first = res.figure_data
+    np.testing.assert_allclose(np.diag(image), first["mi"][first["word_order"], first["order"][:10]])
 
 
 def test_learner_seed_changes_the_atoms_not_the_data(fake_fsdd, tmp_path):
