@@ -363,9 +363,10 @@ def _fold(task: dict) -> dict:
                 out[f"{name}{d}.l_given_number"], out[f"{name}{d}.l_full"] = common.example_scores(Y[te], A, eta)
                 out[f"{name}{d}.threshold"] = eta
         # ceiling of the naming protocol: the target modality *observed* (not reconstructed) decomposed on the
-        # same references, threshold from the same calibration examples
+        # training folds' references (the test fold's would contain the observed recordings themselves), threshold
+        # from the same calibration examples
         for d, (X, target) in {"s2m": (M, "motion"), "m2s": (S, "sound")}.items():
-            A = _observed_shares(X, rows(te), refs["test"][target])
+            A = _observed_shares(X, rows(te), refs["cal"][target])
             eta = _best_threshold(Y[cal], _observed_shares(X, rows(cal), refs["cal"][target]))
             out[f"observed.{d}.l_given_number"], out[f"observed.{d}.l_full"] = common.example_scores(Y[te], A, eta)
     return out
@@ -530,7 +531,9 @@ def _source_notes(ctx: RunContext, data: dict, config: Config, sizes: dict) -> l
         f"{config.n_calibration} examples of the training folds (both kinds, the same set for every learner, with "
         "references from the training folds' single-concept examples). Chance: l_given_number of a random ranking "
         "(mean of 1 / C(10, n)); l_full of the most frequent calibration label set (0 on unseen combinations by "
-        "construction).",
+        "construction). Ceiling of the naming protocol ('other modality observed'): the test example's own "
+        "perception in the target modality decomposed the same way, on the training folds' references (the test "
+        "fold's hold the very recordings the test examples are made of).",
         "Uncertainty: every number is the mean over the folds, with the per-fold values as samples (all metrics come "
         "from the same folds, so claims compare them pairwise); chance.retrieval is exact.",
         "The claim that 3 concepts are harder than 2 could go either way (a triple fills every limb, so the "
