@@ -237,13 +237,9 @@ def case_scaling(args) -> dict:
                    worker_transfer_bytes_per_iter_1=statistics.median(traffic[1]),
                    worker_transfer_bytes_per_iter_2=statistics.median(traffic[2]),
                    loss_rel_diff_1_vs_2=abs(results[1] - results[2]) / results[1])
-        row["projection"] = project(row, bandwidth=args.bandwidth, latency=args.latency)
         print(f"scaling: {n} x {m}, {args.scaling_chunks} chunks: 1 worker {t1 * 1e3:.0f} ms/it, 2 workers "
               f"{t2 * 1e3:.0f} ms/it, speedup x{t1 / t2:.2f}; model {model / 1e6:.1f} MB/it, worker-to-worker "
               f"{row['worker_transfer_bytes_per_iter_2'] / 1e6:.1f} MB/it (2 workers)", flush=True)
-        for p, v in row["projection"].items():
-            print(f"  projected on {p:>3} machines: {v['s_per_iter'] * 1e3:.0f} ms/it "
-                  f"(compute {v['compute_s'] * 1e3:.0f}, communication {v['comm_s'] * 1e3:.0f})")
         return row
     finally:
         for cluster, client in clusters.values():
@@ -263,32 +259,62 @@ def _transfer_bytes(dask_worker=None) -> float:
 
 
 def project(row: dict, *, bandwidth: float, latency: float, machines=(8, 32, 128)) -> dict:
-    """Time per iteration on p machines from the 1- and 2-worker measurements.
+    """Time per iteration on p machines from the 1- and 2-worker measurements of the scaling case."""
+    h_bytes = row["k"] * row["shape"][1] * 8
+    part_bytes = max(row["model_bytes_per_iter"] / row["chunks"] - h_bytes, 0)
+    overhead = max(row["s_per_iter_2"] - row["s_per_iter_1"] / 2, 0.0)
+    return project_from(row["s_per_iter_1"], overhead, h_bytes, part_bytes, bandwidth=bandwidth, latency=latency,
+                        machines=machines)
 
-    compute(p) = t1 / p (the chunk work divides; at least one chunk per machine), plus the
-    overhead the 2-worker run showed beyond t1 / 2 (scheduling, serialisation), plus the
-    communication of one iteration: H (k x n_features) sent by the scheduler to each of the p
-    machines in turn, and the chunks' numerators/denominators summed in a tree of fan-in 8
-    (ceil(log8 p) levels, each receiving 8 of them), at ``bandwidth`` bytes/s and ``latency``
-    per message.
+
+def project_from(t1: float, overhead: float, h_bytes: float, part_bytes: float, *, bandwidth: float, latency: float,
+                 machines=(8, 32, 128)) -> dict:
+    """compute(p) + overhead + communication(p) for one iteration on p machines.
+
+    compute(p) = t1 / p: the chunk work divides (at least one chunk per machine); ``overhead`` is
+    what the 2-worker run showed beyond t1 / 2 (scheduling, serialisation), taken as constant.
+    Communication: H (k x n_features, ``h_bytes``) sent by the scheduler to each of the p
+    machines in turn (dask embeds it in the graph: p messages from one link), and the chunks'
+    numerators/denominators (``part_bytes`` each, k x n_features) summed in a tree of fan-in 8
+    (ceil(log8 p) levels, each reducer receiving 8 of them), at ``bandwidth`` bytes/s and
+    ``latency`` per message. ``tree_broadcast_s`` is the time with H sent down the same tree
+    instead (not what dask does today).
     """
     import math
 
-    t1, t2 = row["s_per_iter_1"], row["s_per_iter_2"]
-    overhead = max(t2 - t1 / 2, 0.0)
-    per_chunk = row["model_bytes_per_iter"] / row["chunks"]  # H + one partial
-    h_bytes = row["k"] * row["shape"][1] * 8
-    part_bytes = max(per_chunk - h_bytes, 0)
     out = {}
     for p in machines:
         levels = max(1, math.ceil(math.log(p, 8)))
-        comm = p * (h_bytes / bandwidth + latency) + levels * (8 * part_bytes / bandwidth + latency)
+        reduce_s = levels * (8 * part_bytes / bandwidth + latency)
+        comm = p * (h_bytes / bandwidth + latency) + reduce_s
+        tree_comm = levels * (8 * h_bytes / bandwidth + latency) + reduce_s
         compute = t1 / p
-        out[str(p)] = dict(compute_s=compute, overhead_s=overhead, comm_s=comm, s_per_iter=compute + overhead + comm)
+        out[str(p)] = dict(compute_s=compute, overhead_s=overhead, comm_s=comm, s_per_iter=compute + overhead + comm,
+                           tree_broadcast_s=compute + overhead + tree_comm)
     return out
 
 
 # ---------------------------------------------------------------------------------------------- main
+
+
+def _print_projections(rows: list, args) -> None:
+    sc = next((r for r in rows if r["case"] == "scaling"), None)
+    if sc is not None:
+        sc["projection"] = project(sc, bandwidth=args.bandwidth, latency=args.latency)
+        for p, v in sc["projection"].items():
+            print(f"  scaling case projected on {p:>3} machines: {v['s_per_iter'] * 1e3:.0f} ms/it "
+                  f"(compute {v['compute_s'] * 1e3:.0f}, overhead {v['overhead_s'] * 1e3:.0f}, "
+                  f"communication {v['comm_s'] * 1e3:.0f})")
+    ooc = next((r for r in rows if r["case"] == "outofcore"), None)
+    if ooc is not None:  # the out-of-core problem on p machines, its chunks in their memory
+        overhead = max(sc["s_per_iter_2"] - sc["s_per_iter_1"] / 2, 0.0) if sc else 0.0
+        h = ooc["k"] * ooc["cols"] * 8
+        ooc["projection"] = project_from(ooc["outofcore_full"]["iteration_s"], overhead, h, h + ooc["k"] * 8,
+                                         bandwidth=args.bandwidth, latency=args.latency)
+        for p, v in ooc["projection"].items():
+            print(f"  out-of-core problem projected on {p:>3} machines: {v['s_per_iter']:.1f} s/it "
+                  f"(compute {v['compute_s']:.1f}, communication {v['comm_s']:.1f}; "
+                  f"{v['tree_broadcast_s']:.1f} s/it with H broadcast down a tree)")
 
 
 def main(argv=None):
@@ -311,6 +337,8 @@ def main(argv=None):
                     help="numba/BLAS threads of the out-of-core and in-memory children (default 1)")
     ap.add_argument("--tmp", default=None, help="folder for the data on disk (default: the system's)")
     ap.add_argument("--json", help="also write the results to this file")
+    ap.add_argument("--project", nargs="+", metavar="JSON",
+                    help="only print the projections from results saved with --json")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -321,6 +349,10 @@ def main(argv=None):
     if args.quick:
         args.rows, args.cols, args.chunk_rows, args.slice_rows = 50_000, 11_000, 10_000, 20_000
         args.scaling_rows, args.scaling_chunks, args.iterations, args.repeats = 20_000, 8, 3, 1
+    if args.project:  # projections from saved results (e.g. the two cases run at different times)
+        rows = [r for f in args.project for r in json.load(open(f))["results"]]
+        _print_projections(rows, args)
+        return rows
     load = os.getloadavg()
     print(f"load average before: {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} cores", flush=True)
     rows = []
@@ -328,6 +360,7 @@ def main(argv=None):
         rows.append(case_outofcore(args))
     if "scaling" in args.cases:
         rows.append(case_scaling(args))
+    _print_projections(rows, args)
     import dask
 
     import mmconcepts
