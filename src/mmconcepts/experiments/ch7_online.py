@@ -82,7 +82,7 @@ class Config(PresetConfig):
     motion_bins: int = 25
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_motion=250, points=(0.1, 0.4, 1.0))
+    QUICK = dict(n_per_speaker=250, n_motion=250, batch_size=40, points=(0.1, 0.4, 1.0))
 
 
 def crossmodal_success(model: MultimodalNMF, X_test: dict, y_test: np.ndarray, *, random_state: Any = None,
