@@ -47,6 +47,8 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch5_incremental",
     "mmconcepts.experiments.ch5_nmf_keywords",
     "mmconcepts.experiments.ch5_tree",
+    "mmconcepts.experiments.ch5_label_sets",
+    "mmconcepts.experiments.ch5_word_discovery",
     "mmconcepts.experiments.ch6_motion_sound",
     "mmconcepts.experiments.ch6_image_features",
     "mmconcepts.experiments.ch6_concepts",
