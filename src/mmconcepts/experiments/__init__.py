@@ -54,6 +54,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch6_concepts",
     "mmconcepts.experiments.ch6_modalities",
     "mmconcepts.experiments.ch6_sliding",
+    "mmconcepts.experiments.ch7_compositional",
 )
 
 __all__ = [
