@@ -55,6 +55,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
     "mmconcepts.experiments.ch6_modalities",
     "mmconcepts.experiments.ch6_sliding",
     "mmconcepts.experiments.ch7_compositional",
+    "mmconcepts.experiments.ch7_online",
 )
 
 __all__ = [
