@@ -32,9 +32,14 @@ LabelNMF, make_svm_baseline
     [features, labels], labels reconstructed from the features alone; the linear SVM baseline.
 l_single, l_given_number, l_full, l_full_curve
     The scores of thesis section 3.3.3.
+beta_nmf_out_of_core, save_npz_chunks, load_npz_chunks, hstack_row_chunks
+    Larger than memory: ``beta_nmf`` and ``NMF`` also take a ``dask.array`` split by rows
+    (the same iterates as in memory); a folder of ``.npz`` row chunks is fitted without
+    loading it whole (the ``dask`` extra).
 """
 
 from ._beta import beta_divergence, elementwise_beta_divergence, mm_exponent
+from ._dask import beta_nmf_out_of_core, hstack_row_chunks, load_npz_chunks, save_npz_chunks
 from ._estimator import NMF
 from ._solver import NMFResult, beta_nmf
 from .compare import ComponentMatching, dictionary_distance, match_components
@@ -62,4 +67,8 @@ __all__ = [
     "l_full",
     "l_full_curve",
     "threshold_scores",
+    "beta_nmf_out_of_core",
+    "save_npz_chunks",
+    "load_npz_chunks",
+    "hstack_row_chunks",
 ]
