@@ -39,11 +39,21 @@ from .._validation import Interval, Options, check_nonnegative_matrix, validate_
 from ..errors import DataError, DataFormatError, MMConceptsError
 from ..nmf import NMF, mm_exponent
 from ..nmf._beta import EPSILON, resolve_beta
+from ..nmf._dask import _check_row_chunks, hstack_row_chunks, is_dask_array
 
 __all__ = ["MultimodalNMF", "FORMAT_VERSION"]
 
 #: Version of the save format written by :meth:`MultimodalNMF.save` (version 1 files still load).
 FORMAT_VERSION = 2
+
+
+def _mean_l1(X: Any) -> float:
+    """The average L1 norm of the rows of X (a dask array: summed chunk by chunk, never loaded whole)."""
+    if is_dask_array(X):
+        totals = X.map_blocks(lambda b: np.full((1, 1), float(abs(b).sum())), chunks=((1,) * X.numblocks[0], (1,)),
+                              dtype=np.float64)
+        return float(totals.sum().compute()) / X.shape[0] if X.shape[0] else float("nan")
+    return float(np.asarray(abs(X).sum(axis=1)).ravel().mean())
 
 
 class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
@@ -182,6 +192,17 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         for name, Xm in X.items():
             if not isinstance(name, str):
                 raise DataError(f"modality names must be strings; got {name!r}.")
+            if is_dask_array(Xm):  # checked chunk by chunk by the distributed solver (negative values name the chunk)
+                _check_row_chunks(Xm, f"modality {name!r}")
+                if n is None:
+                    n = Xm.shape[0]
+                elif Xm.shape[0] != n:
+                    raise DataError(
+                        f"modality {name!r} has {Xm.shape[0]} examples but the first modality has {n}; "
+                        "every modality needs one row per example."
+                    )
+                out[name] = Xm
+                continue
             try:
                 Xm = check_nonnegative_matrix(Xm, f"modality {name!r}")
             except MMConceptsError:
@@ -212,7 +233,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                scales: Mapping[str, float]) -> tuple[Any, np.ndarray]:
         """The weighted stacked matrix of the given modalities and its columns in the full dictionary."""
         columns = MultimodalNMF._columns(modalities, n_features)
-        blocks, cols = [], []
+        blocks, cols, names = [], [], []
         for name in modalities:
             if name not in X:
                 continue
@@ -221,8 +242,14 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 raise DataError(
                     f"modality {name!r} has {Xm.shape[1]} features; the learner was fitted with {n_features[name]}."
                 )
-            blocks.append(Xm * (1.0 / scales[name]))
+            blocks.append(Xm)
+            names.append(name)
             cols.append(np.arange(columns[name].start, columns[name].stop))
+        if any(is_dask_array(b) for b in blocks):  # side by side chunk by chunk: a dask array with the same row chunks
+            stacked = hstack_row_chunks(blocks, [1.0 / scales[n] for n in names],
+                                        names=[f"modality {n!r}" for n in names])
+            return stacked, np.concatenate(cols)
+        blocks = [b * (1.0 / scales[n]) for b, n in zip(blocks, names)]
         if any(sp.issparse(b) for b in blocks):
             stacked = sp.hstack([sp.csr_matrix(b) for b in blocks], format="csr")
         else:
@@ -242,7 +269,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         ----------
         X : mapping of str to {array-like, sparse matrix} of shape (n_samples, n_features_m)
             One nonnegative matrix per modality, rows aligned (row i of every modality is
-            example i).
+            example i). Or one ``dask.array`` per modality, split by rows only, the same row
+            chunks for all (dense or sparse chunks): the modalities are stacked chunk by chunk
+            and fitted by the distributed solver (:mod:`mmconcepts.nmf`), with the same
+            iterates as in memory; ``fit_transform`` and ``transform`` then return dask arrays.
         y : ignored
 
         Returns
@@ -263,7 +293,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         mods = self._check_modalities(X)
         scales = {}
         for name, Xm in mods.items():
-            l1 = np.asarray(abs(Xm).sum(axis=1)).ravel().mean() if self.normalize == "l1" else 1.0
+            l1 = _mean_l1(Xm) if self.normalize == "l1" else 1.0
             if not l1 > 0:
                 raise DataError(f"modality {name!r} is all zeros on the training data; it cannot be normalised.")
             scales[name] = float(l1)
@@ -352,6 +382,12 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                     "(sklearn.base.clone(model)) or fit."
                 )
         mods = self._check_modalities(X)
+        dask_mods = [name for name, Xm in mods.items() if is_dask_array(Xm)]
+        if dask_mods:
+            raise DataError(
+                f"partial_fit takes in-memory batches; modality {dask_mods[0]!r} is a dask array. Give the batches as "
+                "numpy arrays or sparse matrices (batch.compute()), or fit the whole dask array with fit."
+            )
         if fitted:
             for name, Xm in mods.items():
                 if Xm.shape[1] != self.n_features_[name]:
