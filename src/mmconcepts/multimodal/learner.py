@@ -194,21 +194,13 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 raise DataError(f"modality names must be strings; got {name!r}.")
             if is_dask_array(Xm):  # checked chunk by chunk by the distributed solver (negative values name the chunk)
                 _check_row_chunks(Xm, f"modality {name!r}")
-                if n is None:
-                    n = Xm.shape[0]
-                elif Xm.shape[0] != n:
-                    raise DataError(
-                        f"modality {name!r} has {Xm.shape[0]} examples but the first modality has {n}; "
-                        "every modality needs one row per example."
-                    )
-                out[name] = Xm
-                continue
-            try:
-                Xm = check_nonnegative_matrix(Xm, f"modality {name!r}")
-            except MMConceptsError:
-                raise
-            except (TypeError, ValueError) as exc:  # e.g. an object array holding text
-                raise DataError(f"modality {name!r} must be a numeric matrix ({exc}).") from None
+            else:
+                try:
+                    Xm = check_nonnegative_matrix(Xm, f"modality {name!r}")
+                except MMConceptsError:
+                    raise
+                except (TypeError, ValueError) as exc:  # e.g. an object array holding text
+                    raise DataError(f"modality {name!r} must be a numeric matrix ({exc}).") from None
             if n is None:
                 n = Xm.shape[0]
             elif Xm.shape[0] != n:
