@@ -432,7 +432,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         columns = self._columns(names, n_features)
         H = np.array(nmf.components_, dtype=np.float64, copy=True)
         stats = getattr(nmf, "_stats", None)
-        A, B = (None, None) if stats is None else (np.array(stats[0], copy=True), np.array(stats[1], copy=True))
+        if stats is None or all(old[name] == new[name] for name in names):
+            A, B = None, None  # nothing to rescale: the statistics stay as they are (no copy)
+        else:
+            A, B = np.array(stats[0], copy=True), np.array(stats[1], copy=True)
         for name in names:
             c = old[name] / new[name]
             if c == 1.0:

@@ -66,6 +66,13 @@ def resolve_features(features: Any, n_features: int, name: str = "features") -> 
     return idx
 
 
+def _broadcast_row(a: np.ndarray) -> np.ndarray | None:
+    """The row that ``a`` repeats when it is a broadcast view of one row (stride 0 along rows), else None."""
+    if a.ndim == 2 and a.shape[0] > 1 and a.strides[0] == 0:
+        return np.asarray(a[0])
+    return None
+
+
 class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
     """Beta-divergence nonnegative matrix factorization, X ~ W @ H (thesis section 2.1).
 
@@ -344,12 +351,22 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             W = mu_update(problem.sides[0], W, Ht, beta, gamma, pen_W)
             num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
             den = pen_H.add_to(den, Ht)
-            den = np.where(den == 0, Ht.dtype.type(EPSILON), den)
+            eps = Ht.dtype.type(EPSILON)
             A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
-            B = np.array(den, copy=True)
             if stats is not None:
-                A += rho * stats[0]
-                B += rho * stats[1]
+                A += stats[0] if rho == 1.0 else rho * stats[0]  # x * 1.0 == x: the same numbers, one pass less
+            # The KL denominator without a mask is one row broadcast over the features (sum of W's
+            # columns), and so is its pooled statistic: kept as a row, it costs k operations, not m x k.
+            row, old_row = _broadcast_row(den), None if stats is None else _broadcast_row(stats[1])
+            if row is not None and (stats is None or old_row is not None):
+                b = np.where(row == 0, eps, row)
+                if stats is not None and old_row is not None:
+                    b = b + (old_row if rho == 1.0 else rho * old_row)
+                B = np.broadcast_to(b, den.shape)
+            else:
+                B = np.where(den == 0, eps, den)
+                if stats is not None:
+                    B += stats[1] if rho == 1.0 else rho * stats[1]
             Ht = A / B
             if gamma != 1.0:
                 Ht **= gamma
