@@ -352,7 +352,10 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
             den = pen_H.add_to(den, Ht)
             eps = Ht.dtype.type(EPSILON)
-            A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
+            if gamma == 1.0 and num.flags.owndata and num.flags.writeable and num.dtype == Ht.dtype:
+                A = np.multiply(num, Ht, out=num)  # in place: no fresh m x k block (page faults) per iteration
+            else:
+                A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
             if stats is not None:
                 A += stats[0] if rho == 1.0 else rho * stats[0]  # x * 1.0 == x: the same numbers, one pass less
             # The KL denominator without a mask is one row broadcast over the features (sum of W's
@@ -367,7 +370,10 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
                 B = np.where(den == 0, eps, den)
                 if stats is not None:
                     B += stats[1] if rho == 1.0 else rho * stats[1]
-            Ht = A / B
+            if Ht.flags.owndata and Ht.flags.writeable and Ht.dtype == np.result_type(A, B):
+                np.divide(A, B, out=Ht)  # the old dictionary is no longer needed: its buffer takes the new one
+            else:
+                Ht = A / B
             if gamma != 1.0:
                 Ht **= gamma
         internal_loss = problem.divergence(W, Ht, beta)
