@@ -7,6 +7,7 @@ import importlib
 
 import numpy as np
 import pytest
+from _fake_audio import fake_fsdd
 from sklearn.exceptions import NotFittedError
 
 from conftest import real_data_path
@@ -141,22 +142,7 @@ def test_corpus_loading_rejects_multi_keyword_utterances(tmp_path):
 
 
 # -- data sources ------------------------------------------------------------------------
-def _fake_fsdd(root, rng, *, speakers=("bob", "amy"), per_digit=4, seconds=0.25):
-    """FSDD-named 8 kHz WAVs (a tone per digit, plus noise) in the generic layout."""
-    from mmconcepts.sound.audio import write_audio
-    from mmconcepts.sound.data import FSDD_WORDS
-
-    rows = ["file,speaker,labels,transcription"]
-    t = np.arange(int(seconds * 8000)) / 8000
-    for spk in speakers:
-        for d in range(10):
-            for k in range(per_digit):
-                name = f"{d}_{spk}_{k}.wav"
-                y = 0.3 * np.sin(2 * np.pi * (200 + 150 * d) * t) + 0.05 * rng.standard_normal(t.size)
-                write_audio(root / name, np.clip(y, -1, 1), 8000)
-                rows.append(f"{name},{spk},{FSDD_WORDS[d]},{FSDD_WORDS[d]}")
-    (root / "labels.csv").write_text("\n".join(rows) + "\n")
-    return root
+_fake_fsdd = fake_fsdd  # tests/_fake_audio.py
 
 
 @pytest.fixture

@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from _fake_audio import fake_fsdd
 from sklearn.metrics import mutual_info_score
 
 from conftest import real_data_path
@@ -67,22 +68,7 @@ def test_align_recovers_a_permuted_dictionary_and_the_control_does_not(rng):
 
 
 # -- the experiment on a fake FSDD (a tone per digit) ---------------------------------------------
-def _fake_fsdd(root, rng, *, speakers=("bob", "amy"), per_digit=4, seconds=0.25):
-    from mmconcepts.sound.audio import write_audio
-    from mmconcepts.sound.data import FSDD_WORDS
-
-    root.mkdir(parents=True, exist_ok=True)
-    rows = ["file,speaker,labels,transcription"]
-    t = np.arange(int(seconds * 8000)) / 8000
-    for spk in speakers:
-        for d in range(10):
-            for k in range(per_digit):
-                name = f"{d}_{spk}_{k}.wav"
-                y = 0.3 * np.sin(2 * np.pi * (200 + 150 * d) * t) + 0.05 * rng.standard_normal(t.size)
-                write_audio(root / name, np.clip(y, -1, 1), 8000)
-                rows.append(f"{name},{spk},{FSDD_WORDS[d]},{FSDD_WORDS[d]}")
-    (root / "labels.csv").write_text("\n".join(rows) + "\n")
-    return root
+_fake_fsdd = fake_fsdd  # tests/_fake_audio.py
 
 
 @pytest.fixture(scope="module")
