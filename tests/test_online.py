@@ -267,3 +267,92 @@ def test_itakura_saito_refuses_zeros_in_a_batch_as_fit_does():
     X, _ = _pairs()
     with pytest.raises(DataError):
         MultimodalNMF(3, beta_loss="itakura-saito").partial_fit(X)
+
+
+# --------------------------------------------------------------------------- updating only the touched columns
+def _sparse_stream(seed: int, n_batches: int = 6, n: int = 30, m: int = 4000):
+    """Sparse count batches whose nonzeros fall on a few hundred of m columns (as HAC vectors), one row empty."""
+    rng = np.random.default_rng(seed)
+    p = 1.0 / (np.arange(m) + 10.0) ** 1.2
+    p = p[rng.permutation(m)] / p.sum()
+    out = []
+    for _ in range(n_batches):
+        X = np.zeros((n, m))
+        for i in range(1, n):
+            np.add.at(X[i], rng.choice(m, 25, p=p), 1.0)
+        out.append(sp.csr_matrix(X))
+    return out
+
+
+def _all_columns(monkeypatch):
+    """Make NMF.partial_fit update every column (the plain form of the update)."""
+    import mmconcepts.nmf._estimator as est
+    monkeypatch.setattr(est, "_touched_columns", lambda *a, **k: None)
+
+
+@pytest.mark.parametrize("forget", [0.7, 1.0])
+def test_updating_only_the_touched_columns_is_the_full_update(forget, monkeypatch):
+    """Under KL, partial_fit iterates on a sparse batch's nonzero columns plus the sum of the others:
+    the dictionary and the statistics equal those of the update over every column (to rounding)."""
+    from mmconcepts.nmf import NMF
+    import mmconcepts.nmf._estimator as est
+
+    batches = _sparse_stream(3)
+    taken = []
+    real = est._touched_columns
+
+    def spy(*a, **k):
+        out = real(*a, **k)
+        taken.append(out is not None and out.size < batches[0].shape[1] // 4)
+        return out
+
+    def run():
+        model = NMF(5, beta_loss="kullback-leibler", max_iter=12, forget_factor=forget, random_state=0)
+        for X in batches:
+            model.partial_fit(X)
+        return model
+
+    monkeypatch.setattr(est, "_touched_columns", spy)
+    fast = run()
+    assert taken and all(taken)  # every later call took the touched-columns path, on a small share of columns
+    _all_columns(monkeypatch)
+    full = run()
+    np.testing.assert_allclose(fast.components_, full.components_, rtol=1e-10, atol=1e-300)
+    np.testing.assert_allclose(fast._stats[0], full._stats[0], rtol=1e-10, atol=1e-300)
+    np.testing.assert_allclose(np.broadcast_to(fast._stats[1], full._stats[1].shape), full._stats[1], rtol=1e-12)
+    assert fast.loss_history_[0] == pytest.approx(full.loss_history_[0], rel=1e-10)
+
+
+def test_the_multimodal_stream_keeps_the_broadcast_denominator_and_the_full_update(monkeypatch):
+    """MultimodalNMF's rescaling keeps KL's pooled denominator one broadcast row (so the touched-columns
+    path applies at every batch), with the same dictionary as the update over every column."""
+    batches = _sparse_stream(4, n_batches=5)
+    rng = np.random.default_rng(9)
+    motion = [30.0 * rng.random((b.shape[0], 12)) for b in batches]
+
+    def run():
+        model = MultimodalNMF(4, max_iter=15, partial_max_iter=6, forget=0.8, random_state=0)
+        for S, M in zip(batches, motion):
+            model.partial_fit({"sound": S, "motion": M})
+            assert model.nmf_._stats is None or model.nmf_._stats[1].strides[0] == 0
+        return model
+
+    fast = run()
+    _all_columns(monkeypatch)
+    full = run()
+    np.testing.assert_allclose(fast.components_, full.components_, rtol=1e-9, atol=1e-300)
+    assert fast.scales_ == full.scales_
+
+
+def test_a_saved_stream_loads_with_its_broadcast_denominator(tmp_path):
+    from mmconcepts.nmf import NMF
+
+    batches = _sparse_stream(5, n_batches=3)
+    model = NMF(4, beta_loss="kullback-leibler", max_iter=8, random_state=0)
+    for X in batches[:2]:
+        model.partial_fit(X)
+    loaded = NMF.load(model.save(tmp_path / "m"))
+    assert loaded._stats[1].strides[0] == 0
+    model.partial_fit(batches[2])
+    loaded.partial_fit(batches[2])
+    np.testing.assert_array_equal(loaded.components_, model.components_)

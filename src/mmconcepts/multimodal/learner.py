@@ -432,10 +432,13 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         columns = self._columns(names, n_features)
         H = np.array(nmf.components_, dtype=np.float64, copy=True)
         stats = getattr(nmf, "_stats", None)
-        if stats is None or all(old[name] == new[name] for name in names):
-            A, B = None, None  # nothing to rescale: the statistics stay as they are (no copy)
-        else:
-            A, B = np.array(stats[0], copy=True), np.array(stats[1], copy=True)
+        A, B = None, None
+        if stats is not None and any(old[name] != new[name] for name in names):
+            A0, B0 = stats
+            A = np.array(A0, copy=True)
+            # The I-divergence's pooled denominator does not scale (c ** (beta - 1) = 1): it stays as it is,
+            # and so keeps its form of one row broadcast over the features, which partial_fit relies on.
+            B = B0 if beta == 1.0 else np.array(B0, copy=True)
         for name in names:
             c = old[name] / new[name]
             if c == 1.0:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -71,6 +71,64 @@ def _broadcast_row(a: np.ndarray) -> np.ndarray | None:
     if a.ndim == 2 and a.shape[0] > 1 and a.strides[0] == 0:
         return np.asarray(a[0])
     return None
+
+
+def _touched_columns(X: Any, mask: Any, beta: float, gamma: float, pen_H: Any,
+                     stats: tuple[np.ndarray, np.ndarray]) -> np.ndarray | None:
+    """The columns of a sparse batch that have a nonzero, when partial_fit may update only those.
+
+    Under the I-divergence (beta = 1, gamma = 1) without a mask or a penalty on H, a column j
+    that is all zero in the batch has a zero numerator, so every iteration sets it to
+    rho A_j / B, with the pooled denominator B one row broadcast over the columns: it moves only
+    through B, and its dictionary entries enter the coefficients' update only through their sum.
+    partial_fit then iterates on the touched columns plus that sum, and sets the others once at
+    the end (the same numbers up to the rounding of the sums). None when this does not apply, or
+    when most columns are touched (no gain).
+    """
+    if mask is not None or beta != 1.0 or gamma != 1.0 or pen_H.l1 or pen_H.l2:
+        return None
+    if not sp.issparse(X) or X.format != "csr" or _broadcast_row(stats[1]) is None:
+        return None
+    m = X.shape[1]
+    touched = np.flatnonzero(np.bincount(X.indices, minlength=m))
+    return touched if touched.size <= m // 2 else None
+
+
+def _online_iterations(problem: Problem, W: np.ndarray, Ht: np.ndarray, stats: tuple[np.ndarray, np.ndarray] | None,
+                       rho: float, beta: float, gamma: float, pen_W: Any, pen_H: Any, max_iter: int):
+    """partial_fit's alternating updates on one batch; returns W, Ht and the pooled statistics A, B."""
+    A: np.ndarray | None = None
+    B: np.ndarray | None = None
+    for _ in range(max_iter):
+        W = mu_update(problem.sides[0], W, Ht, beta, gamma, pen_W)
+        num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
+        den = pen_H.add_to(den, Ht)
+        eps = Ht.dtype.type(EPSILON)
+        if gamma == 1.0 and num.flags.owndata and num.flags.writeable and num.dtype == Ht.dtype:
+            A = np.multiply(num, Ht, out=num)  # in place: no fresh m x k block (page faults) per iteration
+        else:
+            A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
+        if stats is not None:
+            A += stats[0] if rho == 1.0 else rho * stats[0]  # x * 1.0 == x: the same numbers, one pass less
+        # The KL denominator without a mask is one row broadcast over the features (sum of W's
+        # columns), and so is its pooled statistic: kept as a row, it costs k operations, not m x k.
+        row, old_row = _broadcast_row(den), None if stats is None else _broadcast_row(stats[1])
+        if row is not None and (stats is None or old_row is not None):
+            b = np.where(row == 0, eps, row)
+            if stats is not None and old_row is not None:
+                b = b + (old_row if rho == 1.0 else rho * old_row)
+            B = np.broadcast_to(b, den.shape)
+        else:
+            B = np.where(den == 0, eps, den)
+            if stats is not None:
+                B += stats[1] if rho == 1.0 else rho * stats[1]
+        if Ht.flags.owndata and Ht.flags.writeable and Ht.dtype == np.result_type(A, B):
+            np.divide(A, B, out=Ht)  # the old dictionary is no longer needed: its buffer takes the new one
+        else:
+            Ht = A / B
+        if gamma != 1.0:
+            Ht **= gamma
+    return W, Ht, A, B
 
 
 class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, BaseEstimator):
@@ -160,8 +218,17 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         "transform_max_iter": [Interval("int", 0), None],
     }
     _persisted_private = ("_stats", "_scale")
+
     _stats: tuple[np.ndarray, np.ndarray] | None  # partial_fit's pooled statistics (A, B); None before
     _scale: float  # partial_fit: the power of two the batches are divided by (fixed by the first one)
+
+    def _set_state(self, state: dict[str, Any]) -> None:
+        super()._set_state(state)
+        # A saved broadcast row (partial_fit's I-divergence denominator) is written out whole; loaded
+        # back as one row broadcast again, partial_fit keeps updating only a batch's nonzero columns.
+        stats = getattr(self, "_stats", None)
+        if stats is not None and stats[1].ndim == 2 and stats[1].shape[0] > 1 and bool((stats[1] == stats[1][:1]).all()):
+            self._stats = (stats[0], np.broadcast_to(np.array(stats[1][0]), stats[1].shape))
 
     def __init__(
         self,
@@ -323,10 +390,15 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         n, m = Xv.shape
         # As beta_nmf, the updates run on X / scale (a power of two, 1 at ordinary scales); the scale
         # is fixed by the first batch, so that the pooled statistics of all batches share it.
-        stats_so_far = getattr(self, "_stats", None) if hasattr(self, "components_") else None
-        scale = float(getattr(self, "_scale", 1.0)) if stats_so_far is not None else _data_scale(Xv, beta)
+        stats: tuple[np.ndarray, np.ndarray] | None = getattr(self, "_stats", None) if hasattr(self, "components_") else None
+        scale = float(getattr(self, "_scale", 1.0)) if stats is not None else _data_scale(Xv, beta)
         if scale != 1.0:
             Xv = Xv / scale if sp.issparse(Xv) else np.divide(Xv, Xv.dtype.type(scale))
+        gamma = mm_exponent(beta) if self.update_rule == "mm" else 1.0
+        pen_W, pen_H = _resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, n, m)
+        if scale != 1.0:
+            pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, 1.0, scale, beta)
+        touched = None if stats is None or max_iter == 0 else _touched_columns(Xv, maskv, beta, gamma, pen_H, stats)
         if not hasattr(self, "components_"):
             k = int(self.n_components if self.n_components is not None else min(n, m))
             init = self.init or ("nndsvda" if k <= min(n, m) else "random")
@@ -335,49 +407,46 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             self._stats = None
         else:
             self._check_n_features(m)
-            H = self.components_.astype(Xv.dtype, copy=True) / Xv.dtype.type(scale)
-            W = constant_coefficients(Xv, H, maskv)
-        gamma = mm_exponent(beta) if self.update_rule == "mm" else 1.0
-        pen_W, pen_H = _resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, n, m)
-        if scale != 1.0:
-            pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, 1.0, scale, beta)
-        problem = Problem(Xv, maskv)
-        W = np.ascontiguousarray(W)
-        Ht = np.ascontiguousarray(H.T)
-        stats: tuple[np.ndarray, np.ndarray] | None = getattr(self, "_stats", None)
-        A: np.ndarray | None = None
-        B: np.ndarray | None = None
-        for _ in range(max_iter):
-            W = mu_update(problem.sides[0], W, Ht, beta, gamma, pen_W)
-            num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
-            den = pen_H.add_to(den, Ht)
-            eps = Ht.dtype.type(EPSILON)
-            if gamma == 1.0 and num.flags.owndata and num.flags.writeable and num.dtype == Ht.dtype:
-                A = np.multiply(num, Ht, out=num)  # in place: no fresh m x k block (page faults) per iteration
-            else:
-                A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
-            if stats is not None:
-                A += stats[0] if rho == 1.0 else rho * stats[0]  # x * 1.0 == x: the same numbers, one pass less
-            # The KL denominator without a mask is one row broadcast over the features (sum of W's
-            # columns), and so is its pooled statistic: kept as a row, it costs k operations, not m x k.
-            row, old_row = _broadcast_row(den), None if stats is None else _broadcast_row(stats[1])
-            if row is not None and (stats is None or old_row is not None):
-                b = np.where(row == 0, eps, row)
-                if stats is not None and old_row is not None:
-                    b = b + (old_row if rho == 1.0 else rho * old_row)
-                B = np.broadcast_to(b, den.shape)
-            else:
-                B = np.where(den == 0, eps, den)
-                if stats is not None:
-                    B += stats[1] if rho == 1.0 else rho * stats[1]
-            if Ht.flags.owndata and Ht.flags.writeable and Ht.dtype == np.result_type(A, B):
-                np.divide(A, B, out=Ht)  # the old dictionary is no longer needed: its buffer takes the new one
-            else:
-                Ht = A / B
-            if gamma != 1.0:
-                Ht **= gamma
-        internal_loss = problem.divergence(W, Ht, beta)
-        _check_fit_in_range(Xv, beta, W, Ht, [internal_loss])  # before any state changes
+            if touched is None:
+                H = self.components_.astype(Xv.dtype, copy=True) / Xv.dtype.type(scale)
+                W = constant_coefficients(Xv, H, maskv)
+        if touched is not None and stats is not None:
+            # Only the batch's nonzero columns T move other than by the pooled statistics (see
+            # _touched_columns): the loop runs on X[:, T] and one extra all-zero column standing for the
+            # sum of the others, whose dictionary column is their sum (the updates are linear in it).
+            Xv = cast(sp.csr_matrix, Xv)
+            H_all = self.components_
+            h_sum = H_all.sum(axis=1, dtype=np.float64)
+            Ht = np.empty((touched.size + 1, H_all.shape[0]), dtype=Xv.dtype)
+            Ht[:-1] = H_all[:, touched].T
+            Ht[-1] = np.maximum(h_sum - Ht[:-1].sum(axis=0, dtype=np.float64), 0.0)
+            Ht /= Xv.dtype.type(scale)
+            A_prev, b_prev = stats[0], _broadcast_row(stats[1])
+            assert b_prev is not None  # _touched_columns checked it
+            a_rest = np.maximum(A_prev.sum(axis=0, dtype=np.float64) - A_prev[touched].sum(axis=0, dtype=np.float64), 0.0)
+            stats_T = (np.vstack([A_prev[touched], a_rest[None, :].astype(A_prev.dtype)]),
+                       np.broadcast_to(b_prev, (touched.size + 1, Ht.shape[1])))
+            X_T = sp.csr_matrix((Xv.data, np.searchsorted(touched, Xv.indices).astype(Xv.indices.dtype), Xv.indptr),
+                                shape=(n, touched.size + 1))
+            problem = Problem(X_T, None)
+            W = constant_coefficients(X_T, Ht.T, None)  # the same flat value: mean(X) / mean(H) does not depend on m
+            W, Ht, A, B = _online_iterations(problem, W, Ht, stats_T, rho, beta, gamma, pen_W, pen_H, max_iter)
+            # Back to all columns: the others' statistics are rho times the old ones, and every column of the
+            # dictionary is A / B, as the loop leaves it.
+            b = _broadcast_row(B)
+            assert A is not None and b is not None  # max_iter >= 1 under the touched-columns path; B stays a row
+            A_full = A_prev * A_prev.dtype.type(rho) if rho != 1.0 else A_prev.copy()
+            A_full[touched] = A[:-1]
+            A, B = A_full, np.broadcast_to(b, A_full.shape)
+            internal_loss = problem.divergence(W, Ht, beta)
+            _check_fit_in_range(X_T, beta, W, Ht, [internal_loss])
+            Ht = np.divide(A, b)
+        else:
+            problem = Problem(Xv, maskv)
+            W, Ht, A, B = _online_iterations(problem, np.ascontiguousarray(W), np.ascontiguousarray(H.T), stats, rho,
+                                             beta, gamma, pen_W, pen_H, max_iter)
+            internal_loss = problem.divergence(W, Ht, beta)
+            _check_fit_in_range(Xv, beta, W, Ht, [internal_loss])  # before any state changes
         if scale != 1.0:
             _check_objective_range(internal_loss, scale, beta)
         if A is not None and B is not None:
