@@ -166,6 +166,27 @@ def test_decompose_on_references_recovers_mixtures_as_beta_nmf_does():
         common.decompose_on_references(X, np.vstack([R, np.zeros(200)]))
 
 
+
+def test_decompose_on_references_is_the_matrix_form_of_the_update():
+    """The compiled row-by-row loop gives the shares of the matrix-product form of the same update (float32)."""
+    rng = np.random.default_rng(3)
+    R = rng.random((7, 900)) * (rng.random((7, 900)) < 0.4)
+    X = (rng.random((25, 7)) ** 3) @ R + 0.01 * rng.random((25, 900))
+    X[3] = 0.0  # an empty example stays empty
+    keep = R.max(0) > 0
+    Rk = (R[:, keep] / R.sum(1, keepdims=True)).astype(np.float32)
+    Xk = X[:, keep].astype(np.float32)
+    A = np.tile(Xk.sum(1, keepdims=True) / 7, (1, 7)).astype(np.float32)
+    for _ in range(60):
+        V = A @ Rk
+        np.divide(Xk, V, out=V, where=V > 0)
+        A *= V @ Rk.T
+    s = A.sum(1, keepdims=True)
+    ref = np.divide(A, s, out=np.zeros_like(A), where=s > 0)
+    got = common.decompose_on_references(X, R, n_iter=60)
+    np.testing.assert_allclose(got, ref, atol=1e-5)
+    assert not got[3].any()
+
 def test_given_number_chance_known_values():
     assert common.given_number_chance(10, [1]) == pytest.approx(0.1)
     assert common.given_number_chance(10, [2, 3]) == pytest.approx((1 / 45 + 1 / 120) / 2)

@@ -53,6 +53,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from ..errors import DataError, ParameterError
@@ -366,6 +367,31 @@ def combination_retrieval(D: np.ndarray, combo_query: Sequence, combo_cand: Sequ
     return out
 
 
+@nb.njit(parallel=True, nogil=True, cache=True, fastmath={"reassoc", "contract"})
+def _decompose_rows(X, R, A, n_iter):  # pragma: no cover - compiled
+    """``A[i] <- A[i] * ((X[i] / (A[i] R)) R^T)``, ``n_iter`` times, row by row (rows in parallel)."""
+    n, p = X.shape
+    k = R.shape[0]
+    for i in nb.prange(n):
+        v = np.empty(p, dtype=X.dtype)
+        a = A[i].copy()
+        for _ in range(n_iter):
+            v[:] = 0.0
+            for c in range(k):
+                ac = a[c]
+                for j in range(p):
+                    v[j] += ac * R[c, j]
+            for j in range(p):
+                v[j] = X[i, j] / v[j] if v[j] > 0.0 else 0.0
+            for c in range(k):
+                acc = X.dtype.type(0.0)
+                for j in range(p):
+                    acc += v[j] * R[c, j]
+                a[c] *= acc
+        A[i] = a
+    return A
+
+
 def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) -> np.ndarray:
     """Nonnegative coefficients A of ``X ~ A R`` under the I-divergence, as fractions of the explained mass.
 
@@ -378,9 +404,11 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
     then divided by its sum, so ``A[i, c]`` is the share of concept c.
 
     Written by hand rather than through :func:`mmconcepts.nmf.beta_nmf` (``update_H=False``,
-    which gives the same coefficients): for a 10-atom dictionary of some 10^4 HAC columns
-    the plain loop is about 3 times faster, and it runs for every test example of every
-    fold and learner.
+    which gives the same coefficients): it runs for every test example of every fold and
+    learner, on a 10-atom dictionary of some 10^4 HAC columns, where matrix products with
+    an inner dimension of 10 are bound by memory. A compiled loop (numba) runs the
+    iterations of one example at a time, in parallel over examples, its row of X and
+    ratios staying in the cache.
 
     Parameters
     ----------
@@ -405,11 +433,7 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
     Rk = (R[:, keep] / mass[:, None]).astype(np.float32)
     Xk = X[:, keep].astype(np.float32)
     A = np.tile(Xk.sum(axis=1, keepdims=True) / R.shape[0], (1, R.shape[0])).astype(np.float32)
-    for _ in range(int(n_iter)):
-        V = A @ Rk
-        np.divide(Xk, V, out=V, where=V > 0)
-        A *= V @ Rk.T
-    A = A.astype(np.float64)
+    A = _decompose_rows(np.ascontiguousarray(Xk), np.ascontiguousarray(Rk), A, int(n_iter)).astype(np.float64)
     s = A.sum(axis=1, keepdims=True)
     return np.divide(A, s, out=np.zeros_like(A), where=s > 0)
 
