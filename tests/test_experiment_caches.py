@@ -467,3 +467,44 @@ def test_the_temporary_file_of_a_killed_writer_is_removed_later(tmp_path):
     os.utime(old, (time.time() - 7200,) * 2)
     store.cache(_identity_value)
     assert not old.exists() and new.exists() and len(_entries(tmp_path)) == 1  # a recent one may be being written
+
+
+def _slow_logged(x, log_dir):
+    """x + 1 after 0.5 s, leaving one file per call in ``log_dir`` (to count the calls across processes)."""
+    import os
+    import time
+
+    (pathlib.Path(log_dir) / f"{x}-{os.getpid()}-{time.monotonic_ns()}").touch()
+    time.sleep(0.5)
+    return {"x": np.array([x + 1])}
+
+
+def _call_cached(args):
+    cache_dir, log_dir, x, via_compute = args
+    cached = RunContext(cache_dir=cache_dir, show_progress=False).memory("slow").cache(_slow_logged,
+                                                                                       ignore=["log_dir"])
+    return int((cached.compute(x, log_dir) if via_compute else cached(x, log_dir))["x"][0])
+
+
+@pytest.mark.parametrize("via_compute", [False, True], ids=["call", "compute after a miss"])
+def test_concurrent_processes_compute_a_missing_entry_once(tmp_path, via_compute):
+    """Two processes sharing a cache folder (``reproduce --concurrent``) asking for the same missing
+    entry: one computes it, the other waits for it and reads it."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    log = tmp_path / "log"
+    log.mkdir()
+    with ProcessPoolExecutor(2) as pool:
+        out = list(pool.map(_call_cached, [(str(tmp_path / "cache"), str(log), 3, via_compute)] * 2))
+    assert out == [4, 4]
+    assert len(list(log.iterdir())) == 1
+    assert len(_entries(tmp_path / "cache" / "slow")) == 1
+
+
+def test_an_unwritable_cache_folder_computes_without_a_lock(tmp_path):
+    """No lock can be made where the store cannot be created: the value is still computed."""
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    cached = RunContext(cache_dir=blocker, show_progress=False).memory("x").cache(_identity_value)
+    _computed.clear()
+    assert cached(5) == 5 and _computed == ["identity"]

@@ -132,3 +132,42 @@ def test_full_mixed_set_generation_and_features(tmp_path):
     H = MotionHistograms().fit_transform([joint_angles(r) for r in ds])
     assert time.perf_counter() - t < 10.0
     assert H.shape == (277, 16 * 16)
+
+
+def _generate_in_child(args):
+    from mmconcepts.motion import synthetic
+
+    which, home = args
+    if which == "choreo1":
+        ds = synthetic.make_choreo1("mixed_partial", data_home=home, random_state=0, n_records=4)
+    else:
+        ds = synthetic.make_choreo2(data_home=home, random_state=0, n_records=10)
+    return [r.positions.sum() for r in ds]
+
+
+@pytest.mark.parametrize("which", ["choreo1", "choreo2"])
+def test_concurrent_processes_generate_the_set_once(tmp_path, monkeypatch, which):
+    """Two processes sharing a cache folder (``reproduce --concurrent``) asking for a set not yet there:
+    one writes it, the other waits and loads the same records (no clash in the folder being built)."""
+    import multiprocessing
+    import os
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+
+    from mmconcepts.motion import synthetic
+
+    log = tmp_path / "log"
+    log.mkdir()
+    name = "write_choreo1" if which == "choreo1" else "write_choreo2"
+    real = getattr(synthetic, name)
+
+    def logged(*args, **kwargs):  # inherited by the forked workers
+        (log / f"{os.getpid()}-{time.monotonic_ns()}").touch()
+        time.sleep(0.5)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(synthetic, name, logged)
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+        a, b = pool.map(_generate_in_child, [(which, str(tmp_path / "home"))] * 2)
+    assert len(list(log.iterdir())) == 1
+    assert a == b

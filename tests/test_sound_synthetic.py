@@ -225,3 +225,33 @@ def test_fetch_caregiver_uses_its_cache(tmp_path, monkeypatch):
     assert b.transcriptions == a.transcriptions
     with pytest.raises(ParameterError, match="n_speakers"):
         make_caregiver_corpus(tmp_path / "x", n_speakers=len(SPEAKERS) + 1)
+
+
+def _fetch_in_child(home):
+    corpus = fetch_caregiver(home, n_utterances_per_speaker=2, n_speakers=1, random_state=1)
+    return list(corpus.transcriptions)
+
+
+@needs_piper
+def test_concurrent_processes_generate_the_corpus_once(tmp_path, monkeypatch):
+    """Two processes sharing a cache folder (``reproduce --concurrent``): one generates, the other
+    waits and loads the same corpus."""
+    import multiprocessing
+    import os
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+
+    log = tmp_path / "log"
+    log.mkdir()
+    real = synthetic.make_caregiver_corpus
+
+    def logged(*args, **kwargs):  # inherited by the forked workers
+        (log / f"{os.getpid()}-{time.monotonic_ns()}").touch()
+        time.sleep(0.5)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(synthetic, "make_caregiver_corpus", logged)
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+        a, b = pool.map(_fetch_in_child, [str(tmp_path / "home")] * 2)
+    assert len(list(log.iterdir())) == 1
+    assert a == b and len(a) == 2

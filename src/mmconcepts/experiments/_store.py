@@ -11,7 +11,10 @@ temporary file beside it, then :func:`os.replace`) by the process that computed 
 structure as JSON (nested dicts with string keys, lists, tuples, named tuples of the
 package, arrays, numpy scalars, Python numbers, strings, None). It is read with
 ``numpy.load(..., allow_pickle=False)`` and :func:`json.loads` only, so reading the cache
-never runs code, whatever a file planted in the cache folder holds. Anything that is not an
+never runs code, whatever a file planted in the cache folder holds. A missing entry is
+computed under an exclusive lock of its own (a file in ``<store>/<module>.<function>/.locks``),
+so that processes sharing the cache folder (``reproduce --concurrent``, cluster workers)
+compute it once: the others wait, then read it. Anything that is not an
 entry in this format (a torn file, an older cache's ``output.pkl``, a pickle planted under
 an entry's name) is ignored and the value recomputed.
 
@@ -38,7 +41,7 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
-from .._io import atomic_path
+from .._io import atomic_path, folder_lock
 from ..errors import ExperimentError
 
 __all__ = ["CacheStore", "CachedFunction", "encode", "decode", "FORMAT"]
@@ -352,11 +355,33 @@ class CachedFunction(Generic[_R]):
         value = self._read(key)
         if value is not _MISSING:
             return value
-        return self._compute(key, args, kwargs)
+        return self._compute_locked(key, args, kwargs)
 
     def compute(self, *args: Any, **kwargs: Any) -> _R:
-        """Call the function and write its entry, without looking for one first (for a known miss)."""
-        return self._compute(self.key(*args, **kwargs), args, kwargs)
+        """Call the function and write its entry (for a call :meth:`lookup` found missing).
+
+        The entry is read once more under its lock first: another process may have written
+        it since (see :meth:`_compute_locked`).
+        """
+        return self._compute_locked(self.key(*args, **kwargs), args, kwargs)
+
+    def _compute_locked(self, key: str, args: tuple, kwargs: dict[str, Any]) -> _R:
+        """A miss: compute under the entry's lock, so that a concurrent process asking for the same
+        entry (``reproduce --concurrent``) waits for it and reads it instead of computing it again."""
+        with self._lock(key):
+            value = self._read(key)
+            if value is not _MISSING:
+                return value
+            return self._compute(key, args, kwargs)
+
+    def _lock(self, key: str) -> contextlib.AbstractContextManager[None]:
+        """An exclusive lock on ``key``'s entry (a file under ``<store>/.locks``), or no lock if it cannot be made."""
+        stack = contextlib.ExitStack()
+        try:
+            stack.enter_context(folder_lock(self.location / ".locks", f"{key}.lock"))
+        except OSError:  # a cache that cannot be written: nothing to share, go on unlocked
+            pass
+        return stack
 
     def _compute(self, key: str, args: tuple, kwargs: dict[str, Any]) -> _R:
         value = self.func(*args, **kwargs)

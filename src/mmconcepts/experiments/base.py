@@ -597,7 +597,7 @@ def cached_call(cached: Callable[..., _R], *args: Any) -> _R:
 
 def _cached_item(item: tuple) -> Any:
     """``cached(*args)`` of ``item = (cached, *args)``, a call :meth:`RunContext.parallel_cached` found
-    missing: computed and its entry written, without reading the cache again."""
+    missing: computed and its entry written (unless another process wrote it meanwhile: read under its lock)."""
     cached, *args = item
     compute = getattr(cached, "compute", None)
     return compute(*args) if compute is not None else cached_call(cached, *args)

@@ -72,6 +72,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .._io import folder_lock
 from .._paths import data_home as _data_home
 from .._validation import check_random_state
 from ..errors import ParameterError
@@ -777,16 +778,18 @@ def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None
     stem = subset if n_records is None else f"{subset}-n{n}"
     info = {"generator_version": GENERATOR_VERSION, "seed": seed, "subset": subset, "n_records": n}
     if force or not _complete(folder, stem, info):
-        tmp = folder / f".{stem}.building"
-        write_choreo1(tmp, subset, random_state=seed, n_records=n_records)
-        folder.mkdir(parents=True, exist_ok=True)
-        os.replace(tmp / f"{subset}.npz", folder / f"{stem}.npz")
-        meta = json.loads((tmp / f"{subset}.json").read_text())
-        meta["data-file"] = f"{stem}.npz"
-        _write_json(folder / f"{stem}.json", meta)
-        (tmp / f"{subset}.json").unlink()
-        tmp.rmdir()
-        _write_json(folder / f"{stem}.complete.json", info)
+        # one process generates, the others (concurrent experiments) wait and then load its copy
+        with folder_lock(folder, f".{stem}.lock"):
+            if force or not _complete(folder, stem, info):
+                tmp = folder / f".{stem}.building"
+                write_choreo1(tmp, subset, random_state=seed, n_records=n_records)
+                os.replace(tmp / f"{subset}.npz", folder / f"{stem}.npz")
+                meta = json.loads((tmp / f"{subset}.json").read_text())
+                meta["data-file"] = f"{stem}.npz"
+                _write_json(folder / f"{stem}.json", meta)
+                (tmp / f"{subset}.json").unlink()
+                tmp.rmdir()
+                _write_json(folder / f"{stem}.complete.json", info)
     ds = load_choreo1(folder / f"{stem}.json", frame_rate=FRAME_RATE)
     ds.name = subset
     return ds
@@ -800,6 +803,8 @@ def make_choreo2(*, data_home: str | os.PathLike[str] | None = None, random_stat
     folder = _data_home(data_home) / "choreo2-synthetic" / f"seed{seed}" / (f"n{n}" if n_records is not None else "full")
     info = {"generator_version": GENERATOR_VERSION, "seed": seed, "subset": "choreo2", "n_records": n}
     if force or not _complete(folder, "choreo2", info):
-        write_choreo2(folder, random_state=seed, n_records=n_records)
-        _write_json(folder / "choreo2.complete.json", info)
+        with folder_lock(folder, ".choreo2.lock"):
+            if force or not _complete(folder, "choreo2", info):
+                write_choreo2(folder, random_state=seed, n_records=n_records)
+                _write_json(folder / "choreo2.complete.json", info)
     return load_choreo2(folder / "choreo2.json", frame_rate=FRAME_RATE)

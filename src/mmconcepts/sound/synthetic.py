@@ -102,7 +102,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from .._io import replace_dir
+from .._io import folder_lock, replace_dir
 from .._paths import data_home as _data_home
 from .._validation import check_positive_int, check_random_state
 from ..errors import ParameterError
@@ -748,9 +748,13 @@ def fetch_caregiver(
     folder = _data_home(data_home) / f"caregiver-synth-v{GENERATOR_VERSION}-s{n_spk}-n{n}{suffix}-seed{seed}"
     if not force and _complete(folder, _cache_info(n, n_spk, kpu, seed)):
         return load_generic_audio(folder, name="caregiver-synth")
-    return make_caregiver_corpus(folder, n_utterances_per_speaker=n, n_speakers=n_spk,
-                                 keywords_per_utterance=kpu, random_state=seed, n_jobs=n_jobs,
-                                 overwrite=True, verbose=verbose)
+    # one process generates, the others (concurrent experiments) wait and then load its copy
+    with folder_lock(folder.parent, f".{folder.name}.lock"):
+        if not force and _complete(folder, _cache_info(n, n_spk, kpu, seed)):
+            return load_generic_audio(folder, name="caregiver-synth")
+        return make_caregiver_corpus(folder, n_utterances_per_speaker=n, n_speakers=n_spk,
+                                     keywords_per_utterance=kpu, random_state=seed, n_jobs=n_jobs,
+                                     overwrite=True, verbose=verbose)
 
 
 def _complete(folder: Path, want: dict) -> bool:
