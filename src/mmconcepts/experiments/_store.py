@@ -374,7 +374,7 @@ class CachedFunction(Generic[_R]):
                 return value
             return self._compute(key, args, kwargs)
 
-    def _lock(self, key: str) -> contextlib.AbstractContextManager[None]:
+    def _lock(self, key: str) -> contextlib.ExitStack:
         """An exclusive lock on ``key``'s entry (a file under ``<store>/.locks``), or no lock if it cannot be made."""
         stack = contextlib.ExitStack()
         try:
