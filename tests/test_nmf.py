@@ -146,6 +146,79 @@ def test_sparse_fit_equals_dense_fit(rng, beta):
     np.testing.assert_allclose(a.H, b.H, rtol=1e-7, atol=1e-10)
 
 
+@pytest.mark.parametrize("beta, rule, alpha", [(1.0, "mm", 0.0), (0.5, "mm", 0.0), (2.0, "mm", 0.01),
+                                               (2.5, "heuristic", 0.0), (1.5, "mm", 0.01)])
+def test_empty_columns_left_out_after_the_first_update_match_sklearn(rng, beta, rule, alpha, monkeypatch):
+    """Most columns of a sparse count matrix hold nothing (HAC): after the first update they are
+    left out of the iterations (their H columns are exactly 0) and put back as zeros; the iterates
+    are scikit-learn's on the whole matrix."""
+    from mmconcepts.nmf import _solver
+
+    X = sp.random(40, 400, density=0.01, random_state=4, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    empty = np.asarray(X.getnnz(axis=0)) == 0
+    assert empty.mean() > 0.5
+    W0, H0 = rng.random((40, 4)) + 0.1, rng.random((4, 400)) + 0.1
+    reduced = []
+    real = _solver._EmptyColumns.reduce
+
+    def spy(self, sol, Ht):
+        out = real(self, sol, Ht)
+        reduced.append(out is not None and out[1].shape[0])
+        return out
+
+    monkeypatch.setattr(_solver._EmptyColumns, "reduce", spy)
+    widths = []  # rows of Ht at each update of Ht
+    real_update = _solver.mu_update
+
+    def spy_update(side, L, R, *args):
+        if L.shape[1] == 4 and R.shape[0] == 40:
+            widths.append(L.shape[0])
+        return real_update(side, L, R, *args)
+
+    monkeypatch.setattr(_solver, "mu_update", spy_update)
+    kw = dict(beta_loss=beta, max_iter=60, tol=0, alpha_W=alpha, l1_ratio=0.5)
+    rule_kw = {} if rule == "mm" else {"update_rule": rule}
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H0, **kw, **rule_kw)
+    kept = int((~empty).sum())
+    assert reduced == [kept]  # left out once, after the first iteration
+    assert widths == [400] + [kept] * 59
+    assert (res.H[:, empty] == 0).all()
+    if rule == "mm" and 1.0 <= beta <= 2.0:  # scikit-learn's MU is the MM rule for beta in [1, 2]
+        sk = SkNMF(4, init="custom", solver="mu", beta_loss=beta, max_iter=60, tol=0, alpha_W=alpha, l1_ratio=0.5)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+        np.testing.assert_allclose(res.W, W_sk, rtol=1e-6, atol=1e-8 * W_sk.max())
+        np.testing.assert_allclose(res.H, sk.components_, rtol=1e-6, atol=1e-8 * sk.components_.max())
+    # the same fit over all the columns (the leaving-out disabled) to rounding
+    monkeypatch.setattr(_solver._EmptyColumns, "MIN_SHARE", 2.0)
+    full = beta_nmf(X, 4, init="custom", W=W0, H=H0, **kw, **rule_kw)
+    assert len(reduced) == 1
+    np.testing.assert_allclose(res.W, full.W, rtol=1e-10, atol=1e-12 * full.W.max())
+    np.testing.assert_allclose(res.H, full.H, rtol=1e-10, atol=1e-12 * full.H.max())
+    np.testing.assert_allclose(res.loss_history, full.loss_history, rtol=1e-12)
+    assert res.n_iter == full.n_iter
+
+
+def test_empty_columns_kept_where_they_cannot_be_left_out(rng, monkeypatch):
+    """A mask, a fixed H or Hoyer's constraints: the columns stay (their H need not become 0)."""
+    from mmconcepts.nmf import _solver
+
+    X = sp.random(30, 200, density=0.01, random_state=5, format="csr")
+    X.data += 1.0
+    calls = []
+    monkeypatch.setattr(_solver._EmptyColumns, "reduce", lambda self, sol, Ht: calls.append(1))
+    mask = np.ones(X.shape, bool)
+    beta_nmf(X, 3, beta_loss=1.0, mask=mask, init="random", random_state=0, max_iter=5, tol=0)
+    beta_nmf(X, 3, beta_loss=2.0, sparseness_H=0.5, init="random", random_state=0, max_iter=5, tol=0)
+    beta_nmf(X, 3, beta_loss=1.0, update_H=False, H=rng.random((3, 200)), max_iter=5, tol=0)
+    beta_nmf(X, 3, beta_loss=1.0, init="random", random_state=0, max_iter=1, tol=0)
+    assert calls == []
+    beta_nmf(X, 3, beta_loss=1.0, init="random", random_state=0, max_iter=5, tol=0)
+    assert calls == [1]
+
+
 @pytest.mark.parametrize("sparse", [False, True])
 def test_float32_kept_and_agrees_with_float64(rng, sparse):
     _, _, X = _lowrank(rng)
