@@ -27,9 +27,10 @@ $(VENV)/.installed-dev: $(STAMP)
 	touch $@
 
 ## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
-## and write results/report.html and results/report.md
+## and write results/report.html and results/report.md (two experiments at a time, each with a worker per core:
+## what one leaves idle, the other uses; shared caches are computed once, under a lock)
 reproduce: $(STAMP)
-	$(BIN)/mmconcepts reproduce --quick --workers -1 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
+	$(BIN)/mmconcepts reproduce --quick --workers -1 --concurrent 2 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included), then the type check and the documentation build (what CI runs)
 test: $(VENV)/.installed-dev browser
