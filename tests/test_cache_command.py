@@ -126,3 +126,11 @@ def test_the_command(cache, capsys, monkeypatch):
     monkeypatch.setenv("MMCONCEPTS_DATA", str(cache))
     assert main(["cache", "clear"]) == 0
     assert not any(cache.iterdir())
+
+
+def test_the_lock_files_of_generated_sets_are_not_an_entry(cache):
+    """The top-level ``.locks`` folder (lock files of corpora being generated) is not listed."""
+    from mmconcepts.cache import LOCKS
+
+    _write(cache / LOCKS / "caregiver-synth-v1-s4-n250-seed0.lock", 0, 0)
+    assert sorted(e.name for e in cache_entries(cache)) == ["ch3-folds", "ch5-mfcc", "notes.txt"]

@@ -21,6 +21,9 @@ from .errors import ParameterError
 
 __all__ = ["CacheEntry", "cache_entries", "clear_cache", "parse_age"]
 
+#: The folder of the cache root that holds the lock files of data sets being generated (not listed).
+LOCKS = ".locks"
+
 _AGE = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([smhdw])")
 _UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400, "w": 7 * 86400}
 
@@ -87,6 +90,8 @@ def cache_entries(path: str | os.PathLike[str] | None = None) -> list[CacheEntry
         return []
     out = []
     for item in sorted(home.iterdir()):
+        if item.name == LOCKS:  # the empty lock files of generated data sets, not data
+            continue
         sizes = [(p.stat().st_size, p.stat().st_mtime) for p in _files(item)]
         out.append(CacheEntry(item.name, len(sizes), sum(s for s, _ in sizes), max((m for _, m in sizes), default=None)))
     return out

@@ -105,6 +105,7 @@ from scipy import signal
 from .._io import folder_lock, replace_dir
 from .._paths import data_home as _data_home
 from .._validation import check_positive_int, check_random_state
+from ..cache import LOCKS
 from ..errors import ParameterError
 from .audio import resample, write_audio
 from .data import (
@@ -749,7 +750,7 @@ def fetch_caregiver(
     if not force and _complete(folder, _cache_info(n, n_spk, kpu, seed)):
         return load_generic_audio(folder, name="caregiver-synth")
     # one process generates, the others (concurrent experiments) wait and then load its copy
-    with folder_lock(folder.parent, f".{folder.name}.lock"):
+    with folder_lock(folder.parent / LOCKS, f"{folder.name}.lock"):
         if not force and _complete(folder, _cache_info(n, n_spk, kpu, seed)):
             return load_generic_audio(folder, name="caregiver-synth")
         return make_caregiver_corpus(folder, n_utterances_per_speaker=n, n_speakers=n_spk,
