@@ -479,24 +479,33 @@ def _slow_logged(x, log_dir):
     return {"x": np.array([x + 1])}
 
 
+_BARRIER = None  # set before the worker processes are forked: both calls start together
+
+
 def _call_cached(args):
+    import os
+
     cache_dir, log_dir, x, via_compute = args
     cached = RunContext(cache_dir=cache_dir, show_progress=False).memory("slow").cache(_slow_logged,
                                                                                        ignore=["log_dir"])
-    return int((cached.compute(x, log_dir) if via_compute else cached(x, log_dir))["x"][0])
+    _BARRIER.wait(timeout=60)  # fails (BrokenBarrierError) unless two processes got here at once
+    return int((cached.compute(x, log_dir) if via_compute else cached(x, log_dir))["x"][0]), os.getpid()
 
 
 @pytest.mark.parametrize("via_compute", [False, True], ids=["call", "compute after a miss"])
-def test_concurrent_processes_compute_a_missing_entry_once(tmp_path, via_compute):
+def test_concurrent_processes_compute_a_missing_entry_once(tmp_path, via_compute, monkeypatch):
     """Two processes sharing a cache folder (``reproduce --concurrent``) asking for the same missing
-    entry: one computes it, the other waits for it and reads it."""
+    entry at the same time: one computes it, the other waits for it and reads it."""
+    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
+    ctx = multiprocessing.get_context("fork")
+    monkeypatch.setitem(globals(), "_BARRIER", ctx.Barrier(2))  # inherited by the forked workers
     log = tmp_path / "log"
     log.mkdir()
-    with ProcessPoolExecutor(2) as pool:
+    with ProcessPoolExecutor(2, mp_context=ctx) as pool:
         out = list(pool.map(_call_cached, [(str(tmp_path / "cache"), str(log), 3, via_compute)] * 2))
-    assert out == [4, 4]
+    assert [v for v, _ in out] == [4, 4] and out[0][1] != out[1][1]  # two processes
     assert len(list(log.iterdir())) == 1
     assert len(_entries(tmp_path / "cache" / "slow")) == 1
 

@@ -250,3 +250,31 @@ def test_folder_lock_makes_a_second_holder_wait(tmp_path):
     thread.join(10)
     assert [e for e, _ in events] == ["first leaves", "second"]
     assert (tmp_path / "out" / ".report.lock").is_file()
+
+
+def test_folder_lock_says_it_waits_and_marks_when_it_was_taken(tmp_path, caplog):
+    """A holder that has to wait logs it (a concurrent experiment should not look hung), and the
+    lock file's modification time is when it was last taken (a clean-up by age spares a held lock)."""
+    import logging
+    import os
+    import threading
+
+    from mmconcepts._io import folder_lock
+
+    lock = tmp_path / "out" / ".x.lock"
+    with caplog.at_level(logging.INFO, logger="mmconcepts"):
+        with folder_lock(tmp_path / "out", ".x.lock"):
+            pass
+        assert "waiting" not in caplog.text  # free: taken at once, nothing said
+        os.utime(lock, (time.time() - 7200,) * 2)  # made two hours ago
+        with folder_lock(tmp_path / "out", ".x.lock"):
+            assert time.time() - lock.stat().st_mtime < 60
+            def second():
+                with folder_lock(tmp_path / "out", ".x.lock"):
+                    pass
+
+            thread = threading.Thread(target=second)
+            thread.start()
+            time.sleep(0.5)
+        thread.join(10)
+    assert f"waiting for {lock}" in caplog.text

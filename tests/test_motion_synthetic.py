@@ -134,20 +134,26 @@ def test_full_mixed_set_generation_and_features(tmp_path):
     assert H.shape == (277, 16 * 16)
 
 
+_BARRIER = None  # set before the worker processes are forked: both calls start together
+
+
 def _generate_in_child(args):
+    import os
+
     from mmconcepts.motion import synthetic
 
     which, home = args
+    _BARRIER.wait(timeout=60)  # fails (BrokenBarrierError) unless two processes got here at once
     if which == "choreo1":
         ds = synthetic.make_choreo1("mixed_partial", data_home=home, random_state=0, n_records=4)
     else:
         ds = synthetic.make_choreo2(data_home=home, random_state=0, n_records=10)
-    return [r.positions.sum() for r in ds]
+    return [r.positions.sum() for r in ds], os.getpid()
 
 
 @pytest.mark.parametrize("which", ["choreo1", "choreo2"])
 def test_concurrent_processes_generate_the_set_once(tmp_path, monkeypatch, which):
-    """Two processes sharing a cache folder (``reproduce --concurrent``) asking for a set not yet there:
+    """Two processes sharing a cache folder (``reproduce --concurrent``) asking at once for a set not yet there:
     one writes it, the other waits and loads the same records (no clash in the folder being built)."""
     import multiprocessing
     import os
@@ -167,7 +173,9 @@ def test_concurrent_processes_generate_the_set_once(tmp_path, monkeypatch, which
         return real(*args, **kwargs)
 
     monkeypatch.setattr(synthetic, name, logged)
-    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
-        a, b = pool.map(_generate_in_child, [(which, str(tmp_path / "home"))] * 2)
+    ctx = multiprocessing.get_context("fork")
+    monkeypatch.setitem(globals(), "_BARRIER", ctx.Barrier(2))  # inherited by the forked workers
+    with ProcessPoolExecutor(2, mp_context=ctx) as pool:
+        (a, pa), (b, pb) = pool.map(_generate_in_child, [(which, str(tmp_path / "home"))] * 2)
     assert len(list(log.iterdir())) == 1
-    assert a == b
+    assert a == b and pa != pb

@@ -201,6 +201,24 @@ def test_empty_columns_left_out_after_the_first_update_match_sklearn(rng, beta, 
     assert res.n_iter == full.n_iter
 
 
+def test_empty_columns_left_out_stop_at_the_same_iteration(rng, monkeypatch):
+    """With the stopping rule on (tol > 0, the objective every iteration), leaving the empty columns out
+    changes neither when the fit stops nor the recorded objectives."""
+    from mmconcepts.nmf import _solver
+
+    X = sp.random(40, 400, density=0.01, random_state=6, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    kw = dict(beta_loss=1.0, init="random", random_state=2, max_iter=500, tol=1e-3, loss_every=1)
+    res = beta_nmf(X, 4, **kw)
+    monkeypatch.setattr(_solver._EmptyColumns, "MIN_SHARE", 2.0)
+    full = beta_nmf(X, 4, **kw)
+    assert res.converged and 1 < res.n_iter < 500
+    assert res.n_iter == full.n_iter
+    np.testing.assert_array_equal(res.loss_iterations, full.loss_iterations)
+    np.testing.assert_allclose(res.loss_history, full.loss_history, rtol=1e-12)
+    np.testing.assert_allclose(res.H, full.H, rtol=1e-10, atol=1e-12 * full.H.max())
+
+
 def test_empty_columns_kept_where_they_cannot_be_left_out(rng, monkeypatch):
     """A mask, a fixed H or Hoyer's constraints: the columns stay (their H need not become 0)."""
     from mmconcepts.nmf import _solver

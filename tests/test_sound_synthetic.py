@@ -227,9 +227,15 @@ def test_fetch_caregiver_uses_its_cache(tmp_path, monkeypatch):
         make_caregiver_corpus(tmp_path / "x", n_speakers=len(SPEAKERS) + 1)
 
 
+_BARRIER = None  # set before the worker processes are forked: both calls start together
+
+
 def _fetch_in_child(home):
+    import os
+
+    _BARRIER.wait(timeout=60)  # fails (BrokenBarrierError) unless two processes got here at once
     corpus = fetch_caregiver(home, n_utterances_per_speaker=2, n_speakers=1, random_state=1)
-    return list(corpus.transcriptions)
+    return list(corpus.transcriptions), os.getpid()
 
 
 @needs_piper
@@ -251,7 +257,10 @@ def test_concurrent_processes_generate_the_corpus_once(tmp_path, monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(synthetic, "make_caregiver_corpus", logged)
-    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
-        a, b = pool.map(_fetch_in_child, [str(tmp_path / "home")] * 2)
+    ctx = multiprocessing.get_context("fork")
+    monkeypatch.setitem(globals(), "_BARRIER", ctx.Barrier(2))  # inherited by the forked workers
+    with ProcessPoolExecutor(2, mp_context=ctx) as pool:
+        (a, pa), (b, pb) = pool.map(_fetch_in_child, [str(tmp_path / "home")] * 2)
     assert len(list(log.iterdir())) == 1
-    assert a == b and len(a) == 2
+    assert a == b and len(a) == 2 and pa != pb
+    assert (tmp_path / "home" / ".locks").is_dir()  # the lock file is not a cache entry (`cache list`)

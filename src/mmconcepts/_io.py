@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import logging
 import os
 import shutil
 import tempfile
@@ -101,7 +102,8 @@ def folder_lock(folder: str | os.PathLike[str], name: str = ".lock") -> Iterator
     second process waits at the start of its block until the first leaves its own. The
     lock is advisory (``fcntl.flock``; ``msvcrt.locking`` on Windows; none on a file system
     that does not support it), is released when the block ends or the process dies, and
-    the lock file is left in place (empty).
+    the lock file is left in place (empty; its modification time is when it was last
+    taken). A process that has to wait logs it (logger ``mmconcepts``, level INFO).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -120,9 +122,16 @@ def folder_lock(folder: str | os.PathLike[str], name: str = ".lock") -> Iterator
                     continue
         else:
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:  # held by another process: say so, then wait for it
+                    logging.getLogger("mmconcepts").info("waiting for %s (held by another process)", folder / name)
+                    fcntl.flock(fd, fcntl.LOCK_EX)
             except OSError:  # pragma: no cover - a file system without locks: go on unlocked
                 pass
+        if os.utime in os.supports_fd:  # held from now: a clean-up by age (cache clear --older-than) spares it
+            with contextlib.suppress(OSError):
+                os.utime(fd)
         yield
     finally:
         os.close(fd)  # releases the lock

@@ -213,5 +213,24 @@ class Problem:
             self.sides = (Side(X, mask, None, False), Side(X, mask, None, True))
         self.mask = mask
 
+    @classmethod
+    def used_columns(cls, problem: Problem, keep: np.ndarray) -> Problem:
+        """The problem on the columns ``keep`` of a sparse, unmasked problem whose other columns hold no value.
+
+        Shares the stored values with ``problem``: X keeps its values and row pointers (its
+        column numbers are renumbered), and X.T keeps its values and column numbers (the
+        rows of the empty columns, which hold nothing, are dropped from its row pointers).
+        """
+        X, XT = cast("sp.csr_matrix", problem.sides[0].X), cast("sp.csr_matrix", problem.sides[1].X)
+        new = np.full(X.shape[1], -1, dtype=X.indices.dtype)
+        new[keep] = np.arange(len(keep), dtype=X.indices.dtype)
+        Xr = sp.csr_matrix((X.data, new[X.indices], X.indptr), shape=(X.shape[0], len(keep)), copy=False)
+        indptr = np.append(XT.indptr[keep], XT.indptr[-1]).astype(XT.indptr.dtype, copy=False)
+        XTr = sp.csr_matrix((XT.data, XT.indices, indptr), shape=(len(keep), XT.shape[1]), copy=False)
+        out = cls.__new__(cls)
+        out.shape, out.dtype, out.mask = Xr.shape, problem.dtype, None
+        out.sides = (Side(Xr, None, None, False), Side(XTr, None, None, False))
+        return out
+
     def divergence(self, W: np.ndarray, Ht: np.ndarray, beta: float) -> float:
         return self.sides[0].divergence(W, Ht, beta)

@@ -713,10 +713,10 @@ class _EmptyColumns:
 
     def reduce(self, sol: _Solver, Ht: np.ndarray) -> tuple[_Solver, np.ndarray] | None:
         """The solver on the used columns and their rows of Ht, or None if an empty column's row is not 0."""
-        if np.any(Ht[self.empty]):
+        if np.any(Ht.sum(axis=1)[self.empty]):  # Ht >= 0: a row sums to 0 only when it is all 0 (NaN: kept)
             return None
-        X = cast("sp.csr_matrix", self.problem.sides[0].X)[:, self.keep]
-        reduced = _Solver(Problem(X), sol.beta, sol.solver, sol.update_rule, sol.penalties, sol.hoyer)
+        reduced = _Solver(Problem.used_columns(self.problem, self.keep), sol.beta, sol.solver, sol.update_rule,
+                          sol.penalties, sol.hoyer)
         return reduced, np.ascontiguousarray(Ht[self.keep])
 
     def expand(self, Ht: np.ndarray) -> np.ndarray:
