@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import warnings
 
 import numpy as np
@@ -124,6 +125,64 @@ def test_blocked_kl_update_matches_sklearn_over_several_blocks(rng, order):
     res = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=5, tol=0)
     np.testing.assert_allclose(res.W, W_sk, rtol=1e-10)
     np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10)
+
+
+def _blocked_kl_case(rng):
+    # 2000 features give blocks of 262 rows: 2458 rows make ten blocks (the last partial), in
+    # eight stripes of two or one blocks, so stripes sum several blocks and threads several stripes.
+    X = _positive(rng, 2458, 2000)
+    return X, rng.random((2458, 3)), rng.random((3, 2000))
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_blocked_kl_update_in_threads_matches_sklearn(rng, threads):
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    sk = SkNMF(3, init="custom", solver="mu", beta_loss=1.0, max_iter=4, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    with threadpool_limits(limits=threads, user_api="blas"):
+        res = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=4, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-10)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10)
+
+
+def test_blocked_kl_update_does_not_depend_on_the_number_of_threads(rng):
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    out = []
+    for threads in (1, 2, 3):
+        with threadpool_limits(limits=threads, user_api="blas"):
+            out.append(beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=4, tol=0))
+    for res in out[1:]:
+        np.testing.assert_array_equal(res.W, out[0].W)
+        np.testing.assert_array_equal(res.H, out[0].H)
+
+
+def _fit_in_child(args):
+    X, W0, H0 = args
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        return beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0).W
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_blocked_kl_update_runs_in_a_forked_child(rng):
+    # The parent's thread pool does not exist in a forked child: the child must make its own.
+    import multiprocessing as mp
+
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    with threadpool_limits(limits=2, user_api="blas"):
+        want = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0).W
+    with mp.get_context("fork").Pool(1) as pool:
+        got = pool.apply_async(_fit_in_child, ((X, W0, H0),)).get(timeout=60)
+    np.testing.assert_array_equal(got, want)
 
 
 @pytest.mark.parametrize("beta", [1.0, 2.0])

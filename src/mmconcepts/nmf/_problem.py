@@ -12,8 +12,12 @@ W_thesis = Ht and H_thesis = W.T, so thesis eq. (2.16)'s H-update is our side 0.
 
 from __future__ import annotations
 
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -22,6 +26,77 @@ from . import _kernels
 from ._beta import EPSILON, _dense_blocks, _gather, _mask_block, _sum_power_lowrank, elementwise_beta_divergence
 
 __all__ = ["Side", "Problem"]
+
+#: Size of one block of the dense I-divergence numerator (2 and 4 MB measured on the 2-core
+#: project machine, ``benchmarks/README.md``: 4 MB was faster).
+_BLOCK_BYTES = 4 << 20
+
+_blas: Any = None  # threadpoolctl's controller of the BLAS libraries, made on first use
+_pool: ThreadPoolExecutor | None = None
+_pool_lock = threading.Lock()
+
+
+def _blas_threads() -> int:
+    """The number of threads numpy's BLAS may use now (threadpoolctl; 1 when it finds no BLAS)."""
+    global _blas
+    if _blas is None:
+        from threadpoolctl import ThreadpoolController
+
+        _blas = ThreadpoolController().select(user_api="blas")
+    return max([lib.num_threads for lib in _blas.lib_controllers], default=1)
+
+
+def _forget_pool() -> None:  # a forked child has none of its parent's threads
+    global _pool
+    _pool = None
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _stripes_in_threads(run: Callable[[int, int], None], n_stripes: int, T: int) -> None:
+    """Call ``run(i, t)`` for every stripe i, on T threads (t = 0 .. T-1) with one BLAS thread each.
+
+    Thread t runs stripes t, t + T, ... (with its own scratch buffers); the calling thread is
+    thread 0. One thread runs every stripe in order, with BLAS as it is. The blocked products
+    of the stripes are then each on one core, in its own cache, rather than every product split
+    over all cores (``benchmarks/README.md``, dense KL).
+    """
+    if T <= 1:
+        for i in range(n_stripes):
+            run(i, 0)
+        return
+
+    def thread(t: int) -> None:
+        for i in range(t, n_stripes, T):
+            run(i, t)
+
+    global _pool
+    with _pool_lock:
+        if _pool is None or _pool._max_workers < T - 1:
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool = ThreadPoolExecutor(max_workers=T - 1, thread_name_prefix="mmconcepts-nmf")
+        pool = _pool
+    with _blas.limit(limits=1):
+        futures = [pool.submit(thread, t) for t in range(1, T)]
+        try:
+            thread(0)
+        finally:
+            for f in futures:
+                f.result()
+
+
+@dataclass
+class _StripeBuffers:
+    """Scratch space of :meth:`Side._kl_numerator_blocked`, kept while ``key`` matches."""
+
+    key: tuple
+    num: np.ndarray  # the numerator (n, k), or its transpose (k, m) on the transposed side; the caller may
+    # overwrite what is returned, not keep it
+    blocks: list[np.ndarray]  # per thread: one block of rows of the product
+    parts: list[np.ndarray]  # per thread: one block's contribution, transposed
+    partial: np.ndarray  # (stripes - 1, k, m) (transposed side): stripes 1.. summed; stripe 0 sums into num
 
 
 @dataclass
@@ -33,7 +108,7 @@ class Side:
     weights: np.ndarray | None  # sparse X only: mask values at X's stored entries
     transposed: bool  # dense only: this side updates the right factor (X ~ R @ L.T)
     buffer: np.ndarray | None = None  # dense only: scratch space for the product, reused
-    block_buffer: np.ndarray | None = None  # dense only: scratch rows for the blocked I-divergence update
+    block_buffer: _StripeBuffers | None = None  # dense only: scratch space of the blocked I-divergence update
 
     @property
     def sparse(self) -> bool:
@@ -87,37 +162,83 @@ class Side:
         """(X / max(L R^T, eps)) R for a dense, fully observed X, by blocks of X's stored rows.
 
         The I-divergence numerator with the ratio never held whole: each block of rows of the
-        product is computed, divided into X and multiplied by its factor while it is still in
-        cache (blocks of about 4 MB). Same operations and results as the unblocked form;
-        faster when the product and X together overflow the cache (``benchmarks/README.md``,
-        dense KL).
+        product (about 4 MB) is computed, divided into X and multiplied by
+        its factor while it is still in cache. The blocks are grouped in a fixed number of
+        contiguous stripes; when numpy's BLAS may use several threads, the stripes run on that
+        many Python threads with one BLAS thread each (:func:`_stripes_in_threads`). Where the
+        blocks' contributions are summed (``transposed``), each stripe sums its blocks in order
+        and the stripes are summed in order, so the result does not depend on the number of
+        threads. Same operations as the unblocked form; faster when the product and X together
+        overflow the cache (``benchmarks/README.md``, dense KL).
         """
         X = self.X
         n, m = X.shape
-        b = max(16, min(n, (4 << 20) // (8 * m)))
-        buf = self.block_buffer
-        if buf is None or buf.dtype != L.dtype or buf.shape != (b, m):
-            buf = self.block_buffer = np.empty((b, m), dtype=L.dtype)
+        k = L.shape[1]
+        b = max(16, min(n, _BLOCK_BYTES // (8 * m)))
+        starts = range(0, n, b)
+        # At most 8 stripes, and their partial sums (transposed side) at most a quarter of X's size.
+        n_stripes = max(1, min(8, len(starts), n // (4 * k)))
+        stripes = np.array_split(np.asarray(starts), n_stripes)
         eps = L.dtype.type(EPSILON)
+        buf = self._stripe_buffers(n_stripes, (b, m), L)
+        # The products with the factor are formed transposed, (k, rows): OpenBLAS runs the
+        # wide-output form about 20 % faster than the (rows, k) one on these shapes.
         if not self.transposed:  # L = W (n, k), R = Ht (m, k): rows of the numerator are rows of X
-            num = np.empty_like(L)
-            for s in range(0, n, b):
-                e = min(s + b, n)
-                P = buf[: e - s]
-                np.matmul(L[s:e], R.T, out=P)
-                _kernels.divide_clipped(X[s:e], P, eps)
-                np.matmul(P, R, out=num[s:e])
+            num = buf.num
+
+            def run(i: int, t: int) -> None:
+                for s in stripes[i]:
+                    e = min(s + b, n)
+                    P = buf.blocks[t][: e - s]
+                    np.matmul(L[s:e], R.T, out=P)
+                    _kernels.divide_clipped(X[s:e], P, eps)
+                    T = buf.parts[t].reshape(-1)[: k * (e - s)].reshape(k, e - s)
+                    np.matmul(R.T, P.T, out=T)
+                    num[s:e] = T.T
+
+            _stripes_in_threads(run, n_stripes, len(buf.blocks))
             return num
-        num = np.zeros_like(L)  # L = Ht (m, k), R = W (n, k): sum the blocks' contributions
-        part = np.empty_like(L)
-        for s in range(0, n, b):
-            e = min(s + b, n)
-            P = buf[: e - s]
-            np.matmul(R[s:e], L.T, out=P)
-            _kernels.divide_clipped(X[s:e], P, eps)
-            np.matmul(P.T, R[s:e], out=part)
-            num += part
-        return num
+
+        # L = Ht (m, k), R = W (n, k): sum the blocks' contributions, stripe by stripe, then the stripes
+        numT = buf.num  # (k, m): the numerator transposed
+
+        def run_t(i: int, t: int) -> None:
+            acc = numT if i == 0 else buf.partial[i - 1]
+            for first, s in zip((True, *([False] * (len(stripes[i]) - 1))), stripes[i]):
+                e = min(s + b, n)
+                P = buf.blocks[t][: e - s]
+                np.matmul(R[s:e], L.T, out=P)
+                _kernels.divide_clipped(X[s:e], P, eps)
+                if first:
+                    np.matmul(R[s:e].T, P, out=acc)
+                else:
+                    np.matmul(R[s:e].T, P, out=buf.parts[t])
+                    acc += buf.parts[t]
+
+        _stripes_in_threads(run_t, n_stripes, len(buf.blocks))
+        for i in range(1, n_stripes):
+            numT += buf.partial[i - 1]
+        return numT.T
+
+    def _stripe_buffers(self, n_stripes: int, block: tuple[int, int], L: np.ndarray) -> _StripeBuffers:
+        """Scratch space of the blocked numerator, reused across iterations (one block per thread)."""
+        count = min(n_stripes, _blas_threads())
+        key = (L.dtype, L.shape, block, n_stripes, count)
+        buf = self.block_buffer
+        if buf is None or buf.key != key:
+            k = L.shape[1]
+            if self.transposed:  # the numerator, each stripe's sum and each block's part are (k, m)
+                num_shape, part_shape, extra = (k, L.shape[0]), (k, L.shape[0]), n_stripes - 1
+            else:  # the numerator is (n, k); each block's part (k, rows) is copied into it
+                num_shape, part_shape, extra = L.shape, (k, block[0]), 0
+            buf = self.block_buffer = _StripeBuffers(
+                key,
+                np.empty(num_shape, dtype=L.dtype),
+                [np.empty(block, dtype=L.dtype) for _ in range(count)],
+                [np.empty(part_shape, dtype=L.dtype) for _ in range(count)],
+                np.empty((extra, *num_shape), dtype=L.dtype),
+            )
+        return buf
 
     def _product(self, L, R) -> np.ndarray:
         """The dense product in the stored orientation, in a buffer reused across iterations."""
