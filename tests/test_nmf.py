@@ -185,6 +185,82 @@ def test_blocked_kl_update_runs_in_a_forked_child(rng):
     np.testing.assert_array_equal(got, want)
 
 
+def _blas_thread_counts():
+    from threadpoolctl import threadpool_info
+
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+def test_blocked_kl_update_from_other_threads_is_reproducible(rng):
+    # Off the main thread the blocks run one after the other and never touch the process-wide
+    # BLAS thread count: fits running at once in two threads equal the same fits run alone.
+    import threading
+
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    W1 = rng.random(W0.shape)
+
+    def fit(W, out, key):
+        out[key] = beta_nmf(X, 3, init="custom", W=W, H=H0, beta_loss=1.0, max_iter=3, tol=0)
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_thread_counts()
+        alone: dict = {}
+        for key, W in (("a", W0), ("b", W1)):
+            t = threading.Thread(target=fit, args=(W, alone, key))
+            t.start()
+            t.join()
+        together: dict = {}
+        threads = [threading.Thread(target=fit, args=(W, together, key)) for key, W in (("a", W0), ("b", W1))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert _blas_thread_counts() == before
+    for key in ("a", "b"):
+        np.testing.assert_array_equal(together[key].W, alone[key].W)
+        np.testing.assert_array_equal(together[key].H, alone[key].H)
+
+
+def test_blocked_kl_update_restores_the_blas_threads(rng):
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_thread_counts()
+        beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0)
+        assert _blas_thread_counts() == before
+
+
+def _child_blas_threads(_):
+    return _blas_thread_counts()
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_a_child_forked_while_blocks_run_gets_the_blas_threads_back(rng):
+    # A fork while the main thread's blocks hold BLAS at one thread (another thread forks)
+    # must not leave the child with one BLAS thread for good.
+    import multiprocessing as mp
+
+    from threadpoolctl import threadpool_limits
+
+    from mmconcepts.nmf import _problem
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    with threadpool_limits(limits=2, user_api="blas"):
+        beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=1, tol=0)  # makes the controller
+        before = _blas_thread_counts()
+        _problem._limiter = _problem._blas.limit(limits=1)  # as inside _stripes_in_threads
+        try:
+            with mp.get_context("fork").Pool(1) as pool:
+                child = pool.apply_async(_child_blas_threads, (None,)).get(timeout=60)
+        finally:
+            _problem._limiter.restore_original_limits()
+            _problem._limiter = None
+    assert child == before
+
+
 @pytest.mark.parametrize("beta", [1.0, 2.0])
 def test_projected_gradient_decreases_loss(rng, beta):
     W, H, X = _lowrank(rng)

@@ -104,8 +104,10 @@ def _online_iterations(problem: Problem, W: np.ndarray, Ht: np.ndarray, stats: t
         num, den = problem.sides[1].numerator_denominator(Ht, W, beta)
         den = pen_H.add_to(den, Ht)
         eps = Ht.dtype.type(EPSILON)
-        if gamma == 1.0 and num.flags.owndata and num.flags.writeable and num.dtype == Ht.dtype:
-            A = np.multiply(num, Ht, out=num)  # in place: no fresh m x k block (page faults) per iteration
+        # in place: no fresh m x k block (page faults) per iteration; the dense KL numerator is a transposed
+        # view of the side's scratch buffer, which this batch's problem no longer needs after the loop
+        if gamma == 1.0 and num.flags.writeable and (num.flags.owndata or num.flags.f_contiguous) and num.dtype == Ht.dtype:
+            A = np.multiply(num, Ht, out=num)
         else:
             A = (Ht ** (1.0 / gamma) if gamma != 1.0 else Ht) * num
         if stats is not None:

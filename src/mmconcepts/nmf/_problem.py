@@ -27,18 +27,26 @@ from ._beta import EPSILON, _dense_blocks, _gather, _mask_block, _sum_power_lowr
 
 __all__ = ["Side", "Problem"]
 
-#: Size of one block of the dense I-divergence numerator (2 and 4 MB measured on the 2-core
-#: project machine, ``benchmarks/README.md``: 4 MB was faster).
+#: Bytes of one block of the dense I-divergence numerator's product (1 to 8 MB measured on the
+#: 2-core project machine, ``benchmarks/README.md``: 4 MB was fastest).
 _BLOCK_BYTES = 4 << 20
 
 _blas: Any = None  # threadpoolctl's controller of the BLAS libraries, made on first use
 _pool: ThreadPoolExecutor | None = None
-_pool_lock = threading.Lock()
+_limiter: Any = None  # the BLAS limit in force while the blocks run on threads, else None
 
 
 def _blas_threads() -> int:
-    """The number of threads numpy's BLAS may use now (threadpoolctl; 1 when it finds no BLAS)."""
+    """The threads the blocked numerator may use: numpy's BLAS threads, from the main thread only.
+
+    The BLAS thread count is process-wide, so only the main thread lowers it to one while its
+    blocks run on threads; from any other thread (a user's thread pool, dask's threaded
+    scheduler) the blocks run one after the other with BLAS as it is, and BLAS calls made
+    concurrently by other threads never see a limit they did not set.
+    """
     global _blas
+    if threading.current_thread() is not threading.main_thread():
+        return 1
     if _blas is None:
         from threadpoolctl import ThreadpoolController
 
@@ -46,21 +54,25 @@ def _blas_threads() -> int:
     return max([lib.num_threads for lib in _blas.lib_controllers], default=1)
 
 
-def _forget_pool() -> None:  # a forked child has none of its parent's threads
-    global _pool
+def _after_fork_in_child() -> None:
+    """A forked child has none of its parent's threads, and must not inherit a BLAS limit of one."""
+    global _pool, _limiter
     _pool = None
+    if _limiter is not None:
+        _limiter.restore_original_limits()
+        _limiter = None
 
 
-os.register_at_fork(after_in_child=_forget_pool)
+os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 def _stripes_in_threads(run: Callable[[int, int], None], n_stripes: int, T: int) -> None:
     """Call ``run(i, t)`` for every stripe i, on T threads (t = 0 .. T-1) with one BLAS thread each.
 
-    Thread t runs stripes t, t + T, ... (with its own scratch buffers); the calling thread is
-    thread 0. One thread runs every stripe in order, with BLAS as it is. The blocked products
-    of the stripes are then each on one core, in its own cache, rather than every product split
-    over all cores (``benchmarks/README.md``, dense KL).
+    Thread t runs stripes t, t + T, ... (with its own scratch buffers); the calling (main)
+    thread is thread 0. One thread runs every stripe in order, with BLAS as it is. The blocked
+    products of the stripes are then each on one core, in its own cache, rather than every
+    product split over all cores (``benchmarks/README.md``, dense KL).
     """
     if T <= 1:
         for i in range(n_stripes):
@@ -71,20 +83,22 @@ def _stripes_in_threads(run: Callable[[int, int], None], n_stripes: int, T: int)
         for i in range(t, n_stripes, T):
             run(i, t)
 
-    global _pool
-    with _pool_lock:
-        if _pool is None or _pool._max_workers < T - 1:
-            if _pool is not None:
-                _pool.shutdown(wait=False)
-            _pool = ThreadPoolExecutor(max_workers=T - 1, thread_name_prefix="mmconcepts-nmf")
-        pool = _pool
-    with _blas.limit(limits=1):
-        futures = [pool.submit(thread, t) for t in range(1, T)]
+    global _pool, _limiter
+    if _pool is None or _pool._max_workers < T - 1:  # only the main thread gets here
+        if _pool is not None:
+            _pool.shutdown(wait=False)
+        _pool = ThreadPoolExecutor(max_workers=T - 1, thread_name_prefix="mmconcepts-nmf")
+    _limiter = _blas.limit(limits=1)
+    try:
+        futures = [_pool.submit(thread, t) for t in range(1, T)]
         try:
             thread(0)
         finally:
             for f in futures:
                 f.result()
+    finally:
+        _limiter.restore_original_limits()
+        _limiter = None
 
 
 @dataclass
@@ -96,7 +110,8 @@ class _StripeBuffers:
     # overwrite what is returned, not keep it
     blocks: list[np.ndarray]  # per thread: one block of rows of the product
     parts: list[np.ndarray]  # per thread: one block's contribution, transposed
-    partial: np.ndarray  # (stripes - 1, k, m) (transposed side): stripes 1.. summed; stripe 0 sums into num
+    partial: np.ndarray  # (transposed side) the sums of stripes 1.. (one at a time when one thread runs);
+    # stripe 0 sums into num
 
 
 @dataclass
@@ -162,19 +177,21 @@ class Side:
         """(X / max(L R^T, eps)) R for a dense, fully observed X, by blocks of X's stored rows.
 
         The I-divergence numerator with the ratio never held whole: each block of rows of the
-        product (about 4 MB) is computed, divided into X and multiplied by
-        its factor while it is still in cache. The blocks are grouped in a fixed number of
-        contiguous stripes; when numpy's BLAS may use several threads, the stripes run on that
-        many Python threads with one BLAS thread each (:func:`_stripes_in_threads`). Where the
-        blocks' contributions are summed (``transposed``), each stripe sums its blocks in order
-        and the stripes are summed in order, so the result does not depend on the number of
-        threads. Same operations as the unblocked form; faster when the product and X together
+        product (about 4 MB) is computed, divided into X and multiplied by its factor while it is
+        still in cache. The blocks are grouped in a fixed number of contiguous stripes (at most 8).
+        Called from the main thread while numpy's BLAS may use several threads, the stripes run on
+        that many Python threads with one BLAS thread each (:func:`_stripes_in_threads`); else
+        one after the other. Where the blocks' contributions are summed (``transposed``), each
+        stripe sums its blocks in order and the stripes are summed in order, so with two stripes
+        or more the result does not depend on the number of threads. With one stripe (a small X,
+        or n < 4 k) the products run on BLAS as it is, whose last bits can depend on its own
+        thread count. Same operations as the unblocked form; faster when the product and X together
         overflow the cache (``benchmarks/README.md``, dense KL).
         """
         X = self.X
         n, m = X.shape
         k = L.shape[1]
-        b = max(16, min(n, _BLOCK_BYTES // (8 * m)))
+        b = max(16, min(n, _BLOCK_BYTES // (L.dtype.itemsize * m)))
         starts = range(0, n, b)
         # At most 8 stripes, and their partial sums (transposed side) at most a quarter of X's size.
         n_stripes = max(1, min(8, len(starts), n // (4 * k)))
@@ -202,8 +219,10 @@ class Side:
         # L = Ht (m, k), R = W (n, k): sum the blocks' contributions, stripe by stripe, then the stripes
         numT = buf.num  # (k, m): the numerator transposed
 
+        threaded = len(buf.blocks) > 1  # else one stripe sum at a time, added as soon as it is done
+
         def run_t(i: int, t: int) -> None:
-            acc = numT if i == 0 else buf.partial[i - 1]
+            acc = numT if i == 0 else buf.partial[i - 1 if threaded else 0]
             for first, s in zip((True, *([False] * (len(stripes[i]) - 1))), stripes[i]):
                 e = min(s + b, n)
                 P = buf.blocks[t][: e - s]
@@ -214,10 +233,13 @@ class Side:
                 else:
                     np.matmul(R[s:e].T, P, out=buf.parts[t])
                     acc += buf.parts[t]
+            if i > 0 and not threaded:
+                np.add(numT, acc, out=numT)
 
         _stripes_in_threads(run_t, n_stripes, len(buf.blocks))
-        for i in range(1, n_stripes):
-            numT += buf.partial[i - 1]
+        if threaded:  # the same sums in the same order as one thread's
+            for i in range(1, n_stripes):
+                numT += buf.partial[i - 1]
         return numT.T
 
     def _stripe_buffers(self, n_stripes: int, block: tuple[int, int], L: np.ndarray) -> _StripeBuffers:
@@ -228,7 +250,8 @@ class Side:
         if buf is None or buf.key != key:
             k = L.shape[1]
             if self.transposed:  # the numerator, each stripe's sum and each block's part are (k, m)
-                num_shape, part_shape, extra = (k, L.shape[0]), (k, L.shape[0]), n_stripes - 1
+                num_shape, part_shape = (k, L.shape[0]), (k, L.shape[0])
+                extra = (n_stripes - 1 if count > 1 else 1) if n_stripes > 1 else 0
             else:  # the numerator is (n, k); each block's part (k, rows) is copied into it
                 num_shape, part_shape, extra = L.shape, (k, block[0]), 0
             buf = self.block_buffer = _StripeBuffers(
