@@ -173,7 +173,7 @@ def test_ch6_folds_reused_recomputed_and_torn(rng, tmp_path, monkeypatch):
 
     def config(**kw):
         return types.SimpleNamespace(**{"seed": 0, "n_per_speaker": 5, "n_motion": n, "n_folds": 2, "k": 3,
-                                        "n_iter": 5, "motion_bins": 4, **kw})
+                                        "n_iter": 5, "motion_bins": 4, "hac_fit_frames": 1000, **kw})
 
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
     _, first = ch6.evaluate(ctx, config())
@@ -186,16 +186,18 @@ def test_ch6_folds_reused_recomputed_and_torn(rng, tmp_path, monkeypatch):
     assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 3
     ch6.evaluate(ctx, config(k=4))
     assert len(calls) == 5  # a setting of the learners is part of the key
+    ch6.evaluate(ctx, config(hac_fit_frames=500))
+    assert len(calls) == 7  # and of the features
     ch6.evaluate(ctx, config(seed=1))
-    assert len(calls) == 7  # so are the seeds
+    assert len(calls) == 9  # so are the seeds
     kept = data["mfcc"][3]
     data["mfcc"][3] = kept + 1.0  # and the data
     ch6.evaluate(ctx, config())
-    assert len(calls) == 9
+    assert len(calls) == 11
     data["mfcc"][3] = kept
-    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 9
-    monkeypatch.setattr(ch6, "code_fingerprint", lambda: "another code")
     assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 11
+    monkeypatch.setattr(ch6, "code_fingerprint", lambda: "another code")
+    assert ch6.evaluate(ctx, config())[1] == first and len(calls) == 13
 
 
 def test_ch6_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, monkeypatch):
@@ -203,7 +205,8 @@ def test_ch6_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, m
     data = {"mfcc": [rng.normal(size=(5, 4)) for _ in range(n)], "angles": [rng.normal(size=(6, 3)) for _ in range(n)],
             "y": np.arange(n) % 4, "fold": np.arange(n) % 3, "n_folds": 3}
     monkeypatch.setattr(ch6, "load_pairs", lambda ctx, **kw: data)
-    config = types.SimpleNamespace(seed=0, n_per_speaker=5, n_motion=n, n_folds=3, k=3, n_iter=5, motion_bins=4)
+    config = types.SimpleNamespace(seed=0, n_per_speaker=5, n_motion=n, n_folds=3, k=3, n_iter=5, motion_bins=4,
+                                   hac_fit_frames=1000)
     calls = []
 
     def stop_at_third(task):

@@ -345,7 +345,7 @@ def _fold(task: dict) -> dict:
     out: dict[str, float] = {}
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        hac = HAC(random_state=seed).fit([task["mfcc"][i] for i in tr])
+        hac = HAC(random_state=seed, max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr])
         hist = MotionHistograms(**task["motion_features"], random_state=seed).fit([task["angles"][i] for i in tr])
         S = hac.transform(task["mfcc"])
         M = hist.transform(task["angles"])
@@ -394,14 +394,14 @@ def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
     return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
              "mfcc": data["mfcc"], "angles": data["angles"], "motion_features": features, "k": config.k,
              "n_iter": config.n_iter, "learner_seed": learner[f], "reference_seed": reference[f],
-             "control_seed": control[f]} for f in range(n)]
+             "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames} for f in range(n)]
 
 
 def _fold_keys(data: dict, tasks: list[dict]) -> list[tuple]:
     """What each fold result of :func:`evaluate` depends on, besides the code."""
     data_key = (array_digest(data["mfcc"]), array_digest(data["angles"]), data["y"], data["fold"])
     return [(data_key, f, sorted(t["motion_features"].items()), t["k"], t["n_iter"], t["learner_seed"],
-             t["reference_seed"], t["control_seed"]) for f, t in enumerate(tasks)]
+             t["reference_seed"], t["control_seed"], t["hac_fit_frames"]) for f, t in enumerate(tasks)]
 
 
 def _cached_fold(task: dict, key: tuple, code: str) -> dict:

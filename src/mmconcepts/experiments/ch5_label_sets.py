@@ -98,7 +98,8 @@ class Config(PresetConfig):
     window_ms: float = 80.0
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, n_single=150, n_double=150, threshold_cv=3)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, n_single=150, n_double=150, threshold_cv=3, hac_fit_frames=20_000)
 
 
 def vote_threshold(bags: list[np.ndarray], tags: list[tuple], Y: np.ndarray, keywords: list[str], *, cv: int,
@@ -187,7 +188,7 @@ def _fold(task: dict) -> dict:
         Ytr, Yte = Y[tr], Y[te]
         seen = Ytr.sum(axis=0) > 0  # a keyword absent from training cannot be learnt (scored as never said)
 
-        hac = HAC(random_state=seed).fit([hac_seqs[i] for i in tr])
+        hac = HAC(random_state=seed, max_fit_frames=cfg["hac_fit_frames"]).fit([hac_seqs[i] for i in tr])
         Xtr = hac.transform([hac_seqs[i] for i in tr])
         keep = _observed(Xtr)
         Xte = hac.transform([hac_seqs[i] for i in te])[:, keep]
@@ -236,7 +237,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     tasks = [{"train": np.flatnonzero(data.fold != i), "test": np.flatnonzero(data.fold == i), "Y": Y,
               "keywords": keywords, "hac_seqs": hac_seqs, "win_seqs": win_seqs, "voting": voting,
               "config": {"n_components": config.n_components, "max_iter": config.max_iter,
-                         "threshold_cv": config.threshold_cv},
+                         "threshold_cv": config.threshold_cv, "hac_fit_frames": config.hac_fit_frames},
               "seed": common.sub_seed(st.learner, i), "chance_seed": common.sub_seed(st.reference, i)}
              for i in range(n_folds)]
     folds = ctx.parallel(_fold, tasks, desc="folds")

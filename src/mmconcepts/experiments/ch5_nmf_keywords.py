@@ -87,7 +87,8 @@ class Config(PresetConfig):
     threshold_cv: int = 5
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=3)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=3, hac_fit_frames=20_000)
 
 
 def _observed(X) -> np.ndarray:
@@ -113,7 +114,7 @@ def _fold(task: dict) -> dict:
         hac_seqs, win_seqs = task["hac_seqs"], task["win_seqs"]
         # codebooks from the training recordings only; they serve both settings (the composed
         # training utterances are made of these same recordings)
-        hac = HAC(random_state=seed).fit([hac_seqs[i] for i in tr])
+        hac = HAC(random_state=seed, max_fit_frames=cfg["hac_fit_frames"]).fit([hac_seqs[i] for i in tr])
         Xtr = hac.transform([hac_seqs[i] for i in tr])
         keep = _observed(Xtr)  # columns never observed in training get zero dictionary entries under KL MU
         Xte = hac.transform([hac_seqs[i] for i in te])
@@ -192,7 +193,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
               "c_train": np.flatnonzero(fold_of != i), "c_test": np.flatnonzero(fold_of == i), "Y": Y,
               "keywords": keywords, "c_hac_seqs": c_hac, "c_win_seqs": c_win,
               "config": {"n_components": config.n_components, "max_iter": config.max_iter,
-                         "threshold_cv": config.threshold_cv},
+                         "threshold_cv": config.threshold_cv, "hac_fit_frames": config.hac_fit_frames},
               "voting": voting, "seed": common.sub_seed(st.learner, i)} for i, (tr, te) in enumerate(splits)]
     folds = ctx.parallel(_fold, tasks, desc="folds")
 

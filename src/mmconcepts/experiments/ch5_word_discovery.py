@@ -74,7 +74,8 @@ class Config(PresetConfig):
     n_repeats: int = 10
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_utterances=300, n_single=150, n_double=150, n_repeats=5)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_utterances=300, n_single=150, n_double=150, n_repeats=5, hac_fit_frames=20_000)
 
 
 def _entropy_bits(p: np.ndarray) -> np.ndarray:
@@ -186,7 +187,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         config.n_repeats)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        X = HAC(random_state=seeds[0]).fit_transform(common.corpus_mfcc(ctx, data.corpus,
+        X = HAC(random_state=seeds[0], max_fit_frames=config.hac_fit_frames).fit_transform(common.corpus_mfcc(ctx, data.corpus,
                                                                         MFCCConfig(n_mfcc=config.hac_mfcc)))
     X = X[:, np.flatnonzero(np.asarray(X.getnnz(axis=0)) > 0)]
     tasks = [{"X": X, "Y": Y, "k": k, "max_iter": config.max_iter, "n_bins": config.n_bins, "seed": seeds[1 + r],

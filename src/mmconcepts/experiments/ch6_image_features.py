@@ -53,7 +53,8 @@ class Config(PresetConfig):
     n_iter: int = 50
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_views=24, n_repeats=3)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_views=24, n_repeats=3, hac_fit_frames=20_000)
 
 
 def load_images(ctx: RunContext, n_objects: int, n_views: int):
@@ -75,7 +76,7 @@ def _repeat(task: dict) -> dict:
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         learner = common.child_seeds(seed, 3)
-        hac = HAC(random_state=learner[0]).fit([mfcc[i] for i in tr])
+        hac = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([mfcc[i] for i in tr])
         S = hac.transform(mfcc)
         feats = ImageFeatures(THESIS_DESCRIPTORS, random_state=learner[1])
         used = np.unique(task["image_of"][tr])
@@ -120,6 +121,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         tasks.append({"train": np.flatnonzero(part_y == 0), "test": np.flatnonzero(part_y == 1),
                       "ref": np.flatnonzero(part_y == 2), "y": y, "mfcc": mfcc, "c_loc": c_loc, "k_loc": k_loc,
                       "image_of": image_of, "k": config.k, "n_iter": config.n_iter, "learner_seed": learner[r],
+                      "hac_fit_frames": config.hac_fit_frames,
                       "reference_seed": reference[r]})
     reps = ctx.parallel(_repeat, tasks, desc="repetitions")
     metrics: dict[str, float] = {"chance": 1.0 / len(keywords)}

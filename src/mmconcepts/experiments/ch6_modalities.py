@@ -61,7 +61,8 @@ class Config(PresetConfig):
     motion_bins: int = 25
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_motion=250, n_views=24, n_repeats=3, k_sweep=(10, 50))
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_motion=250, n_views=24, n_repeats=3, k_sweep=(10, 50), hac_fit_frames=20_000)
 
 
 def _setups() -> list[tuple[str, str, str]]:
@@ -91,7 +92,7 @@ def _repeat(task: dict) -> dict:
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         learner = common.child_seeds(task["learner_seed"], 3)
-        S = HAC(random_state=learner[0]).fit([task["mfcc"][i] for i in tr]).transform(task["mfcc"])
+        S = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr]).transform(task["mfcc"])
         angles = [task["angles"][i] for i in task["motion_of"]]
         M = MotionHistograms(data="joint", method="vq", n_bins=task["motion_bins"], delay=3,
                              random_state=learner[1]).fit([angles[i] for i in tr]).transform(angles)
@@ -162,7 +163,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
                       "ref": np.flatnonzero(part_y == 2), "y": y, "mfcc": speech["mfcc"], "angles": motion["angles"],
                       "motion_of": motion_of, "c_loc": c_loc, "image_of": image_of, "k": config.k,
                       "k_sweep": tuple(config.k_sweep), "n_iter": config.n_iter, "motion_bins": config.motion_bins,
-                      "learner_seed": learner[r], "reference_seed": reference[r]})
+                      "hac_fit_frames": config.hac_fit_frames, "learner_seed": learner[r], "reference_seed": reference[r]})
     reps = ctx.parallel(_repeat, tasks, desc="repetitions")
     keys = list(reps[0])
     metrics: dict[str, float] = {"chance": 1.0 / n_concepts}

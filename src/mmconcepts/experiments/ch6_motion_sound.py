@@ -56,7 +56,8 @@ class Config(PresetConfig):
     motion_bins: int = 25
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_motion=250, n_folds=5)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_motion=250, n_folds=5, hac_fit_frames=20_000)
 
 
 #: Thesis Table 6.2 (success rates; the shuffled control "generally scores around 0.116").

@@ -87,7 +87,8 @@ class Config(PresetConfig):
     n_test_folds: int = 5
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_views=24, widths=(0.1, 0.3, 1.0), n_repeats=1)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_views=24, widths=(0.1, 0.3, 1.0), n_repeats=1, hac_fit_frames=20_000)
 
 
 def stream_windows(starts: np.ndarray, durations: np.ndarray, width: float, shift: float) -> np.ndarray:
@@ -264,7 +265,7 @@ def _prepare(config: Config, ctx: RunContext, speech: dict, ims, c_loc: list, st
     img_ref = [np.flatnonzero((image_concept == c) & (part_i == 1)) for c in range(len(keywords))]
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        hac = HAC(random_state=learner[0]).fit([mfcc[i] for i in tr])
+        hac = HAC(random_state=learner[0], max_fit_frames=config.hac_fit_frames).fit([mfcc[i] for i in tr])
         feats = ImageFeatures(("color",), random_state=learner[1])
         feats.fit_locals([c_loc[i] for i in np.concatenate(img_train)], None)
         colour = feats.transform_locals(c_loc, None)["color"]

@@ -90,7 +90,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     # 4 folds: two rounds on two cores (5 would take three)
-    QUICK = dict(n_compositional=300, n_single=300, n_folds=4, n_calibration=80, n_per_speaker=250)
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_compositional=300, n_single=300, n_folds=4, n_calibration=80, n_per_speaker=250, hac_fit_frames=20_000)
 
 
 # ---------------------------------------------------------------------------- data
@@ -325,7 +326,7 @@ def _fold(task: dict) -> dict:
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         fit_idx = np.unique(np.concatenate([tr_c, tr_s]))
-        hac = HAC(random_state=seed).fit([task["mfcc"][i] for i in fit_idx])
+        hac = HAC(random_state=seed, max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in fit_idx])
         S = hac.transform([task["mfcc"][i] for i in used]).tocsr()
         hist = MotionHistograms(data="joint", method="vq", n_bins=task["motion_bins"], delay=3,
                                 random_state=seed).fit([task["angles"][i] for i in fit_idx])
@@ -400,7 +401,7 @@ def fold_tasks(data: dict, mfccs: list, config: Config, st: Streams) -> list[dic
                       "test": np.flatnonzero(fold == f), "calibration": cal, "k": config.k, "n_iter": config.n_iter,
                       "motion_bins": config.motion_bins, "n_candidates": config.n_candidates,
                       "n_draws": config.n_draws, "learner_seed": learner[f], "reference_seed": reference[f],
-                      "control_seed": control[f]})
+                      "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames})
     return tasks
 
 
@@ -417,7 +418,7 @@ def _evaluate(ctx: RunContext, config: Config) -> tuple[dict, list[dict], list[d
     digest = (array_digest(mfccs), array_digest(data["angles"]), array_digest([data["Y"], data["fold"]]))
     keys = [(digest, f, t["train_comp"], t["train_single"], t["calibration"], config.k, config.n_iter,
              config.motion_bins, config.n_candidates, config.n_draws, t["learner_seed"], t["reference_seed"],
-             t["control_seed"]) for f, t in enumerate(tasks)]
+             t["control_seed"], config.hac_fit_frames) for f, t in enumerate(tasks)]
     memo = ctx.memory("ch7-folds").cache(_cached_fold, ignore=["task"])
     code = code_fingerprint()
     folds = ctx.parallel_cached(memo, [(t, k, code) for t, k in zip(tasks, keys)], desc="folds")

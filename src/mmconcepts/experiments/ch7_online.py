@@ -82,7 +82,8 @@ class Config(PresetConfig):
     motion_bins: int = 25
     seed: int = 0
 
-    QUICK = dict(n_per_speaker=250, n_motion=250, batch_size=40, points=(0.1, 0.4, 1.0))
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_motion=250, batch_size=40, points=(0.1, 0.4, 1.0), hac_fit_frames=20_000)
 
 
 def crossmodal_success(model: MultimodalNMF, X_test: dict, y_test: np.ndarray, *, random_state: Any = None,
@@ -144,7 +145,7 @@ def _fold(task: dict) -> dict:
     cfg = task["config"]
     with threadpool_limits(1 if task["in_workers"] else None), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        hac = HAC(random_state=task["feature_seed"]).fit([task["mfcc"][i] for i in tr])
+        hac = HAC(random_state=task["feature_seed"], max_fit_frames=cfg["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr])
         hist = MotionHistograms(data="joint", method="vq", n_bins=cfg["motion_bins"], delay=3,
                                 random_state=task["feature_seed"]).fit([task["angles"][i] for i in tr])
         S, M = hac.transform(task["mfcc"]), hist.transform(task["angles"])
@@ -185,7 +186,7 @@ def _tasks(data: dict, config: Config, st: common.Streams, in_workers: bool) -> 
     order, reference = common.child_seeds(st.splits, n), common.child_seeds(st.reference, 2 * n)
     cfg = {"k": config.k, "n_iter": config.n_iter, "batch_size": config.batch_size, "forget": config.forget,
            "partial_max_iter": config.partial_max_iter, "points": tuple(config.points), "n_bins": config.n_bins,
-           "motion_bins": config.motion_bins}
+           "motion_bins": config.motion_bins, "hac_fit_frames": config.hac_fit_frames}
     return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
              "mfcc": data["mfcc"], "angles": data["angles"], "config": cfg, "feature_seed": learner[2 * f],
              "learner_seed": learner[2 * f + 1], "order_seed": order[f], "reference_seed": reference[2 * f],
