@@ -281,6 +281,66 @@ def test_sparse_fit_equals_dense_fit(rng, beta):
     np.testing.assert_allclose(a.H, b.H, rtol=1e-7, atol=1e-10)
 
 
+def _numerator_reference(X, weights, L, R, beta, eps):
+    """sum_p w_p x_p max(y_p, eps)**(beta - 2) R[j_p] per row, y = L R^T at the stored entries (numpy)."""
+    rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
+    y = np.einsum("pk,pk->p", L[rows], R[X.indices])
+    if beta < 2.0:
+        y = np.maximum(y, eps)
+    e = X.data * y ** (beta - 2.0) * (weights if weights.size else 1.0)
+    return np.asarray(sp.csr_matrix((e, X.indices, X.indptr), shape=X.shape) @ R), y
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.5, 1.0, 1.5, 2.0, 3.0])
+@pytest.mark.parametrize("weighted", [False, True])
+def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
+    """The sparse kernels walk each group of rows tile by tile of R's rows: every tile size and
+    number of row groups gives numpy's answer, and the same bits (a row's entries are summed in
+    their stored order whatever the tiling), column indices sorted or not."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(23, 700, density=0.08, random_state=5, format="csr")
+    X.data = rng.poisson(2.0, X.nnz) + 1.0
+    L, R = rng.random((23, 6)), rng.random((700, 6))
+    w = rng.random(X.nnz) if weighted else np.empty(0)
+    ref_num, ref_y = _numerator_reference(X, w, L, R, beta, 1e-9)
+    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), 1, 10**9)
+    np.testing.assert_allclose(whole, ref_num, rtol=1e-12)
+    shuffled = X.copy()  # the same entries, each row's column indices in another order
+    for i in range(X.shape[0]):
+        sl = slice(X.indptr[i], X.indptr[i + 1])
+        order = rng.permutation(sl.stop - sl.start)
+        shuffled.indices[sl], shuffled.data[sl] = X.indices[sl][order], X.data[sl][order]
+    for groups, tile in [(1, 1), (2, 7), (3, 64), (23, 100), (5, 699), (2, 701)]:
+        got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), groups, tile)
+        np.testing.assert_array_equal(got, whole)
+        y = _kernels._lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz), groups, tile)
+        np.testing.assert_allclose(y if beta >= 2.0 else np.maximum(y, 1e-9), ref_y, rtol=1e-13)
+        got = _kernels._mu_numerator(shuffled.indptr, shuffled.indices, shuffled.data, np.empty(0), L, R, beta, 1e-9,
+                                     np.empty_like(L), groups, tile)
+        np.testing.assert_allclose(got, _numerator_reference(shuffled, np.empty(0), L, R, beta, 1e-9)[0], rtol=1e-12)
+
+
+def test_sparse_fit_over_many_tiles_matches_sklearn(rng, monkeypatch):
+    """A fit whose dictionary spans many tiles (tiles shrunk to 64 of 1000 columns) keeps
+    scikit-learn's KL iterates."""
+    from mmconcepts.nmf import _kernels
+
+    monkeypatch.setattr(_kernels, "_TILE_BYTES", 1)
+    assert _kernels._tiling(np.zeros(31), np.zeros((1000, 4))) == (min(30, _kernels.nb.get_num_threads()), 64)
+    X = sp.random(30, 1000, density=0.05, random_state=6, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    X = X[:, np.asarray(X.getnnz(axis=0)) > 0]  # no empty column (they would leave the iterations)
+    W0, H0 = rng.random((30, 4)) + 0.1, rng.random((4, X.shape[1])) + 0.1
+    sk = SkNMF(4, init="custom", solver="mu", beta_loss=1.0, max_iter=30, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X.toarray(), W=W0.copy(), H=H0.copy())
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=30, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-8, atol=1e-12)
+
+
 @pytest.mark.parametrize("beta, rule, alpha", [(1.0, "mm", 0.0), (0.5, "mm", 0.0), (2.0, "mm", 0.01),
                                                (2.5, "heuristic", 0.0), (1.5, "mm", 0.01)])
 def test_empty_columns_left_out_after_the_first_update_match_sklearn(rng, beta, rule, alpha, monkeypatch):
