@@ -304,7 +304,8 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
     L, R = rng.random((23, 6)), rng.random((700, 6))
     w = rng.random(X.nnz) if weighted else np.empty(0)
     ref_num, ref_y = _numerator_reference(X, w, L, R, beta, 1e-9)
-    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), 1, 10**9)
+    none = _kernels._NO_DEN  # no fused update
+    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, 1, 10**9)
     np.testing.assert_allclose(whole, ref_num, rtol=1e-12)
     shuffled = X.copy()  # the same entries, each row's column indices in another order
     for i in range(X.shape[0]):
@@ -312,13 +313,59 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
         order = rng.permutation(sl.stop - sl.start)
         shuffled.indices[sl], shuffled.data[sl] = X.indices[sl][order], X.data[sl][order]
     for groups, tile in [(1, 1), (2, 7), (3, 64), (23, 100), (5, 699), (2, 701)]:
-        got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), groups, tile)
+        got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, groups,
+                                     tile)
         np.testing.assert_array_equal(got, whole)
         y = _kernels._lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz), groups, tile)
         np.testing.assert_allclose(y if beta >= 2.0 else np.maximum(y, 1e-9), ref_y, rtol=1e-13)
         got = _kernels._mu_numerator(shuffled.indptr, shuffled.indices, shuffled.data, np.empty(0), L, R, beta, 1e-9,
-                                     np.empty_like(L), groups, tile)
+                                     np.empty_like(L), none, groups, tile)
         np.testing.assert_allclose(got, _numerator_reference(shuffled, np.empty(0), L, R, beta, 1e-9)[0], rtol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_fused_kl_update_equals_numerator_then_numpy_update(rng, dtype):
+    """The sparse I-divergence update divides each finished numerator row in the kernel: L ends
+    as ``L * (N / den)`` computed by numpy, bit for bit, for every tiling."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(19, 500, density=0.1, random_state=7, format="csr", dtype=dtype)
+    X.data = (rng.poisson(2.0, X.nnz) + 1.0).astype(dtype)
+    L, R = rng.random((19, 5)).astype(dtype), rng.random((500, 5)).astype(dtype)
+    den = R.sum(axis=0)
+    eps = dtype(_kernels.EPSILON)
+    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0, dtype), L, R, 1.0, eps, np.empty_like(L),
+                               _kernels._NO_DEN, 1, 10**9)
+    expected = L * (N / den)
+    for groups, tile in [(1, 10**9), (2, 64), (3, 7), (19, 1)]:
+        L2 = L.copy()
+        ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0, dtype), L2, R, 1.0, eps,
+                                       np.empty_like(L), den, groups, tile)
+        np.testing.assert_array_equal(ratio, N / den)
+        np.testing.assert_array_equal(L2 * ratio, expected)
+    L3 = L.copy()
+    assert _kernels.kl_update(X.indptr, X.indices, X.data, L3, R, den, np.empty_like(L)) is L3
+    np.testing.assert_array_equal(L3, expected)
+
+
+@pytest.mark.parametrize("sparse", [True, False])
+def test_kl_transform_with_a_fixed_dictionary_matches_sklearn(rng, sparse):
+    """W's updates against a fixed H (transform) reuse H's sums; the iterates stay scikit-learn's."""
+    from sklearn.decomposition import non_negative_factorization
+
+    X = sp.random(40, 300, density=0.1, random_state=8, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    X = X[:, np.asarray(X.getnnz(axis=0)) > 0]
+    X = X if sparse else X.toarray()
+    H = rng.random((4, X.shape[1])) + 0.1
+    W0 = np.full((40, 4), np.sqrt(X.mean() / 4))  # scikit-learn's start when H is fixed (it ignores a given W)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk, _, _ = non_negative_factorization(X, W=W0.copy(), H=H.copy(), n_components=4, init="custom",
+                                                update_H=False, solver="mu", beta_loss=1.0, max_iter=40, tol=0)
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H, update_H=False, beta_loss=1.0, max_iter=40, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-8, atol=1e-12)
+    np.testing.assert_array_equal(res.H, H)
 
 
 def test_sparse_fit_over_many_tiles_matches_sklearn(rng, monkeypatch):

@@ -16,6 +16,8 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from ._beta import EPSILON
+
 # Reassociation lets LLVM vectorise the length-k dot products (results change in the last bits only).
 _OPTS: dict[str, Any] = dict(nogil=True, cache=True, fastmath={"reassoc", "contract"}, error_model="numpy")
 
@@ -23,6 +25,8 @@ _OPTS: dict[str, Any] = dict(nogil=True, cache=True, fastmath={"reassoc", "contr
 # Bytes of R's rows that one pass over a block of columns keeps in use (within a core's L2):
 # beyond it, every row of X would fetch R's rows from memory again.
 _TILE_BYTES = 192 * 1024
+_NO_DEN = np.empty(0)  # mu_numerator: no fused update
+_NO_WEIGHTS = np.empty(0)
 
 
 def _tiling(indptr, R) -> tuple[int, int]:
@@ -58,7 +62,22 @@ def mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out):
     as the plain row-by-row loop, for any tile size and even with unsorted column indices
     (which only lose the cache benefit).
     """
-    return _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, *_tiling(indptr, R))
+    return _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, _NO_DEN, *_tiling(indptr, R))
+
+
+def kl_update(indptr, indices, data, L, R, den, out):
+    """The I-divergence multiplicative update of L in place, with its numerator's last pass.
+
+    L <- L * (N / den) with N = ``mu_numerator`` at beta = 1 (thesis eq. 2.16 with gamma = 1)
+    and ``den`` the (k,) denominator row (R's column sums, zeros replaced by the caller). The
+    kernel divides each row of N by ``den`` as soon as it is complete, while it is in the cache,
+    and numpy multiplies L by the ratios: the same numbers, bit for bit, as the numerator
+    followed by ``L *= N / den``. (The product stays out of the kernel: under its fastmath
+    flags, LLVM would compute (L * N) / den, other last bits.) ``out`` receives N / den.
+    """
+    _mu_numerator(indptr, indices, data, _NO_WEIGHTS, L, R, 1.0, L.dtype.type(EPSILON), out, den,
+                  *_tiling(indptr, R))
+    return np.multiply(L, out, out=L)
 
 
 @nb.njit(parallel=True, **_OPTS)
@@ -83,10 +102,11 @@ def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: n
 
 
 @nb.njit(parallel=True, **_OPTS)
-def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, groups, tile):  # pragma: no cover
+def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, groups, tile):  # pragma: no cover
     n = indptr.shape[0] - 1
     m, k = R.shape[0], L.shape[1]
     has_w = weights.shape[0] > 0
+    fused = den.shape[0] > 0
     bm2 = beta - 2.0
     for g in nb.prange(groups):
         r0, r1 = g * n // groups, (g + 1) * n // groups
@@ -94,7 +114,8 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, groups, 
         for i in range(r0, r1):
             for t in range(k):
                 out[i, t] = 0.0
-        for c1 in range(tile, m + tile, tile):
+        last = max(m, 1)  # one pass even without columns, for the fused update
+        for c1 in range(tile, last + tile, tile):
             for i in range(r0, r1):
                 p, end = pos[i - r0], indptr[i + 1]
                 while p < end and indices[p] < c1:
@@ -120,6 +141,9 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, groups, 
                         out[i, t] += e * R[j, t]
                     p += 1
                 pos[i - r0] = p
+                if fused and c1 >= last:  # the row's last tile: its numerator is complete
+                    for t in range(k):
+                        out[i, t] /= den[t]
     return out
 
 

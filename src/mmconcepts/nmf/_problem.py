@@ -141,6 +141,17 @@ class Side:
             return self._sparse_nd(L, R, beta)
         return self._dense_nd(L, R, beta)
 
+    def kl_update(self, L: np.ndarray, R: np.ndarray, den_row: np.ndarray) -> np.ndarray:
+        """L <- L * N / den_row in place for a sparse, unmasked side under the I-divergence (one pass).
+
+        ``den_row`` is the (k,) denominator, R's column sums with zeros replaced; the numbers
+        are those of ``numerator_denominator`` followed by the division and the product.
+        """
+        X = cast("sp.csr_matrix", self.X)
+        den_row = np.ascontiguousarray(den_row, dtype=L.dtype)
+        _kernels.kl_update(X.indptr, X.indices, X.data, L, R, den_row, np.empty_like(L))
+        return L
+
     def _dense_nd(self, L, R, beta):
         # Dense data stays in its stored (C) orientation: side 1 computes Y = R @ L.T, the
         # product in the original orientation, and lets BLAS read the transposes for free.

@@ -114,6 +114,8 @@ class _Solver:
         self.penalties = penalties
         self.hoyer = hoyer
         self.step = [1.0, 1.0]  # per-side step sizes of the gradient solvers, carried across iterations
+        # per side, (R, R's column sums or None) when R stays fixed across this solver's updates
+        self.fixed: list[tuple[np.ndarray, np.ndarray | None] | None] = [None, None]
 
     # -- objective -------------------------------------------------------------------
     def objective(self, W: np.ndarray, Ht: np.ndarray) -> float:
@@ -132,7 +134,14 @@ class _Solver:
             return self._hoyer_step(s, side, L, R, hoyer)
         if self.solver == "pg":
             return self._pg_step(s, side, L, R)
-        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s])
+        R_sum = None
+        fixed = self.fixed[s]
+        if fixed is not None and fixed[0] is R:  # R does not change: its sums neither
+            R_sum = fixed[1]
+            if R_sum is None:
+                R_sum = R.sum(axis=0)
+                self.fixed[s] = (R, R_sum)
+        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s], R_sum)
 
     def _gradient(self, s: int, side: Side, L: np.ndarray, R: np.ndarray) -> np.ndarray:
         """Gradient of the side objective in L (thesis eq. 2.11-2.13): D - N + penalties."""
@@ -189,8 +198,19 @@ class _Solver:
         return L
 
 
-def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: _Penalty) -> np.ndarray:
-    """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1)."""
+def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: _Penalty,
+              R_sum: np.ndarray | None = None) -> np.ndarray:
+    """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1).
+
+    ``R_sum`` is R's column sums when the caller already has them (R fixed across updates,
+    as in ``transform``); the sparse, unmasked I-divergence update uses them as its denominator.
+    """
+    if (beta == 1.0 and gamma == 1.0 and not (penalty.l1 or penalty.l2) and isinstance(side, Side)
+            and side.sparse and side.mask is None):
+        den_row = R.sum(axis=0) if R_sum is None else R_sum
+        if np.any(den_row == 0):
+            den_row = np.where(den_row == 0, L.dtype.type(EPSILON), den_row)
+        return side.kl_update(L, R, den_row)
     num, den = side.numerator_denominator(L, R, beta)
     den = penalty.add_to(den, L)
     if np.any(den == 0):
@@ -734,6 +754,8 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
     :class:`_EmptyColumns`) and put back, as zero rows of Ht, at the end.
     """
     shrunk = False
+    if not update_H:  # W's updates all see the same Ht
+        sol.fixed[0] = (Ht, None)
     f0 = sol.objective(W, Ht)
     hist, its = [f0], [0]
     # Stopping rule of scikit-learn, on the error sqrt(2 * objective). An objective that
