@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.motion import MotionHistograms
@@ -112,3 +116,36 @@ def test_errors(rng):
     m = MotionHistograms().fit(X)
     with pytest.raises(DataError, match="degrees of freedom"):
         m.transform([np.zeros((10, 5))])
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 2), n=st.integers(5, 120), k=st.integers(1, 12), d=st.integers(1, 3),
+       levels=st.integers(2, 6))
+def test_lloyd_stops_where_kmeans2_is_at_its_fixed_point(seed, n, k, d, levels):
+    """_lloyd equals scipy's kmeans2 run for all its iterations, bit for bit (empty clusters included)."""
+    from scipy.cluster.vq import kmeans2
+
+    from mmconcepts.motion.histograms import _lloyd
+
+    rng = np.random.default_rng(seed)
+    z = rng.integers(0, levels, size=(n, d)).astype(float) + 0.01 * rng.standard_normal((n, d))
+    k = min(k, n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # empty clusters
+        want_cb, want_lab = kmeans2(z, k, iter=50, minit="++", seed=seed)
+        cb, lab = _lloyd(z, k, seed=seed, n_iter=50)
+    np.testing.assert_array_equal(lab, want_lab)
+    np.testing.assert_array_equal(cb, want_cb)
+
+
+def test_lloyd_with_few_iterations_stops_with_kmeans2():
+    from scipy.cluster.vq import kmeans2
+
+    from mmconcepts.motion.histograms import _lloyd
+
+    z = np.random.default_rng(3).standard_normal((400, 2))
+    for n_iter in (1, 2, 3):
+        want_cb, want_lab = kmeans2(z, 9, iter=n_iter, minit="++", seed=7)
+        cb, lab = _lloyd(z, 9, seed=7, n_iter=n_iter)
+        np.testing.assert_array_equal(cb, want_cb)
+        np.testing.assert_array_equal(lab, want_lab)

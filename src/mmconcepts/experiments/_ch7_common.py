@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from .._jit import njit
 from ..errors import DataError, ParameterError
 
 __all__ = ["SLOTS", "Vocabulary", "MSR_VOCABULARY", "MSR_IDLE_DONORS", "SYNTHETIC_VOCABULARY",
@@ -367,7 +368,7 @@ def combination_retrieval(D: np.ndarray, combo_query: Sequence, combo_cand: Sequ
     return out
 
 
-@nb.njit(parallel=True, nogil=True, cache=True, fastmath={"reassoc", "contract"})
+@njit(parallel=True, nogil=True, cache=True, fastmath={"reassoc", "contract"})
 def _decompose_rows(X, R, A, n_iter):  # pragma: no cover - compiled
     """``A[i] <- A[i] * ((X[i] / (A[i] R)) R^T)``, ``n_iter`` times, row by row (rows in parallel)."""
     n, p = X.shape

@@ -67,6 +67,28 @@ class _IntPair:
         return f"a pair of ints >= {self.low}"
 
 
+def _lloyd(z: np.ndarray, k: int, *, seed: int, n_iter: int) -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.cluster.vq.kmeans2(z, k, iter=n_iter, minit="++", seed=seed)``, stopped at its fixed point.
+
+    kmeans2 always runs ``n_iter`` Lloyd iterations. An iteration whose assignments are those
+    of the one before gives back the same centroids (the means of the same groups; an empty
+    cluster keeps its centroid), and so does every later one: the loop stops there, with the
+    centroids and labels that the ``n_iter`` iterations return, to the bit.
+
+    Returns
+    -------
+    codebook : ndarray of shape (k, n_features)
+    labels : ndarray of shape (n_samples,)
+    """
+    cb, lab = kmeans2(z, k, iter=1, minit="++", seed=seed)
+    for _ in range(n_iter - 1):
+        cb, new = kmeans2(z, cb, iter=1, minit="matrix")
+        if np.array_equal(new, lab):
+            break
+        lab = new
+    return cb, lab
+
+
 class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """Concatenated per-dof histograms of angles and/or delayed velocities (Thesis 3.2).
 
@@ -320,7 +342,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
         for _ in range(self.n_init):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # empty clusters are re-seeded below
-                cb, lab = kmeans2(z, k, iter=50, minit="++", seed=int(rng.integers(2**31 - 1)))
+                cb, lab = _lloyd(z, k, seed=int(rng.integers(2**31 - 1)), n_iter=50)
             counts = np.bincount(lab, minlength=k)
             if (counts == 0).any():  # put empty centroids on the worst-fitted samples
                 d = euclidean_distances(z, cb, squared=True).min(axis=1)

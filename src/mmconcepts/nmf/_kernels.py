@@ -16,6 +16,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from .._jit import njit
 from ._beta import EPSILON
 
 # Reassociation lets LLVM vectorise the length-k dot products (results change in the last bits only).
@@ -80,7 +81,7 @@ def kl_update(indptr, indices, data, L, R, den, out):
     return np.multiply(L, out, out=L)
 
 
-@nb.njit(parallel=True, **_OPTS)
+@njit(parallel=True, **_OPTS)
 def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: no cover - compiled
     n = indptr.shape[0] - 1
     m, k = R.shape[0], L.shape[1]
@@ -101,7 +102,7 @@ def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: n
     return out
 
 
-@nb.njit(parallel=True, **_OPTS)
+@njit(parallel=True, **_OPTS)
 def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, groups, tile):  # pragma: no cover
     n = indptr.shape[0] - 1
     m, k = R.shape[0], L.shape[1]
@@ -151,7 +152,7 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, gro
 # products that come next in the dense update (measured on 2 cores against scikit-learn: x0.83
 # with prange, x1.46 serial). The pass is memory-bound: splitting it over plain threads gained
 # nothing measurable either.
-@nb.njit(parallel=False, **_OPTS)
+@njit(parallel=False, **_OPTS)
 def divide_clipped(X, Y, eps):  # pragma: no cover - compiled
     """Y <- X / max(Y, eps) in place, in one pass (the I-divergence update's ratio)."""
     n, m = Y.shape
@@ -164,7 +165,7 @@ def divide_clipped(X, Y, eps):  # pragma: no cover - compiled
     return Y
 
 
-@nb.njit(parallel=False, **_OPTS)
+@njit(parallel=False, **_OPTS)
 def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
     """sum_ij m_ij d_beta(X_ij | Y_ij) in one pass, accumulated in float64 (thesis eq. 2.2-2.3).
 

@@ -66,6 +66,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from .._jit import njit
 from .._validation import Interval, Options, validate_params
 from ..errors import DataError
 
@@ -109,7 +110,7 @@ _OPTS: dict[str, Any] = dict(nogil=True, cache=True, error_model="numpy", fastma
 # --------------------------------------------------------------------------------------
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _costs(A, a0, n, BT, f0, F, C, r0, c0):  # pragma: no cover - compiled
     """C[r0 + i, c0 + f] = sum_k (A[a0 + i, k] - BT[k, f0 + f])**2 for i < n, f < F.
 
@@ -150,7 +151,7 @@ def _costs(A, a0, n, BT, f0, F, C, r0, c0):  # pragma: no cover - compiled
             k += 1
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _groups(b_off):  # pragma: no cover - compiled
     """Column sequences in groups of L consecutive ones: (g_off, lengths).
 
@@ -175,7 +176,7 @@ def _groups(b_off):  # pragma: no cover - compiled
     return g_off, lengths
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _interleave(B, b_off, lengths, g, BT):  # pragma: no cover - compiled
     """BT[k, j L + l] = coefficient k of frame j of column sequence gL + l (0 past its end)."""
     L = _LANES
@@ -194,7 +195,7 @@ def _interleave(B, b_off, lengths, g, BT):  # pragma: no cover - compiled
                 BT[k, j * L + l] = 0.0
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _interleave_all(B, b_off, g_off, lengths):  # pragma: no cover - compiled
     """Every group interleaved once, for problems where each group meets many rows."""
     d = B.shape[1]
@@ -205,7 +206,7 @@ def _interleave_all(B, b_off, g_off, lengths):  # pragma: no cover - compiled
     return BI
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _lane_group(A, a0, n, BT, lengths, radius, squared, work, res):  # pragma: no cover
     """DTW between the row sequence A[a0:a0 + n] and the L interleaved column sequences of
     BT (d, m L) (see :func:`_interleave`; ``lengths`` are theirs, 0 for an empty lane).
@@ -292,7 +293,7 @@ def _lane_group(A, a0, n, BT, lengths, radius, squared, work, res):  # pragma: n
         res[l] = np.sqrt(v) if squared else v
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _units(  # pragma: no cover - compiled
     A, a_off, B, b_off, BI, g_off, lengths, rperm, cperm, symmetric, radius, squared, u0, u1, out
 ):
@@ -356,13 +357,13 @@ def _units(  # pragma: no cover - compiled
     return out
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _n_units(nA, ng, symmetric):  # pragma: no cover - compiled
     nrow = (nA + 1) // 2 if symmetric else nA
     return nrow * ((ng + _UNIT_GROUPS - 1) // _UNIT_GROUPS)
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _prepare(A, a_off, B, b_off):  # pragma: no cover - compiled
     """Groups of the column side, interleaved up front unless there is one row sequence."""
     g_off, lengths = _groups(b_off)
@@ -373,7 +374,7 @@ def _prepare(A, a_off, B, b_off):  # pragma: no cover - compiled
     return BI, g_off, lengths
 
 
-@nb.njit(parallel=False, **_OPTS)
+@njit(parallel=False, **_OPTS)
 def _pairs_serial(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared, out):  # pragma: no cover
     BI, g_off, lengths = _prepare(A, a_off, B, b_off)
     U = _n_units(a_off.shape[0] - 1, g_off.shape[0] - 1, symmetric)
@@ -381,7 +382,7 @@ def _pairs_serial(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared, 
                   np.int64(0), U, out)
 
 
-@nb.njit(parallel=True, **_OPTS)
+@njit(parallel=True, **_OPTS)
 def _pairs_parallel(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared, n_chunks, out):  # pragma: no cover
     """The work units split into ``n_chunks`` contiguous ranges, one prange iteration each
     (each allocates its buffers once; no two units write the same cell of ``out``)."""
@@ -394,7 +395,7 @@ def _pairs_parallel(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared
     return out
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _all_finite(x):  # pragma: no cover - compiled
     ok = True
     for e in range(x.shape[0]):
@@ -402,7 +403,7 @@ def _all_finite(x):  # pragma: no cover - compiled
     return ok
 
 
-@nb.njit(parallel=False, **_OPTS)
+@njit(parallel=False, **_OPTS)
 def _fixed_serial(q, X, radius, squared, out):  # pragma: no cover - compiled
     """out[0, c] = DTW(q, X[c]) for a (T, d) query and (n, T', d) candidates, one call.
 
@@ -431,7 +432,7 @@ def _fixed_serial(q, X, radius, squared, out):  # pragma: no cover - compiled
     return -1
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _dtw_to_rows(q, T, R, ids, buf, out):  # pragma: no cover - compiled
     """out[j] = DTW between the window ``q`` and the window in row ``ids[j]`` of ``R``.
 

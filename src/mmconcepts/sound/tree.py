@@ -53,13 +53,13 @@ import numbers
 from collections.abc import Callable
 from typing import Any, Literal, cast
 
-import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike
 import scipy.sparse as sp
 from sklearn.base import BaseEstimator, ClusterMixin
 from sklearn.utils.validation import check_is_fitted
 
+from .._jit import njit
 from .._persist import SaveLoadMixin
 from .._validation import Interval, Options, check_random_state, validate_params
 from ..errors import DataError, DataFormatError, ParameterError
@@ -92,7 +92,7 @@ _EXACT_CHUNK = 256
 
 
 # --------------------------------------------------------------------------- numba kernels
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _dist(center, i, q):  # pragma: no cover - compiled
     """Euclidean distance between row ``i`` of ``center`` and ``q``."""
     s = 0.0
@@ -102,7 +102,7 @@ def _dist(center, i, q):  # pragma: no cover - compiled
     return np.sqrt(s)
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _dist2(center, i, q):  # pragma: no cover - compiled
     """Squared Euclidean distance between row ``i`` of ``center`` and ``q``."""
     s = 0.0
@@ -112,7 +112,7 @@ def _dist2(center, i, q):  # pragma: no cover - compiled
     return s
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _node_dists(metric, T, center, ids, q, cand, dbuf):  # pragma: no cover - compiled
     """dbuf[j] = d(q, centroid of node ids[j]) for every j: Euclidean (metric 0) or DTW on
     (T, d) windows (metric 1, :func:`mmconcepts.sound.dtw._dtw_to_rows`; ``cand`` is its
@@ -124,19 +124,19 @@ def _node_dists(metric, T, center, ids, q, cand, dbuf):  # pragma: no cover - co
         _dtw_to_rows(q, T, center, ids, cand, dbuf)
 
 
-@nb.njit(nogil=True, cache=True, error_model="numpy")  # no fastmath: the rounding of the reference
+@njit(nogil=True, cache=True, error_model="numpy")  # no fastmath: the rounding of the reference
 def _margin(base, d, d_min):  # pragma: no cover - compiled
     """Priority of a skipped sibling: ``base + (d - d_min)``, rounded as written."""
     return base + (d - d_min)
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _heap_less(hp, hs, i, j):  # pragma: no cover - compiled
     """Entry i before entry j: smaller priority, then earlier push (as heapq on (priority, seq))."""
     return hp[i] < hp[j] or (hp[i] == hp[j] and hs[i] < hs[j])
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _heap_push(hp, hn, hs, size, p, n, s):  # pragma: no cover - compiled
     """Push (priority p, node n, push number s) on the binary min-heap (hp, hn, hs) of ``size`` items."""
     i = size
@@ -154,7 +154,7 @@ def _heap_push(hp, hn, hs, size, p, n, s):  # pragma: no cover - compiled
     return size + 1
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _heap_pop(hp, hn, hs, size):  # pragma: no cover - compiled
     """Drop the top of the heap (read hn[0] first); return the new size."""
     size -= 1
@@ -177,7 +177,7 @@ def _heap_pop(hp, hn, hs, size):  # pragma: no cover - compiled
     return size
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _scan_leaves(metric, T, center, child, node, m, q, best, best_key, cand, dbuf):  # pragma: no cover - compiled
     """Nearest of the ``m`` leaf children of ``node`` if nearer than ``best``: (best, its key).
 
@@ -199,7 +199,7 @@ def _scan_leaves(metric, T, center, child, node, m, q, best, best_key, cand, dbu
     return best, best_key
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _argmin(dbuf, m):  # pragma: no cover - compiled
     """(first index of the smallest of dbuf[:m], that value); (0, inf) if none is < inf."""
     jm = 0
@@ -211,7 +211,7 @@ def _argmin(dbuf, m):  # pragma: no cover - compiled
     return jm, dm
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _search_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_leaves, hp,
                 hn, hs, dbuf, cand):  # pragma: no cover - compiled
     """Nearest leaf of ``q``: returns (leaf node id, distance, distance evaluations).
@@ -301,7 +301,7 @@ def _search_one(q, metric, T, mode, b, path_priority, center, child, nchild, lea
     return best, (np.sqrt(best_key) if euclid else best_key), n_eval
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _work_buffers(metric, n_nodes, n_max, D):  # pragma: no cover - compiled
     """The work buffers of :func:`_search_one` and :func:`_insert_batch`: hp, hn, hs, dbuf, cand."""
     rows = n_max if metric == _EUCLIDEAN else max(n_max, _EXACT_CHUNK)
@@ -310,7 +310,7 @@ def _work_buffers(metric, n_nodes, n_max, D):  # pragma: no cover - compiled
             np.empty(rows), cand)
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _query_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes,
                n_leaves):  # pragma: no cover - compiled
     """:func:`_search_one` with its own work buffers (so concurrent queries are safe)."""
@@ -319,7 +319,7 @@ def _query_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf
                        hp, hn, hs, dbuf, cand)
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _search_batch(Q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes,
                   n_leaves, out_node, out_d, out_n):  # pragma: no cover - compiled
     """:func:`_search_one` for every row of ``Q``."""
@@ -332,7 +332,7 @@ def _search_batch(Q, metric, T, mode, b, path_priority, center, child, nchild, l
         out_n[i] = n
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _add_path(node, x, parent, sums, count, center):  # pragma: no cover - compiled
     """Add vector ``x`` to ``node`` and to every ancestor of it (sums, counts, centroids)."""
     while node >= 0:
@@ -344,7 +344,7 @@ def _add_path(node, x, parent, sums, count, center):  # pragma: no cover - compi
         node = parent[node]
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _new_leaf(father, x, parent, child, nchild, sums, count, center, leaf_of, node_of_leaf,
               n_nodes, n_leaves):  # pragma: no cover - compiled
     """Create a leaf holding only ``x`` under ``father``; returns its node id."""
@@ -362,7 +362,7 @@ def _new_leaf(father, x, parent, child, nchild, sums, count, center, leaf_of, no
     return new
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _insert_batch(X, start, metric, T, r_max, n_max, parent, child, nchild, sums, count, center, leaf_of,
                   node_of_leaf, n_nodes, n_leaves, out):  # pragma: no cover - compiled
     """Thesis Algorithm 1 for rows ``start, start + 1, ...`` of ``X`` (metric as :func:`_search_one`).
@@ -404,7 +404,7 @@ def _insert_batch(X, start, metric, T, r_max, n_max, parent, child, nchild, sums
     return X.shape[0], n_nodes, n_leaves, -1
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _kmeans(P, k, u, max_iter):  # pragma: no cover - compiled
     """Thesis Algorithm 2 on the rows of ``P``: greedy k-means++ seeding (as scikit-learn:
     each new centre is the best of ``u.shape[2]`` candidates drawn with probability
@@ -510,7 +510,7 @@ def _kmeans(P, k, u, max_iter):  # pragma: no cover - compiled
     return best_labels
 
 
-@nb.njit(**_OPTS)
+@njit(**_OPTS)
 def _apply_split(father, labels, k, parent, child, nchild, sums, count, center, leaf_of,
                  n_nodes):  # pragma: no cover - compiled
     """Replace the children of ``father`` by one new node per non-empty label group, each

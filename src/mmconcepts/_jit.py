@@ -1,0 +1,96 @@
+"""Numba's ``njit`` with compilation shared between the processes of one machine (internal).
+
+Every kernel of the package is compiled with ``cache=True``: the first process to call it
+compiles it (seconds to tens of seconds for the cluster tree's DTW search) and writes the
+machine code to numba's on-disk cache, and later processes load it in milliseconds. But
+processes that start together, such as the worker processes of one experiment or two
+experiments run side by side on a fresh install, all miss the cache at once and each
+compiles the same kernel. :func:`njit` adds an inter-process lock around numba's
+compile-on-first-call: the first process compiles and writes the cache, and the others wait
+for it, then load the cached code instead of compiling it again.
+
+The lock is a file per kernel under ``<tempdir>/mmconcepts-<user>/numba-locks``
+(:func:`mmconcepts._io.folder_lock`: ``fcntl.flock``, released when the process ends). It
+is taken only when a call finds no compiled version of the kernel for its argument types in
+this process, so calls after the first cost nothing more. It hooks numba's
+``Dispatcher._compile_for_args`` (what a call runs when no compiled version matches); with a
+numba that does not have it, kernels compile as plain ``numba.njit`` would.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import getpass
+import hashlib
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numba as nb
+
+from ._io import folder_lock
+
+__all__ = ["njit", "lock_file"]
+
+
+def _lock_dir() -> Path:
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):  # no user name (a container without a passwd entry)
+        user = str(os.getuid()) if hasattr(os, "getuid") else "user"
+    return Path(tempfile.gettempdir()) / f"mmconcepts-{user}" / "numba-locks"
+
+
+def lock_file(dispatcher: Any) -> Path:
+    """The lock file under which ``dispatcher`` compiles (one per kernel and source file).
+
+    Parameters
+    ----------
+    dispatcher : numba.core.registry.CPUDispatcher
+        A kernel made by :func:`njit`.
+    """
+    func = dispatcher.py_func
+    where = hashlib.sha1(os.path.abspath(func.__code__.co_filename).encode()).hexdigest()[:12]
+    return _lock_dir() / f"{func.__module__}.{func.__qualname__}.{where}.lock"
+
+
+def _shared(dispatcher: Any) -> Any:
+    compile_for_args = getattr(dispatcher, "_compile_for_args", None)
+    if compile_for_args is None:  # pragma: no cover - a numba without the hook
+        return dispatcher
+
+    @functools.wraps(compile_for_args)
+    def locked(*args: Any, **kws: Any) -> Any:
+        path = lock_file(dispatcher)
+        with contextlib.ExitStack() as stack:
+            with contextlib.suppress(OSError):  # no writable temporary folder: compile unlocked
+                stack.enter_context(folder_lock(path.parent, path.name))
+            # numba looks in its disk cache before compiling: filled by whoever held the lock before
+            return compile_for_args(*args, **kws)
+
+    dispatcher._compile_for_args = locked
+    return dispatcher
+
+
+def njit(*args: Any, **options: Any) -> Any:
+    """``numba.njit`` whose compilation, when ``cache=True``, is shared between processes.
+
+    Used as ``@njit(**options)`` or ``@njit``, exactly as ``numba.njit``. With
+    ``cache=True`` the returned dispatcher compiles its first call for new argument types
+    under an inter-process lock (see the module docstring); it is an ordinary numba
+    dispatcher otherwise (other kernels call it, ``.py_func``, ``.signatures``).
+
+    Parameters
+    ----------
+    *args, **options
+        Those of ``numba.njit``.
+    """
+    if len(args) == 1 and callable(args[0]) and not options:
+        return nb.njit(args[0])
+    decorate: Callable[[Any], Any] = nb.njit(*args, **options)
+    if not options.get("cache", False):
+        return decorate
+    return lambda func: _shared(decorate(func))
