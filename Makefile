@@ -5,8 +5,6 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 RESULTS ?= results
-# Experiments run at once by `make reproduce`: one per core, and one more.
-CONCURRENT ?= $(shell $(PYTHON) -c "import os; print((os.cpu_count() or 1) + 1)")
 # The folder of real data sets (fsdd, msr-action3d, eth80, ...); empty: $$MMCONCEPTS_DATA_ROOT, else generated data only.
 DATA_ROOT ?=
 
@@ -29,11 +27,10 @@ $(VENV)/.installed-dev: $(STAMP)
 	touch $@
 
 ## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
-## and write results/report.html and results/report.md (one experiment per core and one more, each in one
-## process: no worker processes to start, and what one leaves idle, the others use; shared caches and
-## numba's compiled kernels are made once, under a lock)
+## and write results/report.html and results/report.md (two experiments at a time, each with a worker per core:
+## what one leaves idle, the other uses; shared caches and numba's compiled kernels are made once, under a lock)
 reproduce: $(STAMP)
-	$(BIN)/mmconcepts reproduce --quick --workers 1 --concurrent $(CONCURRENT) --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
+	$(BIN)/mmconcepts reproduce --quick --workers -1 --concurrent 2 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included), then the type check and the documentation build (what CI runs)
 test: $(VENV)/.installed-dev browser
