@@ -1,8 +1,8 @@
 """Numba's ``njit`` with compilation shared between the processes of one machine (internal).
 
 Every kernel of the package is compiled with ``cache=True``: the first process to call it
-compiles it (seconds to tens of seconds for the cluster tree's DTW search) and writes the
-machine code to numba's on-disk cache, and later processes load it in milliseconds. But
+compiles it (the cluster tree's DTW search is the slowest to compile) and writes the
+machine code to numba's on-disk cache, and later processes load it instead. But
 processes that start together, such as the worker processes of one experiment or two
 experiments run side by side on a fresh install, all miss the cache at once and each
 compiles the same kernel. :func:`njit` adds an inter-process lock around numba's
