@@ -207,27 +207,6 @@ def test_cli_run_with_a_local_cluster_and_reproduce_concurrently(tmp_path, monke
     assert (tmp_path / "conc" / "report.html").exists()
 
 
-def test_concurrent_reproduce_records_a_process_that_dies(tmp_path, monkeypatch, registry):
-    """A run whose process ends without a record is a failed record, and the others still run."""
-    import mmconcepts.experiments.runner as runner
-    from mmconcepts.experiments import reproduce
-
-    monkeypatch.syspath_prepend(str(Path(__file__).parent))
-    monkeypatch.delitem(sys.modules, "_cluster_experiments", raising=False)
-    monkeypatch.setenv("MMCONCEPTS_EXPERIMENT_MODULES", "_cluster_experiments")
-    real = runner._subprocess_command
-
-    def broken(exp, variant, common):
-        cmd = real(exp, variant, common)
-        return cmd[:1] + ["-c", "import sys; sys.stderr.write('boom'); sys.exit(3)"] if exp.id == "cluster-b" else cmd
-
-    monkeypatch.setenv("PYTHONPATH", str(Path(__file__).parent))
-    monkeypatch.setattr(runner, "_subprocess_command", broken)
-    records = reproduce(ids=["cluster-a", "cluster-b"], output=tmp_path, concurrent=2, progress=False)
-    assert [r.status for r in records] == ["ok", "failed"]
-    assert "exit code 3" in records[1].message and "boom" in records[1].message
-
-
 def test_reproduce_refuses_a_bad_concurrency(tmp_path):
     from mmconcepts.experiments import reproduce
 

@@ -213,8 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--only", metavar="ID", nargs="+", default=None, help="run only these experiments")
     p.add_argument(
         "--concurrent", metavar="N", type=_positive, default=1,
-        help="run up to N experiments at the same time, each in its own process (sharing the --scheduler "
-             "cluster, else each with --workers processes; default: %(default)s)",
+        help="run up to N experiments at the same time, on N processes that each run one experiment after "
+             "another (sharing the --scheduler cluster, else each with --workers worker processes; "
+             "default: %(default)s)",
     )
     p.set_defaults(func=_cmd_reproduce)
 

@@ -72,7 +72,16 @@ from .._fingerprint import code_fingerprint
 from .._io import atomic_write, check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
-from .base import PRESETS, Experiment, ExperimentSkipped, Result, RunContext, Table, check_seed
+from .base import (
+    PRESETS,
+    Experiment,
+    ExperimentSkipped,
+    Result,
+    RunContext,
+    Table,
+    _workers_end_with_this_process,
+    check_seed,
+)
 from .cluster import open_client, parse_scheduler
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, to_jsonable
 from .registry import all_experiments, get
@@ -605,7 +614,9 @@ def run_experiment(
             _remove_stale_figures(stale.with_suffix(""), ())
     logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
     t0 = time.perf_counter()
-    with _client(scheduler) as client:
+    # every joblib call of the run (RunContext.parallel's and the library's own n_jobs) under one
+    # config: loky keeps the same worker processes from one to the next instead of starting new ones
+    with _client(scheduler) as client, _workers_end_with_this_process():
         ctx.client = client
         error = _execute(exp, config, ctx, record, target)
     record.elapsed_s = round(time.perf_counter() - t0, 3)
@@ -666,9 +677,12 @@ def reproduce(
         Run the experiments' parallel parts on a Dask cluster (see :func:`run_experiment`);
         a ``"local:N"`` cluster is started once for the whole reproduction.
     concurrent : int, default=1
-        Run up to this many experiments at the same time, each in its own process
-        (``python -m mmconcepts run ...``, sharing the cluster when there is one, else
-        each with ``workers`` processes); the records are the same as one at a time.
+        Run up to this many experiments at the same time, on as many processes that each
+        run one experiment after another (sharing the cluster when there is one, else
+        each with ``workers`` worker processes, kept from one experiment to the next);
+        the records are the same as one at a time. An experiment whose process dies (a
+        crash, the out-of-memory killer) gets a failed record with the process's exit
+        code and last output lines, and the others still run.
     force : bool, default=False
         Recompute up-to-date results too.
     ids : sequence of str, optional
@@ -715,65 +729,48 @@ def reproduce(
     return records
 
 
-def _subprocess_command(exp: Experiment, variant: str, common: Mapping[str, Any]) -> list[str]:
-    """The ``python -m mmconcepts run`` command of one run of :func:`reproduce`."""
-    import sys
-
-    cmd = [sys.executable, "-m", "mmconcepts", "run", exp.id, f"--{common['preset']}", "--variant", variant,
-           "--output", str(Path(common["output"]).resolve()), "--quiet"]
-    if common["data_root"] is not None:
-        cmd += ["--data-root", str(Path(common["data_root"]).resolve())]
-    for name, path in sorted((common["data"] or {}).items()):
-        cmd += ["--data", f"{name}={Path(path).resolve()}"]
-    client = common["scheduler"]
-    if client is not None:
-        cmd += ["--scheduler", str(client.scheduler.address)]
-    else:
-        cmd += ["--workers", str(common["workers"])]
-    if common["force"]:
-        cmd.append("--force")
-    return cmd
-
-
-def _run_in_subprocess(exp: Experiment, variant: str, common: Mapping[str, Any]) -> ResultRecord:
-    """One run of :func:`reproduce` in its own process; its record is read back from disk."""
-    import subprocess
-
-    cmd = _subprocess_command(exp, variant, common)
-    target = _target(exp, variant, common["data"], common["data_root"], Path(common["output"]))
-    logger.info("%s (%s data): running in a subprocess", exp.id, target.variant)
-    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, check=False)
-    record = load_record(target.json_path) if target.json_path.exists() else None
-    if proc.returncode in (0, 1) and record is not None:
-        return record
-    config, preset = _config_and_preset(exp, common["preset"], None, None)
-    record = _new_record(exp, preset, config, target)
-    record.status = "failed"
-    tail = "\n".join(proc.stderr.strip().splitlines()[-20:])
-    record.message = f"the run's process ended with exit code {proc.returncode} and no record: {tail}"
-    _clear_results(record)
-    logger.error("%s: failed: %s", exp.id, record.message)
-    return record
-
-
 def _run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
                       common: Mapping[str, Any]) -> list[ResultRecord]:
-    """Run ``runs`` (experiment, variant) up to ``concurrent`` at a time, each in its own process."""
-    from concurrent.futures import ThreadPoolExecutor
+    """Run ``runs`` (experiment, variant) up to ``concurrent`` at a time, on as many driver processes.
+
+    Each driver runs one experiment after another (:mod:`._drivers`), with the arguments
+    ``mmconcepts run --quiet`` would get: the same records as one at a time in this process.
+    """
+    import threading
 
     from tqdm.auto import tqdm
 
+    from ._drivers import run_lanes
     from .base import _progress_enabled
 
-    with ThreadPoolExecutor(max_workers=concurrent) as pool:
-        futures = [pool.submit(_run_in_subprocess, exp, variant, common) for exp, variant in runs]
-        bar = tqdm(total=len(futures), desc="experiments", leave=False,
-                   disable=not _progress_enabled(bool(common["progress"])))
-        try:
-            records = []
-            for fut in futures:
-                records.append(fut.result())
-                bar.update(1)
-        finally:
-            bar.close()
-    return records
+    client = common["scheduler"]
+    kwargs = dict(
+        preset=common["preset"], output=str(Path(common["output"]).resolve()),
+        data={name: str(Path(path).resolve()) for name, path in (common["data"] or {}).items()},
+        data_root=None if common["data_root"] is None else str(Path(common["data_root"]).resolve()),
+        workers=common["workers"], scheduler=None if client is None else str(client.scheduler.address),
+        force=common["force"], progress=False, raise_errors=False,
+    )
+    bar = tqdm(total=len(runs), desc="experiments", leave=False,
+               disable=not _progress_enabled(bool(common["progress"])))
+    lock = threading.Lock()
+
+    def done(i: int, record: ResultRecord | None, why: str | None) -> ResultRecord:
+        exp, variant = runs[i]
+        if record is None:
+            config, preset = _config_and_preset(exp, common["preset"], None, None)
+            target = _target(exp, variant, common["data"], common["data_root"], Path(common["output"]))
+            record = _new_record(exp, preset, config, target)
+            record.status, record.message = "failed", why
+            _clear_results(record)
+            logger.error("%s: failed: %s", exp.id, why)
+        else:
+            logger.info("%s (%s data): %s", exp.id, record.variant, record.status)
+        with lock:
+            bar.update(1)
+        return record
+
+    try:
+        return run_lanes([(exp.id, variant) for exp, variant in runs], concurrent, kwargs, on_done=done)
+    finally:
+        bar.close()
