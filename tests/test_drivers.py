@@ -47,6 +47,11 @@ def _common(output: Path, **kw) -> dict:
                 progress=False, raise_errors=False) | kw
 
 
+def _drivers() -> list:
+    """The driver processes of this process still running (other tests may leave loky workers)."""
+    return [p for p in multiprocessing.active_children() if p.name == "mmconcepts-experiments"]
+
+
 def _pids(path: Path) -> list[int]:
     return [int(x) for x in path.read_text().split()]
 
@@ -74,7 +79,7 @@ def test_concurrent_runs_give_the_records_of_one_at_a_time_on_reused_processes(t
     records = runner._run_concurrently(runs, 1, _common(toy / "again"))
     assert [r.status for r in records] == ["ok"] * 4
     assert len(set(_pids(toy / "pids"))) == 1
-    assert not multiprocessing.active_children()  # the driver was stopped
+    assert not _drivers()  # the driver was stopped
 
 
 def test_a_driver_that_dies_fails_its_run_only(toy, monkeypatch):
@@ -114,20 +119,33 @@ def test_interrupting_stops_the_drivers_at_once(toy, monkeypatch):
     monkeypatch.setenv("CLUSTER_TEST_PID_FILE", str(toy / "pids"))
     runs = [(get("cluster-a"), "auto"), (get("cluster-b"), "auto"), (get("cluster-a"), "auto")]
 
+    returned = threading.Event()
+
     def interrupt_when_both_run():
         deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
+        while time.monotonic() < deadline and not returned.is_set():
             if (toy / "pids").exists() and len(_pids(toy / "pids")) == 2:
                 break
             time.sleep(0.05)
-        _thread.interrupt_main()
+        if not returned.is_set():
+            _thread.interrupt_main()
 
-    threading.Thread(target=interrupt_when_both_run, daemon=True).start()
+    # Python's own Ctrl-C handler (an earlier test or library may have replaced it)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _interrupt_while_running(runs, toy, interrupt_when_both_run)
+    finally:
+        returned.set()
+        signal.signal(signal.SIGINT, previous)
+
+
+def _interrupt_while_running(runs, toy, interrupter):
+    threading.Thread(target=interrupter, daemon=True).start()
     t0 = time.monotonic()
     with pytest.raises(KeyboardInterrupt):
         runner._run_concurrently(runs, 2, _common(toy / "out"))
     assert time.monotonic() - t0 < 40
-    assert not multiprocessing.active_children()
+    assert not _drivers()
     assert len(_pids(toy / "pids")) == 2  # the third run never started
     assert not list((toy / "out").glob("*.json"))
 
