@@ -27,8 +27,9 @@ $(VENV)/.installed-dev: $(STAMP)
 	touch $@
 
 ## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
-## and write results/report.html and results/report.md (two experiments at a time, each with a worker per core:
-## what one leaves idle, the other uses; shared caches and numba's compiled kernels are made once, under a lock)
+## and write results/report.html and results/report.md (two experiments at a time, on two processes that run one
+## after another, each with a worker per core: what one leaves idle, the other uses; shared caches and numba's
+## compiled kernels are made once, under a lock)
 reproduce: $(STAMP)
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --concurrent 2 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
