@@ -133,18 +133,14 @@ def test_interrupting_stops_the_drivers_at_once(toy, monkeypatch):
     # Python's own Ctrl-C handler (an earlier test or library may have replaced it)
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        _interrupt_while_running(runs, toy, interrupt_when_both_run)
+        threading.Thread(target=interrupt_when_both_run, daemon=True).start()
+        t0 = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            runner._run_concurrently(runs, 2, _common(toy / "out"))
+        assert time.monotonic() - t0 < 40
     finally:
         returned.set()
         signal.signal(signal.SIGINT, previous)
-
-
-def _interrupt_while_running(runs, toy, interrupter):
-    threading.Thread(target=interrupter, daemon=True).start()
-    t0 = time.monotonic()
-    with pytest.raises(KeyboardInterrupt):
-        runner._run_concurrently(runs, 2, _common(toy / "out"))
-    assert time.monotonic() - t0 < 40
     assert not _drivers()
     assert len(_pids(toy / "pids")) == 2  # the third run never started
     assert not list((toy / "out").glob("*.json"))

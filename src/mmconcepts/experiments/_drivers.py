@@ -3,8 +3,8 @@
 :func:`run_lanes` runs a list of experiments ``concurrent`` at a time. Each lane owns one
 driver: a process (started with ``spawn``) that imports the package once, then runs the
 experiments it is sent, in turn, with :func:`~mmconcepts.experiments.runner.run_experiment`.
-What one experiment paid for stays for the next: the imports (scikit-learn, SciPy, numba:
-about 3 s of CPU per process), numba's kernels loaded from its cache, and the loky worker
+What one experiment paid for stays for the next: the imports (scikit-learn, SciPy, numba),
+numba's kernels loaded from its cache, and the loky worker
 processes of :meth:`~mmconcepts.experiments.base.RunContext.parallel` (loky reuses them
 while the joblib config is the same, which it is within one driver). A fresh process per
 experiment paid for all of them again, in it and in each of its workers.
