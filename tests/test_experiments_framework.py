@@ -549,6 +549,31 @@ def test_warnings_raised_in_worker_processes_are_recorded(toy, tmp_path):
     assert sorted(rec["warnings"]) == ["RuntimeWarning: worker 1 skipped a file", "RuntimeWarning: worker 2 skipped a file"]
 
 
+def _leak_guard(_):
+    from joblib.externals.loky import process_executor
+
+    return process_executor._MAX_MEMORY_LEAK_SIZE
+
+
+def test_a_runs_workers_keep_what_they_load(toy, tmp_path):
+    """loky replaces a worker whose memory grew by 300 MB since its first task (its guard against
+    leaks); a run's workers keep the voice, librosa and numba kernels they load, so the guard is
+    raised in every worker of the run, those of ctx.parallel and of the library's own joblib calls."""
+    from joblib import Parallel, delayed
+    from joblib.externals.loky import process_executor
+
+    from mmconcepts.experiments.base import WORKER_MEMORY_GROWTH
+
+    assert WORKER_MEMORY_GROWTH > process_executor._MAX_MEMORY_LEAK_SIZE  # loky's own, in this process
+
+    def run(config, ctx):
+        own = Parallel(n_jobs=2)(delayed(_leak_guard)(i) for i in range(4))
+        return Result(metrics={"ctx": float(min(ctx.parallel(_leak_guard, range(4)))), "own": float(min(own))})
+
+    rec = run_experiment(toy.make_experiment("toy-leak", run), output=tmp_path, workers=2, progress=False)
+    assert rec["metrics"] == {"ctx": float(WORKER_MEMORY_GROWTH), "own": float(WORKER_MEMORY_GROWTH)}
+
+
 # --------------------------------------------------------------------------- a config instead of a preset (issue 13)
 
 

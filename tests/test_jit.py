@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import subprocess
@@ -110,3 +111,69 @@ def test_the_package_kernels_compile_under_the_lock():
                 found += 1
                 assert "_compile_for_args" in vars(value), value  # made by _jit.njit with cache=True
     assert found >= 30
+
+
+FIRST_USE_CHILD = textwrap.dedent("""
+    from mmconcepts import _jit
+    print("ready", flush=True)
+    with _jit.first_use("probe"):
+        print("inside", flush=True)
+""")
+
+
+def test_first_use_waits_for_a_process_that_holds_its_lock(tmp_path, monkeypatch):
+    """A process entering a first-use block waits while another process holds that name's lock."""
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    env = dict(os.environ, TMPDIR=str(tmp_path / "tmp"))
+    lock = _jit._lock_dir() / "first-use.probe.lock"
+    with folder_lock(lock.parent, lock.name):
+        child = subprocess.Popen([sys.executable, "-c", FIRST_USE_CHILD], env=env, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True)
+        assert child.stdout.readline().strip() == "ready", child.stderr.read()
+        time.sleep(1.0)
+        assert child.poll() is None  # still waiting at the block
+    out, err = child.communicate(timeout=60)
+    assert child.returncode == 0, err
+    assert out.strip() == "inside"
+
+
+@pytest.fixture
+def taken(monkeypatch):
+    """The names of the locks first_use takes (recorded instead of taken), none used yet in this process."""
+    names = []
+
+    @contextlib.contextmanager
+    def spy(folder, name):
+        names.append(name)
+        yield
+
+    monkeypatch.setattr(_jit, "folder_lock", spy)
+    monkeypatch.setattr(_jit, "_FIRST_USES", set())
+    return names
+
+
+def test_first_use_locks_until_a_block_completes_then_never_again(taken):
+    with pytest.raises(ZeroDivisionError):
+        with _jit.first_use("probe"):
+            1 / 0
+    assert taken == ["first-use.probe.lock"]
+    with _jit.first_use("probe"):  # the first block failed: locked again
+        pass
+    with _jit.first_use("probe"):
+        pass
+    with _jit.first_use("other"):
+        pass
+    assert taken == ["first-use.probe.lock", "first-use.probe.lock", "first-use.other.lock"]
+
+
+def test_mfcc_imports_librosa_under_the_first_use_lock(taken):
+    """librosa compiles its numba ufuncs at import: the first MFCC of a process runs under the lock."""
+    pytest.importorskip("librosa")
+    from mmconcepts.sound.features import mfcc
+
+    y = np.random.default_rng(0).standard_normal(16000).astype(np.float32) * 0.1
+    first = mfcc(y)
+    assert taken == ["first-use.librosa.lock"]
+    np.testing.assert_array_equal(mfcc(y), first)
+    assert taken == ["first-use.librosa.lock"]

@@ -25,7 +25,7 @@ import getpass
 import hashlib
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +33,7 @@ import numba as nb
 
 from ._io import folder_lock
 
-__all__ = ["njit", "lock_file"]
+__all__ = ["njit", "lock_file", "first_use"]
 
 
 def _lock_dir() -> Path:
@@ -94,3 +94,35 @@ def njit(*args: Any, **options: Any) -> Any:
     if not options.get("cache", False):
         return decorate
     return lambda func: _shared(decorate(func))
+
+
+_FIRST_USES: set[str] = set()
+
+
+@contextlib.contextmanager
+def first_use(name: str) -> Iterator[None]:
+    """Run the block under the machine-wide lock ``name`` until it has once completed in this process.
+
+    For libraries that compile numba kernels of their own with ``cache=True``, outside
+    :func:`njit`'s lock: librosa compiles about 20 s of CPU worth of ufuncs when its modules
+    are first imported on a fresh install, and worker processes that start together would
+    each compile them. Under this lock the first process compiles and writes numba's cache,
+    the others wait and then load it. Once a block has run to its end in a process, later
+    blocks of the same ``name`` in that process take no lock; a block that raised leaves it
+    to be taken again next time.
+
+    Parameters
+    ----------
+    name : str
+        What the lock is for (a file ``first-use.<name>.lock`` in the lock folder of
+        :func:`lock_file`).
+    """
+    if name in _FIRST_USES:
+        yield
+        return
+    path = _lock_dir() / f"first-use.{name}.lock"
+    with contextlib.ExitStack() as stack:
+        with contextlib.suppress(OSError):  # no writable temporary folder: run unlocked
+            stack.enter_context(folder_lock(path.parent, path.name))
+        yield
+    _FIRST_USES.add(name)

@@ -343,7 +343,7 @@ def _workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
 
     loky's workers outlive a parent killed with SIGKILL: one busy with a task finishes it, and
     an idle one waits for its idle timeout (300 s). Under this config each worker runs
-    :func:`_end_with_parent` when it starts. Another joblib back end chosen by the caller
+    :func:`_init_worker` when it starts. Another joblib back end chosen by the caller
     (``joblib.parallel_config``) is left as it is.
     """
     try:
@@ -356,7 +356,27 @@ def _workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
     if type(backend).__name__ != "LokyBackend":
         return contextlib.nullcontext()
     return cast("contextlib.AbstractContextManager[Any]",
-                parallel_config(backend="loky", initializer=_end_with_parent, initargs=(os.getpid(),)))
+                parallel_config(backend="loky", initializer=_init_worker, initargs=(os.getpid(),)))
+
+
+#: How much a worker's memory may grow after its first task before loky replaces it (loky's
+#: own guard against leaks is 300 MB). A run's workers keep what they load on purpose, from one
+#: task and one experiment to the next: the numba kernels, librosa, the text-to-speech voice
+#: (about 240 MB); at 300 MB loky kept replacing them, and each new worker imported and loaded
+#: all of it again.
+WORKER_MEMORY_GROWTH = 2**30
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Initializer of a worker process: :func:`_end_with_parent`, and loky's leak guard at
+    :data:`WORKER_MEMORY_GROWTH` (a private loky setting, read by the worker after each task)."""
+    _end_with_parent(parent_pid)
+    with contextlib.suppress(ImportError):
+        from joblib.externals.loky import process_executor
+
+        if isinstance(getattr(process_executor, "_MAX_MEMORY_LEAK_SIZE", None), int):
+            process_executor._MAX_MEMORY_LEAK_SIZE = max(process_executor._MAX_MEMORY_LEAK_SIZE,
+                                                         WORKER_MEMORY_GROWTH)
 
 
 def _end_with_parent(parent_pid: int) -> None:

@@ -201,28 +201,32 @@ def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
     -------
     ndarray of shape (n_frames, n_mfcc), float32
     """
-    import librosa  # optional dependency (extra "audio")
-
     config = MFCCConfig() if config is None else config
     y = _check_audio(y, config)
-    mel = librosa.feature.melspectrogram(
-        y=y.astype(np.float32, copy=False),
-        sr=config.sr,
-        n_fft=config.n_fft,
-        hop_length=config.hop_length,
-        win_length=config.win_length,
-        window=config.window,
-        center=False,
-        power=2.0,
-        n_mels=config.n_mels,
-        fmin=config.fmin,
-        fmax=config.fmax,
-        htk=True,
-    )
-    log_mel = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=config.top_db)
-    m = librosa.feature.mfcc(
-        S=log_mel, sr=config.sr, n_mfcc=config.n_mfcc, dct_type=2, norm="ortho", lifter=config.lifter
-    )
+    from .._jit import first_use
+
+    # librosa compiles numba ufuncs when its modules load: once per machine, not in every worker at once
+    with first_use("librosa"):
+        import librosa  # optional dependency (extra "audio")
+
+        mel = librosa.feature.melspectrogram(
+            y=y.astype(np.float32, copy=False),
+            sr=config.sr,
+            n_fft=config.n_fft,
+            hop_length=config.hop_length,
+            win_length=config.win_length,
+            window=config.window,
+            center=False,
+            power=2.0,
+            n_mels=config.n_mels,
+            fmin=config.fmin,
+            fmax=config.fmax,
+            htk=True,
+        )
+        log_mel = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=config.top_db)
+        m = librosa.feature.mfcc(
+            S=log_mel, sr=config.sr, n_mfcc=config.n_mfcc, dct_type=2, norm="ortho", lifter=config.lifter
+        )
     return np.ascontiguousarray(m.T, dtype=np.float32)
 
 
