@@ -158,6 +158,26 @@ def test_matrix_rectangular_and_threads(rng):
     assert np.array_equal(dtw_distance_matrix(Z, Z[:30], n_jobs=2), serial[:, :30])
 
 
+def test_large_matrices_run_on_the_threads_asked_for(rng, monkeypatch):
+    """n_jobs threads (clipped to NUMBA_NUM_THREADS) for a large matrix, none for a small one."""
+    import numba
+
+    from mmconcepts.sound import dtw as module
+
+    sizes = []
+    real = module.ThreadPoolExecutor
+
+    def spy(n, **kwargs):
+        sizes.append(n)
+        return real(n, **kwargs)
+
+    monkeypatch.setattr(module, "ThreadPoolExecutor", spy)
+    Z = random_sequences(rng, 120, lengths=(20, 40), d=2)
+    dtw_distance_matrix(Z, n_jobs=2)
+    dtw_distance_matrix(Z[:5], n_jobs=2)
+    assert sizes == [min(2, numba.config.NUMBA_NUM_THREADS)]
+
+
 def test_matrix_equals_dtaidistance(rng):
     dtw_ndim = pytest.importorskip("dtaidistance.dtw_ndim")
     X = random_sequences(rng, 30, lengths=(5, 25), d=13)

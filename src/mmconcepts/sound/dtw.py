@@ -61,6 +61,7 @@ the tests and the benchmark.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numba as nb
@@ -91,9 +92,9 @@ _UNIT_GROUPS = 16
 _ROW_CHUNK = 32
 
 # Below this many DP cells in total the serial kernel is used. Measured on the project
-# machine (2 shared cores), two threads break even near 30 000 cells and gain x1.5 at
-# 100 000; the margin keeps OpenMP threads (which spin after a parallel region) away from
-# the many small calls of the incremental cluster tree.
+# machine (2 shared cores, with the earlier numba prange kernel), two threads break even near
+# 30 000 cells and gain x1.5 at 100 000; the margin keeps thread start-up away from the many
+# small calls of the incremental cluster tree.
 _PARALLEL_MIN_CELLS = 100_000
 
 # No fastmath: the +inf boundary of the DP must survive, and reassociating the d-term sums
@@ -382,19 +383,6 @@ def _pairs_serial(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared, 
                   np.int64(0), U, out)
 
 
-@njit(parallel=True, **_OPTS)
-def _pairs_parallel(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared, n_chunks, out):  # pragma: no cover
-    """The work units split into ``n_chunks`` contiguous ranges, one prange iteration each
-    (each allocates its buffers once; no two units write the same cell of ``out``)."""
-    BI, g_off, lengths = _prepare(A, a_off, B, b_off)
-    U = _n_units(a_off.shape[0] - 1, g_off.shape[0] - 1, symmetric)
-    n_chunks = min(n_chunks, U)
-    for ch in nb.prange(n_chunks):
-        _units(A, a_off, B, b_off, BI, g_off, lengths, rperm, cperm, symmetric, radius, squared,
-               ch * U // n_chunks, (ch + 1) * U // n_chunks, out)
-    return out
-
-
 @njit(**_OPTS)
 def _all_finite(x):  # pragma: no cover - compiled
     ok = True
@@ -465,7 +453,7 @@ _PARAMETER_CONSTRAINTS: dict[str, list] = {
 }
 _HINTS = {
     "window": "It is a Sakoe-Chiba radius in frames; None means no window.",
-    "n_jobs": "-1 uses all numba threads, -2 all but one, ...",
+    "n_jobs": "-1 uses as many threads as NUMBA_NUM_THREADS, -2 one fewer, ...",
 }
 
 
@@ -478,7 +466,7 @@ def _check_params(owner: str, window: Any, local: Any, n_jobs: Any = None) -> tu
 
 
 def _n_threads(n_jobs: Any) -> int:
-    """Number of numba threads for ``n_jobs`` (None: numba's current setting)."""
+    """Number of threads for ``n_jobs``, counted as numba counts them (None: numba's current setting)."""
     if n_jobs is None:
         return nb.get_num_threads()
     # numba sets its config attributes at run time (numba/core/config.py, _EnvReloader), so its
@@ -489,14 +477,30 @@ def _n_threads(n_jobs: Any) -> int:
     return min(int(n_jobs), max_threads)
 
 
-def _in_threads(n_threads: int, kernel: Any, *args: Any) -> Any:
-    """Call a parallel kernel on ``n_threads`` numba threads, then restore the setting."""
-    previous = nb.get_num_threads()
-    nb.set_num_threads(n_threads)
-    try:
-        return kernel(*args)
-    finally:
-        nb.set_num_threads(previous)
+def _pairs_in_threads(n_threads: int, A: np.ndarray, a_off: np.ndarray, B: np.ndarray, b_off: np.ndarray,
+                      rperm: np.ndarray, cperm: np.ndarray, symmetric: bool, radius: int, squared: bool,
+                      out: np.ndarray) -> np.ndarray:
+    """What :func:`_pairs_serial` computes, on ``n_threads`` Python threads.
+
+    The work units are split into ``8 * n_threads`` contiguous ranges, each run by :func:`_units`,
+    which releases the GIL; no two units write the same cell of ``out``, and every cell is computed
+    by the same code as in the serial kernel, so the results are the same, bit for bit. Threads
+    rather than a numba ``prange`` kernel, which was among the package's slowest kernels to compile
+    on a fresh install (``benchmarks/README.md``), and whose OpenMP threads spin after each parallel
+    region.
+    """
+    BI, g_off, lengths = _prepare(A, a_off, B, b_off)
+    n_units = int(_n_units(a_off.shape[0] - 1, g_off.shape[0] - 1, symmetric))
+    n_chunks = min(8 * n_threads, n_units)
+    bounds = [np.int64(ch * n_units // n_chunks) for ch in range(n_chunks + 1)]
+
+    def run(ch: int) -> None:
+        _units(A, a_off, B, b_off, BI, g_off, lengths, rperm, cperm, symmetric, radius, squared, bounds[ch],
+               bounds[ch + 1], out)
+
+    with ThreadPoolExecutor(n_threads, thread_name_prefix="mmconcepts-dtw") as pool:
+        list(pool.map(run, range(n_chunks)))  # list: re-raises a thread's exception
+    return out
 
 
 def _as_float_array(x: Any, what: str) -> np.ndarray:
@@ -643,7 +647,7 @@ def _run(rows: _Packed, cols: _Packed, symmetric: bool, radius: int, squared: bo
     args = (rows.rows, a_off, cols.rows, b_off, rows.perm, cols.perm, symmetric, radius, squared)
     if n_threads == 1:
         return _pairs_serial(*args, out)
-    return _in_threads(n_threads, _pairs_parallel, *args, 8 * n_threads, out)
+    return _pairs_in_threads(n_threads, *args, out)
 
 
 # --------------------------------------------------------------------------------------
@@ -740,7 +744,7 @@ def dtw_distance_matrix(
     local : {"euclidean", "sqeuclidean"}, default="euclidean"
         Local cost, see :func:`dtw`.
     n_jobs : int or None, default=None
-        Number of numba threads: None uses numba's current setting
+        Number of threads, counted as numba counts them: None uses numba's current setting
         (:func:`numba.get_num_threads`), -1 all of ``NUMBA_NUM_THREADS``, -2 all but one,
         and so on; values above ``NUMBA_NUM_THREADS`` are clipped to it. Small problems run
         on one thread whatever the setting.
@@ -807,7 +811,7 @@ def dtw_one_to_many(
     local : {"euclidean", "sqeuclidean"}, default="euclidean"
         Local cost, see :func:`dtw`.
     n_jobs : int or None, default=None
-        Number of numba threads for large calls, see :func:`dtw_distance_matrix`.
+        Number of threads for large calls, see :func:`dtw_distance_matrix`.
 
     Returns
     -------
