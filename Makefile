@@ -10,20 +10,31 @@ DATA_ROOT ?=
 
 .PHONY: reproduce test browser typecheck docs bench clean
 
+# Installs into the environment with uv (itself installed from PyPI into the environment), which installs the same
+# packages in about half pip's time (benchmarks/README.md); with pip when uv cannot be had or fails. Both write the
+# byte code of what they install, as pip does by default. uv reads the system's certificates, as pip does.
+comma := ,
+define install
+	if { $(BIN)/python -m uv --version || $(BIN)/python -m pip install --quiet uv; } >/dev/null 2>&1 && \
+	   UV_SYSTEM_CERTS=1 UV_NATIVE_TLS=1 $(BIN)/python -m uv pip install --quiet --python $(BIN)/python \
+	     --compile-bytecode $(1); then :; \
+	else echo "note: installing with pip (uv is not available or failed)"; \
+	  $(BIN)/python -m pip install --quiet --upgrade pip && $(BIN)/python -m pip install --quiet $(1); fi
+endef
+
 # The package with every modality (extra "all"); the tests and the benchmarks add their tools.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[all]"
+	$(call install,-e ".[all]")
 	touch $(STAMP)
 
 $(VENV)/.installed-%: $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[all,$*]"
+	$(call install,-e ".[all$(comma)$*]")
 	touch $@
 
 # The tests check the types and build the documentation too (what CI runs).
 $(VENV)/.installed-dev: $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(call install,-e ".[dev]")
 	touch $@
 
 ## Run every registered experiment in quick mode, on the real sets of DATA_ROOT and on generated data,
