@@ -104,9 +104,9 @@ def first_use(name: str) -> Iterator[None]:
     """Run the block under the machine-wide lock ``name`` until it has once completed in this process.
 
     For libraries that compile numba kernels of their own with ``cache=True``, outside
-    :func:`njit`'s lock: librosa compiles about 20 s of CPU worth of ufuncs when its modules
-    are first imported on a fresh install, and worker processes that start together would
-    each compile them. Under this lock the first process compiles and writes numba's cache,
+    :func:`njit`'s lock: librosa compiles its ufuncs when its modules are first imported on a
+    fresh install (the cost is in ``benchmarks/README.md``), and worker processes that start
+    together would each compile them. Under this lock the first process compiles and writes numba's cache,
     the others wait and then load it. Once a block has run to its end in a process, later
     blocks of the same ``name`` in that process take no lock; a block that raised leaves it
     to be taken again next time.

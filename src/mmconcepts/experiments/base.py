@@ -362,8 +362,8 @@ def _workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
 #: How much a worker's memory may grow after its first task before loky replaces it (loky's
 #: own guard against leaks is 300 MB). A run's workers keep what they load on purpose, from one
 #: task and one experiment to the next: the numba kernels, librosa, the text-to-speech voice
-#: (about 240 MB); at 300 MB loky kept replacing them, and each new worker imported and loaded
-#: all of it again.
+#: (its size is in ``benchmarks/README.md``); at 300 MB loky kept replacing them, and each new
+#: worker imported and loaded all of it again.
 WORKER_MEMORY_GROWTH = 2**30
 
 
