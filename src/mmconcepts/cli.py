@@ -304,10 +304,9 @@ def _columns(rows: list[list[str]], indent: str = "  ") -> str:
 
 
 def _claims_summary(claims: list[dict[str, Any]]) -> str:
-    from .experiments.uncertainty import VERDICTS
+    from .experiments.verdicts import format_tally, tally_claims
 
-    counts = {v: sum((c.get("verdict") or "not evaluated") == v for c in claims) for v in VERDICTS}
-    return ", ".join(f"{n} {v}" for v, n in counts.items() if n) or "no claims"
+    return format_tally(tally_claims(claims))
 
 
 def _print_record(record: Mapping[str, Any], json_path: Path) -> None:
@@ -338,7 +337,9 @@ def _print_record(record: Mapping[str, Any], json_path: Path) -> None:
     if claims:
         print(f"  claims: {_claims_summary(claims)}")
         for c in claims:
-            print(f"    [{c.get('verdict') or 'not evaluated'}] {c['text']}  ({c['rule']})")
+            scope = f", {c['scope']}" if c.get("scope") else ""
+            print(f"    [{c.get('kind') or 'unclassified'}: {c.get('verdict') or 'not evaluated'}{scope}] {c['text']}  "
+                  f"({c['rule']})")
 
 
 # --------------------------------------------------------------------------- commands

@@ -91,6 +91,7 @@ import numpy as np
 from .._paths import data_home
 from ..errors import ExperimentError, ParameterError
 from .rules import is_valid_metric_name, parse_rule
+from .uncertainty import SampleUnit
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -98,6 +99,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ._store import CacheStore
 
 __all__ = [
+    "CLAIM_KINDS",
     "Streams",
     "array_digest",
     "cached_call",
@@ -165,27 +167,110 @@ class ExperimentSkipped(ExperimentError):
     """
 
 
+#: The kinds of claims, in the order the report counts them (see :class:`Claim`).
+CLAIM_KINDS = ("thesis", "magnitude", "ours", "check")
+
+_THESIS_NUMBER = re.compile(r"\{thesis:([A-Za-z0-9_.]+)\}")
+
+
+def _format_thesis_number(value: float) -> str:
+    return f"{value:.6g}" if abs(value) >= 0.01 or value == 0 else f"{value:.4g}"
+
+
 @dataclass(frozen=True)
 class Claim:
-    """A statement of the thesis and the rule that checks it on our metrics.
+    """A statement checked on our metrics, and what kind of statement it is.
 
     Parameters
     ----------
     text : str
-        The claim in words, e.g. "NMF with the Frobenius loss beats the SVM".
+        The claim in words, e.g. "NMF with the Frobenius loss beats the SVM". A thesis
+        number is written ``{thesis:NAME}``, filled in from the experiment's reference table
+        (so that each thesis number is written once, in that table).
     rule : str
-        A boolean expression over metric names, e.g.
-        ``"nmf_frobenius.l_full > svm.l_full"`` (see :mod:`mmconcepts.experiments.rules`).
-        Its syntax is checked when the claim is made.
+        For kinds ``thesis``, ``ours`` and ``check``: a boolean expression over metric names,
+        e.g. ``"nmf_frobenius.l_full > svm.l_full"`` (see
+        :mod:`mmconcepts.experiments.rules`), its syntax checked when the claim is made. For
+        kind ``magnitude``: the name of the metric set beside the thesis' number of the same
+        name in the reference table. Empty when ``settings`` is given.
+    kind : {"thesis", "magnitude", "ours", "check"}, default="ours"
+        ``thesis``: a statement the thesis makes (an order, a trend, "X beats Y"), tested at
+        the thesis' own comparison; ``magnitude``: our number against the thesis' number, as
+        a ratio with its interval (:func:`~mmconcepts.experiments.uncertainty.magnitude_verdict`);
+        ``ours``: a check we added (a control, a bar of our own); ``check``: a property of the
+        code kept in the record only to show that the run is sane (never evidence).
+    source : str, default=""
+        Where the thesis says it: section, table or figure, and the line of the thesis' text
+        (``"Section 3.3.4, Table 3.2 (line 2790)"``). Required for kinds ``thesis`` and
+        ``magnitude``.
+    settings : mapping of str to str, optional
+        For a statement whose verdict depends on a setting we had to choose (features,
+        dynamics, noise): one rule per setting, by the setting's label. The claim is decided
+        under each, and its verdict says "holds under all", "holds only under X" or "fails
+        under all" (:func:`~mmconcepts.experiments.uncertainty.combine_settings`).
     """
 
     text: str
-    rule: str
+    rule: str = ""
+    kind: str = "ours"
+    source: str = ""
+    settings: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.text, str) or not self.text.strip():
             raise ExperimentError(f"Claim.text must be a non-empty string; got {self.text!r}.")
-        parse_rule(self.rule)  # syntax and type check; metric names are checked at run time
+        if self.kind not in CLAIM_KINDS:
+            raise ExperimentError(f"Claim.kind must be one of {', '.join(CLAIM_KINDS)}; got {self.kind!r} "
+                                  f"(claim {self.text!r:.60}).")
+        if self.kind in ("thesis", "magnitude") and (not isinstance(self.source, str) or not self.source.strip()):
+            raise ExperimentError(f"a {self.kind} claim needs its source: where the thesis says it (section, table or "
+                                  f"figure, and the line of the thesis' text); claim {self.text!r:.60}.")
+        if not isinstance(self.settings, Mapping):
+            raise ExperimentError(f"Claim.settings must map a setting's label to a rule; got {self.settings!r:.60}.")
+        object.__setattr__(self, "settings", MappingProxyType(dict(self.settings)))
+        if self.settings:
+            if self.rule:
+                raise ExperimentError(f"claim {self.text!r:.60}: give a rule or settings (a rule per setting), "
+                                      "not both.")
+            if self.kind == "magnitude":
+                raise ExperimentError(f"claim {self.text!r:.60}: a magnitude claim has no settings.")
+            for label, rule in self.settings.items():
+                if not isinstance(label, str) or not label.strip():
+                    raise ExperimentError(f"claim {self.text!r:.60}: a setting's label must be a non-empty string; "
+                                          f"got {label!r}.")
+                parse_rule(rule)
+        elif self.kind == "magnitude":
+            if not is_valid_metric_name(self.rule):
+                raise ExperimentError(f"a magnitude claim's rule is the metric set beside the thesis' number of the "
+                                      f"same name; got {self.rule!r} (claim {self.text!r:.60}).")
+        else:
+            parse_rule(self.rule)  # syntax and type check; metric names are checked at run time
+
+    @property
+    def rules(self) -> dict[str, str]:
+        """The rule under each setting (``{"": rule}`` without settings)."""
+        return dict(self.settings) if self.settings else {"": self.rule}
+
+    def with_thesis_numbers(self, reference: Mapping[str, float], exp_id: str = "") -> "Claim":
+        """This claim with each ``{thesis:NAME}`` of its text replaced by ``reference[NAME]``.
+
+        Raises
+        ------
+        ExperimentError
+            If a name is not in ``reference``, or a magnitude claim's metric has no thesis number.
+        """
+        def fill(match: re.Match[str]) -> str:
+            name = match.group(1)
+            if name not in reference:
+                raise ExperimentError(f"experiment {exp_id!r}: claim {self.text!r:.60} cites {{thesis:{name}}}, which "
+                                      f"is not in the reference table (known: {', '.join(sorted(reference)) or 'none'}).")
+            return _format_thesis_number(float(reference[name]))
+
+        if self.kind == "magnitude" and self.rule not in reference:
+            raise ExperimentError(f"experiment {exp_id!r}: magnitude claim {self.text!r:.60} sets {self.rule!r} beside "
+                                  "the thesis' number, but the reference table has none of that name.")
+        text = _THESIS_NUMBER.sub(fill, self.text)
+        return self if text == self.text else dataclasses.replace(self, text=text)
 
 
 @dataclass
@@ -260,6 +345,17 @@ class Result:
         order); metrics with different units are resampled independently, even when their
         samples have the same length. A metric without an entry is paired with every other
         metric without one whose samples have the same length.
+    units : dict of str to SampleUnit
+        What each unit named in ``sample_units`` is
+        (:class:`~mmconcepts.experiments.uncertainty.SampleUnit`): independent seeds or
+        repetitions, the folds of one cross-validation (whose intervals and verdicts use the
+        corrected resampled t), or blocks of one fit (whose verdicts are marked "within one
+        fit"). A unit not declared here is taken as independent.
+    split_groups : dict
+        For each split of the data into training and test parts, what its examples are
+        grouped by so that no source recording behind a test example feeds a training
+        example, e.g. ``{"mixtures": {"by": "source recordings", "n_groups": 40}}``
+        (JSON-able; stored in the record).
     figure_data : dict
         What an experiment's ``present`` draws beyond the metrics and tables (loss curves,
         per-unit curves, value maps, ...), set by its ``compute``. Kept in memory only: the
@@ -274,6 +370,8 @@ class Result:
     samples: dict[str, list[float]] = field(default_factory=dict)
     sample_units: dict[str, str] = field(default_factory=dict)
     figure_data: dict[str, Any] = field(default_factory=dict)
+    units: dict[str, SampleUnit] = field(default_factory=dict)
+    split_groups: dict[str, Any] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Check names and types; raise :class:`ExperimentError` naming the culprit."""
@@ -323,6 +421,18 @@ class Result:
                     f"{first[0]!r} has {first[1]}, {name!r} has {len(self.samples[name])}; give them different units "
                     "if they do not come from the same folds or seeds."
                 )
+        if not isinstance(self.units, Mapping):
+            raise ExperimentError(f"Result.units must map a unit's name to a SampleUnit; got {type(self.units).__name__}.")
+        named = set(self.sample_units.values())
+        for unit, kind in self.units.items():
+            if not isinstance(kind, SampleUnit):
+                raise ExperimentError(f"units[{unit!r}] must be a SampleUnit (SampleUnit.folds(k), .seeds(), "
+                                      f".within_fit()); got {kind!r:.60}.")
+            if unit not in named:
+                raise ExperimentError(f"units declares {unit!r}, which no metric's samples have (sample_units names "
+                                      f"{', '.join(sorted(named)) or 'none'}).")
+        if not isinstance(self.split_groups, Mapping):
+            raise ExperimentError(f"Result.split_groups must be a dict; got {type(self.split_groups).__name__}.")
 
 
 class _WarningsCarried:
@@ -744,6 +854,12 @@ class Experiment:
         for claim in claims:
             if not isinstance(claim, Claim):
                 raise ExperimentError(f"experiment {self.id!r}: claims must be Claim objects; got {claim!r}.")
+        claims = tuple(claim.with_thesis_numbers(reference, self.id) for claim in claims)
+        texts = [claim.text for claim in claims]
+        twice = sorted({t for t in texts if texts.count(t) > 1})
+        if twice:
+            raise ExperimentError(f"experiment {self.id!r}: two claims read {twice[0]!r:.80}; each claim's text must "
+                                  "be its own (the report tells claims apart by their text).")
         object.__setattr__(self, "claims", claims)
         if isinstance(self.datasets, str):
             raise ExperimentError(f"experiment {self.id!r}: datasets must be a tuple of names, e.g. ('choreo1',), not a string.")

@@ -33,7 +33,7 @@ from .base import Table
 __all__ = ["SCHEMA_VERSION", "RECORD_KEYS", "ClaimRecord", "ResultRecord", "to_jsonable"]
 
 #: Version of the result-record schema written by :func:`run_experiment`.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 #: Keys present in every result record, whatever its status, in the order they are written.
 RECORD_KEYS = (
@@ -56,6 +56,8 @@ RECORD_KEYS = (
     "intervals",
     "samples",
     "sample_units",
+    "units",
+    "split_groups",
     "reference",
     "claims",
     "tables",
@@ -136,28 +138,62 @@ class ClaimRecord:
     Parameters
     ----------
     text, rule : str
-        The claim in words and its rule (:class:`~mmconcepts.experiments.Claim`).
+        The claim in words and its rule (:class:`~mmconcepts.experiments.Claim`); for a
+        magnitude claim, the rule is the metric set beside the thesis' number.
+    kind : {"thesis", "magnitude", "ours", "check", "unclassified"}, default="unclassified"
+        The claim's kind (:class:`~mmconcepts.experiments.Claim`); ``unclassified`` for claims
+        of records written before kinds (schema 1 and 2).
+    source : str, default=""
+        Where the thesis says it (thesis and magnitude claims).
     holds : bool or None, default=None
-        The rule on the reported numbers (None: not evaluated).
-    verdict : {"holds", "fails", "inconclusive", "not evaluated"}, default="not evaluated"
-        Decided beyond the samples' uncertainty (:func:`~mmconcepts.experiments.uncertainty.claim_verdict`).
-    support : float or None, default=None
-        Share of the bootstrap replicates on which the rule holds.
+        The rule on the reported numbers (None: not evaluated or a magnitude).
+    verdict : str, default="not evaluated"
+        ``holds``, ``fails``, ``depends``, ``inconclusive`` or ``not evaluated``; for a magnitude,
+        ``matches``, ``below``, ``above``, ``inconclusive`` or ``not evaluated``
+        (:mod:`~mmconcepts.experiments.uncertainty`).
     basis : str, default=""
         How the verdict was decided.
+    tests : list of dict, default=[]
+        For a rule: each comparison with its margin and the margin's interval, the test
+        behind the verdict (:class:`~mmconcepts.experiments.uncertainty.ComparisonTest`).
+    scope : str, default=""
+        ``"within one fit"`` when the samples behind it come from one fit.
+    ratio : float or None, default=None
+        For a magnitude: ours / thesis.
+    ratio_interval : [float, float] or None, default=None
+        For a magnitude: the ratio's interval.
+    settings : list of dict, default=[]
+        For a claim decided under several settings: ``{"label", "rule", "holds", "verdict",
+        "basis", "tests", "scope"}`` per setting.
+    detail : str, default=""
+        For a claim decided under several settings: "holds under all", "holds only under X", ...
+    support : float or None, default=None
+        Read from records of schema 2 (the share of bootstrap replicates on which the rule
+        held); None in newer records.
     """
 
     text: str
     rule: str
+    kind: str = "unclassified"
+    source: str = ""
     holds: bool | None = None
     verdict: str = "not evaluated"
-    support: float | None = None
     basis: str = ""
+    tests: list[dict[str, Any]] = field(default_factory=list)
+    scope: str = ""
+    ratio: float | None = None
+    ratio_interval: list[float] | None = None
+    settings: list[dict[str, Any]] = field(default_factory=list)
+    detail: str = ""
+    support: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"text", "rule", "holds", "verdict", "support", "basis"}``, as in the JSON."""
-        return {"text": self.text, "rule": self.rule, "holds": self.holds, "verdict": self.verdict,
-                "support": self.support, "basis": self.basis}
+        """The claim as in the JSON."""
+        return {"text": self.text, "rule": self.rule, "kind": self.kind, "source": self.source, "holds": self.holds,
+                "verdict": self.verdict, "basis": self.basis, "tests": [dict(t) for t in self.tests],
+                "scope": self.scope, "ratio": self.ratio,
+                "ratio_interval": None if self.ratio_interval is None else list(self.ratio_interval),
+                "settings": [dict(s) for s in self.settings], "detail": self.detail, "support": self.support}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ClaimRecord:
@@ -171,14 +207,24 @@ class ClaimRecord:
         if not isinstance(d, Mapping) or "text" not in d or "rule" not in d:
             raise ExperimentError(f"a claim of a result record must be a dict with 'text' and 'rule'; got {d!r:.80}.")
         holds = d.get("holds")
-        return cls(text=d["text"], rule=d["rule"], holds=holds,
+        tests = d.get("tests") or []
+        settings = d.get("settings") or []
+        if not isinstance(tests, list) or not isinstance(settings, list):
+            raise ExperimentError(f"the tests and settings of a claim must be lists; got {d!r:.80}.")
+        interval = d.get("ratio_interval")
+        return cls(text=d["text"], rule=d["rule"], kind=str(d.get("kind") or "unclassified"),
+                   source=str(d.get("source") or ""), holds=holds,
                    verdict=d["verdict"] if "verdict" in d else _verdict_of(holds),
-                   support=d.get("support"), basis=d.get("basis", ""))
+                   basis=d.get("basis", "") or "", tests=[dict(t) for t in tests if isinstance(t, Mapping)],
+                   scope=str(d.get("scope") or ""), ratio=d.get("ratio"),
+                   ratio_interval=list(interval) if isinstance(interval, (list, tuple)) else None,
+                   settings=[dict(x) for x in settings if isinstance(x, Mapping)], detail=str(d.get("detail") or ""),
+                   support=d.get("support"))
 
 
 @dataclass(kw_only=True)
 class ResultRecord(Mapping[str, Any]):
-    """The record of one experiment run (schema version 2).
+    """The record of one experiment run (schema version 3).
 
     Its fields are the keys of the JSON record, in the order written (:data:`RECORD_KEYS`);
     the runner's module docstring and the README describe each. Read-only mapping access
@@ -217,6 +263,8 @@ class ResultRecord(Mapping[str, Any]):
     intervals: dict[str, list[float]] = field(default_factory=dict)
     samples: dict[str, list[Any]] = field(default_factory=dict)
     sample_units: dict[str, str] = field(default_factory=dict)
+    units: dict[str, dict[str, Any]] = field(default_factory=dict)
+    split_groups: dict[str, Any] = field(default_factory=dict)
     reference: dict[str, float] = field(default_factory=dict)
     claims: list[ClaimRecord] = field(default_factory=list)
     tables: dict[str, Table] = field(default_factory=dict)
@@ -303,7 +351,8 @@ class ResultRecord(Mapping[str, Any]):
                       claims=[ClaimRecord.from_dict(c) for c in claims])
         if "variant" not in d:  # schema 1: before variants
             fields["variant"] = "real" if d.get("data") else "synthetic"
-        for key in ("config", "data", "data_signature", "intervals", "samples", "sample_units", "reference",
+        for key in ("config", "data", "data_signature", "intervals", "samples", "sample_units", "units", "split_groups",
+                    "reference",
                     "figures", "notes", "extra", "warnings"):
             if key in fields and fields[key] is None:  # null where a dict or list belongs: empty
                 del fields[key]

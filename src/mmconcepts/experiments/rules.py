@@ -39,13 +39,13 @@ import bisect
 import difflib
 import math
 import re
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import cast
 
 from ..errors import ExperimentError
 
-__all__ = ["Rule", "parse_rule", "evaluate_rule", "is_valid_metric_name", "RESERVED_WORDS"]
+__all__ = ["Rule", "Comparison", "parse_rule", "evaluate_rule", "is_valid_metric_name", "RESERVED_WORDS"]
 
 #: Words that cannot be metric names.
 RESERVED_WORDS = frozenset({"and", "or", "not", "abs", "min", "max"})
@@ -305,6 +305,91 @@ def _eval(node: ast.AST, values: Mapping[str, float]):
     raise AssertionError(f"unchecked node {type(node).__name__}")  # pragma: no cover
 
 
+_ALIAS = re.compile(r"\b_m\d+\b")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One comparison of a rule, ``left op right`` (a chained ``a < b < c`` is two).
+
+    A rule is a combination (``and``, ``or``, ``not``) of comparisons; a verdict beyond the
+    noise is decided comparison by comparison, on each one's *margin*: how far it is from
+    flipping, positive when it holds (``left - right`` for ``>`` and ``>=``, ``right -
+    left`` for ``<`` and ``<=``; ``left - right`` for ``==`` and ``!=``).
+
+    Attributes
+    ----------
+    text : str
+        The comparison as it reads in the rule (metric names, numbers as floats).
+    op : str
+        One of ``< <= > >= == !=``.
+    metrics : frozenset of str
+        The metric names it reads.
+    """
+
+    text: str
+    op: str
+    metrics: frozenset[str]
+    _left: ast.AST
+    _right: ast.AST
+    _aliases: tuple[tuple[str, str], ...]
+
+    def margin(self, metrics: Mapping[str, float]) -> float:
+        """The margin (see the class docstring) on ``metrics``; NaN when a metric it reads is NaN."""
+        values = {alias: float(metrics[name]) for alias, name in self._aliases if name in self.metrics}
+        try:
+            left, right = float(_eval(self._left, values)), float(_eval(self._right, values))
+        except _Undefined:  # a NaN met inside (min of NaN, ...)
+            return math.nan
+        return right - left if self.op in ("<", "<=") else left - right
+
+    def holds_at(self, margin: float) -> bool:
+        """Whether the comparison holds when its margin is ``margin``."""
+        if self.op in ("==",):
+            return margin == 0
+        if self.op == "!=":
+            return margin != 0
+        return margin > 0 or (margin == 0 and self.op in ("<=", ">="))
+
+
+def _compare_nodes(node: ast.AST) -> list[ast.Compare]:
+    """The comparison nodes under ``node``, in the order they are written (they never nest)."""
+    return sorted((n for n in ast.walk(node) if isinstance(n, ast.Compare)), key=lambda n: (n.lineno, n.col_offset))
+
+
+def _comparisons(node: ast.AST, aliases: tuple[tuple[str, str], ...]) -> list[Comparison]:
+    names = dict(aliases)
+    out: list[Comparison] = []
+    for sub in _compare_nodes(node):
+        left = sub.left
+        for cmp, right in zip(sub.ops, sub.comparators):
+            used = frozenset(names[n.id] for part in (left, right) for n in ast.walk(part)
+                             if isinstance(n, ast.Name) and n.id in names)
+            op = _COMPARE[type(cmp)]
+            text = f"{ast.unparse(left)} {op} {ast.unparse(right)}"
+            text = _ALIAS.sub(lambda m: names[m.group()], text)
+            out.append(Comparison(text, op, used, left, right, aliases))
+            left = right
+    return out
+
+
+def _kleene(node: ast.AST, decide: Mapping[int, bool | None], order: list[ast.Compare]) -> bool | None:
+    """Three-valued value of ``node`` from the decisions of its comparisons (Kleene's logic)."""
+    if isinstance(node, ast.Compare):
+        base = sum(len(c.ops) for c in order[: order.index(node)])
+        parts = [decide[base + i] for i in range(len(node.ops))]
+        return False if False in parts else (True if all(p is True for p in parts) else None)
+    if isinstance(node, ast.BoolOp):
+        parts = [_kleene(v, decide, order) for v in node.values]
+        if isinstance(node.op, ast.And):
+            return False if False in parts else (True if all(p is True for p in parts) else None)
+        return True if True in parts else (False if all(p is False for p in parts) else None)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+        inner = _kleene(node.operand, decide, order)
+        return None if inner is None else not inner
+    raise AssertionError(f"a truth value from {type(node).__name__}")  # pragma: no cover - _check admits no other
+
+
 @dataclass(frozen=True)
 class Rule:
     """A parsed claim rule.
@@ -349,6 +434,32 @@ class Rule:
             return bool(_eval(self._tree.body, values))
         except _Undefined:
             return None
+
+    def comparisons(self) -> list[Comparison]:
+        """The rule's comparisons, in the order they are written (a chain gives one per operator)."""
+        return _comparisons(self._tree.body, self._aliases)
+
+    def combine(self, decisions: Sequence[bool | None]) -> bool | None:
+        """The rule's truth from a three-valued decision per comparison (Kleene's logic).
+
+        Parameters
+        ----------
+        decisions : sequence of bool or None
+            One per comparison, in the order of :meth:`comparisons`: True (holds), False
+            (fails) or None (undecided).
+
+        Returns
+        -------
+        bool or None
+            ``and`` is False when a part is False, True when every part is True, else None;
+            ``or`` is True when a part is True, False when every part is False, else None;
+            ``not`` swaps True and False.
+        """
+        order = _compare_nodes(self._tree.body)
+        if len(decisions) != sum(len(c.ops) for c in order):
+            raise ExperimentError(f"claim rule {self.text!r}: {len(decisions)} decisions given for "
+                                  f"{sum(len(c.ops) for c in order)} comparisons.")
+        return _kleene(self._tree.body, dict(enumerate(decisions)), order)
 
 
 def parse_rule(rule: str, names: Collection[str] | None = None) -> Rule:

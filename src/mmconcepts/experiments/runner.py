@@ -1,8 +1,8 @@
 """Run experiments, write their results as JSON + PNG, skip what is up to date.
 
-A result record is a JSON object with a stable schema (``schema_version`` 2)::
+A result record is a JSON object with a stable schema (``schema_version`` 3)::
 
-    schema_version  2
+    schema_version  3
     experiment      id                       title, thesis_ref
     status          "ok" | "failed" | "skipped"
     message         why it failed or was skipped (null when ok)
@@ -18,15 +18,25 @@ A result record is a JSON object with a stable schema (``schema_version`` 2)::
     code            fingerprint of the code that produced it (package sources and
                     dependency versions, :func:`mmconcepts._fingerprint.code_fingerprint`)
     metrics         name -> number (null for NaN or infinite, read back as NaN)
-    intervals       name -> [low, high], the 95 % t interval of a metric with samples
+    intervals       name -> [low, high], the 95 % interval of a metric with samples (the
+                    corrected resampled t for folds, :mod:`.uncertainty`)
     samples         name -> the per-fold / per-seed values behind a metric
     sample_units    name -> the unit of its samples, where the experiment names one
-                    (metrics of one unit are paired in the bootstrap)
+                    (metrics of one unit are paired)
+    units           unit -> {kind, test_train_ratio, description}: independent seeds,
+                    resampled folds or splits, or blocks within one fit
+    split_groups    split -> what its examples are grouped by (no source recording on
+                    both sides of a split) and how many groups
     reference       name -> the thesis' number
-    claims          [{text, rule, holds, verdict, support, basis}]
-                    holds: the rule on the reported numbers (true, false or null);
-                    verdict: "holds" | "fails" | "inconclusive" | "not evaluated", decided
-                    beyond the samples' uncertainty (:mod:`.uncertainty`)
+    claims          [{text, rule, kind, source, holds, verdict, basis, tests, scope,
+                      ratio, ratio_interval, settings, detail, support}]
+                    kind: "thesis" | "magnitude" | "ours" | "check"; source: where the
+                    thesis says it; holds: the rule on the reported numbers; verdict:
+                    "holds" | "fails" | "depends" | "inconclusive" | "not evaluated" (a
+                    magnitude: "matches" | "below" | "above" | "inconclusive"), decided by
+                    the 95 % interval of each comparison's margin, stored in ``tests``
+                    (:mod:`.uncertainty`); ratio and ratio_interval: a magnitude's ours /
+                    thesis; settings and detail: a claim decided under several settings
     tables          name -> {title, columns, rows, note}
     figures         name -> path of the PNG, relative to the results folder
     notes, extra    remarks and JSON-able extras
@@ -40,7 +50,8 @@ when any is found, else on generated data); when real sets were found, its run o
 generated data is ``<output>/<id>.synthetic.json``. Figures go to ``<output>/<id>/`` (and
 ``<output>/<id>.synthetic/``). Everything is written atomically (a temporary file in the
 same folder, then :func:`os.replace`), figures first, so a JSON file on disk always
-describes complete results. Schema-1 records (before variants and verdicts) are still read.
+describes complete results. Records of schemas 1 and 2 (before variants, verdicts and claim
+kinds) are still read: their claims are of kind "unclassified".
 
 In Python a record is a :class:`~mmconcepts.experiments.record.ResultRecord`, whose
 ``to_json``/``from_json`` write and read this JSON (and which reads like its JSON dict:
@@ -85,7 +96,8 @@ from .base import (
 from .cluster import open_client, parse_scheduler
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, to_jsonable
 from .registry import all_experiments, get
-from .uncertainty import claim_verdict, t_interval
+from .uncertainty import metric_interval
+from .verdicts import decide_claim, pending_claim
 
 if TYPE_CHECKING:
     from _typeshed import DataclassInstance
@@ -394,7 +406,7 @@ def _new_record(exp: Experiment, preset: str, config: Any, target: _Target) -> R
         data={name: str(path) for name, path in sorted(target.data.items())},
         data_signature={name: data_signature(path) for name, path in sorted(target.data.items())},
         reference=dict(exp.reference),
-        claims=[ClaimRecord(text=c.text, rule=c.rule) for c in exp.claims],
+        claims=[pending_claim(c) for c in exp.claims],
         elapsed_s=0.0,
         started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         python=platform.python_version(),
@@ -422,13 +434,12 @@ def _record_result(record: ResultRecord, exp: Experiment, result: Result) -> Non
     """Put a validated result's numbers in ``record`` and decide its claims on them."""
     metrics = {name: float(value) for name, value in result.metrics.items()}
     samples = {name: [float(v) for v in values] for name, values in result.samples.items()}
-    for claim in record.claims:
-        verdict = claim_verdict(claim.rule, metrics, samples, units=result.sample_units)
-        claim.holds, claim.verdict, claim.support, claim.basis = (verdict.holds, verdict.verdict, verdict.support,
-                                                                  verdict.basis)
+    record.claims = [decide_claim(claim, metrics, samples, reference=exp.reference, units=result.sample_units,
+                                  unit_kinds=result.units) for claim in exp.claims]
     intervals = {}
     for name, values in samples.items():
-        interval = t_interval(metrics[name], values)
+        unit = result.units.get(result.sample_units.get(name, ""))
+        interval = metric_interval(metrics[name], values, unit)
         if interval is not None:
             intervals[name] = list(interval)
     missing = sorted(set(exp.reference) - set(metrics))
@@ -440,6 +451,8 @@ def _record_result(record: ResultRecord, exp: Experiment, result: Result) -> Non
     record.metrics = {name: value if math.isfinite(value) else math.nan for name, value in metrics.items()}
     record.samples = to_jsonable(samples, where="samples")
     record.sample_units = {str(k): str(v) for k, v in result.sample_units.items()}
+    record.units = {str(k): v.to_dict() for k, v in result.units.items()}
+    record.split_groups = to_jsonable(result.split_groups, where="split_groups")
     record.intervals = to_jsonable(intervals, where="intervals")
     record.tables = {str(name): Table.from_dict(to_jsonable(table.to_dict(), where=f"tables[{name!r}]"))
                      for name, table in result.tables.items()}
@@ -461,9 +474,10 @@ def _save_figures(figures: Mapping[str, Any], fig_dir: Path) -> dict[str, str]:
 def _clear_results(record: ResultRecord) -> None:
     """A run that did not finish has no numbers, figures or verdicts."""
     record.metrics, record.intervals, record.samples, record.sample_units = {}, {}, {}, {}
+    record.units, record.split_groups = {}, {}
     record.tables, record.figures, record.notes, record.extra = {}, {}, [], {}
-    for claim in record.claims:
-        claim.holds, claim.verdict, claim.support, claim.basis = None, "not evaluated", None, ""
+    record.claims = [ClaimRecord(text=c.text, rule=c.rule, kind=c.kind, source=c.source, settings=[
+        {"label": s["label"], "rule": s["rule"]} for s in c.settings]) for c in record.claims]
 
 
 def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord, target: _Target) -> Exception | None:

@@ -1,0 +1,134 @@
+"""Decide a claim of an experiment on a run's numbers: the claim as the record stores it.
+
+The one place where a verdict is decided: the runner calls :func:`decide_claim` when it
+makes the record, and the report shows what the record stores. The tests behind each
+verdict are in :mod:`mmconcepts.experiments.uncertainty`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+from .base import Claim
+from .record import ClaimRecord
+from .uncertainty import (
+    MAGNITUDE_VERDICTS,
+    VERDICTS,
+    SampleUnit,
+    claim_verdict,
+    combine_settings,
+    magnitude_verdict,
+)
+
+__all__ = ["decide_claim", "pending_claim", "tally_claims", "format_tally", "verdict_words", "TALLY_KINDS"]
+
+
+def pending_claim(claim: Claim) -> ClaimRecord:
+    """The record of ``claim`` before the run: who it is, no verdict yet."""
+    rule = claim.rule if not claim.settings else " | ".join(f"{label}: {rule}" for label, rule in claim.settings.items())
+    return ClaimRecord(text=claim.text, rule=rule, kind=claim.kind, source=claim.source,
+                       settings=[{"label": label, "rule": r} for label, r in claim.settings.items()])
+
+
+def decide_claim(
+    claim: Claim,
+    metrics: Mapping[str, float],
+    samples: Mapping[str, Sequence[float]],
+    *,
+    reference: Mapping[str, float],
+    units: Mapping[str, str] | None = None,
+    unit_kinds: Mapping[str, SampleUnit] | None = None,
+) -> ClaimRecord:
+    """Decide ``claim`` on a run's numbers.
+
+    Parameters
+    ----------
+    claim : Claim
+        The claim (its kind says how it is decided).
+    metrics : mapping of str to float
+        The run's metrics (NaN: not measured).
+    samples : mapping of str to sequence of float
+        Their per-unit values.
+    reference : mapping of str to float
+        The thesis' numbers (a magnitude claim's is ``reference[claim.rule]``).
+    units, unit_kinds
+        The unit of each metric's samples and what each unit is (see
+        :func:`~mmconcepts.experiments.uncertainty.claim_verdict`).
+
+    Returns
+    -------
+    ClaimRecord
+
+    Raises
+    ------
+    ExperimentError
+        If a rule does not parse or names an unknown metric.
+    """
+    record = pending_claim(claim)
+    if claim.kind == "magnitude":
+        m = magnitude_verdict(claim.rule, reference[claim.rule], metrics, samples, units=units, unit_kinds=unit_kinds)
+        record.verdict, record.basis, record.scope = m.verdict, m.basis, m.scope
+        record.ratio = m.ratio
+        record.ratio_interval = None if m.ratio_interval is None else list(m.ratio_interval)
+        return record
+    if not claim.settings:
+        v = claim_verdict(claim.rule, metrics, samples, units=units, unit_kinds=unit_kinds)
+        record.holds, record.verdict, record.basis, record.scope = v.holds, v.verdict, v.basis, v.scope
+        record.tests = [t.to_dict() for t in v.tests]
+        return record
+    per_setting = []
+    for label, rule in claim.settings.items():
+        v = claim_verdict(rule, metrics, samples, units=units, unit_kinds=unit_kinds)
+        per_setting.append({"label": label, "rule": rule, "holds": v.holds, "verdict": v.verdict, "basis": v.basis,
+                            "tests": [t.to_dict() for t in v.tests], "scope": v.scope})
+    combined = combine_settings({s["label"]: s["verdict"] for s in per_setting})
+    record.settings = per_setting
+    record.verdict, record.detail = combined.verdict, combined.detail
+    holds = {s["holds"] for s in per_setting}
+    record.holds = holds.pop() if len(holds) == 1 else None
+    record.scope = "within one fit" if any(s["scope"] for s in per_setting) else ""
+    record.basis = "; ".join(f"{s['label']}: {s['basis']}" for s in per_setting)
+    return record
+
+
+#: The kinds a tally counts, in order; "unclassified": claims of records written before kinds.
+TALLY_KINDS = ("thesis", "magnitude", "ours", "check", "unclassified")
+
+
+def verdict_words(kind: str) -> tuple[str, ...]:
+    """The verdicts a claim of ``kind`` can get, in the order tallies count them."""
+    return MAGNITUDE_VERDICTS if kind == "magnitude" else VERDICTS
+
+
+def tally_claims(claims: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, int]]:
+    """Count claims (as stored in records: dicts with ``kind`` and ``verdict``) by kind, then by verdict.
+
+    Returns
+    -------
+    dict
+        ``{kind: {verdict: count}}`` for each kind of :data:`TALLY_KINDS` present, every verdict
+        word of that kind listed (zeros included).
+
+    Examples
+    --------
+    >>> tally_claims([{"kind": "thesis", "verdict": "holds"}, {"kind": "magnitude", "verdict": "below"}])["thesis"]
+    {'holds': 1, 'fails': 0, 'depends': 0, 'inconclusive': 0, 'not evaluated': 0}
+    """
+    out: dict[str, dict[str, int]] = {}
+    for claim in claims:
+        kind = str(claim.get("kind") or "unclassified")
+        kind = kind if kind in TALLY_KINDS else "unclassified"
+        counts = out.setdefault(kind, dict.fromkeys(verdict_words(kind), 0))
+        verdict = str(claim.get("verdict") or "not evaluated")
+        counts[verdict] = counts.get(verdict, 0) + 1
+    return {kind: out[kind] for kind in TALLY_KINDS if kind in out}
+
+
+def format_tally(tally: Mapping[str, Mapping[str, int]]) -> str:
+    """One line: ``thesis: 3 holds, 1 fails; magnitude: 1 below; ours: 2 holds`` (zeros left out)."""
+    parts = []
+    for kind, counts in tally.items():
+        words = ", ".join(f"{n} {verdict}" for verdict, n in counts.items() if n)
+        parts.append(f"{kind}: {words or 'none'}")
+    return "; ".join(parts) or "no claims"
