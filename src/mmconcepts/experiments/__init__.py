@@ -18,10 +18,12 @@ See :mod:`mmconcepts.experiments.base` for a complete example module.
 
 from __future__ import annotations
 
-from .base import PRESETS, Claim, Experiment, ExperimentSkipped, Result, RunContext, Table
+from .base import CLAIM_KINDS, PRESETS, Claim, Experiment, ExperimentSkipped, Result, RunContext, Table
 from .registry import all_experiments, get, load_experiments, register, unregister
 from .record import ClaimRecord, ResultRecord
 from .rules import Rule, evaluate_rule, parse_rule
+from .splits import describe_split, shared_sources
+from .uncertainty import SampleUnit
 from .runner import (
     RECORD_KEYS,
     SCHEMA_VERSION,
@@ -59,6 +61,7 @@ EXPERIMENT_MODULES: tuple[str, ...] = (
 )
 
 __all__ = [
+    "CLAIM_KINDS",
     "EXPERIMENT_MODULES",
     "PRESETS",
     "RECORD_KEYS",
@@ -71,9 +74,11 @@ __all__ = [
     "ResultRecord",
     "Rule",
     "RunContext",
+    "SampleUnit",
     "Table",
     "all_experiments",
     "check_data",
+    "describe_split",
     "evaluate_rule",
     "get",
     "load_experiments",
@@ -83,5 +88,6 @@ __all__ = [
     "register",
     "reproduce",
     "run_experiment",
+    "shared_sources",
     "unregister",
 ]

@@ -463,7 +463,7 @@ def claim_verdict(
     else:
         what = {k.kind for key, k in kinds.items() if any(g[0] == key for g in groups)}
         corrected = " (corrected resampled t)" if "resampled" in what else ""
-        basis = (f"{level:.0%} interval of each comparison's margin over {', '.join(map(str, sizes))} "
+        basis = (f"{level * 100:g} % interval of each comparison's margin over {', '.join(map(str, sizes))} "
                  f"units{corrected}")
     return Verdict(point, verdict, basis, tuple(tests), "within one fit" if within else "")
 
@@ -552,7 +552,7 @@ def magnitude_verdict(
     assert interval is not None
     lo, hi = sorted((interval[0] / thesis, interval[1] / thesis))
     corrected = " (corrected resampled t)" if unit.kind == "resampled" else ""
-    basis = f"{level:.0%} interval of our number over {x.size} units{corrected}, divided by the thesis' {thesis:g}"
+    basis = f"{level * 100:g} % interval of our number over {x.size} units{corrected}, divided by the thesis' {thesis:g}"
     if hi < 1:
         verdict = "below"
     elif lo > 1:
