@@ -73,8 +73,11 @@ TOY = register(
         run=run_toy,
         reference={"mean": 0.5, "std": 0.2887},
         claims=[
-            Claim("The sample mean is close to one half.", "abs(mean - 0.5) < 0.1"),
+            Claim("The sample mean is close to one half.", "abs(mean - 0.5) < 0.1", kind="thesis",
+                  source="Section 0.0 (line 1)"),
             Claim("The sample mean exceeds one (false on purpose).", "mean > 1"),
+            Claim("The sample mean against the thesis' {thesis:mean}.", "mean", kind="magnitude",
+                  source="Table 0.0 (line 2)"),
         ],
         description="A toy experiment for the tests.",
     )

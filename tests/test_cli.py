@@ -35,9 +35,8 @@ def test_run_prints_summary_and_writes_result(toy, in_tmp, capsys):
     record = json.loads((in_tmp / "results" / "toy-mean.json").read_text())
     assert record["status"] == "ok" and record["preset"] == "quick"
     assert "results/toy-mean.json" in out
-    assert "claims: 1 holds, 1 fails" in out
-    assert "[holds] The sample mean is close to one half." in out
-    assert "[fails] The sample mean exceeds one" in out
+    assert "claims: thesis: 1 holds; magnitude: 1 inconclusive; ours: 1 fails" in out
+    assert "[thesis: holds] The sample mean is close to one half." in out and "[ours: fails] The sample mean exceeds one" in out
     assert "data: synthetic" in out
     mean_line = next(line for line in out.splitlines() if line.split()[:1] == ["mean"])
     assert mean_line.split() == ["mean", f"{record['metrics']['mean']:.4g}", "0.5"]
@@ -111,9 +110,9 @@ def test_reproduce_then_report(toy, in_tmp, capsys):
     assert not (in_tmp / "results" / "toy-fail.json").exists()
     assert main(["reproduce", "-o", "all"]) == 1  # toy-fail failed, the rest ran
     out = capsys.readouterr().out
-    assert re.search(r"toy-fail +synthetic +failed", out) and re.search(r"toy-mean +synthetic +ok +1 holds, 1 fails", out)
+    assert re.search(r"toy-fail +synthetic +failed", out) and re.search(r"toy-mean +synthetic +ok +thesis: 1 holds; magnitude: 1 inconclusive; ours: 1 fails", out)
     md = (in_tmp / "all" / "report.md").read_text()
-    assert "1 holds, 1 fails" in md and "FAILED" in md
+    assert "thesis statements: 1 holds; magnitudes (ours / thesis): 1 inconclusive; our checks: 1 fails" in md and "FAILED" in md
 
     (in_tmp / "all" / "report.md").unlink()
     assert main(["report", "all"]) == 0

@@ -159,7 +159,7 @@ def test_run_writes_complete_record_and_figures(toy, tmp_path):
     path = out / "toy-mean.json"
     stored = _strict_json(path)
     assert set(RECORD_KEYS) <= stored.keys()
-    assert stored["schema_version"] == 2
+    assert stored["schema_version"] == 3
     assert stored["status"] == "ok" and record["status"] == "ok"
     assert stored["experiment"] == "toy-mean"
     assert stored["preset"] == "quick"
@@ -167,7 +167,11 @@ def test_run_writes_complete_record_and_figures(toy, tmp_path):
     assert stored["seed"] == 0
     assert stored["version"] == __version__
     assert stored["reference"] == {"mean": 0.5, "std": 0.2887}
-    assert [c["holds"] for c in stored["claims"]] == [True, False]
+    assert [c["holds"] for c in stored["claims"]] == [True, False, None]
+    assert [c["kind"] for c in stored["claims"]] == ["thesis", "ours", "magnitude"]
+    assert stored["claims"][0]["source"] == "Section 0.0 (line 1)"
+    assert stored["claims"][2]["text"] == "The sample mean against the thesis' 0.5."  # filled from the reference
+    assert stored["claims"][2]["ratio"] == pytest.approx(stored["metrics"]["mean"] / 0.5)
     assert 0.4 < stored["metrics"]["mean"] < 0.6
     assert stored["metrics"]["n"] == 400
     assert "1.chunk_mean" in stored["metrics"]
@@ -407,7 +411,7 @@ def _variant_experiment(toy):
         path = ctx.data.get("fsdd")
         return Result(
             metrics={"acc": 0.9 if path is not None else 0.5, "n_sets": float(len(ctx.data))},
-            samples={"acc": [0.88, 0.9, 0.92] if path is not None else [0.4, 0.5, 0.6]},
+            samples={"acc": [0.88, 0.9, 0.92, 0.89, 0.91] if path is not None else [0.4, 0.5, 0.6, 0.45, 0.55]},
         )
 
     return toy.make_experiment("toy-variant", run, datasets=("fsdd", "toyfile"),
@@ -435,7 +439,7 @@ def test_reproduce_runs_real_and_synthetic_side_by_side(toy, tmp_path, monkeypat
     assert real["data"] == {"fsdd": str(folder.resolve())} and synth["data"] == {}
     assert real["claims"][0]["verdict"] == "holds" and synth["claims"][0]["verdict"] == "fails"
     assert real["intervals"]["acc"][0] < 0.9 < real["intervals"]["acc"][1]
-    assert real["samples"]["acc"] == [0.88, 0.9, 0.92]
+    assert real["samples"]["acc"] == [0.88, 0.9, 0.92, 0.89, 0.91]
     # without the data root the default run is on generated data, and the stale secondary record goes
     monkeypatch.delenv("MMCONCEPTS_DATA_ROOT")
     records = reproduce(output=out, ids=["toy-variant"], progress=False)

@@ -71,21 +71,34 @@ def test_report_shows_metrics_thesis_values_and_verdicts(results):
     assert re.search(r"\| 1\.chunk_mean \| +\| [0-9.]+ \|", md)
     assert f'<td>mean</td><td class="num">0.5</td><td class="num">{ours}</td>' in html_text
 
-    # claims with three-valued verdicts, one column per data
-    assert "| claim | rule | generated data |" in md
+    # claims with their kind, the thesis' source, the verdict per data and the test behind it
+    assert "| claim | kind | thesis source | rule | generated data | test on generated data |" in md
     # (the toy keeps no per-fold samples: its verdicts say they were decided without a spread)
-    assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| holds \(no spread\) \|", md)
-    assert re.search(r"\| The sample mean exceeds one \(false on purpose\)\. \| [^|]+ \| fails \(no spread\) \|", md)
-    assert "verdict-holds" in html_text and "verdict-fails" in html_text
+    assert re.search(r"\| The sample mean is close to one half\. \| thesis \| Section 0\.0 \(line 1\) \| [^|]+ \| "
+                     r"holds \(no spread\) \| abs\(mean - 0\.5\) &lt; 0\.1: margin \+0\.0\d+ \(no spread\) \|", md)
+    assert re.search(r"\| The sample mean exceeds one \(false on purpose\)\. \| ours \|   \| [^|]+ \| fails \(no spread\) \|",
+                     md)
+    # a magnitude: the thesis' number written once (the reference table) fills the text; no samples, no interval
+    assert re.search(r"\| The sample mean against the thesis' 0\.5\. \| magnitude \| Table 0\.0 \(line 2\) \| mean \| "
+                     r"inconclusive \| ours / thesis 1\.\d+ \|", md)
+    assert "verdict-holds" in html_text and "verdict-fails" in html_text and "verdict-inconclusive" in html_text
 
-    # summary lines: what ran (status), on which data, and the claims' verdicts apart (holds, fails, inconclusive,
-    # not evaluated), each experiment linked to its run's anchor
+    # summary lines: what ran (status), on which data, and the claims' verdicts counted apart by kind, each
+    # experiment linked to its run's anchor
+    assert "| experiment | title | data | ran | thesis | magnitude | ours | run time |" in md
     assert ("| [`toy-mean`](#exp-toy-mean-synthetic) | Toy: the mean of uniform numbers | generated data | ran "
-            "| 1 | 1 |   |   | ") in md
-    assert re.search(r"\| \[`toy-fail`\]\(#exp-toy-fail-synthetic\) \| [^|]+ \| [^|]+ \| FAILED \|   \|   \|   \| 1 \|", md)
+            "| 1 holds | 1 inconclusive | 1 fails | ") in md
+    assert re.search(r"\| \[`toy-fail`\]\(#exp-toy-fail-synthetic\) \| [^|]+ \| [^|]+ \| FAILED \|   \|   \|   \|", md)
     assert re.search(r"\| \[`toy-skip`\]\(#exp-toy-skip-synthetic\) \| [^|]+ \| [^|]+ \| skipped \|", md)
-    assert ("On generated data: 1 run(s) ran (1 failed, 2 skipped); claims: 1 holds, 1 fails, 0 inconclusive, "
-            "0 not evaluated.") in md
+    assert ("On generated data: 1 run(s) ran (1 failed, 2 skipped); thesis statements: 1 holds; magnitudes "
+            "(ours / thesis): 1 inconclusive; our checks: 1 fails.") in md
+    assert "| thesis statements | generated data | 1 | 1 holds, 0 fails, 0 depends, 0 inconclusive, 0 not evaluated |" in md
+    assert "chance alone would make about 1 x 0.025 = 0.0 of them hold" in md
+    # the tables by kind: thesis statements with where they replicate, magnitudes, ours
+    thesis = md.split("#### Thesis statements: which replicate")[1].split("####")[0]
+    assert "| [`toy-mean`](#exp-toy-mean) | [The sample mean is close to one half.](#exp-toy-mean-claim-1) | " \
+           "Section 0.0 (line 1) | holds (no spread) | holds |" in thesis
+    assert "false on purpose" not in thesis and "false on purpose" in md.split("#### Our checks")[1]
     assert "broke on purpose" in md and "no real data here" in md
 
     # result table, config, run info, figures
@@ -145,17 +158,34 @@ def test_damaged_records_are_listed_and_the_others_shown(results, caplog):
         assert f"{name}: left out of the report" in caplog.text
 
 
-def test_report_reevaluates_claims_from_stored_metrics(results):
+def test_report_checks_stored_verdicts_against_the_records_numbers(results, caplog):
     path = results / "toy-mean.json"
     record = json.loads(path.read_text())
-    record["claims"][1]["holds"] = True  # tampered: the stored verdict disagrees with the numbers
+    record["claims"][1]["verdict"] = "holds"  # tampered: the stored verdict disagrees with the numbers
     record["metrics"]["mean"] = None  # and a metric is now unknown (NaN)
     path.write_text(json.dumps(record))
-    md = write_report(results)[1].read_text()
-    assert re.search(r"\| The sample mean is close to one half\. \| [^|]+ \| not evaluated \|", md)
-    assert re.search(r"\| The sample mean exceeds one [^|]+ \| [^|]+ \| not evaluated \|", md)
+    with caplog.at_level("WARNING", logger="mmconcepts.report"):
+        md = write_report(results)[1].read_text()
+    assert re.search(r"\| The sample mean exceeds one [^|]+ \| ours \|   \| [^|]+ \| not evaluated \(stored as holds; "
+                     r"the record's numbers give not evaluated\) \|", md)
+    assert re.search(r"\| The sample mean is close to one half\. \| thesis \| [^|]+ \| [^|]+ \| not evaluated ", md)
     assert "| mean | 0.5 | n/a |" in md
-    assert re.search(r"\| \[`toy-mean`\][^|]+\| [^|]+ \| [^|]+ \| ran \|   \|   \|   \| 2 \|", md)
+    assert "is stored as 'holds' but the record's numbers give 'not evaluated'" in caplog.text
+
+
+def test_report_shows_the_stored_verdict_and_its_test(toy, tmp_path):
+    """The report renders what the record stores: the verdict and the interval of each comparison's margin."""
+    exp = toy.make_experiment(
+        "toy-stored",
+        lambda c, x: Result(metrics={"a": 0.8, "b": 0.6}, samples={"a": [0.8, 0.82, 0.78, 0.81, 0.79],
+                                                                   "b": [0.6, 0.61, 0.59, 0.62, 0.58]}),
+        claims=[Claim("a beats b", "a > b", kind="thesis", source="Table 1 (line 10)")],
+    )
+    run_experiment(exp, output=tmp_path, progress=False)
+    stored = json.loads((tmp_path / "toy-stored.json").read_text())["claims"][0]
+    lo, hi = stored["tests"][0]["interval"]
+    md = write_report(tmp_path)[1].read_text()
+    assert f"| a beats b | thesis | Table 1 (line 10) | a &gt; b | holds | a &gt; b: margin +0.2 [{lo:.4g}, {hi:.4g}] |" in md
 
 
 def test_report_of_missing_folder_is_a_clear_error(tmp_path):
@@ -178,7 +208,7 @@ def test_nan_claim_shown_as_not_evaluated(toy, tmp_path):
     )
     run_experiment(exp, output=tmp_path, progress=False)
     md = write_report(tmp_path)[1].read_text()
-    assert "| acc beats base | acc &gt; base | not evaluated |" in md
+    assert "| acc beats base | ours |   | acc &gt; base | not evaluated |" in md
     assert "| acc | 0.9 | n/a |" in md
 
 
@@ -187,12 +217,13 @@ def test_report_flags_records_of_older_code_and_verdicts_without_spread(toy, tmp
 
     exp = toy.make_experiment(
         "toy-spread",
-        lambda c, x: Result(metrics={"a": 0.8, "b": 0.6}, samples={"a": [0.8, 0.81, 0.79], "b": [0.6, 0.61, 0.59]}),
+        lambda c, x: Result(metrics={"a": 0.8, "b": 0.6}, samples={"a": [0.8, 0.81, 0.79, 0.8, 0.8],
+                                                                   "b": [0.6, 0.61, 0.59, 0.6, 0.6]}),
         claims=[Claim("a beats b", "a > b")],
     )
     run_experiment(exp, output=tmp_path, progress=False)
     md = write_report(tmp_path)[1].read_text()
-    assert "| a beats b | a &gt; b | holds |" in md  # decided over the folds: no suffix
+    assert "| a beats b | ours |   | a &gt; b | holds |" in md  # decided over the folds: no suffix
     assert re.search(r"\| a \| +\| 0\.8 \[0\.7\d*, 0\.8\d*\] \|", md)
     assert "older code" not in md
     path = tmp_path / "toy-spread.json"
@@ -208,13 +239,13 @@ def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagree
     def make(variant_metrics):
         def run(config, ctx):
             m = variant_metrics["real" if ctx.data else "synthetic"]
-            return Result(metrics=m, samples={k: [v - 0.01, v, v + 0.01] for k, v in m.items()})
+            return Result(metrics=m, samples={k: [v - 0.01, v, v + 0.01, v - 0.005, v + 0.005] for k, v in m.items()})
         return run
 
     exp = toy.make_experiment(
         "toy-bydata",
         make({"real": {"a": 0.2, "b": 0.6}, "synthetic": {"a": 0.8, "b": 0.6}}),
-        claims=[Claim("b is positive", "b > 0"), Claim("a beats b", "a > b")],
+        claims=[Claim("b is positive", "b > 0"), Claim("a beats b", "a > b", kind="thesis", source="Table 1 (line 1)")],
         datasets=("toyset",),
     )
     data = tmp_path / "data" / "toyset"
@@ -223,15 +254,19 @@ def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagree
     run_experiment(exp, output=out, progress=False, data={"toyset": data}, variant="real")
     run_experiment(exp, output=out, progress=False, data={"toyset": data}, variant="synthetic")
     columns, rows = claims_by_data(collect(out))
-    assert columns == ["experiment", "claim", "real data", "generated data", "agreement"]
+    assert columns == ["experiment", "claim", "kind", "thesis source", "real data", "generated data", "agreement"]
     # the claim that differs comes first, though it was declared second
-    assert rows == [["toy-bydata", "a beats b", "fails", "holds", "differ"],
-                    ["toy-bydata", "b is positive", "holds", "holds", "same"]]
+    assert rows == [["toy-bydata", "a beats b", "thesis", "Table 1 (line 1)", "fails", "holds", "differ"],
+                    ["toy-bydata", "b is positive", "ours", "", "holds", "holds", "same"]]
+    # one kind at a time: thesis statements say where they replicate
+    assert claims_by_data(collect(out), "thesis")[1] == [
+        ["toy-bydata", "a beats b", "thesis", "Table 1 (line 1)", "fails", "holds", "generated data only"]]
+    assert claims_by_data(collect(out), "thesis")[0][-1] == "replicates on"
     md = write_report(out)[1].read_text()
     # each claim links to its row in the experiment's section (and the experiment to its section)
-    assert ("| [`toy-bydata`](#exp-toy-bydata) | [a beats b](#exp-toy-bydata-claim-2) | fails | holds | differ |"
-            in md)
-    assert '| <a id="exp-toy-bydata-claim-2"></a> | a beats b | a &gt; b | fails | holds |' in md
+    assert ("| [`toy-bydata`](#exp-toy-bydata) | [a beats b](#exp-toy-bydata-claim-2) | Table 1 (line 1) | fails | "
+            "holds | generated data only |" in md)
+    assert '| <a id="exp-toy-bydata-claim-2"></a> | a beats b | thesis | Table 1 (line 1) | a &gt; b | fails | holds |' in md
     html = (out / "report.html").read_text()
     assert _parse(html).errors == [] and "Every claim on each data" in html
 

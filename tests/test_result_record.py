@@ -14,25 +14,46 @@ from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, Table, load_record
 
 RECORDS = Path(__file__).resolve().parent / "data" / "records"
-#: Records written by `mmconcepts reproduce --quick` at commit d273023 (before the record was a dataclass).
-REAL = ["ch2-nmf-recovery.json", "ch3-combinations.synthetic.json"]
+#: Records written by `mmconcepts reproduce --quick` at commit d273023 (schema 2, before claims had kinds).
+SCHEMA_2 = ["ch2-nmf-recovery.json", "ch3-combinations.synthetic.json"]
 
 
-@pytest.mark.parametrize("name", REAL)
-def test_real_records_round_trip_byte_for_byte(name):
-    text = (RECORDS / name).read_text(encoding="utf-8")
+def test_records_written_by_the_runner_round_trip_byte_for_byte(toy, tmp_path):
+    from mmconcepts.experiments import run_experiment
+
+    run_experiment("toy-mean", output=tmp_path, progress=False)
+    path = tmp_path / "toy-mean.json"
+    text = path.read_text(encoding="utf-8")
     record = ResultRecord.from_json(text)
     assert record.to_json() == text
     assert ResultRecord.from_dict(record.to_dict()).to_json() == text
     assert ResultRecord.from_dict(dict(record)).to_json() == text  # the mapping view reads back too
     assert list(json.loads(text)) == list(RECORD_KEYS) == list(record.to_dict())
-    assert load_record(RECORDS / name).to_json() == text
+    assert load_record(path).to_json() == text
+    assert record.schema_version == SCHEMA_VERSION == 3
+    assert [c.kind for c in record.claims] == ["thesis", "ours", "magnitude"]
+
+
+@pytest.mark.parametrize("name", SCHEMA_2)
+def test_schema_2_records_read_with_unclassified_claims(name):
+    text = (RECORDS / name).read_text(encoding="utf-8")
+    old = json.loads(text)
+    record = ResultRecord.from_json(text)
+    assert record.schema_version == 2 and record.units == {} and record.split_groups == {}
+    assert {c.kind for c in record.claims} == {"unclassified"}
+    assert [c.verdict for c in record.claims] == [c["verdict"] for c in old["claims"]]
+    assert [c.support for c in record.claims] == [c["support"] for c in old["claims"]]
+    assert list(record.metrics) == list(old["metrics"])
+    assert load_record(RECORDS / name) is not None
+    # written back, it is a record of this schema's keys that reads back the same
+    again = ResultRecord.from_json(record.to_json())
+    assert again.to_json() == record.to_json()
 
 
 def test_real_record_fields_are_typed():
     record = ResultRecord.from_json((RECORDS / "ch3-combinations.synthetic.json").read_text(encoding="utf-8"))
     assert record.experiment == "ch3-combinations" and record.status == "ok" and record.variant == "synthetic"
-    assert record.schema_version == SCHEMA_VERSION == 2
+    assert record.schema_version == 2
     assert isinstance(record.tables["distribution"], Table)
     assert record.tables["distribution"].columns == ["occurrences", "examples", "combinations"]
     assert [type(c) for c in record.claims] == [ClaimRecord]
@@ -65,18 +86,19 @@ def test_known_answer_json():
     """A record built by hand is written as exactly this JSON (key order, null for NaN, indentation)."""
     record = ResultRecord(experiment="x-1", status="ok", title="T", preset="quick", config={"seed": 0}, seed=0,
                           metrics={"a": 0.5, "b": math.nan}, samples={"a": [0.25, None]},
-                          claims=[ClaimRecord(text="a is positive", rule="a > 0", holds=True, verdict="holds",
-                                              support=1.0, basis="reported numbers")],
+                          claims=[ClaimRecord(text="a is positive", rule="a > 0", kind="ours", holds=True,
+                                              verdict="holds", basis="reported numbers")],
                           tables={"t": Table("cap", ["k", "v"], [[1, None]])}, figures={"f": "x-1/f.png"},
                           elapsed_s=1.5)
     d = record.to_dict()
     assert list(d) == list(RECORD_KEYS)
     assert d["metrics"] == {"a": 0.5, "b": None}
-    assert d["claims"] == [{"text": "a is positive", "rule": "a > 0", "holds": True, "verdict": "holds",
-                            "support": 1.0, "basis": "reported numbers"}]
+    assert d["claims"] == [{"text": "a is positive", "rule": "a > 0", "kind": "ours", "source": "", "holds": True,
+                            "verdict": "holds", "basis": "reported numbers", "tests": [], "scope": "", "ratio": None,
+                            "ratio_interval": None, "settings": [], "detail": "", "support": None}]
     assert d["tables"] == {"t": {"title": "cap", "columns": ["k", "v"], "rows": [[1, None]], "note": ""}}
     text = record.to_json()
-    assert text.startswith('{\n  "schema_version": 2,\n  "experiment": "x-1",\n  "title": "T",\n') and text.endswith("}\n")
+    assert text.startswith('{\n  "schema_version": 3,\n  "experiment": "x-1",\n  "title": "T",\n') and text.endswith("}\n")
     assert '"b": null' in text and "NaN" not in text
     back = ResultRecord.from_json(text)
     assert math.isnan(back.metrics["b"]) and back.metrics["a"] == 0.5
@@ -88,7 +110,7 @@ def test_known_answer_json():
     ("not json", "not valid JSON"),
     ("[1, 2]", "not a result record"),
     ('{"experiment": "x", "status": "ok"}', "not a result record"),
-    ('{"schema_version": 3, "experiment": "x", "status": "ok"}', "schema version 3"),
+    ('{"schema_version": 4, "experiment": "x", "status": "ok"}', "schema version 4"),
     ('{"schema_version": true, "experiment": "x", "status": "ok"}', "schema version True"),
     ('{"schema_version": 2, "experiment": "x", "status": "ok", "metrics": [1]}', "metrics"),
     ('{"schema_version": 2, "experiment": "x", "status": "ok", "metrics": {"a": "high"}}', "malformed"),
@@ -117,8 +139,18 @@ def _records(draw):
                                   note=draw(st.text(max_size=10)))
               for _ in range(draw(st.integers(0, 2)))}
     claims = [ClaimRecord(text=draw(st.text(min_size=1, max_size=10)), rule="a > 0",
+                          kind=draw(st.sampled_from(["thesis", "magnitude", "ours", "check"])),
+                          source=draw(st.text(max_size=10)),
                           holds=draw(st.sampled_from([True, False, None])),
-                          verdict=draw(st.sampled_from(["holds", "fails", "inconclusive", "not evaluated"])),
+                          verdict=draw(st.sampled_from(["holds", "fails", "depends", "inconclusive", "not evaluated",
+                                                        "matches", "below", "above"])),
+                          tests=[{"comparison": "a > 0", "margin": draw(st.floats(-1, 1)),
+                                  "interval": draw(st.one_of(st.none(), st.lists(st.floats(-1, 1), min_size=2,
+                                                                                 max_size=2))),
+                                  "decided": draw(st.sampled_from([True, False, None])), "n_units": 5, "df": 4.0,
+                                  "note": ""}],
+                          scope=draw(st.sampled_from(["", "within one fit"])),
+                          ratio=draw(st.one_of(st.none(), st.floats(0, 2))),
                           support=draw(st.one_of(st.none(), st.floats(0, 1))), basis=draw(st.text(max_size=10)))
               for _ in range(draw(st.integers(0, 2)))]
     return ResultRecord(
@@ -138,6 +170,12 @@ def _records(draw):
                                                                                      allow_infinity=False)),
                                                       max_size=4), max_size=3)),
         sample_units=draw(st.dictionaries(_names, st.text(min_size=1, max_size=8), max_size=2)),
+        units=draw(st.dictionaries(_names, st.fixed_dictionaries(
+            {"kind": st.sampled_from(["independent", "resampled", "within-fit"]), "test_train_ratio": st.floats(0, 1),
+             "description": st.text(max_size=8)}), max_size=2)),
+        split_groups=draw(st.dictionaries(_names, st.fixed_dictionaries(
+            {"by": st.text(max_size=8), "n_folds": st.integers(1, 10), "shared_sources": st.integers(0, 3)}),
+            max_size=2)),
         reference=draw(st.dictionaries(_names, st.floats(allow_nan=False, allow_infinity=False), max_size=2)),
         claims=claims, tables=tables,
         figures=draw(st.dictionaries(_names, st.text(max_size=10), max_size=2)),

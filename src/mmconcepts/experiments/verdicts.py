@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from ..errors import ExperimentError
 from .base import Claim
 from .record import ClaimRecord
 from .uncertainty import (
@@ -21,7 +22,7 @@ from .uncertainty import (
     magnitude_verdict,
 )
 
-__all__ = ["decide_claim", "pending_claim", "tally_claims", "format_tally", "verdict_words", "TALLY_KINDS"]
+__all__ = ["decide_claim", "pending_claim", "redecide", "tally_claims", "format_tally", "verdict_words", "TALLY_KINDS"]
 
 
 def pending_claim(claim: Claim) -> ClaimRecord:
@@ -132,3 +133,41 @@ def format_tally(tally: Mapping[str, Mapping[str, int]]) -> str:
         words = ", ".join(f"{n} {verdict}" for verdict, n in counts.items() if n)
         parts.append(f"{kind}: {words or 'none'}")
     return "; ".join(parts) or "no claims"
+
+
+def redecide(claim: ClaimRecord, *, metrics: Mapping[str, float], samples: Mapping[str, Sequence[float]],
+             reference: Mapping[str, float], units: Mapping[str, str] | None = None,
+             unit_kinds: Mapping[str, Mapping[str, Any]] | None = None) -> str:
+    """The verdict a stored claim's own numbers give (for a reader that checks a record against its numbers).
+
+    Parameters
+    ----------
+    claim : ClaimRecord
+        A claim as a record stores it.
+    metrics, samples, reference, units
+        The record's.
+    unit_kinds : mapping of str to dict
+        The record's ``units`` (as stored: dicts).
+
+    Returns
+    -------
+    str
+        The verdict word.
+
+    Raises
+    ------
+    ExperimentError
+        If the stored rule does not parse or names a metric the record does not have.
+    """
+    kinds = {name: SampleUnit.from_dict(d) for name, d in (unit_kinds or {}).items()}
+    kind = claim.kind if claim.kind in ("thesis", "magnitude", "ours", "check") else "ours"
+    if kind == "magnitude":
+        if claim.rule not in reference:
+            raise ExperimentError(f"magnitude claim {claim.text!r:.60}: the record has no thesis number for "
+                                  f"{claim.rule!r}.")
+        settings: dict[str, str] = {}
+    else:
+        settings = {str(s.get("label", "")): str(s.get("rule", "")) for s in claim.settings}
+    rebuilt = Claim(claim.text, "" if settings else claim.rule, kind=kind, source=claim.source or "(record)",
+                    settings=settings)
+    return decide_claim(rebuilt, metrics, samples, reference=reference, units=units, unit_kinds=kinds).verdict

@@ -12,8 +12,9 @@ from typing import Any
 
 from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
-from ..experiments.record import RECORD_KEYS, ResultRecord
-from ..experiments.uncertainty import VERDICTS, claim_verdict
+from ..experiments.record import RECORD_KEYS, ClaimRecord, ResultRecord
+from ..experiments.uncertainty import LEVEL, VERDICTS
+from ..experiments.verdicts import TALLY_KINDS, redecide, tally_claims, verdict_words
 
 logger = logging.getLogger("mmconcepts.report")
 
@@ -58,14 +59,90 @@ def format_duration(seconds: Any) -> str:
     return f"{int(s // 3600)} h {int(s % 3600 // 60):02d} min"
 
 
+#: How the report names each kind of claim, in the order it counts them.
+KIND_LABELS = {"thesis": "thesis statements", "magnitude": "magnitudes (ours / thesis)", "ours": "our checks",
+               "check": "sanity checks (not evidence)", "unclassified": "unclassified (older records)"}
+
+
+#: The sub-tables of "Every claim on each data", by kind: (kind, heading, what it says).
+KIND_SECTIONS = (
+    ("thesis", "Thesis statements: which replicate", "Each statement the thesis makes, tested at the thesis' own "
+     "comparison, with its verdict on each data and where it holds."),
+    ("magnitude", "Magnitudes: our numbers against the thesis'", "Our number divided by the thesis' number, with "
+     "its interval: matches (the thesis' number inside our interval), below or above it, or inconclusive."),
+    ("ours", "Our checks", "Controls and bars of our own, and the claims of the experiments beyond the thesis: "
+     "not the thesis' statements."),
+    ("check", "Sanity checks", "Properties of the code kept to show that a run is sane; never evidence."),
+    ("unclassified", "Unclassified claims", "Claims of records written before claims had kinds: rerun them."),
+)
+
+
 @dataclass
 class ClaimView:
+    """One claim of a record as the report shows it: what the record stores, nothing re-decided."""
+
     text: str
     rule: str
-    holds: bool | None
+    kind: str = "unclassified"
+    source: str = ""
     verdict: str = "not evaluated"
     basis: str = ""
-    error: str | None = None
+    scope: str = ""
+    detail: str = ""
+    test: str = ""  # the interval(s) behind the verdict, in words
+
+    @property
+    def cell(self) -> str:
+        """The verdict with its qualifiers: ``holds (within one fit)``, ``depends (holds only under X)``."""
+        notes = []
+        if self.detail and (self.verdict not in ("holds", "fails", "inconclusive") or "stored as" in self.detail
+                            or "cannot be checked" in self.detail):
+            notes.append(self.detail)
+        if self.scope:
+            notes.append(self.scope)
+        if self.basis.startswith("reported numbers") and self.verdict in ("holds", "fails"):
+            notes.append("no spread")
+        return self.verdict + (f" ({'; '.join(notes)})" if notes else "")
+
+
+def _signed(value: Any) -> str:
+    text = format_number(value)
+    return f"+{text}" if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else text
+
+
+def _test_text(tests: Sequence[Any]) -> str:
+    parts = []
+    for t in tests:
+        if not isinstance(t, dict):
+            continue
+        comparison = str(t.get("comparison", ""))
+        interval = t.get("interval")
+        if isinstance(interval, (list, tuple)) and len(interval) == 2:
+            parts.append(f"{comparison}: margin {_signed(t.get('margin'))} "
+                         f"[{format_number(interval[0])}, {format_number(interval[1])}]")
+        elif t.get("note"):
+            parts.append(f"{comparison}: margin {_signed(t.get('margin'))} ({t['note']})")
+        else:
+            parts.append(f"{comparison}: margin {_signed(t.get('margin'))}")
+    return "; ".join(parts)
+
+
+def claim_test(claim: ClaimRecord) -> str:
+    """The test behind a stored claim's verdict, in words: each comparison's margin and its interval, or a
+    magnitude's ratio and its interval, or the verdict under each setting."""
+    if claim.kind == "magnitude":
+        if claim.ratio is None:
+            return ""
+        text = f"ours / thesis {format_number(claim.ratio)}"
+        ri = claim.ratio_interval
+        if isinstance(ri, (list, tuple)) and len(ri) == 2:
+            text += f" [{format_number(ri[0])}, {format_number(ri[1])}]"
+        return text
+    if claim.settings:
+        return " | ".join(f"{s.get('label', '')}: {s.get('verdict', '')}"
+                          + (f" ({_test_text(s.get('tests') or [])})" if s.get("tests") else "")
+                          for s in claim.settings)
+    return _test_text(claim.tests)
 
 
 @dataclass
@@ -103,8 +180,13 @@ class ExperimentView:
     def n_claims(self) -> int:
         return len(self.claims)
 
-    def count(self, verdict: str) -> int:
-        return sum(c.verdict == verdict for c in self.claims)
+    def count(self, verdict: str, kind: str | None = None) -> int:
+        return sum(c.verdict == verdict and (kind is None or c.kind == kind) for c in self.claims)
+
+    def tally(self) -> dict[str, dict[str, int]]:
+        """Its claims counted by kind, then verdict (all "not evaluated" when the run did not run)."""
+        return tally_claims({"kind": c.kind, "verdict": c.verdict if self.status == "ok" else "not evaluated"}
+                            for c in self.claims)
 
     @property
     def data_label(self) -> str:
@@ -118,10 +200,18 @@ class ExperimentView:
         return ", ".join(n for n, _ in self.data) if self.data else ("generated" if self.variant == "synthetic" else "")
 
     def verdict_counts(self) -> dict[str, int]:
-        """How many claims got each verdict (all ``not evaluated`` when the run did not run)."""
+        """How many claims got each verdict word, all kinds together (all ``not evaluated`` when it did not run)."""
+        words = list(dict.fromkeys(w for kind in TALLY_KINDS for w in verdict_words(kind)))
         if self.status != "ok":
-            return {v: (self.n_claims if v == "not evaluated" else 0) for v in VERDICTS}
-        return {v: self.count(v) for v in VERDICTS}
+            return {v: (self.n_claims if v == "not evaluated" else 0) for v in words}
+        return {v: self.count(v) for v in words}
+
+    def kind_summary(self, kind: str) -> str:
+        """``2 holds, 1 fails`` for the claims of ``kind`` ('' when it has none)."""
+        counts = self.tally().get(kind)
+        if not counts:
+            return ""
+        return ", ".join(f"{n} {v}" for v, n in counts.items() if n)
 
     @property
     def claims_summary(self) -> str:
@@ -129,7 +219,7 @@ class ExperimentView:
             return "no claims"
         if self.status != "ok":
             return f"{self.n_claims} not evaluated"
-        return ", ".join(f"{self.count(v)} {v}" for v in VERDICTS if self.count(v))
+        return "; ".join(f"{kind}: {self.kind_summary(kind)}" for kind in self.tally())
 
 
 @dataclass
@@ -156,44 +246,51 @@ class ExperimentGroup:
         return columns, rows
 
     def claim_rows(self) -> tuple[list[str], list[list[str]]]:
-        """Columns ``claim, rule, <verdict per run>``."""
-        columns = ["claim", "rule"] + [v.data_label for v in self.views]
+        """Columns ``claim, kind, thesis source, rule, <verdict per run>, <test per run>``."""
+        labels = [v.data_label for v in self.views]
+        columns = ["claim", "kind", "thesis source", "rule"] + labels + [f"test on {label}" for label in labels]
         rows: list[list[str]] = []
         index: dict[tuple[str, str], int] = {}
+        n = len(self.views)
         for j, view in enumerate(self.views):
             for claim in view.claims:
                 key = (claim.text, claim.rule)
                 if key not in index:
                     index[key] = len(rows)
-                    rows.append([claim.text, claim.rule] + [""] * len(self.views))
-                cell = claim.verdict
-                if claim.error:
-                    cell += f" ({claim.error})"
-                elif claim.basis.startswith("reported numbers"):
-                    cell += " (no spread)"  # decided on the reported numbers alone
-                rows[index[key]][2 + j] = cell
+                    rows.append([claim.text, claim.kind, claim.source, claim.rule] + [""] * (2 * n))
+                rows[index[key]][4 + j] = claim.cell if view.status == "ok" else "not evaluated"
+                rows[index[key]][4 + n + j] = claim.test if view.status == "ok" else ""
         return columns, rows
 
 
 def _claims(record: ResultRecord) -> list[ClaimView]:
-    """The claims, re-decided from the stored metrics and samples."""
+    """The claims as the record stores them (the verdicts were decided when the record was made).
+
+    Each stored verdict is checked against the record's own numbers: one that they do not give (a record edited by
+    hand) is shown with what they give, and logged; a claim that cannot be checked is shown with why.
+    """
     views = []
     for claim in record.claims:
-        text, rule = str(claim.text), str(claim.rule)
-        if record.status != "ok":
-            views.append(ClaimView(text, rule, None))
-            continue
-        try:
-            decided = claim_verdict(rule, record.metrics, record.samples, units=record.sample_units)
-        except ExperimentError as exc:
-            views.append(ClaimView(text, rule, None, error=str(exc).splitlines()[0]))
-            continue
-        if claim.verdict != decided.verdict:
-            logger.warning(
-                "%s: claim %r was stored as %r but its rule gives %r on the stored metrics; reporting %r",
-                record.experiment, rule, claim.verdict, decided.verdict, decided.verdict,
-            )
-        views.append(ClaimView(text, rule, decided.holds, decided.verdict, decided.basis))
+        ok = record.status == "ok"
+        view = ClaimView(
+            text=str(claim.text), rule=str(claim.rule), kind=str(claim.kind or "unclassified"),
+            source=str(claim.source or ""), verdict=str(claim.verdict) if ok else "not evaluated",
+            basis=str(claim.basis or ""), scope=str(claim.scope or ""), detail=str(claim.detail or ""),
+            test=claim_test(claim) if ok else "")
+        if ok and view.kind != "unclassified":
+            try:
+                again = redecide(claim, metrics=record.metrics, samples=record.samples, reference=record.reference,
+                                 units=record.sample_units, unit_kinds=record.units)
+            except (ExperimentError, TypeError, ValueError, KeyError) as exc:
+                view.detail = f"cannot be checked: {str(exc).splitlines()[0]}"
+                view.verdict = "not evaluated"
+            else:
+                if again != view.verdict:
+                    logger.warning("%s: claim %r is stored as %r but the record's numbers give %r", record.experiment,
+                                   claim.text, view.verdict, again)
+                    view.detail = f"stored as {view.verdict}; the record's numbers give {again}"
+                    view.verdict = again
+        views.append(view)
     return views
 
 
@@ -328,34 +425,75 @@ def group(views: list[ExperimentView]) -> list[ExperimentGroup]:
     return list(groups.values())
 
 
-def claims_by_data(views: list[ExperimentView]) -> tuple[list[str], list[list[str]]]:
-    """Every claim of the runs that ran, with its verdict on each data: one row per claim.
+def _replicates(cells: dict[str, str], variants: list[str]) -> str:
+    """Where a thesis statement holds: ``both``, ``real data only``, ``generated data only`` or ``neither``."""
+    held = [v for v in variants if cells.get(v, "").split(" (")[0] == "holds"]
+    ran = [v for v in variants if cells.get(v)]
+    if len(ran) < 2:
+        return "holds" if held else ("not run" if not ran else "does not hold")
+    if len(held) == len(ran):
+        return "both"
+    if held:
+        return f"{VARIANT_LABELS[held[0]]} only"
+    return "neither"
 
-    Columns ``experiment, claim, <one per data variant present>, agreement``; the last
-    column says whether the verdicts on real and generated data agree (empty when the
-    claim was decided on one data only). Rows where they differ come first, then the
-    others, each in experiment order.
+
+def claims_by_data(views: list[ExperimentView], kind: str | None = None) -> tuple[list[str], list[list[str]]]:
+    """Every claim (of ``kind``, or all) of the runs that ran, with its verdict on each data: one row per claim.
+
+    Columns ``experiment, claim, kind, thesis source, <one per data variant present>, agreement``; for thesis
+    statements the last column is where they hold (``both``, ``real data only``, ``generated data only``,
+    ``neither``), for the other kinds whether the verdicts on real and generated data agree (``same`` /
+    ``differ``; empty when decided on one data only). Rows where the verdicts differ come first, then the others,
+    each in experiment order.
     """
     variants = [v for v in ("real", "synthetic") if any(x.variant == v and x.status == "ok" for x in views)]
-    columns = ["experiment", "claim"] + [VARIANT_LABELS[v] for v in variants] + ["agreement"]
+    last = "replicates on" if kind == "thesis" else "agreement"
+    columns = ["experiment", "claim", "kind", "thesis source"] + [VARIANT_LABELS[v] for v in variants] + [last]
     rows: list[list[str]] = []
+    cells: list[dict[str, str]] = []
     index: dict[tuple[str, str, str], int] = {}
     for view in views:
         if view.status != "ok" or view.variant not in variants:
             continue
         j = variants.index(view.variant)
         for claim in view.claims:
+            if kind is not None and claim.kind != kind:
+                continue
             key = (view.id, claim.text, claim.rule)
             if key not in index:
                 index[key] = len(rows)
-                rows.append([view.id, claim.text] + [""] * len(variants) + [""])
-            rows[index[key]][2 + j] = claim.verdict
-    for row in rows:
-        decided = [c for c in row[2:2 + len(variants)] if c]
-        if len(decided) == 2:
-            row[-1] = "same" if decided[0] == decided[1] else "differ"
-    order = sorted(range(len(rows)), key=lambda i: (rows[i][-1] != "differ", i))
+                rows.append([view.id, claim.text, claim.kind, claim.source] + [""] * len(variants) + [""])
+                cells.append({})
+            rows[index[key]][4 + j] = claim.cell
+            cells[index[key]][view.variant] = claim.cell
+    for row, by_variant in zip(rows, cells):
+        if kind == "thesis":
+            row[-1] = _replicates(by_variant, variants)
+        else:
+            decided = [c.split(" (")[0] for c in row[4:4 + len(variants)] if c]
+            if len(decided) == 2:
+                row[-1] = "same" if decided[0] == decided[1] else "differ"
+    differ = ("real data only", "generated data only", "differ")
+    order = sorted(range(len(rows)), key=lambda i: (rows[i][-1] not in differ, i))
     return columns, [rows[i] for i in order]
+
+
+def chance_line(views: list[ExperimentView]) -> list[str]:
+    """Per data: how many thesis-statement "holds" chance alone would give at the level used (plain text)."""
+    alpha = (1 - LEVEL) / 2
+    lines = []
+    for variant in ("real", "synthetic"):
+        decided = [c for v in views if v.variant == variant and v.status == "ok" for c in v.claims
+                   if c.kind == "thesis" and c.verdict != "not evaluated"]
+        if decided:
+            held = sum(c.verdict == "holds" for c in decided)
+            lines.append(
+                f"On {VARIANT_LABELS[variant]}: {held} of {len(decided)} thesis statements hold. A comparison is called "
+                f"\"holds\" when its {LEVEL * 100:g} % two-sided interval lies wholly on its side, so where there were no true "
+                f"difference at all, chance alone would make about {len(decided)} x {alpha:g} = "
+                f"{len(decided) * alpha:.1f} of them hold.")
+    return lines
 
 
 def slug(text: str) -> str:
@@ -418,17 +556,37 @@ class Plan:
 def variant_summaries(views: "list[ExperimentView]") -> list[tuple[str, str]]:
     """One summary line per variant with runs, as ``(variant label, text)``; the text is plain (not escaped).
 
-    E.g. ``("generated data", "5 run(s) ran (1 failed); claims: 7 holds, 2 fails, 1 inconclusive")``.
+    E.g. ``("generated data", "5 run(s) ran (1 failed); thesis statements: 7 holds, 2 fails; magnitudes: 1
+    below; ...")``: the claims counted by kind, never together.
     """
     lines = []
     for variant in ("real", "synthetic"):
         runs = [v for v in views if v.variant == variant]
         if runs:
             ran = [v for v in runs if v.status == "ok"]
-            counts = ", ".join(f"{sum(v.count(x) for v in ran)} {x}" for x in VERDICTS)
+            tally = tally_claims({"kind": c.kind, "verdict": c.verdict} for v in ran for c in v.claims)
+            counts = "; ".join(f"{KIND_LABELS[kind]}: " + (", ".join(f"{n} {w}" for w, n in c.items() if n) or "none")
+                               for kind, c in tally.items())
             others = ", ".join(f"{n} {label}" for label, n in (
                 ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
                 if n)
             lines.append((VARIANT_LABELS[variant], f"{len(ran)} run(s) ran" + (f" ({others})" if others else "")
-                          + f"; claims: {counts}"))
+                          + (f"; {counts}" if counts else "; no claims")))
     return lines
+
+
+def kind_tally_rows(views: "list[ExperimentView]") -> tuple[list[str], list[list[str]]]:
+    """The summary's table of tallies: one row per kind of claim and data, one column per verdict word.
+
+    Columns ``kind, data, <verdict words of that kind>`` as one text cell (``3 holds, 1 fails, ...``), so that
+    thesis statements, magnitudes, our checks and sanity checks are never added together.
+    """
+    rows = []
+    for kind in TALLY_KINDS:
+        for variant in ("real", "synthetic"):
+            ran = [v for v in views if v.variant == variant and v.status == "ok"]
+            counts = tally_claims({"kind": c.kind, "verdict": c.verdict} for v in ran for c in v.claims).get(kind)
+            if counts:
+                rows.append([KIND_LABELS[kind], VARIANT_LABELS[variant], str(sum(counts.values()))]
+                            + [", ".join(f"{n} {w}" for w, n in counts.items())])
+    return ["kind", "data", "claims", "verdicts"], rows

@@ -17,8 +17,10 @@ from importlib import resources
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import (STATUS_LABELS, VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group,
-                     slug_part, variant_summaries)
+from ..experiments.uncertainty import MAGNITUDE_VERDICTS, VERDICTS
+from ..experiments.verdicts import TALLY_KINDS
+from ._model import (KIND_SECTIONS, STATUS_LABELS, VARIANT_LABELS, ExperimentGroup, ExperimentView, Plan, chance_line, claims_by_data,
+                     group, kind_tally_rows, slug_part, variant_summaries)
 
 __all__ = ["render_html"]
 
@@ -87,23 +89,30 @@ def _status(status: str, label: str | None = None) -> str:
     return f'<span class="status status-{_e(slug_part(status))}">{_e(text)}</span>'
 
 
+_WORDS = tuple(dict.fromkeys(VERDICTS + MAGNITUDE_VERDICTS))
+
+
 def _verdict(text: str) -> str:
     word = text.split(" (")[0]
-    if word not in VERDICTS:
+    if word not in _WORDS:
         return _e(text)
     return f'<span class="verdict verdict-{_e(word.replace(" ", "-"))}">{_e(text)}</span>'
 
 
-_SYMBOLS = {"holds": "✓", "fails": "✗", "inconclusive": "?", "not evaluated": "–"}
+_SYMBOLS = {"holds": "✓", "fails": "✗", "depends": "±", "inconclusive": "?", "not evaluated": "–", "matches": "≈",
+            "below": "↓", "above": "↑"}
 
 
-def _counts(view: ExperimentView, *, compact: bool = False) -> str:
-    """Small coloured verdict counts (``2 holds 1 fails``, compact ``2✓ 1✗``), or the status when it did not run."""
+def _counts(view: ExperimentView, *, compact: bool = False, kind: str | None = "thesis") -> str:
+    """Small coloured verdict counts of the claims of ``kind`` (``2 holds 1 fails``, compact ``2✓ 1✗``), or the status
+    when it did not run."""
     if view.status != "ok":
         return _status(view.status, view.status_label)
-    parts = [f'<span class="count count-{_e(v.replace(" ", "-"))}" title="{view.count(v)} {_e(v)}">'
-             f'{view.count(v)}{_SYMBOLS[v] if compact else " " + _e(v)}</span>' for v in VERDICTS if view.count(v)]
-    return " ".join(parts) if parts else '<span class="muted">no claims</span>'
+    words = MAGNITUDE_VERDICTS if kind == "magnitude" else VERDICTS
+    parts = [f'<span class="count count-{_e(v.replace(" ", "-"))}" title="{view.count(v, kind)} {_e(v)}">'
+             f'{view.count(v, kind)}{_SYMBOLS[v] if compact else " " + _e(v)}</span>' for v in words
+             if view.count(v, kind)]
+    return " ".join(parts) if parts else '<span class="muted">none</span>'
 
 
 def _heading(level: int, text: str, anchor: str, *, raw: bool = False) -> str:
@@ -167,8 +176,8 @@ def _run(view: ExperimentView, plan: Plan) -> str:
 def _section(g: ExperimentGroup, plan: Plan) -> str:
     sec = plan.section[id(g)]
     out = [f'<section class="experiment-section" id="{_e(sec)}">', '<details class="experiment" open>']
-    badges = " ".join(f'<span class="run-badge">{_e(VARIANT_LABELS.get(v.variant, v.variant))}: {_counts(v)}</span>'
-                      for v in g.views)
+    badges = " ".join(f'<span class="run-badge">{_e(VARIANT_LABELS.get(v.variant, v.variant))}: thesis '
+                      f'{_counts(v)}</span>' for v in g.views)
     out.append(f'<summary><h2>{_e(g.title)}</h2><span class="meta"><code>{_e(g.id)}</code> · thesis: '
                f'{_e(g.thesis_ref or "—")}</span><span class="badges">{badges}</span></summary>')
     out.append('<div class="section-body">')
@@ -177,12 +186,16 @@ def _section(g: ExperimentGroup, plan: Plan) -> str:
     if rows:
         out.append(f'<h3>Claims</h3><div class="scroll"><table class="claims"><thead><tr><th></th>'
                    + "".join(f"<th>{_e(c)}</th>" for c in columns) + "</tr></thead><tbody>")
+        n = len(g.views)
         for i, row in enumerate(rows):
             anchor = plan.claim[(id(g), i)]
             out.append(f'<tr id="{_e(anchor)}"><td><a class="anchor" href="#{_e(anchor)}" aria-label="link to this '
-                       f'claim">#</a></td><td>{_e(row[0])}</td><td><code>{_e(row[1])}</code></td>'
-                       + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:]) + "</tr>")
+                       f'claim">#</a></td><td>{_e(row[0])}</td><td>{_e(row[1])}</td><td>{_e(row[2])}</td>'
+                       f'<td><code>{_e(row[3])}</code></td>'
+                       + "".join(f"<td>{_verdict(c)}</td>" for c in row[4:4 + n])
+                       + "".join(f'<td class="test">{_e(c)}</td>' for c in row[4 + n:]) + "</tr>")
         out.append("</tbody></table></div>")
+        out.append('<p class="note">Each verdict is what the interval in its test column says (95 %, two-sided).</p>')
     columns, rows = g.metric_rows()
     if rows:
         out.append("<h3>Numbers: the thesis' and ours, on each data</h3>")
@@ -209,7 +222,7 @@ def _toc(groups: list[ExperimentGroup], plan: Plan, *, has_problems: bool, has_c
             out.append(f'<li><a href="#{_e(plan.section[id(g)])}" title="{_e(g.title)}"><code>{_e(g.id)}</code></a>'
                        f'<ul class="toc-runs">{runs}</ul></li>')
         out.append("</ol>")
-        out.append('<p class="toc-legend">claims: ' + " ".join(
+        out.append('<p class="toc-legend">thesis statements: ' + " ".join(
             f'<span class="count count-{_e(v.replace(" ", "-"))}">{_SYMBOLS[v]}</span> {_e(v)}' for v in VERDICTS) + "</p>")
         out.append('<p class="toc-buttons"><button type="button" data-open="1" hidden>open all</button> '
                    '<button type="button" data-open="0" hidden>close all</button></p>')
@@ -218,17 +231,15 @@ def _toc(groups: list[ExperimentGroup], plan: Plan, *, has_problems: bool, has_c
 
 
 def _summary(views: list[ExperimentView], plan: Plan) -> str:
+    kinds = [k for k in TALLY_KINDS if any(c.kind == k for v in views for c in v.claims)]
     out = ['<h2 id="summary">Summary</h2>',
-           '<p class="note">One row per run: whether it ran, on which data, and the verdicts of its claims '
-           "(re-decided from the stored numbers). The experiment's section has the numbers behind them.</p>",
+           '<p class="note">One row per run: whether it ran, on which data, and the verdicts of its claims, counted '
+           "apart by kind (as stored in the record). The experiment's section has the numbers behind them.</p>",
            '<div class="scroll"><table class="summary"><thead><tr><th>experiment</th><th>title</th><th>data</th>'
-           "<th>ran</th>" + "".join(f'<th class="num">{_e(v)}</th>' for v in VERDICTS)
-           + "<th>run time</th></tr></thead><tbody>"]
+           "<th>ran</th>" + "".join(f"<th>{_e(k)}</th>" for k in kinds) + "<th>run time</th></tr></thead><tbody>"]
     for g in plan.groups:  # one row per run, the experiment's cells spanning its runs
         for k, view in enumerate(g.views):
-            n_by_verdict = view.verdict_counts()
-            cells = "".join(f'<td class="num count-{_e(v.replace(" ", "-"))}">{n_by_verdict[v] or ""}</td>'
-                            for v in VERDICTS)
+            cells = "".join(f"<td>{_counts(view, kind=kind) if view.status == 'ok' else ''}</td>" for kind in kinds)
             span = f' rowspan="{len(g.views)}"' if len(g.views) > 1 else ""
             head = (f'<td{span}><a href="#{_e(plan.section[id(g)])}"><code>{_e(g.id)}</code></a></td>'
                     f"<td{span}>{_e(g.title)}</td>") if k == 0 else ""
@@ -238,29 +249,40 @@ def _summary(views: list[ExperimentView], plan: Plan) -> str:
                 f'<td class="nowrap">{_e(view.elapsed)}</td></tr>'
             )
     out.append("</tbody></table></div>")
+    columns, rows = kind_tally_rows(views)
+    if rows:
+        out.append("<h3>Tallies by kind of claim</h3>")
+        out.append(_table(columns, rows, numeric=False))
     out.append("<ul>")
     for label, text in variant_summaries(views):
         out.append(f"<li>On {_e(label)}: {_e(text)}.</li>")
+    for line in chance_line(views):
+        out.append(f"<li>{_e(line)}</li>")
     out.append("</ul>")
     return "\n".join(out)
 
 
 def _claims(views: list[ExperimentView], plan: Plan) -> str:
-    columns, rows = claims_by_data(views)
-    if not rows:
+    if not claims_by_data(views)[1]:
         return ""
-    out = ['<h2 id="claims">Every claim on each data</h2><p class="note">Claims whose verdict differs between real '
-           "and generated data come first; each claim links to its experiment's section, with the numbers and "
-           "intervals behind the verdict.</p>",
-           '<div class="scroll"><table><thead><tr>' + "".join(f"<th>{_e(c)}</th>" for c in columns)
-           + "</tr></thead><tbody>"]
+    out = ['<h2 id="claims">Every claim on each data</h2><p class="note">By kind of claim; within each table, the '
+           "claims whose verdict differs between real and generated data come first; each claim links to its "
+           "experiment's section, with the numbers and intervals behind the verdict.</p>"]
     sections = plan.section_of
-    for row in rows:
-        target = plan.claim_by_text.get((row[0], row[1])) or sections.get(row[0], "summary")
-        out.append(f'<tr><td><a href="#{_e(sections.get(row[0], "summary"))}"><code>{_e(row[0])}</code></a></td>'
-                   f'<td><a href="#{_e(target)}">{_e(row[1])}</a></td>'
-                   + "".join(f"<td>{_verdict(c)}</td>" for c in row[2:-1]) + f"<td>{_e(row[-1])}</td></tr>")
-    out.append("</tbody></table></div>")
+    for kind, heading, what in KIND_SECTIONS:
+        columns, rows = claims_by_data(views, kind)
+        if not rows:
+            continue
+        shown = [columns[0], columns[1]] + columns[3:]
+        out.append(f"<h3>{_e(heading)}</h3><p class=\"note\">{_e(what)}</p>")
+        out.append('<div class="scroll"><table><thead><tr>' + "".join(f"<th>{_e(c)}</th>" for c in shown)
+                   + "</tr></thead><tbody>")
+        for row in rows:
+            target = plan.claim_by_text.get((row[0], row[1])) or sections.get(row[0], "summary")
+            out.append(f'<tr><td><a href="#{_e(sections.get(row[0], "summary"))}"><code>{_e(row[0])}</code></a></td>'
+                       f'<td><a href="#{_e(target)}">{_e(row[1])}</a></td><td>{_e(row[3])}</td>'
+                       + "".join(f"<td>{_verdict(c)}</td>" for c in row[4:-1]) + f"<td>{_e(row[-1])}</td></tr>")
+        out.append("</tbody></table></div>")
     return "\n".join(out)
 
 

@@ -14,7 +14,9 @@ from collections.abc import Sequence
 from urllib.parse import quote
 
 from .. import __version__
-from ._model import VARIANT_LABELS, VERDICTS, ExperimentGroup, ExperimentView, Plan, claims_by_data, group, variant_summaries
+from ..experiments.verdicts import TALLY_KINDS
+from ._model import (KIND_SECTIONS, VARIANT_LABELS, ExperimentGroup, ExperimentView, Plan, chance_line, claims_by_data,
+                     group, kind_tally_rows, variant_summaries)
 
 __all__ = ["render_markdown"]
 
@@ -107,7 +109,8 @@ def _section(g: ExperimentGroup, plan: Plan) -> list[str]:
     columns, rows = g.claim_rows()
     if rows:
         cells = [[_anchor(plan.claim[(id(g), i)])] + row for i, row in enumerate(rows)]
-        out += ["### Claims", ""] + _table(["#", *columns], cells, raw=1)
+        out += ["### Claims", "", "Each verdict is what the interval in its test column says (95 %, two-sided; see "
+                "the README, *What a verdict means*).", ""] + _table(["#", *columns], cells, raw=1)
     columns, rows = g.metric_rows()
     if rows:
         out += ["### Numbers: the thesis' and ours, on each data (95 % interval where there are folds or seeds)", ""]
@@ -133,29 +136,41 @@ def _contents(groups: list[ExperimentGroup], plan: Plan, *, problems: bool, clai
 
 def _summary(views: list[ExperimentView], plan: Plan) -> list[str]:
     out = [_anchor("summary"), "## Summary", "",
-           "One row per run: whether it ran, on which data, and the verdicts of its claims (re-decided from the "
-           "stored numbers).", ""]
+           "One row per run: whether it ran, on which data, and the verdicts of its claims, counted apart by kind "
+           "(as stored in the record).", ""]
+    kinds = [k for k in TALLY_KINDS if any(c.kind == k for v in views for c in v.claims)]
     rows = []
     for g in plan.groups:
         for view in g.views:
-            n_by_verdict = view.verdict_counts()
+            summaries = [view.kind_summary(k) if view.status == "ok" else "" for k in kinds]
             rows.append([_link(view.id, plan.run[id(view)], cell=True), view.title, view.data_label, view.status_label]
-                        + [str(n_by_verdict[v]) if n_by_verdict[v] else "" for v in VERDICTS] + [view.elapsed])
-    out += _table(["experiment", "title", "data", "ran", *VERDICTS, "run time"], rows, raw=1)
+                        + summaries + [view.elapsed])
+    out += _table(["experiment", "title", "data", "ran", *kinds, "run time"], rows, raw=1)
+    columns, rows = kind_tally_rows(views)
+    if rows:
+        out += ["### Tallies by kind of claim", ""] + _table(columns, rows)
     for label, text in variant_summaries(views):
         out.append(f"- On {label}: {text}.")
     out.append("")
-    columns, rows = claims_by_data(views)
-    if rows:
+    for line in chance_line(views):
+        out.append(f"- {_text(line)}")
+    out.append("")
+    if any(claims_by_data(views)[1]):
         out += [_anchor("claims"), "### Every claim on each data", "",
-                "Claims whose verdict differs between real and generated data come first; each claim links to its "
-                "experiment's section, with the numbers and intervals behind the verdict.", ""]
-        linked = []
-        for row in rows:
-            target = plan.claim_by_text.get((row[0], row[1])) or plan.section_of.get(row[0], "summary")
-            linked.append([_link(row[0], plan.section_of.get(row[0], "summary"), cell=True),
-                           f"[{_cell(row[1]).replace('[', '&#91;').replace(']', '&#93;')}](#{target})"] + row[2:])
-        out += _table(columns, linked, raw=2)
+                "By kind of claim; within each table, the claims whose verdict differs between real and generated data "
+                "come first. Each claim links to its experiment's section, with the numbers and intervals behind the "
+                "verdict.", ""]
+        for kind, heading, what in KIND_SECTIONS:
+            columns, rows = claims_by_data(views, kind)
+            if not rows:
+                continue
+            out += [f"#### {heading}", "", what, ""]
+            linked = []
+            for row in rows:
+                target = plan.claim_by_text.get((row[0], row[1])) or plan.section_of.get(row[0], "summary")
+                linked.append([_link(row[0], plan.section_of.get(row[0], "summary"), cell=True),
+                               f"[{_cell(row[1]).replace('[', '&#91;').replace(']', '&#93;')}](#{target})"] + row[3:])
+            out += _table([columns[0], columns[1]] + columns[3:], linked, raw=2)
     return out
 
 
