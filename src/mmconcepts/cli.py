@@ -165,6 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
               mmconcepts reproduce --full --scheduler tcp://head-node:8786 --concurrent 4
               mmconcepts reproduce --full --data choreo1=~/data/choreo1
               mmconcepts report results
+              mmconcepts verdicts results --write docs/verdicts.md
 
             exit codes: 0 success, 1 an experiment failed, 2 usage error"""
         ),
@@ -226,6 +227,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("dir", metavar="DIR", type=_folder, nargs="?", default=DEFAULT_RESULTS_DIR,
                    help="results folder (default: %(default)s)")
     p.set_defaults(func=_cmd_report)
+
+    p = sub.add_parser(
+        "verdicts", parents=[common], help="write the documentation's verdict page from a results folder",
+        description="Read the JSON result records of DIR (one run of `mmconcepts reproduce`, real and generated "
+                    "data) and print, or write to FILE, a Markdown page of every claim's verdict by kind of claim "
+                    "(thesis statements and where they replicate, magnitudes, our checks, sanity checks), stating "
+                    "the commit, code fingerprint, preset and seeds the records came from. The records must come "
+                    "from the installed code.",
+    )
+    p.add_argument("dir", metavar="DIR", type=_folder, nargs="?", default=DEFAULT_RESULTS_DIR,
+                   help="results folder (default: %(default)s)")
+    p.add_argument("--write", metavar="FILE", default=None, help="write the page to FILE (default: print it)")
+    p.add_argument("--title", default="Verdicts: which of the thesis' statements replicate", help="the page's title")
+    p.add_argument("--made-by", metavar="COMMAND", default="",
+                   help="the command that made the records, named on the page")
+    p.add_argument("--commit", default=None,
+                   help="the commit of the code that made the records (default: git's HEAD of the installed package)")
+    p.add_argument("--allow-stale", action="store_true",
+                   help="accept records of other code than the installed one (the page says so)")
+    p.set_defaults(func=_cmd_verdicts)
 
     p = sub.add_parser(
         "data", parents=[common], help="list or fetch the real data sets",
@@ -530,6 +551,17 @@ def _cmd_report(args: argparse.Namespace) -> int:
     html_path, md_path = _write_report(args.dir)
     print(f"report: {html_path}")
     print(f"        {md_path}")
+    return 0
+
+
+def _cmd_verdicts(args: argparse.Namespace) -> int:
+    from .report.verdict_page import verdict_page, write_verdict_page
+
+    options = dict(title=args.title, command=args.made_by, commit=args.commit, allow_stale=args.allow_stale)
+    if args.write:
+        print(f"wrote {write_verdict_page(args.dir, args.write, **options)}")
+    else:
+        print(verdict_page(args.dir, **options), end="")
     return 0
 
 

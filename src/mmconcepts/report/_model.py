@@ -170,6 +170,9 @@ class ExperimentView:
     values: dict[str, str] = field(default_factory=dict)  # metric -> "0.81 [0.75, 0.87]"
     warnings: list[str] = field(default_factory=list)
     stale: bool = False  # produced by other code than the installed one
+    preset: str = ""
+    code: str = ""
+    seed: str = ""
 
     @property
     def status_label(self) -> str:
@@ -364,6 +367,9 @@ def build_view(record: ResultRecord, results_dir: Path, source: Path) -> Experim
         values=values,
         warnings=[str(w) for w in record.warnings],
         stale=record.code != code_fingerprint(),
+        preset=str(record.preset),
+        code=str(record.code or ""),
+        seed=format_cell(record.seed),
     )
 
 

@@ -1,0 +1,101 @@
+"""The documentation's verdict pages: generated from records (`mmconcepts verdicts`), and every claim they list is a
+claim of the code, with the same text and kind."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from mmconcepts.cli import main
+from mmconcepts.errors import ExperimentError
+from mmconcepts.experiments import all_experiments, reproduce
+from mmconcepts.report.verdict_page import GENERATED_MARK, verdict_page
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def _rows(text: str) -> list[dict[str, str]]:
+    """The rows of every table with the columns experiment | claim | kind of a Markdown page, as dicts."""
+    rows: list[dict[str, str]] = []
+    header: list[str] | None = None
+    for line in text.splitlines():
+        if not line.startswith("|"):
+            header = None
+            continue
+        cells = [c.strip().replace("\\|", "|").replace("&lt;", "<").replace("&gt;", ">")
+                 for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+        if header is None:
+            header = cells
+        elif set(line) <= set("|-: "):
+            continue
+        elif header[:3] == ["experiment", "claim", "kind"]:
+            rows.append(dict(zip(header, cells)))
+    return rows
+
+
+def test_the_page_lists_every_claim_by_kind_with_its_verdict(toy, tmp_path):
+    reproduce(output=tmp_path, ids=["toy-mean"], progress=False)
+    page = verdict_page(tmp_path, command="mmconcepts reproduce --only toy-mean", commit="abc1234")
+    assert page.startswith("# Verdicts") and GENERATED_MARK in page
+    assert "preset **quick**, seed(s) 0, code of commit **abc1234**" in page
+    assert "by `mmconcepts reproduce --only toy-mean`" in page
+    rows = _rows(page)
+    assert [(r["experiment"], r["claim"], r["kind"]) for r in rows] == [
+        ("toy-mean", "The sample mean is close to one half.", "thesis"),
+        ("toy-mean", "The sample mean against the thesis' 0.5.", "magnitude"),
+        ("toy-mean", "The sample mean exceeds one (false on purpose).", "ours"),
+    ]
+    stored = {c["text"]: c for c in json.loads((tmp_path / "toy-mean.json").read_text())["claims"]}
+    for row in rows:
+        assert row["generated data"].split(" (")[0].split(":")[0] == stored[row["claim"]]["verdict"]
+    assert "| thesis statements | generated data | 1 | 1 holds, 0 fails, 0 depends, 0 inconclusive, 0 not evaluated |" \
+        in page
+    assert str(tmp_path) not in page  # no path of the machine that made it
+
+
+def test_the_page_refuses_records_of_other_code_or_mixed_runs(toy, tmp_path):
+    reproduce(output=tmp_path, ids=["toy-mean"], progress=False)
+    path = tmp_path / "toy-mean.json"
+    record = json.loads(path.read_text())
+    record["code"] = "0000000000000000"
+    path.write_text(json.dumps(record))
+    with pytest.raises(ExperimentError, match="other code"):
+        verdict_page(tmp_path)
+    assert "not the code of this page's commit" in verdict_page(tmp_path, allow_stale=True)
+    other = dict(record, experiment="toy-other", preset="full")
+    (tmp_path / "toy-other.json").write_text(json.dumps(other))
+    with pytest.raises(ExperimentError, match="mix presets"):
+        verdict_page(tmp_path, allow_stale=True)
+    with pytest.raises(ExperimentError, match="does not exist"):
+        verdict_page(tmp_path / "nowhere")
+
+
+def test_the_command_writes_the_page(toy, tmp_path, capsys):
+    reproduce(output=tmp_path / "r", ids=["toy-mean"], progress=False)
+    assert main(["verdicts", str(tmp_path / "r"), "--write", str(tmp_path / "v.md"), "--commit", "x1"]) == 0
+    assert GENERATED_MARK in (tmp_path / "v.md").read_text()
+    assert main(["verdicts", str(tmp_path / "nowhere")]) == 1  # an error, said in one line
+
+
+def _generated_pages() -> list[Path]:
+    return [p for p in sorted(DOCS.rglob("*.md")) if GENERATED_MARK in p.read_text(encoding="utf-8")]
+
+
+def test_the_docs_have_a_generated_verdict_page():
+    assert DOCS / "verdicts.md" in _generated_pages()
+
+
+@pytest.mark.parametrize("page", _generated_pages(), ids=lambda p: p.name)
+def test_every_claim_in_the_docs_is_a_claim_of_the_code(page):
+    claims = {(exp.id, c.text): c.kind for exp in all_experiments() for c in exp.claims}
+    rows = _rows(page.read_text(encoding="utf-8"))
+    assert rows, f"{page.name} lists no claim"
+    for row in rows:
+        key = (row["experiment"], row["claim"])
+        assert key in claims, f"{page.name}: {key} is not a claim of the code (stale page: regenerate it)"
+        assert claims[key] == row["kind"], f"{page.name}: {key} is of kind {claims[key]}, not {row['kind']}"
+    text = page.read_text(encoding="utf-8")
+    assert re.search(r"preset \*\*(quick|full)\*\*", text) and re.search(r"code of commit \*\*[0-9a-f]{7,}", text)
