@@ -12,7 +12,7 @@ import pytest
 from mmconcepts.cli import main
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import all_experiments, reproduce
-from mmconcepts.report.verdict_page import GENERATED_MARK, verdict_page
+from mmconcepts.report.verdict_page import GENERATED_MARK, TALLIES_END, TALLIES_START, verdict_page
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -73,10 +73,21 @@ def test_the_page_refuses_records_of_other_code_or_mixed_runs(toy, tmp_path):
         verdict_page(tmp_path / "nowhere")
 
 
-def test_the_command_writes_the_page(toy, tmp_path, capsys):
+def test_the_command_writes_the_page_and_the_readmes_tallies(toy, tmp_path, capsys):
     reproduce(output=tmp_path / "r", ids=["toy-mean"], progress=False)
-    assert main(["verdicts", str(tmp_path / "r"), "--write", str(tmp_path / "v.md"), "--commit", "x1"]) == 0
-    assert GENERATED_MARK in (tmp_path / "v.md").read_text()
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# R\n\nbefore\n\n{TALLIES_START}\nSTALE-BLOCK\n{TALLIES_END}\n\nafter\n")
+    assert main(["verdicts", str(tmp_path / "r"), "--write", str(tmp_path / "v.md"), "--commit", "abc1234",
+                 "--tallies", str(readme)]) == 0
+    page = (tmp_path / "v.md").read_text()
+    assert GENERATED_MARK in page
+    text = readme.read_text()
+    assert text.startswith("# R\n\nbefore\n\n") and text.endswith(f"{TALLIES_END}\n\nafter\n") and "STALE-BLOCK" not in text
+    block = text.split(TALLIES_START)[1].split(TALLIES_END)[0]
+    assert "code of commit **abc1234**" in block
+    assert "| thesis statements | generated data | 1 | 1 holds, 0 fails, 0 depends, 0 inconclusive, 0 not evaluated |" \
+        in block
+    assert main(["verdicts", str(tmp_path / "r"), "--tallies", str(readme)]) == 2  # needs --write
     assert main(["verdicts", str(tmp_path / "nowhere")]) == 1  # an error, said in one line
 
 
@@ -84,8 +95,13 @@ def _generated_pages() -> list[Path]:
     return [p for p in sorted(DOCS.rglob("*.md")) if GENERATED_MARK in p.read_text(encoding="utf-8")]
 
 
-def test_the_docs_have_a_generated_verdict_page():
+def test_the_docs_have_a_generated_verdict_page_and_the_readme_its_tallies():
     assert DOCS / "verdicts.md" in _generated_pages()
+    page = (DOCS / "verdicts.md").read_text(encoding="utf-8")
+    readme = (DOCS.parent / "README.md").read_text(encoding="utf-8")
+    block = readme.split(TALLIES_START)[1].split(TALLIES_END)[0]
+    tallies = page.split("## Tallies", 1)[1].split("\n## ", 1)[0].strip("\n")
+    assert tallies and tallies in block, "README's tallies are not those of docs/verdicts.md: run mmconcepts verdicts"
 
 
 @pytest.mark.parametrize("page", _generated_pages(), ids=lambda p: p.name)

@@ -165,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
               mmconcepts reproduce --full --scheduler tcp://head-node:8786 --concurrent 4
               mmconcepts reproduce --full --data choreo1=~/data/choreo1
               mmconcepts report results
-              mmconcepts verdicts results --write docs/verdicts.md
+              mmconcepts verdicts results --write docs/verdicts.md --tallies README.md
 
             exit codes: 0 success, 1 an experiment failed, 2 usage error"""
         ),
@@ -246,6 +246,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the commit of the code that made the records (default: git's HEAD of the installed package)")
     p.add_argument("--allow-stale", action="store_true",
                    help="accept records of other code than the installed one (the page says so)")
+    p.add_argument("--tallies", metavar="PAGE", default=None,
+                   help="also copy the page's tallies into PAGE (the README) between its <!-- tallies:start --> and "
+                        "<!-- tallies:end --> markers (with --write)")
     p.set_defaults(func=_cmd_verdicts)
 
     p = sub.add_parser(
@@ -555,11 +558,15 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_verdicts(args: argparse.Namespace) -> int:
-    from .report.verdict_page import verdict_page, write_verdict_page
+    from .report.verdict_page import update_tallies, verdict_page, write_verdict_page
 
     options = dict(title=args.title, command=args.made_by, commit=args.commit, allow_stale=args.allow_stale)
+    if args.tallies and not args.write:
+        raise _UsageError("--tallies copies the tallies of the page written with --write: give --write FILE too.")
     if args.write:
         print(f"wrote {write_verdict_page(args.dir, args.write, **options)}")
+        if args.tallies:
+            print(f"wrote the tallies into {update_tallies(args.tallies, args.write)}")
     else:
         print(verdict_page(args.dir, **options), end="")
     return 0
