@@ -390,8 +390,8 @@ def _margin_test(comparison: Comparison, metrics: Mapping[str, float],
     if comparison.op in ("==", "!="):
         decided_eq: bool | None = None if lo <= 0 <= hi else (comparison.op == "!=")
         return ComparisonTest(comparison.text, margin, (lo, hi), decided_eq, n_min, df), within
-    decided = True if lo > 0 else (False if hi < 0 else None)
-    return ComparisonTest(comparison.text, margin, (lo, hi), decided, n_min, df), within
+    side: bool | None = True if lo > 0 else (False if hi < 0 else None)
+    return ComparisonTest(comparison.text, margin, (lo, hi), side, n_min, df), within
 
 
 def claim_verdict(
@@ -548,7 +548,7 @@ def magnitude_verdict(
     if x.size < min_units:
         return MagnitudeVerdict("inconclusive", ratio, None, f"fewer than {min_units} units ({x.size})", scope,
                                 int(x.size))
-    interval = metric_interval(value, x, unit, level=level)
+    interval = metric_interval(value, x.tolist(), unit, level=level)
     assert interval is not None
     lo, hi = sorted((interval[0] / thesis, interval[1] / thesis))
     corrected = " (corrected resampled t)" if unit.kind == "resampled" else ""

@@ -78,18 +78,17 @@ def decide_claim(
         record.holds, record.verdict, record.basis, record.scope = v.holds, v.verdict, v.basis, v.scope
         record.tests = [t.to_dict() for t in v.tests]
         return record
-    per_setting = []
-    for label, rule in claim.settings.items():
-        v = claim_verdict(rule, metrics, samples, units=units, unit_kinds=unit_kinds)
-        per_setting.append({"label": label, "rule": rule, "holds": v.holds, "verdict": v.verdict, "basis": v.basis,
-                            "tests": [t.to_dict() for t in v.tests], "scope": v.scope})
-    combined = combine_settings({s["label"]: s["verdict"] for s in per_setting})
-    record.settings = per_setting
+    decided = {label: claim_verdict(rule, metrics, samples, units=units, unit_kinds=unit_kinds)
+               for label, rule in claim.settings.items()}
+    combined = combine_settings({label: v.verdict for label, v in decided.items()})
+    record.settings = [{"label": label, "rule": claim.settings[label], "holds": v.holds, "verdict": v.verdict,
+                        "basis": v.basis, "tests": [t.to_dict() for t in v.tests], "scope": v.scope}
+                       for label, v in decided.items()]
     record.verdict, record.detail = combined.verdict, combined.detail
-    holds = {s["holds"] for s in per_setting}
+    holds = {v.holds for v in decided.values()}
     record.holds = holds.pop() if len(holds) == 1 else None
-    record.scope = "within one fit" if any(s["scope"] for s in per_setting) else ""
-    record.basis = "; ".join(f"{s['label']}: {s['basis']}" for s in per_setting)
+    record.scope = "within one fit" if any(v.scope for v in decided.values()) else ""
+    record.basis = "; ".join(f"{label}: {v.basis}" for label, v in decided.items())
     return record
 
 
