@@ -5,13 +5,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mmconcepts.experiments import RunContext
 import dataclasses
+import re
 
-from mmconcepts.experiments.ch4_factorial_irl import Config, _world, run, score_rewards
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mmconcepts.experiments import RunContext, get
+from mmconcepts.experiments.ch4_factorial_irl import Config, _world, compute, run, score_rewards, world_streams
+from mmconcepts.experiments.rules import parse_rule
+from mmconcepts.experiments.verdicts import decide_claim
 from mmconcepts.tasks import FactorialIRL, GradIRL, grid_world
 
-SMALL = Config(grid_size=4, n_tasks=6, n_test_tasks=3, demos_curve=(2,), tasks_curve=(6,))
+SMALL = Config(grid_size=4, n_tasks=6, n_test_tasks=3, demos_curve=(2,), tasks_curve=(6,), n_worlds=1)
+#: A world small enough to fit every learner in a few seconds, with points below the default on both curves.
+TINY = Config(grid_size=4, n_primitives=3, n_tasks=8, n_test_tasks=4, flat_max_iter=10, factorial_max_iter=3,
+              inner_steps=2, demos_curve=(2, 10), tasks_curve=(4, 8), n_worlds=1, maxent=False)
+_SOURCE = re.compile(r"\((?:line \d+|lines \d+(?:-\d+|, \d+))\)\Z")
 
 
 def _same_tasks(a, b):
@@ -61,14 +71,86 @@ def test_score_is_zero_for_the_true_reward(rng):
 def test_quick_preset_is_the_documented_one():
     q = Config.quick()
     assert q.grid_size == 10 and q.discount == 0.9 and q.n_primitives == 5
+    assert q.n_worlds == 1  # within one fit: five worlds would cost five quick runs
     f = Config.full()
     assert (f.n_tasks, f.n_demos, f.demo_length, f.n_test_tasks) == (100, 10, 10, 100)
+    assert f.n_worlds >= 5  # independent units behind the full preset's verdicts
+
+
+def test_worlds_are_independent_and_do_not_depend_on_their_number():
+    a, b = _world(TINY, 0), _world(TINY, 1)
+    assert not np.array_equal(a[1], b[1])  # other primitives
+    more = dataclasses.replace(TINY, n_worlds=4)
+    np.testing.assert_array_equal(_world(more, 1)[1], b[1])  # world 1 is world 1 whatever n_worlds
+    states = [s.generate_state(2).tolist() for w in range(3) for s in world_streams(TINY, w)]
+    assert len({tuple(x) for x in states}) == len(states)  # no stream shared within or across worlds
+
+
+def test_claims_are_the_thesis_statements_with_their_sources():
+    exp = get("ch4-factorial-irl")
+    assert exp.reference == {}  # curves, no numbers: no magnitude claim
+    assert len(exp.claims) == 6 and {c.kind for c in exp.claims} == {"thesis"}
+    for c in exp.claims:
+        assert _SOURCE.search(c.source) and ("4.3.2" in c.source or "4.3.1" in c.source), c.source
+        assert not re.search(r"\d", c.rule.replace("4.3", ""))  # orders, no bars
+
+
+def test_one_world_gives_per_task_samples_within_one_fit():
+    res = compute(TINY, RunContext(show_progress=False))
+    res.validate()
+    s, u = res.samples, res.sample_units
+    assert set(u) == set(s)
+    assert {k.kind for k in res.units.values()} == {"within-fit"}
+    assert len(s["train.flat.deviation"]) == len(s["train.factorial.deviation"]) == TINY.n_tasks
+    assert u["train.flat.deviation"] == u["few_demos.flat.deviation"] == "training tasks"  # the same tasks, paired
+    few = res.figure_data["points"][(2, TINY.n_tasks)]["train"]  # the curve's point with 2 demonstrations per task
+    assert s["few_demos.flat.deviation"] == few["flat"]["deviation"]
+    assert s["few_demos.factorial.deviation"] == few["factorial"]["deviation"]
+    assert len(s["transfer.factorial.deviation"]) == TINY.n_test_tasks
+    # the tasks curve compares the same first tasks: learnt from 4 tasks, and from all 8 (the default point)
+    first = s["tasks_curve.max_tasks.factorial.deviation"]
+    assert len(first) == len(s["tasks_curve.min_tasks.factorial.deviation"]) == 4
+    assert first == s["train.factorial.deviation"][:4]
+    assert res.split_groups["tasks"]["shared_sources"] == 0
+    exp = get("ch4-factorial-irl")
+    for claim in exp.claims:
+        assert parse_rule(claim.rule).metrics <= set(s)  # every claim has samples
+        rec = decide_claim(claim, res.metrics, s, reference=exp.reference, units=u, unit_kinds=res.units)
+        assert rec.verdict in ("holds", "fails", "inconclusive")
+        if rec.verdict != "inconclusive":
+            assert rec.scope == "within one fit"
+
+
+def test_several_worlds_give_per_world_samples():
+    cfg = dataclasses.replace(TINY, n_worlds=2, demos_curve=(10,), tasks_curve=(8,))
+    res = compute(cfg, RunContext(show_progress=False))
+    res.validate()
+    assert set(res.sample_units.values()) == {"worlds"} and res.units["worlds"].kind == "independent"
+    assert all(len(v) == 2 for v in res.samples.values())
+    first = res.figure_data["points"][(10, 8)]["train"]["flat"]["deviation"]  # world 0's default point, per task
+    assert res.samples["train.flat.deviation"][0] == pytest.approx(np.mean(first))
+    assert res.samples["train.flat.deviation"][1] != res.samples["train.flat.deviation"][0]  # another world
+    assert res.metrics["train.flat.deviation"] == pytest.approx(np.mean(res.samples["train.flat.deviation"]))
+    # no point below the default on either curve: those claims are not measured
+    assert np.isnan(res.metrics["few_demos.flat.deviation"])
+    assert np.isnan(res.metrics["tasks_curve.min_tasks.factorial.deviation"])
+    assert res.split_groups["tasks"]["n_folds"] == 2 and res.split_groups["tasks"]["shared_sources"] == 0
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n_tasks=st.integers(1, 6), n_test=st.integers(1, 4))
+def test_test_tasks_are_new_tasks(seed, n_tasks, n_test):
+    """No test task is a training task: its mixture is drawn apart from every training task's."""
+    cfg = dataclasses.replace(SMALL, grid_size=3, seed=seed, n_tasks=n_tasks, n_test_tasks=n_test, n_demos=1,
+                              demos_curve=(1,))
+    _, _, (H, _, _), (H_te, _, _), _ = _world(cfg)
+    assert not (np.abs(H_te[:, None, :] - H[None, :, :]).max(-1) == 0).any()
 
 
 @pytest.mark.slow
 def test_small_run_produces_every_metric_and_figure():
     cfg = Config(grid_size=6, n_tasks=12, n_test_tasks=6, flat_max_iter=15, factorial_max_iter=3, inner_steps=2,
-                 demos_curve=(2, 10), tasks_curve=(6, 12))
+                 demos_curve=(2, 10), tasks_curve=(6, 12), n_worlds=1)
     res = run(cfg, RunContext(show_progress=False))
     res.validate()
     for split in ("train", "transfer"):
@@ -84,4 +166,4 @@ def test_small_run_produces_every_metric_and_figure():
     assert len(res.samples["train.flat.deviation"]) == len(res.samples["train.factorial.deviation"]) == 12
     assert len(res.samples["transfer.factorial.deviation"]) == 6
     assert res.metrics["train.flat.deviation"] == pytest.approx(np.mean(res.samples["train.flat.deviation"]))
-    assert len(res.samples["tasks_curve.min_tasks.advantage"]) == 6
+    assert len(res.samples["tasks_curve.min_tasks.factorial.deviation"]) == 6

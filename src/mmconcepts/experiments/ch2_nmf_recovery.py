@@ -19,6 +19,21 @@ Each beta in ``betas`` is fit with multiplicative updates (MM exponent), the heu
 update (eq. 2.17) where it differs, and projected gradient for beta in ``pg_betas``; the
 recovered dictionary is compared with the truth by the Hungarian matching distance
 (mean cosine distance between matched atoms).
+
+The thesis has no experiment in chapter 2; its statements are qualitative. What it says,
+and how it is checked here:
+
+* the multiplicative updates with the exponent of Table 2.2 never increase the objective
+  (section 2.1.2, lines 1164-1169): a property of the code, tested in the test-suite and
+  kept in the record as a sanity check of the run (kind ``check``);
+* the factorization is unique, up to scaling and permutation, when the simplicial cone of
+  the data cannot be widened (sufficient conditions of Donoho and Stodden), and in general
+  it is not (Appendix A.2.3, lines 6479-6483): the dictionary recovered from identifiable
+  data is closer to the true one than the dictionary recovered without those conditions
+  (kind ``thesis``);
+* every beta and solver recovering the identifiable dictionary to a matching distance
+  below 0.02 is our bar (kind ``ours``): the thesis states uniqueness of the solution, not
+  that a given solver reaches it (it converges to a local minimum, line 1060).
 """
 
 from __future__ import annotations
@@ -34,6 +49,7 @@ from ..nmf import beta_nmf, match_components
 from .base import Claim, Experiment, Result, RunContext, Table
 from .config import PresetConfig
 from .registry import register
+from .uncertainty import SampleUnit
 
 __all__ = ["Config", "compute", "present", "run", "make_data", "streams"]
 
@@ -60,7 +76,7 @@ class Config(PresetConfig):
     learner_seed: int | None = None
     seed: int = 0
 
-    QUICK = dict(n_samples=300, n_features=60, n_components=5, max_iter=400, pg_max_iter=400, n_repeats=3)
+    QUICK = dict(n_samples=200, n_features=50, n_components=5, max_iter=300, pg_max_iter=300, n_repeats=5)
     FULL = dict(n_samples=1000, n_features=200, n_components=10, max_iter=2000, pg_max_iter=1000, n_repeats=5)
 
 
@@ -179,12 +195,10 @@ def compute(config: Config, ctx: RunContext) -> Result:
                                                    and s["repeat"] == r["repeat"])["distance"] for r in sel])),
                              max(r["max_rel_increase"] for r in sel),
                              float(np.median([r["seconds"] for r in sel]))])
-    # the property check keeps its maximum over every MM run (the updates never increase the objective);
-    # its samples are each run's own maximum, in task order (kind, repeat, beta): 2 x n_repeats x len(betas)
-    # values, of their own unit ("MM runs", paired with nothing)
+    # the sanity check keeps its maximum over every MM run (the updates never increase the objective): a fact of
+    # this run, not an estimate, so it has no samples (its claim is decided on the reported number)
     mm = [r for r in runs if r["solver"] == "mu" and r["rule"] == "mm"]
     metrics["mu_mm.max_relative_increase"] = float(np.max([r["max_rel_increase"] for r in mm]))
-    samples["mu_mm.max_relative_increase"] = [r["max_rel_increase"] for r in mm]
     ident = [r["distance"] for r in runs if r["kind"] == "identifiable"]
     nonident = [r["distance"] for r in runs if r["kind"] == "nonidentifiable"]
     metrics["identifiable.max_distance"] = float(np.max(ident))
@@ -225,27 +239,52 @@ def compute(config: Config, ctx: RunContext) -> Result:
                   figure_data={"loss_curves": [{k: r[k] for k in ("kind", "repeat", "name", "solver", "history")}
                                                for r in first]},
                   samples=samples,
-                  sample_units={name: "MM runs" if name == "mu_mm.max_relative_increase" else "repeats"
-                                for name in samples},
-                  notes=["The thesis gives no numbers for this check; its claims are qualitative (section 2.1.2, "
-                         "Appendix A.2).",
-                         f"{config.n_repeats} repeats per data kind; distances are medians over repeats, with the "
-                         "per-repeat values as samples (identifiable/nonidentifiable.median_distance: per repeat, the "
-                         "median over methods; random_dictionary.distance: one random dictionary per repeat; "
-                         "identifiable.worst_method_median_distance: the per-repeat distances of the method with the "
-                         "worst median, "
-                         f"{worst}; identifiable.max_distance, the worst run over all methods and repeats: per repeat, "
-                         "the worst run of that repeat). All per-repeat samples are of one unit, repeats, and paired by repeat.",
-                         "mu_mm.max_relative_increase is a property check, the largest increase of the objective "
-                         "between two iterations over every multiplicative-update run with the MM exponent, relative to "
-                         "the run's initial objective and 0 when it never increases; its samples are each run's own "
-                         f"largest increase ({len(mm)} runs: 2 data kinds x {config.n_repeats} repeats x "
-                         f"{len(config.betas)} betas). The heuristic update (eq. 2.17) carries no such guarantee: its "
-                         "runs are in the table, not in the check.",
-                         "Random streams: numpy SeedSequence children of the seed draw the data, the solvers' "
-                         "initialisation (nndsvda's randomized SVD; one stream per repeat, shared by all methods) and "
-                         "the random reference dictionary independently. Before, each repeat's data seed was also the "
-                         "solvers' random_state."])
+                  sample_units={name: "repeats" for name in samples},
+                  units={"repeats": SampleUnit.seeds(
+                      "independent repetitions: a new dictionary, coefficients and noise for each data kind, and a "
+                      "new initialisation of the solvers")},
+                  notes=_notes(config, worst, len(mm)))
+
+
+def _notes(config: Config, worst: str, n_mm: int) -> list[str]:
+    return [
+        "The thesis has no experiment in chapter 2 and gives no numbers: its statements are qualitative (section "
+        "2.1.2, Appendix A.2), so the reference table is empty and there is no magnitude claim.",
+        f"{config.n_repeats} independent repetitions per data kind (a new dictionary, coefficients and noise, and a "
+        "new initialisation of the solvers each); distances are medians over repetitions, with the per-repetition "
+        "values as samples (identifiable/nonidentifiable.median_distance: per repetition, the median over methods; "
+        "random_dictionary.distance: one random dictionary per repetition; "
+        "identifiable.worst_method_median_distance: the per-repetition distances of the method with the worst "
+        f"median, {worst}; identifiable.max_distance: per repetition, the worst run of that repetition). All "
+        "samples are of one unit, the repetitions, paired by repetition index (the two data kinds of a repetition "
+        "are independent draws; pairing them changes no expected variance).",
+        "Claim kinds. 'The objective never increases' is a property of the code (the auxiliary-function argument "
+        "of section 2.1.2), tested in the test-suite for every beta; it stays in the record only as a sanity check "
+        "of this run (kind check, never evidence): the largest increase between two iterations over every "
+        f"multiplicative-update run with the MM exponent ({n_mm} runs), relative to the run's initial objective, "
+        "a fact of the run decided without samples. The heuristic update (eq. 2.17) carries no such guarantee "
+        "for every beta: its runs are in the table, not in the check.",
+        "Reclassified: 'the recovered dictionary is further from the truth without the identifiability "
+        "conditions' was checked at twice the distance, a bar of ours; it is now the thesis' statement (Appendix "
+        "A.2.3: unique under the sufficient conditions, not unique in general) at its own comparison, "
+        "non-identifiable distance > identifiable distance. The matching distance is a cosine distance, smaller "
+        "between dense positive vectors than between sparse ones: on this scale the dense, non-identifiable "
+        "atoms look closer to anything, which works against the claim.",
+        "Reclassified: 'every beta and solver recovers the identifiable dictionary' (median distance below 0.02) "
+        "is ours: the thesis states that the solution is unique under these conditions, not that a given solver "
+        "reaches it (the updates converge to a local minimum, line 1060); 0.02 is our bar, against about 0.5 for "
+        "a random dictionary (random_dictionary.distance). Its former second part (a random dictionary is ten "
+        "times further) followed from the first and was dropped.",
+        f"Quick preset: five repetitions (was three) of {Config.QUICK['n_samples']} samples x "
+        f"{Config.QUICK['n_features']} features (was 300 x 60) and {Config.QUICK['max_iter']} iterations of every "
+        "solver (was 400), so that they cost no more CPU time than the three did; the thesis fixes no size for this "
+        "check. Measured once on the five quick repetitions, at 300 rather than 400 iterations every method's median "
+        "distance on identifiable data stayed below 0.003 (the largest, beta 0 with the MM update: 0.0022 against "
+        "0.0016), and the non-identifiable distances moved by at most 0.003.",
+        "Random streams: numpy SeedSequence children of the seed draw the data, the solvers' initialisation "
+        "(nndsvda's randomized SVD; one stream per repetition, shared by all methods) and the random reference "
+        "dictionary independently.",
+    ]
 
 
 def present(result: Result, config: Config) -> dict[str, Figure]:
@@ -303,15 +342,20 @@ EXPERIMENT = register(
         present=present,
         reference={},
         claims=[
-            Claim("The objective never increases under multiplicative updates with the MM exponent of Table 2.2 "
-                  "(every beta, every iteration).", "mu_mm.max_relative_increase <= 0.000000001"),
+            Claim("Sanity check of this run: the objective never increased under the multiplicative updates with "
+                  "the MM exponent of Table 2.2 (every beta, every iteration, every run).",
+                  "mu_mm.max_relative_increase <= 0.000000001", kind="check"),
+            Claim("Under the identifiability conditions of Appendix A.2 the factorization is unique up to scaling and "
+                  "permutation, and without them it is not: the dictionary recovered from identifiable data is "
+                  "closer to the true one than the dictionary recovered from data without those conditions (median "
+                  "over betas and solvers).",
+                  "identifiable.median_distance < nonidentifiable.median_distance", kind="thesis",
+                  source="Appendix A.2.3 (lines 6479-6483)"),
             Claim("On identifiable data every beta and solver recovers the dictionary up to scaling and "
-                  "permutation in the median run (matching distance below 0.02, against about 0.5 for a random "
-                  "dictionary; single runs can stop in a local minimum, see identifiable.max_distance).",
-                  "identifiable.worst_method_median_distance < 0.02 and "
-                  "random_dictionary.distance > 10 * identifiable.worst_method_median_distance"),
-            Claim("Without the identifiability conditions of Appendix A.2 the recovered dictionary is further from "
-                  "the truth.", "nonidentifiable.median_distance > 2 * identifiable.median_distance"),
+                  "permutation in the median run: the method with the worst median stays below a matching "
+                  "distance of 0.02, our bar (a random dictionary: about 0.5; single runs can stop in a local "
+                  "minimum, see identifiable.max_distance).",
+                  "identifiable.worst_method_median_distance < 0.02", kind="ours"),
         ],
         description=__doc__.split("\n\n")[0],
     )

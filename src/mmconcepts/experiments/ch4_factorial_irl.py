@@ -15,12 +15,20 @@ a flat maximum-causal-entropy IRL baseline (beyond the thesis). The score of a l
 reward (eq. 4.11) is the mean over states of the true-reward value of the greedy policy
 on the learnt reward; we report its deviation from the optimal mean value (lower is
 better), also normalised by the deviation of the uniformly random policy.
+
+Units. One *world* is one draw of the primitive rewards, the training tasks and their
+demonstrations, and the test tasks. With ``n_worlds >= 2`` (the full preset) every metric is
+the mean over worlds of a mean over tasks, and the worlds are its independent units. With
+one world (the quick preset: five worlds would cost five times its CPU time) the per-task
+values are the samples: they come from one fitted dictionary and one draw of the primitives,
+so their spread is within that fit, and the verdicts say so ("within one fit").
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -41,8 +49,10 @@ from ..tasks import (
 from .base import Claim, Experiment, Result, RunContext, Table
 from .config import PresetConfig
 from .registry import register
+from .splits import describe_split
+from .uncertainty import SampleUnit
 
-__all__ = ["Config", "compute", "present", "run", "make_tasks", "score_rewards"]
+__all__ = ["Config", "compute", "present", "run", "make_tasks", "score_rewards", "world_streams"]
 
 TRAIN_LEARNERS = ("flat", "factorial", "flat_pca", "flat_gt", "maxent")
 TRANSFER_LEARNERS = ("flat", "factorial", "flat_pca", "flat_gt", "flat_examples", "maxent")
@@ -50,7 +60,11 @@ TRANSFER_LEARNERS = ("flat", "factorial", "flat_pca", "flat_gt", "flat_examples"
 
 @dataclass(frozen=True)
 class Config(PresetConfig):
-    """Sizes of the factorial IRL experiment (defaults: the thesis' settings)."""
+    """Sizes of the factorial IRL experiment (defaults: the thesis' settings).
+
+    ``n_worlds`` independent worlds (primitives, tasks, demonstrations; see the module
+    docstring); ``maxent`` adds the maximum-causal-entropy baseline (beyond the thesis).
+    """
 
     grid_size: int = 10
     success_prob: float = 0.7
@@ -67,9 +81,12 @@ class Config(PresetConfig):
     inner_steps: int = 5
     demos_curve: tuple[int, ...] = (1, 2, 5, 10)
     tasks_curve: tuple[int, ...] = (10, 20, 50, 100)
+    n_worlds: int = 5
+    maxent: bool = True
     seed: int = 0
 
-    QUICK = dict(n_tasks=30, n_test_tasks=30, flat_max_iter=50, demos_curve=(2, 10), tasks_curve=(10, 30))
+    QUICK = dict(n_tasks=30, n_test_tasks=30, flat_max_iter=50, demos_curve=(2, 10), tasks_curve=(10, 30), n_worlds=1,
+                 maxent=False)
 
 
 def make_tasks(config: Config, n_tasks: int, n_demos: int, rng: np.random.Generator, D_true: np.ndarray, mdp):
@@ -98,10 +115,17 @@ def score_rewards(mdp, learnt: np.ndarray, true: np.ndarray) -> dict[str, np.nda
     return {"deviation": opt - V, "normalised": (opt - V) / (opt - rnd)}
 
 
-def _world(config: Config):
+def world_streams(config: Config, world: int = 0) -> list[np.random.SeedSequence]:
+    """The independent streams of one world: primitives, training tasks, test tasks, example draw.
+
+    World ``w`` is the ``w``-th child of ``SeedSequence(config.seed)``, the same whatever ``n_worlds``.
+    """
+    return np.random.SeedSequence(config.seed, spawn_key=(world,)).spawn(4)
+
+
+def _world(config: Config, world: int = 0):
     mdp = grid_world(config.grid_size, success_prob=config.success_prob, discount=config.discount)
-    ss = np.random.SeedSequence(config.seed)
-    s_dict, s_train, s_test, s_ex = ss.spawn(4)
+    s_dict, s_train, s_test, s_ex = world_streams(config, world)
     D_true = np.random.default_rng(s_dict).standard_normal((config.n_primitives, mdp.n_states * mdp.n_actions))
     train = make_tasks(config, config.n_tasks, max(max(config.demos_curve), config.n_demos),
                        np.random.default_rng(s_train), D_true, mdp)
@@ -123,9 +147,9 @@ def _point(job):
 
 
 def _point_body(job):
-    config, m, N, default = job
+    config, m, N, default, world = job
     t0 = time.perf_counter()
-    mdp, D_true, (H, R, demos), (H_te, R_te, demos_te), rng_ex = _world(config)
+    mdp, D_true, (H, R, demos), (H_te, R_te, demos_te), rng_ex = _world(config, world)
     R, demos = R[:N], [d[:m] for d in demos[:N]]
     k, beta = config.n_primitives, config.beta
     out: dict = {"m": m, "N": N, "train": {}, "transfer": {}}
@@ -149,13 +173,15 @@ def _point_body(job):
     if default:
         gt_feats = component_features(mdp, D_true)
         learnt["flat_gt"] = GradIRL(gt_feats, beta=beta, max_iter=config.flat_max_iter).fit(mdp, demos).rewards_
-        learnt["maxent"] = MaxEntIRL(max_iter=config.flat_max_iter).fit(mdp, demos).rewards_
+        if config.maxent:
+            learnt["maxent"] = MaxEntIRL(max_iter=config.flat_max_iter).fit(mdp, demos).rewards_
         ex = rng_ex.choice(N, size=min(config.n_example_features, N), replace=False)
         ex_feats = component_features(mdp, flat.theta_[ex])
         tr["flat_examples"] = GradIRL(ex_feats, beta=beta, max_iter=config.flat_max_iter).fit(mdp, demos_te).rewards_
         tr["flat"] = GradIRL(beta=beta, max_iter=config.flat_max_iter).fit(mdp, demos_te).rewards_
         tr["flat_gt"] = GradIRL(gt_feats, beta=beta, max_iter=config.flat_max_iter).fit(mdp, demos_te).rewards_
-        tr["maxent"] = MaxEntIRL(max_iter=config.flat_max_iter).fit(mdp, demos_te).rewards_
+        if config.maxent:
+            tr["maxent"] = MaxEntIRL(max_iter=config.flat_max_iter).fit(mdp, demos_te).rewards_
         out["figure_data"] = {
             "D_true": D_true, "D_fact": fact.components_, "test_rewards": R_te[:4],
             "test_demos": [d[0] for d in demos_te[:4]], "flat_test": tr["flat"][:4], "fact_test": tr["factorial"][:4],
@@ -222,58 +248,109 @@ def _random_policy(results, points, split, x_index):
     return xs, ys
 
 
-def compute(config: Config, ctx: RunContext) -> Result:
-    """The fitted points and their deviations (no figures; ``figure_data``: every point's scores and the default
-    point's dictionaries, test rewards and demonstrations, for :func:`present`)."""
-    N0, m0 = config.n_tasks, config.n_demos
-    jobs = {(m0, N0): (config, m0, N0, True)}
-    for m in config.demos_curve:
-        jobs.setdefault((m, N0), (config, m, N0, False))
-    for N in config.tasks_curve:
-        if N > N0:
-            continue
-        jobs.setdefault((m0, N), (config, m0, N, False))
-    keys = sorted(jobs, key=lambda k: (k != (m0, N0), -k[0] * k[1]))  # the big default job first
-    results = dict(zip(keys, ctx.parallel(_point, [jobs[k] for k in keys], desc="IRL fits")))
-    default = results[(m0, N0)]
+def _per_task(point, split, learner, key="deviation", n=None) -> np.ndarray | None:
+    """The per-task values of ``learner`` at ``point`` (the first ``n`` tasks only, when given)."""
+    d = point[split].get(learner)
+    return None if d is None else np.asarray(d[key], dtype=float)[:n]
 
+
+def compute(config: Config, ctx: RunContext) -> Result:
+    """The fitted points and their deviations (no figures; ``figure_data``: the first world's points' scores and its
+    default point's dictionaries, test rewards and demonstrations, for :func:`present`)."""
+    if config.n_worlds < 1:
+        raise ValueError(f"n_worlds must be at least 1; got {config.n_worlds!r}")
+    N0, m0 = config.n_tasks, config.n_demos
+    points = {(m0, N0): True}
+    for m in config.demos_curve:
+        points.setdefault((m, N0), False)
+    for N in config.tasks_curve:
+        if N <= N0:
+            points.setdefault((m0, N), False)
+    keys = sorted(((w, pt) for w in range(config.n_worlds) for pt in points),
+                  key=lambda k: (k[1] != (m0, N0), -k[1][0] * k[1][1], k[0]))  # the big default jobs first
+    outs = ctx.parallel(_point, [(config, m, N, points[(m, N)], w) for w, (m, N) in keys], desc="IRL fits")
+    worlds: list[dict] = [{} for _ in range(config.n_worlds)]
+    for (w, pt), out in zip(keys, outs):
+        worlds[w][pt] = out
+    results = worlds[0]
+    default = results[(m0, N0)]
+    m_few = min(config.demos_curve, default=m0)
+    N_few = min((N for N in config.tasks_curve if N <= N0), default=N0)
+
+    # per world, per metric: the per-task values (and which unit they are over)
+    per_task: list[dict[str, tuple[Any, str]]] = [{} for _ in worlds]
+    for w, pts in enumerate(worlds):
+        d = pts[(m0, N0)]
+        for split, learners, unit in (("train", TRAIN_LEARNERS, "training tasks"),
+                                      ("transfer", TRANSFER_LEARNERS, "test tasks")):
+            for name in learners:
+                for key in ("deviation", "normalised"):
+                    v = _per_task(d, split, name, key)
+                    if v is not None:
+                        per_task[w][f"{split}.{name}.{key}"] = (v, unit)
+        if m_few < m0:  # few demonstrations per task, the same tasks (Fig. 4.5, top)
+            for name in ("flat", "factorial"):
+                per_task[w][f"few_demos.{name}.deviation"] = (_per_task(pts[(m_few, N0)], "train", name),
+                                                              "training tasks")
+        if N_few < N0:  # the first N_few tasks, learnt with N_few or with N0 tasks (Fig. 4.5, bottom)
+            for label, N in (("min_tasks", N_few), ("max_tasks", N0)):
+                per_task[w][f"tasks_curve.{label}.factorial.deviation"] = (
+                    _per_task(pts[(m0, N)], "train", "factorial", n=N_few), "first training tasks")
+
+    names = list(per_task[0])
     metrics: dict[str, float] = {}
-    samples: dict[str, list[float]] = {}  # per task: the tasks are the random draws behind each mean
-    for split, learners in (("train", TRAIN_LEARNERS), ("transfer", TRANSFER_LEARNERS)):
+    samples: dict[str, list[float]] = {}
+    sample_units: dict[str, str] = {}
+    if config.n_worlds == 1:
+        for name, (v, unit) in per_task[0].items():
+            metrics[name], samples[name], sample_units[name] = float(np.mean(v)), v.tolist(), unit
+        units = {"training tasks": SampleUnit.within_fit(f"the {N0} training tasks of one world (one fitted "
+                                                         "dictionary, one draw of the primitives)"),
+                 "test tasks": SampleUnit.within_fit(f"the {config.n_test_tasks} test tasks of one world (one fitted "
+                                                     "dictionary, one draw of the primitives)")}
+        if any(u == "first training tasks" for u in sample_units.values()):
+            units["first training tasks"] = SampleUnit.within_fit(
+                f"the first {N_few} training tasks of one world (one draw of the primitives)")
+    else:
+        for name in names:
+            per_world = [float(np.mean(pt[name][0])) for pt in per_task]
+            metrics[name], samples[name], sample_units[name] = float(np.mean(per_world)), per_world, "worlds"
+        units = {"worlds": SampleUnit.seeds(f"{config.n_worlds} independent worlds: new primitives, tasks, "
+                                            "demonstrations and test tasks each")}
+    for split, learners in (("train", TRAIN_LEARNERS), ("transfer", TRANSFER_LEARNERS)):  # learners not fitted
         for name in learners:
             for key in ("deviation", "normalised"):
-                metrics[f"{split}.{name}.{key}"] = _mean(default, split, name, key)
-                if name in default[split]:
-                    samples[f"{split}.{name}.{key}"] = [float(v) for v in default[split][name][key]]
-    tasks_pts = sorted(k for k in results if k[0] == m0)
-    for label, pt in (("min_tasks", tasks_pts[0]), ("max_tasks", tasks_pts[-1])):
-        diff = np.subtract(results[pt]["train"]["flat"]["deviation"], results[pt]["train"]["factorial"]["deviation"])
-        metrics[f"tasks_curve.{label}.advantage"] = float(diff.mean())
-        samples[f"tasks_curve.{label}.advantage"] = diff.tolist()
-    metrics["factorial.converged"] = float(default["factorial_converged"])
+                metrics.setdefault(f"{split}.{name}.{key}", float("nan"))
+    for name in ("few_demos.flat.deviation", "few_demos.factorial.deviation",
+                 "tasks_curve.min_tasks.factorial.deviation", "tasks_curve.max_tasks.factorial.deviation"):
+        metrics.setdefault(name, float("nan"))  # the curve has no point below the default
+    metrics["factorial.converged"] = float(np.mean([pts[(m0, N0)]["factorial_converged"] for pts in worlds]))
     metrics["factorial.last_rel_decrease"] = float(default["factorial_last_rel_decrease"])
     metrics["seconds.default_point"] = default["seconds"]
 
+    def mean_over_worlds(pt, split, learner):
+        return float(np.mean([_mean(pts[pt], split, learner) for pts in worlds]))
+
     def curve_table(title, pts, split, learners, var):
-        rows = []
-        for key in pts:
-            r = results[key]
-            rows.append([key[0] if var == "m" else key[1]] + [_mean(r, split, n) for n in learners])
+        rows = [[key[0] if var == "m" else key[1]] + [mean_over_worlds(key, split, n) for n in learners]
+                for key in pts]
         return Table(title, [("demos per task" if var == "m" else "training tasks")] + list(learners), rows,
-                     note="Mean deviation from the optimal mean value (eq. 4.11; lower is better). "
-                          "Only the default point fits every learner; NaN = not fitted there.")
+                     note="Mean deviation from the optimal mean value (eq. 4.11; lower is better), over tasks "
+                          f"and over {config.n_worlds} world(s). Only the default point fits every learner; NaN = "
+                          "not fitted there.")
 
     demo_pts = sorted(k for k in results if k[1] == N0)
+    tasks_pts = sorted(k for k in results if k[0] == m0)
     tables = {
         "default": Table(
             f"Deviation from optimal at the default setting ({N0} tasks x {m0} demos of {config.demo_length} steps; "
-            f"transfer: {config.n_test_tasks} new tasks, 1 demo each)",
+            f"transfer: {config.n_test_tasks} new tasks, 1 demo each; mean over {config.n_worlds} world(s))",
             ["learner", "train deviation", "train normalised", "transfer deviation", "transfer normalised"],
             [[n, metrics.get(f"train.{n}.deviation"), metrics.get(f"train.{n}.normalised"),
               metrics.get(f"transfer.{n}.deviation"), metrics.get(f"transfer.{n}.normalised")]
              for n in TRANSFER_LEARNERS],
             note="normalised = deviation / (optimal - uniformly random policy); flat_examples is a transfer-only "
-                 "learner, so it has no train score."),
+                 "learner, so it has no train score; NaN: not fitted (maxent only with config.maxent)."),
         "train_vs_demos": curve_table(f"Fig 4.5 (top): train tasks, {N0} tasks", demo_pts, "train",
                                       ("flat", "factorial", "flat_pca"), "m"),
         "train_vs_tasks": curve_table(f"Fig 4.5 (bottom): train tasks, {m0} demos per task", tasks_pts, "train",
@@ -283,38 +360,55 @@ def compute(config: Config, ctx: RunContext) -> Result:
         "transfer_vs_tasks": curve_table(f"Fig 4.6 (right): new tasks from one demo, {m0} demos per training task",
                                          tasks_pts, "transfer", ("factorial", "flat_pca"), "N"),
     }
-
+    sides = [([(f"w{w}.train{i}",) for i in range(N0)], [(f"w{w}.test{i}",) for i in range(config.n_test_tasks)])
+             for w in range(config.n_worlds)]  # per world: each training task's and test task's own id
+    task_split = describe_split("tasks (a mixture of the primitive rewards and its demonstrations)", sides)
     fd = default["figure_data"]
-    notes = [
-        "The thesis gives curves, not numbers, for section 4.3.2; the reference dict is empty.",
+    return Result(metrics=metrics, tables=tables, notes=_notes(config, default, results, N_few, m_few),
+                  samples=samples, sample_units=sample_units, units=units, split_groups={"tasks": task_split},
+                  extra={"loss_history": list(map(float, fd["loss_history"]))},
+                  figure_data={"points": results, "default": fd})
+
+
+def _notes(config: Config, default: dict, results: dict, N_few: int, m_few: int) -> list[str]:
+    unit = (f"{config.n_worlds} independent worlds: every metric is the mean over worlds of a mean over tasks, with "
+            "the per-world values as samples (learners paired by world)" if config.n_worlds > 1 else
+            "one world: each mean keeps its per-task values as samples (learners compared on the same tasks), and "
+            "the verdicts are marked 'within one fit': the spread over tasks of one fitted dictionary and one draw "
+            "of the primitives says nothing of another draw. The full preset runs 5 worlds; the quick preset "
+            "cannot afford them (each world costs the whole quick run's CPU time)")
+    return [
+        "The thesis gives curves, not numbers, for section 4.3.2; the reference table is empty and there is no "
+        "magnitude claim.",
         "Primitive rewards are i.i.d. standard normal over the 400 state-action pairs; tasks mix 2-3 primitives "
         "with weights in [0.5, 1.5]; experts are greedy on their optimal Q-values. These choices are ours: the "
         "thesis does not describe how its random dictionary and mixtures were drawn.",
         f"Learners use a Boltzmann inverse temperature beta = {config.beta}, {config.flat_max_iter} Armijo gradient "
         f"steps for flat learners, and {config.factorial_max_iter} alternations of {config.inner_steps} steps on H "
         "and on D for the factorial learner (PCA initialisation, uncentred). The maximum-entropy baseline (L2 = 0.01) "
-        "is not in the thesis.",
-        f"Factorial learner at the default point: {default['factorial_iterations']} alternations, "
+        "is not in the thesis" + ("." if config.maxent else "; it is fitted only with config.maxent (the full "
+                                                              "preset), to keep the quick preset's CPU time."),
+        f"Factorial learner at the default point (first world): {default['factorial_iterations']} alternations, "
         f"{'converged' if default['factorial_converged'] else 'stopped at max_iter before the tolerance'} "
         f"(relative loss decrease in the last alternation: {default['factorial_last_rel_decrease']:.3g}; "
-        "tol = 1e-4, at most factorial_max_iter alternations). Measured when this limit was set: 32 alternations "
-        "(9.5 s) at the quick default point, 83 (61 s) at the full one.",
-        "Spread: the experiment has one world and one draw of tasks; each mean deviation keeps its per-task values "
-        "as samples (the report's 95 % interval and the claims' paired bootstrap are over tasks: learners are "
-        "compared on the same tasks; tasks_curve.*.advantage: per-task flat minus factorial deviation). The "
-        "uncertainty of the world and primitive draw itself is not covered (one seed).",
-        "Random streams: SeedSequence(seed) children draw the primitive rewards, the training tasks and their "
-        "demonstrations, the test tasks and the 15 example tasks of flat_examples independently. The learners "
+        "tol = 1e-4, at most factorial_max_iter alternations).",
+        f"Units: {unit}.",
+        f"Claims restated at the thesis' comparison and wording (section 4.3.2). 'Its advantage grows with the "
+        "number of demonstrated tasks' (the flat-minus-factorial gap at the largest against the smallest number of "
+        "tasks, each a mean over different tasks) is now the thesis' sentence 'the performance of the learner "
+        f"increases with the number of demonstrated tasks': the factorial learner's deviation on the first {N_few} "
+        f"training tasks, learnt with {N_few} tasks against all {config.n_tasks} (the same tasks and demonstrations). "
+        f"Added: with few demonstrations per task ({m_few}; section 4.3.2) the factorial learner beats the flat "
+        "one. 'Beats the flat learner on the training tasks' is now its own claim.",
+        "Splits: training and test tasks are separate draws (their own mixtures and demonstrations); no test task "
+        "feeds a training fit. flat_examples uses the learnt rewards of 15 training tasks as features for the test "
+        "tasks (the thesis' 'features from ex.'), which is transfer, not a leak.",
+        "Random streams: per world, SeedSequence(seed) children draw the primitive rewards, the training tasks and "
+        "their demonstrations, the test tasks and the 15 example tasks of flat_examples independently. The learners "
         "draw nothing (PCA initialisation, deterministic gradient steps), so no seed reaches them.",
-        "Claims audited for identities and diverging baselines: none found; every claim compares learners "
-        "scored on the same tasks by eq. (4.11), whose deviations are bounded by the random policy's "
-        "(normalised deviation 1).",
-        "Seconds per fitted point: " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
-                                                 for r in results.values()),
+        "Seconds per fitted point (first world): " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
+                                                             for r in results.values()),
     ]
-    return Result(metrics=metrics, tables=tables, notes=notes, samples=samples,
-                  extra={"loss_history": list(map(float, fd["loss_history"]))},
-                  figure_data={"points": results, "default": fd})
 
 
 def present(result: Result, config: Config) -> dict[str, Figure]:
@@ -425,20 +519,35 @@ EXPERIMENT = register(
         present=present,
         reference={},
         claims=[
-            Claim("The factorial learner beats the flat learner on the training tasks, and its advantage grows "
-                  "with the number of demonstrated tasks (Fig 4.5).",
-                  "train.factorial.deviation < train.flat.deviation and "
-                  "tasks_curve.max_tasks.advantage > tasks_curve.min_tasks.advantage"),
-            Claim("From a single demonstration of a new task, the factorial learner re-using its dictionary does "
-                  "better than a flat learner from scratch (Fig 4.6).",
-                  "transfer.factorial.deviation < transfer.flat.deviation"),
-            Claim("The factorial learner outperforms the simpler feature constructions for new tasks: PCA of the "
-                  "flat parameters and learnt rewards of 15 training tasks (Fig 4.6).",
+            Claim("The factorial learner uses the structure common to the tasks to perform better than the flat "
+                  "learner on the training tasks (Fig. 4.5: mean deviation from the optimal value).",
+                  "train.factorial.deviation < train.flat.deviation", kind="thesis",
+                  source="Section 4.3.2, Fig. 4.5 (lines 3652-3654)"),
+            Claim("The performance of the factorial learner increases with the number of demonstrated tasks "
+                  "(Fig. 4.5, bottom): on the same first training tasks, learning from all the training tasks "
+                  "leaves a smaller deviation than learning from the fewest of the curve.",
+                  "tasks_curve.max_tasks.factorial.deviation < tasks_curve.min_tasks.factorial.deviation",
+                  kind="thesis", source="Section 4.3.2, Fig. 4.5 (line 3654)"),
+            Claim("When only few demonstrations are given for each task, the flat learner fails to generalise over "
+                  "the state space while the factorial learner completes the information from the other tasks: "
+                  "with the fewest demonstrations of the curve, the factorial learner performs better than the flat "
+                  "one on the training tasks (Fig. 4.5, top).",
+                  "few_demos.factorial.deviation < few_demos.flat.deviation", kind="thesis",
+                  source="Section 4.3.2, Fig. 4.5 (lines 3654-3659)"),
+            Claim("From a single demonstration of a new task, the factorial learner re-using its dictionary as "
+                  "features learns the task better than a flat learner from scratch (Fig. 4.6, 4.7).",
+                  "transfer.factorial.deviation < transfer.flat.deviation", kind="thesis",
+                  source="Section 4.3.2, Fig. 4.6 (lines 3700-3702)"),
+            Claim("On new tasks the factorial learner also outperforms the other simple feature construction "
+                  "strategies: PCA of the flat parameters and the learnt rewards of 15 training tasks (Fig. 4.6).",
                   "transfer.factorial.deviation < transfer.flat_pca.deviation and "
-                  "transfer.factorial.deviation < transfer.flat_examples.deviation"),
-            Claim("PCA features alone do not give the factorial learner's performance on the training tasks "
-                  "(footnote of section 4.3.1).",
-                  "train.factorial.deviation < train.flat_pca.deviation"),
+                  "transfer.factorial.deviation < transfer.flat_examples.deviation", kind="thesis",
+                  source="Section 4.3.2, Fig. 4.6 (lines 3702-3703)"),
+            Claim("The PCA strategy alone does not provide a good dictionary: on the training tasks the flat learner "
+                  "on PCA features of the flat parameters does worse than the factorial learner (footnote of "
+                  "section 4.3.1, Fig. 4.5).",
+                  "train.factorial.deviation < train.flat_pca.deviation", kind="thesis",
+                  source="Section 4.3.1, footnote 1 (line 3592)"),
         ],
         description=__doc__.split("\n\n")[0],
     )
