@@ -202,6 +202,13 @@ def test_ch5_label_sets_small_on_tones(fake_fsdd, tmp_path):
     assert m["diff.l_full"] == pytest.approx(m["nmf.l_full"] - m["voting.l_full"])
     # the by-size table covers every utterance once
     assert sum(r[1] for r in res.tables["by_size"].rows) == 30
+    # folds of one data set (corrected resampled t), composed fold by fold: no recording on both sides
+    assert set(res.sample_units.values()) == {"3 folds"} and res.units["3 folds"].kind == "resampled"
+    assert res.units["3 folds"].test_train_ratio == pytest.approx(1 / 2)
+    split = res.split_groups["label_sets"]
+    assert split["shared_sources"] == 0 and split["n_folds"] == 3 and "composed" in split["by"]
+    assert split["n_sources"] <= 80  # the 80 recordings of the fake FSDD's two speakers, at most
+    assert {c.kind for c in ls.EXPERIMENT.claims} == {"ours"}  # beyond the thesis
     for claim in ls.EXPERIMENT.claims:
         assert evaluate_rule(claim.rule, m) in (True, False)
     figs = ls.present(res, cfg)
@@ -223,6 +230,20 @@ def test_streams_are_independent(fake_fsdd, tmp_path):
     np.testing.assert_array_equal(base[2], other_learner[2])
     other_data = data(s._replace(data=s.data + 1))
     assert base[0] != other_data[0] or not np.array_equal(base[1], other_data[1])
+
+
+def test_composed_label_sets_keep_each_fold_s_recordings(fake_fsdd, tmp_path):
+    """A test fold's utterances are made of that fold's recordings only, and name them."""
+    from mmconcepts.experiments import describe_split
+
+    ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False)
+    d = common.label_set_corpus(ctx, seeds=common.streams(0), n_folds=3, n_per_speaker=1, n_composed=6,
+                                n_words=(1, 3))
+    assert d.kind == "composed" and len(d.sources) == len(d.Y) == 18
+    assert [len(s) for s in d.sources] == d.Y.sum(axis=1).astype(int).tolist()  # one recording per keyword said
+    by_fold = [{r for s, f in zip(d.sources, d.fold) if f == i for r in s} for i in range(3)]
+    assert not (by_fold[0] & by_fold[1] or by_fold[0] & by_fold[2] or by_fold[1] & by_fold[2])
+    assert describe_split("t", common.fold_sources(d.sources, d.fold))["shared_sources"] == 0
 
 
 def test_ch5_label_sets_refuses_more_words_than_keywords(fake_fsdd, tmp_path):

@@ -87,6 +87,12 @@ def test_ch5_word_discovery_small_on_tones(fake_fsdd, tmp_path):
     assert m["n_utterances"] == 40 and m["n_words"] == 10 and m["n_atoms"] == 10
     for name in wd.REPEATED:
         assert len(res.samples[name]) == 2, name
+    # two disjoint parts of the data, one repetition each: independent, no recording in both
+    assert m["n_parts"] == 2 and [r[1] for r in res.tables["repetitions"].rows] == [20, 20]
+    assert set(res.sample_units.values()) == {"parts"} and res.units["parts"].kind == "independent"
+    assert res.split_groups["parts"]["shared_sources"] == 0 and res.split_groups["parts"]["n_folds"] == 2
+    assert {c.kind for c in wd.EXPERIMENT.claims} == {"ours"}  # beyond the thesis
+    assert all("shuffled" in c.rule for c in wd.EXPERIMENT.claims)  # each decided against the control
     assert 0 <= m["matched.mean_fraction"] <= 1
     assert m["gain.mean_mi"] == pytest.approx(m["matched.mean_mi"] - m["shuffled.matched.mean_mi"])
     assert m["matched.mean_mi"] > m["shuffled.matched.mean_mi"]  # distinct tones: atoms find the words

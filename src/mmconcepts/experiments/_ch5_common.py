@@ -14,7 +14,13 @@
   and MFCC configuration and caches it under ``ctx.cache_dir/ch5-mfcc``, keyed on the
   files, the configuration and the code fingerprint.
 - :func:`composed_corpus` builds (once, cached) utterances of several words by
-  concatenating recordings of one speaker (:func:`mmconcepts.sound.data.compose_utterances`).
+  concatenating recordings of one speaker (:func:`mmconcepts.sound.data.compose_utterances`);
+  :func:`recording_folds` splits recordings into stratified folds and
+  :func:`compose_by_fold` composes each fold's utterances from that fold's recordings only.
+- :func:`utterance_sources` gives the source recordings behind each utterance (its own
+  file, or the recordings a composed utterance was made of) and :func:`fold_sources` the
+  (training, test) sources of each fold, for
+  :func:`~mmconcepts.experiments.splits.describe_split`.
 - :func:`keyword_targets` gives the keyword of each utterance (the thesis' tasks have one
   keyword per utterance).
 - :func:`keyword_sets` gives the set of keywords of each utterance as a label matrix
@@ -44,8 +50,9 @@ from ..sound.features import MFCCConfig, mfcc
 from .base import RunContext, Streams, cached_call, streams
 
 __all__ = ["CORPUS_SEED", "Streams", "streams", "load_corpus", "data_source", "data_source_note", "corpus_mfcc",
-           "composed_corpus", "keyword_targets", "speaker_ids", "keyword_sets", "check_label_sets",
-           "check_words_per_utterance", "label_set_corpus", "LabelSetData"]
+           "composed_corpus", "recording_folds", "compose_by_fold", "utterance_sources", "fold_sources",
+           "keyword_targets", "speaker_ids", "keyword_sets", "check_label_sets", "check_words_per_utterance",
+           "label_set_corpus", "LabelSetData"]
 
 #: Seed of the generated corpus, shared by all experiments (chapters 5 and 6).
 CORPUS_SEED = 0
@@ -141,6 +148,106 @@ def composed_corpus(ctx: RunContext, corpus, *, n_utterances: int, seed: int, n_
     root = Path(ctx.cache_dir) / "ch5-composed" / f"{corpus.name or 'corpus'}-{h.hexdigest()[:16]}"
     return compose_utterances(corpus, root, n_utterances=n_utterances, n_words=tuple(n_words),
                               pause_s=tuple(pause_s), random_state=seed)
+
+
+def recording_folds(y, n_folds: int, seed: int) -> np.ndarray:
+    """The test fold of each recording: ``n_folds`` folds stratified by keyword (shuffled by ``seed``).
+
+    Parameters
+    ----------
+    y : array-like of shape (n_recordings,)
+        The keyword of each recording.
+    n_folds : int
+        Folds wanted; fewer when a keyword has fewer recordings (at least 2).
+    seed : int
+        The ``splits`` stream.
+
+    Returns
+    -------
+    ndarray of int, shape (n_recordings,)
+        Values ``0 .. k - 1``; every recording is in exactly one fold.
+
+    Raises
+    ------
+    DataError
+        If some keyword has a single recording (no 2-fold split keeps it on both sides).
+    """
+    from sklearn.model_selection import StratifiedKFold
+
+    y = np.asarray(y)
+    counts = np.unique(y, return_counts=True)[1]
+    k = min(int(n_folds), int(counts.min()))
+    if k < 2:
+        raise DataError(f"some keyword has {int(counts.min())} recording(s); expected at least 2 per keyword for "
+                        f"{n_folds}-fold cross-validation. Fix: fewer folds or more recordings.")
+    fold = np.full(len(y), -1)
+    for i, (_, te) in enumerate(StratifiedKFold(k, shuffle=True, random_state=seed).split(np.zeros(len(y)), y)):
+        fold[te] = i
+    return fold
+
+
+def compose_by_fold(ctx: RunContext, corpus, fold: np.ndarray, *, n_composed: int, seed: int, n_words=(2, 4),
+                    pause_s=(0.1, 0.3)) -> list:
+    """Utterances composed fold by fold: fold ``i``'s from the recordings whose ``fold`` is ``i`` only.
+
+    So a composed utterance of one fold holds no recording of another fold, and the
+    utterances of a test fold share no recording with the training utterances (the other
+    folds') nor with the training recordings. Fold ``i`` is composed with seed
+    ``sub_seed(seed, i)`` (the ``data`` stream).
+
+    Returns
+    -------
+    list of SpeechCorpus
+        One per fold, in fold order (:func:`composed_corpus`).
+    """
+    fold = np.asarray(fold)
+    return [composed_corpus(ctx, corpus.subset(np.flatnonzero(fold == i)), n_utterances=n_composed,
+                            seed=sub_seed(seed, i), n_words=tuple(n_words), pause_s=tuple(pause_s))
+            for i in range(int(fold.max()) + 1)]
+
+
+def utterance_sources(corpus) -> list[list[str]]:
+    """The recordings behind each utterance: the files a composed utterance was made of, else its own file.
+
+    Recordings are named by their resolved path, so the sources of a composed utterance
+    (:func:`~mmconcepts.sound.data.composed_sources`) and the recordings it was composed
+    from compare equal.
+    """
+    from ..sound.data import composed_sources
+
+    def ids(paths) -> list[str]:
+        return [str(Path(p).resolve()) for p in paths]
+
+    if corpus.root is not None and (Path(corpus.root) / "sources.json").is_file():
+        return [ids(s) for s in composed_sources(corpus)]
+    return [ids([p]) for p in corpus.paths]
+
+
+def fold_sources(sources, fold, *, extra_train=None) -> list[tuple[list, list]]:
+    """Per fold ``i``: the sources of the training examples (fold != i) and of the test examples (fold == i).
+
+    Parameters
+    ----------
+    sources : sequence of collections of recording ids, one per example
+    fold : array-like of int, the test fold of each example (-1: never tested)
+    extra_train : sequence of (sources, fold), optional
+        Other examples the learner of fold ``i`` trains on (e.g. the single recordings a
+        codebook is fitted on), each with its own test fold: those with fold != i join fold
+        ``i``'s training side.
+
+    Returns
+    -------
+    list of (train_sources, test_sources)
+        For :func:`~mmconcepts.experiments.splits.describe_split`.
+    """
+    fold = np.asarray(fold)
+    out = []
+    for i in range(int(fold.max()) + 1):
+        train = [sources[j] for j in np.flatnonzero(fold != i)]
+        for more, more_fold in (extra_train or ()):
+            train += [more[j] for j in np.flatnonzero(np.asarray(more_fold) != i)]
+        out.append((train, [sources[j] for j in np.flatnonzero(fold == i)]))
+    return out
 
 
 def speaker_ids(corpus) -> np.ndarray:
@@ -269,7 +376,8 @@ class LabelSetData:
     corpus : SpeechCorpus of the utterances; Y : (n, n_keywords) label matrix; keywords : its columns;
     fold : int array (n,), the test fold of each utterance (-1: no folds); kind : "composed",
     "as-recorded" or "generated"; speaker : the speaker id; description : what it is, in words;
-    n_source : the number of the speaker's recordings it was built from.
+    n_source : the number of the speaker's recordings it was built from; sources : the
+    recordings behind each utterance (:func:`utterance_sources`).
     """
 
     corpus: Any
@@ -281,6 +389,7 @@ class LabelSetData:
     description: str
     n_source: int = 0
     extra: dict = field(default_factory=dict)
+    sources: list = field(default_factory=list)
 
 
 def _concat(corpora, name: str):
@@ -292,7 +401,7 @@ def _concat(corpora, name: str):
 def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0, n_folds: int | None,
                      n_per_speaker: int, n_composed: int, n_words=(1, 3), pause_s=(0.1, 0.3),
                      n_single: int = 0, n_double: int = 0) -> LabelSetData:
-    """Utterances of one or several keywords of one speaker, their label sets and test folds.
+    """Utterances of one or several keywords of one speaker, their label sets, test folds and source recordings.
 
     What the data root holds decides (nothing is named here):
 
@@ -351,20 +460,19 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
         keywords = sorted(set(y))
         lo, hi = check_words_per_utterance(n_words, len(keywords))
         if n_folds is None:
-            parts = [composed_corpus(ctx, sub, n_utterances=n_composed, seed=sub_seed(seeds.data, 0),
-                                     n_words=(lo, hi), pause_s=tuple(pause_s))]
+            rec_fold = np.zeros(len(y), dtype=int)
         else:
             counts = np.unique(y, return_counts=True)[1]
-            k = min(int(n_folds), int(counts.min()))
-            if k < 2:
+            if min(int(n_folds), int(counts.min())) < 2:
                 raise DataError(f"speaker {speaker} has {int(counts.min())} recording(s) of some keyword; expected at "
                                 f"least 2 per keyword for {n_folds}-fold composition. Fix: fewer folds or more "
                                 "recordings.")
-            splits = StratifiedKFold(k, shuffle=True, random_state=seeds.splits).split(np.zeros(len(y)), y)
-            parts = [composed_corpus(ctx, sub.subset(te), n_utterances=n_composed, seed=sub_seed(seeds.data, i),
-                                     n_words=(lo, hi), pause_s=tuple(pause_s)) for i, (_, te) in enumerate(splits)]
+            rec_fold = recording_folds(y, n_folds, seeds.splits)
+        parts = compose_by_fold(ctx, sub, rec_fold, n_composed=n_composed, seed=seeds.data, n_words=(lo, hi),
+                                pause_s=tuple(pause_s))
         fold = (np.full(sum(len(p) for p in parts), -1) if n_folds is None
                 else np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]))
+        sources = [s for p in parts for s in utterance_sources(p)]
         utts = _concat(parts, f"{corpus.name or 'corpus'}-composed")
         Y, _ = keyword_sets(utts, keywords)
         desc = (f"{len(Y)} utterances of {lo}-{hi} real recordings of speaker {speaker} said in a row (pauses "
@@ -372,11 +480,12 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
                 + ("from all of the speaker's recordings" if n_folds is None else
                    f"fold by fold from {len(parts)} stratified folds of the speaker's {len(sub)} recordings (a test "
                    "fold's utterances hold only that fold's recordings)"))
-        return LabelSetData(utts, Y, keywords, fold, "composed", speaker, desc, len(sub))
+        return LabelSetData(utts, Y, keywords, fold, "composed", speaker, desc, len(sub), sources=sources)
     if source != "synthetic":
         Y, keywords = keyword_sets(sub)
         desc = f"{len(Y)} utterances of speaker {speaker} as recorded ({int(Y.sum(1).min())}-{int(Y.sum(1).max())} keywords)"
-        return LabelSetData(sub, Y, keywords, folds_by_size(Y), "as-recorded", speaker, desc, len(sub))
+        return LabelSetData(sub, Y, keywords, folds_by_size(Y), "as-recorded", speaker, desc, len(sub),
+                            sources=utterance_sources(sub))
 
     # generated: the speaker's one-keyword sentences and two-keyword sentences of the same voice
     from ..sound.synthetic import fetch_caregiver
@@ -398,7 +507,8 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
     n_one = int(np.sum(Y.sum(axis=1) == 1))
     desc = (f"{len(Y)} generated sentences of speaker {speaker}: {n_one} with one keyword (drawn from the shared "
             f"generated corpus) and {len(Y) - n_one} with two (generated with keywords_per_utterance=2, same voice)")
-    return LabelSetData(utts, Y, keywords, folds_by_size(Y), "generated", speaker, desc, len(sub))
+    sources = [src for p in parts for src in utterance_sources(p)]
+    return LabelSetData(utts, Y, keywords, folds_by_size(Y), "generated", speaker, desc, len(sub), sources=sources)
 
 
 def _mfcc_one(task: tuple[str, dict]) -> np.ndarray:

@@ -31,6 +31,11 @@ Scores (thesis section 3.3.3): l_single on the test utterances that say one keyw
 l_given_number (the n best-scored keywords are exactly the n said) and l_full (the
 predicted set is exactly the set said) on all test utterances; chance levels beside them.
 
+Splits are grouped by source recording (``split_groups``): the utterances of a test fold
+are composed from that fold's recordings only (generated data: each sentence is its own
+recording). This experiment goes beyond the thesis, which runs no learner on label sets of
+speech: its claims are ours.
+
 Random streams (:func:`~mmconcepts.experiments.base.streams`): folds from ``splits``,
 compositions and the draw of generated sentences from ``data``, codebooks, dictionaries,
 trees and inner threshold cross-validation from ``learner``, the chance learner's
@@ -60,6 +65,8 @@ from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .config import PresetConfig
 from .registry import register
+from .splits import describe_split
+from .uncertainty import SampleUnit
 
 __all__ = ["Config", "compute", "present", "run", "SCORES", "LEARNERS", "vote_threshold", "uniform_chance",
            "chance_learner"]
@@ -99,7 +106,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
-    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, n_single=150, n_double=150, threshold_cv=3, hac_fit_frames=20_000)
+    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, n_single=150, n_double=150, threshold_cv=3,
+                 hac_fit_frames=20_000)
 
 
 def vote_threshold(bags: list[np.ndarray], tags: list[tuple], Y: np.ndarray, keywords: list[str], *, cv: int,
@@ -241,7 +249,13 @@ def compute(config: Config, ctx: RunContext) -> Result:
               "seed": common.sub_seed(st.learner, i), "chance_seed": common.sub_seed(st.reference, i)}
              for i in range(n_folds)]
     folds = ctx.parallel(_fold, tasks, desc="folds")
-    return _result(config, ctx, data, Y, folds)
+    split = describe_split(
+        {"composed": "source recordings of the composed utterances (a test fold's utterances are composed from that "
+                     "fold's recordings only)",
+         "generated": "recordings (one per generated sentence)",
+         "as-recorded": "recordings (one per utterance)"}.get(data.kind, "source recordings"),
+        common.fold_sources(data.sources, data.fold))
+    return _result(config, ctx, data, Y, folds, split)
 
 
 def _weighted(values: list[float], weights: list[float]) -> float:
@@ -250,7 +264,8 @@ def _weighted(values: list[float], weights: list[float]) -> float:
     return float(np.average(v[ok], weights=w[ok])) if ok.any() else float("nan")
 
 
-def _result(config: Config, ctx: RunContext, data: common.LabelSetData, Y: np.ndarray, folds: list[dict]) -> Result:
+def _result(config: Config, ctx: RunContext, data: common.LabelSetData, Y: np.ndarray, folds: list[dict],
+            split: dict) -> Result:
     n_folds = len(folds)
     sizes = [float(len(f["test"])) for f in folds]
     singles = [float(np.sum(Y[f["test"]].sum(axis=1) == 1)) for f in folds]
@@ -297,7 +312,10 @@ def _result(config: Config, ctx: RunContext, data: common.LabelSetData, Y: np.nd
     return Result(
         metrics=metrics,
         samples=samples,
-        sample_units={name: "folds" for name in samples},
+        sample_units={name: f"{n_folds} folds" for name in samples},
+        units={f"{n_folds} folds": SampleUnit.folds(n_folds, f"{n_folds} folds of the speaker's utterances (stratified "
+                                                             "by number of keywords or by keyword)")},
+        split_groups={"label_sets": split},
         tables={
             "scores": Table("Chapter 3 scores from label sets (pooled over the folds)",
                             ["score", "nmf", "voting", "nmf - voting", "chance (better of the two)",
@@ -315,7 +333,8 @@ def _result(config: Config, ctx: RunContext, data: common.LabelSetData, Y: np.nd
             f"Utterances: {data.description}; {Y.shape[1]} keywords, {metrics['mean_words']:.2f} keywords per "
             f"utterance on average ({metrics['single_fraction']:.0%} say one). {n_folds} folds; codebooks, "
             "dictionary, tree and thresholds are fitted on each training fold only.",
-            f"NMF: LabelNMF, I-divergence, k = {config.n_components}, {config.max_iter} iterations (thesis section 6.6), "
+            f"NMF: LabelNMF, I-divergence, k = {config.n_components}, {config.max_iter} iterations (thesis section "
+            "6.6), "
             "label part weighted to the HAC part's average L1 norm, HAC columns never observed in the training fold "
             f"left out; threshold eta by {config.threshold_cv}-fold cross-validation on the training utterances (best "
             f"pooled l_full; mean {metrics['nmf.threshold']:.3f}). The objective had not settled to tol 1e-4 in "
@@ -338,10 +357,14 @@ def _result(config: Config, ctx: RunContext, data: common.LabelSetData, Y: np.nd
             "with a random tie-break from the reference stream; label set = the most frequent training set) and a "
             "uniform guess (1/K; 1/C(K, n) given n; for l_full a number of keywords drawn from the training "
             "utterances' numbers, then that many at random: p(n)/C(K, n)).",
-            "The thesis gives no number for section 5.4 and compares the two systems only with one keyword per "
-            "utterance ('our results are quite similar', section 5.2.4, on the NMF of the cited work). The claims "
-            "carry that expectation over to label sets with the margin of ch5-nmf-keywords (0.15); the differences "
-            "nmf - voting are reported with their spread whichever way they go.",
+            "Claim kinds: the thesis runs no learner on label sets of speech (section 5.4 describes the cited "
+            "work's setting and reports no number), so every claim here is ours. 'Quite similar' is the thesis' "
+            "word for its voting system against the cited work's NMF with one keyword per utterance (section "
+            "5.2.4); carrying it over to label sets, and the margin 0.15, are ours. The differences nmf - voting are "
+            "reported with their spread whichever way they go.",
+            f"Spread: per-fold values, paired by fold; intervals and verdicts use the corrected resampled t of "
+            f"{n_folds}-fold cross-validation. Split: {split['by']}; no recording is behind both a training and a "
+            "test utterance of a fold (split_groups).",
         ],
     )
 
@@ -382,11 +405,13 @@ EXPERIMENT = register(Experiment(
         Claim("TF-IDF voting with label sets reconstructs the exact set of keywords said (l_full) above chance.",
               "voting.l_full > chance.l_full"),
         Claim("Given the number of keywords, both learners name them above chance (l_given_number).",
-              "min(nmf.l_given_number - chance.l_given_number, voting.l_given_number - chance.l_given_number) > 0"),
-        Claim("The two learners are quite similar (section 5.2.4, said for one keyword per utterance) on label sets "
-              "too: l_given_number within 0.15.", "abs(nmf.l_given_number - voting.l_given_number) < 0.15"),
-        Claim("The two learners are quite similar (section 5.2.4) on label sets in reconstructing the exact set "
-              "too: l_full within 0.15.", "abs(nmf.l_full - voting.l_full) < 0.15"),
+              "nmf.l_given_number > chance.l_given_number and voting.l_given_number > chance.l_given_number"),
+        Claim("The two learners are quite similar on label sets in naming the keywords given their number (our "
+              "margin: l_given_number within 0.15; the thesis says 'quite similar' of one keyword per utterance).",
+              "abs(nmf.l_given_number - voting.l_given_number) < 0.15"),
+        Claim("The two learners are quite similar on label sets in reconstructing the exact set (our margin: l_full "
+              "within 0.15; the thesis says 'quite similar' of one keyword per utterance).",
+              "abs(nmf.l_full - voting.l_full) < 0.15"),
     ],
     datasets=("acorns", "fsdd", "audio"),
     description=__doc__.split("\n\n")[0],

@@ -1,6 +1,6 @@
 """ch5-nmf-keywords: weakly supervised keyword recognition with HAC + NMF beside cluster-tree voting.
 
-Thesis sections 5.3-5.4 (and the S+L -> L protocol of section 6.6, Table 6.4). Utterances
+Thesis sections 5.3-5.4 (and the S+L -> L protocol of section 6.6.1, Table 6.4). Utterances
 of one speaker (the first in sorted order, as speaker 1 in chapter 6), split by
 stratified k-fold cross-validation. Two settings:
 
@@ -31,7 +31,11 @@ the accuracy of the best-scored keyword (l_single); several keywords, l_given_nu
 (the n best-scored keywords are exactly the n said), the keyword recall (the fraction of
 the keywords said that are among the n best-scored) and, for NMF, l_full (the thresholded
 activations are exactly the set said; threshold by cross-validation on the training
-utterances).
+utterances, not measured when ``threshold_cv`` is 0, as in the quick preset).
+
+Every split is grouped by source recording (``split_groups``): one speaker's recordings
+in stratified folds (speaker-dependent, as the thesis' speaker 1), and a test fold's
+composed utterances made of that fold's recordings only.
 
 Random streams (:func:`~mmconcepts.experiments._ch5_common.streams`): the folds use the
 ``splits`` stream, the compositions the ``data`` stream, codebooks, dictionaries, inner
@@ -57,8 +61,13 @@ from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .config import PresetConfig
 from .registry import register
+from .splits import describe_split
+from .uncertainty import SampleUnit
 
-__all__ = ["Config", "compute", "present", "run"]
+__all__ = ["Config", "compute", "present", "run", "REFERENCE"]
+
+#: The thesis' number for this protocol: Table 6.4, S+L -> L (speaker 1, cross-validation; std 0.034 over folds).
+REFERENCE = {"nmf.accuracy": 0.916}
 
 
 @dataclass(frozen=True)
@@ -68,7 +77,8 @@ class Config(PresetConfig):
     ``n_composed_per_fold`` utterances of ``min_words`` to ``max_words`` recordings, with
     pauses of ``min_pause_s`` to ``max_pause_s`` seconds between them, are composed from the
     recordings of each fold (10 folds x 100 = 1000 utterances, the size of a Caregiver
-    speaker, in the full preset).
+    speaker, in the full preset). ``threshold_cv``: inner folds choosing NMF's threshold for
+    l_full with several keywords (0: no threshold, l_full not measured).
     """
 
     n_per_speaker: int = 1000
@@ -88,7 +98,7 @@ class Config(PresetConfig):
     seed: int = 0
 
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
-    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=3, hac_fit_frames=20_000)
+    QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=0, hac_fit_frames=20_000)
 
 
 def _observed(X) -> np.ndarray:
@@ -131,10 +141,11 @@ def _fold(task: dict) -> dict:
         Ctr = hac.transform([c_hac[i] for i in ctr])
         ckeep = _observed(Ctr)
         Cte = hac.transform([c_hac[i] for i in cte])
-        cmodel = LabelNMF(cfg["n_components"], threshold="cv", cv=cfg["threshold_cv"], **nmf).fit(
-            Ctr[:, ckeep], Y[ctr])
+        with_threshold = cfg["threshold_cv"] >= 2
+        threshold = dict(threshold="cv", cv=cfg["threshold_cv"]) if with_threshold else dict(threshold=0.5)
+        cmodel = LabelNMF(cfg["n_components"], **threshold, **nmf).fit(Ctr[:, ckeep], Y[ctr])
         S = cmodel.label_activations(Cte[:, ckeep])
-        P = cmodel.predict(Cte[:, ckeep])
+        P = cmodel.predict(Cte[:, ckeep]) if with_threshold else None
         cvoter = common.make_voter(task["voting"], [c_win[i] for i in ctr], seed=seed)
         cvoter.partial_fit([c_win[i] for i in ctr], [tuple(keywords[j] for j in np.flatnonzero(Y[i])) for i in ctr])
         V = cvoter.decision_function([c_win[i] for i in cte])
@@ -144,20 +155,18 @@ def _fold(task: dict) -> dict:
     Yte = Y[cte]
     return {"test": te, "nmf": nmf_pred, "voting": vote_pred, "n_iter": int(model.n_iter_), "unsettled": n_conv,
             "composed": {"nmf.l_given_number": l_given_number(Yte, S), "nmf.keyword_recall": _recall(Yte, S),
-                         "nmf.l_full": l_full(Yte, P), "voting.l_given_number": l_given_number(Yte, V),
+                         "nmf.l_full": l_full(Yte, P) if P is not None else float("nan"),
+                         "voting.l_given_number": l_given_number(Yte, V),
                          "voting.keyword_recall": _recall(Yte, V),
                          "chance.l_given_number": float(np.mean([1 / comb(Y.shape[1], int(n)) for n in Yte.sum(1)])),
                          "chance.keyword_recall": float(np.mean(Yte.sum(1) / Y.shape[1]))},
-            "threshold": float(cast(float, cmodel.threshold_))}
+            "threshold": float(cast(float, cmodel.threshold_)) if with_threshold else float("nan")}
 
 
 def _plan(config: Config, y: np.ndarray, s: common.Streams) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Stratified folds of the speaker's recordings, from the ``splits`` stream."""
-    from sklearn.model_selection import StratifiedKFold
-
-    counts = np.unique(y, return_counts=True)[1]
-    n_folds = min(config.n_folds, int(counts.min()))
-    return list(StratifiedKFold(n_folds, shuffle=True, random_state=s.splits).split(np.zeros(len(y)), y))
+    """Stratified folds of the speaker's recordings, from the ``splits`` stream: (train, test) indices per fold."""
+    fold = common.recording_folds(y, config.n_folds, s.splits)
+    return [(np.flatnonzero(fold != i), np.flatnonzero(fold == i)) for i in range(int(fold.max()) + 1)]
 
 
 def compute(config: Config, ctx: RunContext) -> Result:
@@ -177,12 +186,24 @@ def compute(config: Config, ctx: RunContext) -> Result:
     win_seqs = common.corpus_windows(ctx, sub, win_cfg, window_ms=config.window_ms)
 
     # utterances of several keywords, composed fold by fold from that fold's recordings
-    parts = [common.composed_corpus(ctx, sub.subset(te), n_utterances=config.n_composed_per_fold,
-                                    seed=common.sub_seed(st.data, i),
-                                    n_words=(config.min_words, config.max_words),
-                                    pause_s=(config.min_pause_s, config.max_pause_s))
-             for i, (_, te) in enumerate(splits)]
+    rec_fold = np.full(len(y), -1)
+    for i, (_, te) in enumerate(splits):
+        rec_fold[te] = i
+    parts = common.compose_by_fold(ctx, sub, rec_fold, n_composed=config.n_composed_per_fold, seed=st.data,
+                                   n_words=(config.min_words, config.max_words),
+                                   pause_s=(config.min_pause_s, config.max_pause_s))
     fold_of = np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)])
+    rec_sources = common.utterance_sources(sub)
+    c_sources = [src for p in parts for src in common.utterance_sources(p)]
+    split_groups = {
+        "one_keyword": describe_split("recordings (one per utterance; speaker-dependent, one speaker as in Table 6.4)",
+                                      common.fold_sources(rec_sources, rec_fold)),
+        # the learner of fold i also fits its HAC codebooks on the training recordings (fold != i)
+        "several_keywords": describe_split(
+            "source recordings of the composed utterances (a test fold's utterances are composed from that fold's "
+            "recordings only; the training side also holds the recordings the codebooks are fitted on)",
+            common.fold_sources(c_sources, fold_of, extra_train=[(rec_sources, rec_fold)])),
+    }
     c_hac = [x for p in parts for x in common.corpus_mfcc(ctx, p, hac_cfg)]
     c_win = [x for p in parts for x in common.corpus_windows(ctx, p, win_cfg, window_ms=config.window_ms)]
     Y = np.vstack([p.label_matrix(keywords) for p in parts])
@@ -220,22 +241,27 @@ def compute(config: Config, ctx: RunContext) -> Result:
     for name in folds[0]["composed"]:
         vals = [f["composed"][name] for f in folds]
         metrics[f"composed.{name}"] = float(np.average(vals, weights=c_sizes))
-        samples[f"composed.{name}"] = vals
+        if np.isfinite(vals).all():  # l_full without a threshold: not measured
+            samples[f"composed.{name}"] = vals
     metrics["composed.n_utterances"] = float(len(Y))
     metrics["composed.mean_words"] = float(n_words.mean())
     metrics["composed.nmf.threshold"] = float(np.mean([f["threshold"] for f in folds]))
+    unit = f"{n_folds} folds"
 
     rows = []
     for kw in keywords:
         m = y == kw
         rows.append([kw, int(m.sum()), float(np.mean(pred["nmf"][m] == kw)), float(np.mean(pred["voting"][m] == kw))])
     rows.append(["all", len(y), metrics["nmf.accuracy"], metrics["voting.accuracy"]])
-    c_rows = [[name, metrics[f"composed.{name}"], float(np.std(samples[f"composed.{name}"]))]
+    c_rows = [[name, metrics[f"composed.{name}"], float(np.std([f["composed"][name] for f in folds]))]
               for name in folds[0]["composed"]]
     return Result(
         metrics=metrics,
         samples=samples,
-        sample_units={name: "folds" for name in samples},  # composed utterances of fold i: fold i's recordings
+        sample_units={name: unit for name in samples},  # composed utterances of fold i: fold i's recordings
+        units={unit: SampleUnit.folds(n_folds, f"{n_folds} stratified folds of the speaker's recordings (the "
+                                               "composed utterances of a fold are made of its recordings)")},
+        split_groups=split_groups,
         tables={"per_keyword": Table("One keyword per utterance: recognition rate per keyword",
                                      ["keyword", "n", "nmf", "voting"], rows),
                 "composed": Table("One or several keywords per utterance (section 5.4): mean over folds",
@@ -253,19 +279,37 @@ def compute(config: Config, ctx: RunContext) -> Result:
                "Scores with several keywords, as thesis section 3.3.3 (to which section 5.4 refers): l_given_number "
                "(the n best-scored keywords are exactly the n said), keyword recall (share of the keywords said "
                "among the n best-scored) and l_full (NMF only: activations above a threshold chosen by "
-               f"{config.threshold_cv}-fold cross-validation on the training utterances are exactly the set said). "
-               "Chance: 1/C(10, n) and n/10 for a random set of n keywords.",
+               f"{config.threshold_cv}-fold cross-validation on the training utterances are exactly the set said; "
+               "not measured when no threshold is chosen, as in the quick preset, where the inner cross-validation "
+               "took about half of the experiment's CPU time for a score no claim reads: ch5-label-sets measures "
+               "l_full). Chance: 1/C(10, n) and n/10 for a random set of n keywords.",
                f"NMF: k = {config.n_components}, {config.max_iter} multiplicative updates (thesis section 6.6: k = 50, "
                "50 iterations); HAC columns never observed in the training fold are left out of the factorization "
                "(under I-divergence updates their dictionary entries are zero after one update, so they only cost "
                f"time). The objective had not settled to tol 1e-4 in {sum(f['unsettled'] > 0 for f in folds)} of "
                f"{len(folds)} folds (it stops at the iteration limit, as in the thesis).",
-               "The thesis gives no number for section 5.4; the reference is its Table 6.4 (S+L -> L, speaker 1 of "
-               "the Caregiver corpus, 10-fold CV, 0.916 +- 0.034), which is the one-keyword protocol on real speech. "
-               "Spread: per-fold values (samples), paired by fold (the composed utterances of a fold are made of "
-               "that fold's recordings); the chance levels are computed, not drawn. Magnitude: the project's uniform "
-               "rule, at least three quarters of the thesis' number (before issue 12's round: within 0.1 of 0.916, "
-               "a rule of this experiment alone)."],
+               "The thesis gives no number for section 5.4. Its number for this protocol is Table 6.4's S+L -> L "
+               "(section 6.6.1: NMF on the HAC of speaker 1's Caregiver utterances stacked with the label vectors, "
+               f"labels recognised from the sound alone, cross-validation; {REFERENCE['nmf.accuracy']:g}): the "
+               "one-keyword setting "
+               "here, so nmf.accuracy is set beside it as a magnitude (ours / thesis with our interval). It is the "
+               "thesis' protocol on the thesis' data only with ACORNS; on FSDD (isolated digits) and on the "
+               "generated corpus the ratio compares the same protocol on other speech.",
+               f"Spread: per-fold values (samples), paired by fold (the composed utterances of a fold are made of "
+               f"that fold's recordings); intervals and verdicts use the corrected resampled t of {n_folds}-fold "
+               "cross-validation; the chance levels are computed, not drawn.",
+               "Split: one speaker's recordings, split by recording into stratified folds (speaker-dependent, as "
+               "Table 6.4's speaker 1 alone); with several keywords, a test fold's utterances are composed from that "
+               "fold's recordings only, so no recording behind a test utterance is behind a training utterance or is "
+               "a training recording (split_groups).",
+               "Claim kinds: the magnitude claim is the thesis' number. Reclassified as ours: 'far above chance' "
+               "(three times chance for one keyword, ten times for the set given its size: the thesis gives no bar); "
+               "'the two systems reach similar accuracies within 0.15' (section 5.2.4 says the voting system's "
+               "results are 'quite similar' to the cited work's NMF results and gives no margin: 0.15 is ours); "
+               "'keyword recall at most 0.1 below the one-keyword accuracy' (our expectation from the additive property "
+               "of HAC, section 5.3, which the thesis states for the representation, not for recognition; 0.1 is "
+               "ours). Dropped: 'at least three quarters of the thesis' number' (a pass/fail at an invented fraction; "
+               "the magnitude claim replaces it)."],
     )
 
 
@@ -296,22 +340,23 @@ EXPERIMENT = register(Experiment(
     config_cls=Config,
     compute=compute,
     present=present,
-    reference={"nmf.accuracy": 0.916},
+    reference=REFERENCE,
     claims=[
-        Claim("Weak supervision by keyword tags is enough for NMF on HAC to recognise keywords far above chance.",
-              "nmf.accuracy > 3 * chance.accuracy"),
-        Claim("The recognition rate is of the order of the thesis' (Table 6.4, S+L -> L: 0.916 +- 0.034): at least "
-              "three quarters of the thesis' 0.916 (the project's uniform magnitude rule).",
-              "nmf.accuracy >= 0.75 * 0.916"),
-        Claim("The cluster-tree voting system also recognises keywords far above chance.",
-              "voting.accuracy > 3 * chance.accuracy"),
-        Claim("The two systems reach similar accuracies (section 5.2.4: 'quite similar'), within 0.15.",
+        Claim("NMF's recognition rate with one keyword per utterance (S+L -> L) against the thesis' "
+              "{thesis:nmf.accuracy} (Table 6.4: speaker 1, cross-validation).",
+              "nmf.accuracy", kind="magnitude", source="Section 6.6.1, Table 6.4 (line 5668)"),
+        Claim("Weak supervision by keyword tags is enough for NMF on HAC to recognise keywords far above chance (our "
+              "bar: three times chance).", "nmf.accuracy > 3 * chance.accuracy"),
+        Claim("The cluster-tree voting system also recognises keywords far above chance (our bar: three times "
+              "chance).", "voting.accuracy > 3 * chance.accuracy"),
+        Claim("The two systems reach similar accuracies (section 5.2.4: 'quite similar'; our margin: within 0.15).",
               "abs(nmf.accuracy - voting.accuracy) < 0.15"),
         Claim("With one or several keywords per utterance (section 5.4), NMF reconstructs the whole set said, "
-              "given its size, far above chance (ten times).",
+              "given its size, far above chance (our bar: ten times chance).",
               "composed.nmf.l_given_number > 10 * composed.chance.l_given_number"),
-        Claim("The additive property of HAC (section 5.3) lets NMF name each keyword of an utterance of several "
-              "nearly as well as a keyword said alone: keyword recall within 0.1 of the one-keyword accuracy.",
+        Claim("NMF names each keyword of an utterance of several nearly as well as a keyword said alone (our bar: "
+              "keyword recall at most 0.1 below the one-keyword accuracy; our expectation from the additive property "
+              "of HAC, section 5.3).",
               "composed.nmf.keyword_recall > nmf.accuracy - 0.1"),
     ],
     datasets=("acorns", "fsdd", "audio"),
