@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from conftest import real_data_path
-from mmconcepts.experiments import RunContext
+from mmconcepts.errors import ExperimentError
+from mmconcepts.experiments import RunContext, SampleUnit, describe_split
 from mmconcepts.experiments import _ch3_common as common
 
 
@@ -230,3 +233,160 @@ def test_score_units_cut_leave_one_out_into_blocks_from_the_seed():
 def test_fold_thresholds_in_fold_order():
     folds = [{"test": np.array([i]), "nmf_frobenius": {"threshold": t}} for i, t in enumerate((0.3, 0.45, 0.2))]
     assert common.fold_thresholds(folds, "nmf_frobenius") == [0.3, 0.45, 0.2]
+
+
+# --------------------------------------------------------------------------- splits grouped by source recording
+_ACTIONS = common.MSR_ARM_ACTIONS + common.MSR_LEG_ACTIONS + (13, 20)  # 13, 20: used by no mixture
+
+
+@st.composite
+def _recordings(draw):
+    """A table of recordings (action, subject) as MSR Action3D's, of any size and with any gaps."""
+    n_subjects = draw(st.integers(1, 4))
+    actions, subjects = [], []
+    for s in range(n_subjects):
+        for a in draw(st.lists(st.sampled_from(_ACTIONS), min_size=0, max_size=30)):
+            actions.append(a)
+            subjects.append(s + 1)
+    return np.array(actions, dtype=np.int64), np.array(subjects, dtype=np.int64)
+
+
+def _check_plan(actions, subjects, subset, sources, labels, parts, n_parts):
+    rec_part = common.source_parts(actions, subjects, n_parts, 7)
+    assert len(sources) == len(labels) == len(parts)
+    for src, lab, p in zip(sources, labels, parts):
+        assert {int(rec_part[r]) for r in src} == {int(p)}  # every recording of a mixture is in the mixture's part
+        assert len({int(subjects[r]) for r in src}) == 1  # one subject per mixture
+        assert actions[src[0]] in common.MSR_ARM_ACTIONS and actions[src[-1]] in common.MSR_LEG_ACTIONS
+        want = [int(actions[src[0]])] + ([common.LEFT_ARM_OFFSET + int(actions[src[1]])] if len(src) == 3 else []) \
+            + [int(actions[src[-1]])]
+        assert list(lab) == want
+        if subset == "mixed_full":
+            assert len(src) == 3 and actions[src[1]] in common.MSR_ARM_ACTIONS and actions[src[1]] != actions[src[0]]
+        else:
+            assert len(src) == 2
+
+
+@settings(max_examples=80, deadline=None)
+@given(_recordings(), st.sampled_from(["mixed_partial", "mixed_full"]), st.integers(2, 8), st.integers(0, 2**31 - 2),
+       st.booleans())
+def test_msr_mixture_folds_never_put_a_recording_on_both_sides(recs, subset, n_parts, seed, unseen):
+    """Mixtures built per part of their recordings, split by part (and without the test part's combinations for
+    unseen ones): no recording behind a test mixture is behind a training mixture."""
+    actions, subjects = recs
+    sources, labels, parts = common.msr_mixture_plan(actions, subjects, subset, seed=seed, n_parts=n_parts,
+                                                     split_seed=7)
+    _check_plan(actions, subjects, subset, sources, labels, parts, n_parts)
+    if len(sources) < 2:
+        return
+    ids = sorted({l for ls in labels for l in ls})
+    Y = np.zeros((len(labels), len(ids)))
+    for r, ls in enumerate(labels):
+        Y[r, [ids.index(l) for l in ls]] = 1
+    arrays = common.MotionArrays([np.zeros((2, 16))] * len(Y), Y, ids, "msr-action3d", "", sources=sources,
+                                 parts=parts)
+    splits = common.example_splits(arrays, 3, seed=0, unseen=unseen)
+    if not splits:
+        return
+    folds = common.split_sources(arrays, splits)
+    for tr, te in folds:
+        assert not {r for s in tr for r in s} & {r for s in te for r in s}
+    assert describe_split("recordings", folds)["shared_sources"] == 0
+    combos = common.combination_ids(Y)
+    tested = np.concatenate([te for _, te in splits])
+    assert len(tested) == len(set(tested.tolist()))  # each mixture tested at most once
+    for tr, te in splits:
+        assert len(set(parts[te].tolist())) == 1
+        if unseen:
+            assert not set(combos[te].tolist()) & set(combos[tr].tolist())
+
+
+def test_source_parts_spread_each_subject_over_the_parts():
+    rng = np.random.default_rng(0)
+    actions = np.array([a for s in range(3) for a in rng.permutation(
+        np.repeat(common.MSR_ARM_ACTIONS + common.MSR_LEG_ACTIONS, 3))])
+    subjects = np.repeat([1, 2, 3], 3 * 18)
+    part = common.source_parts(actions, subjects, 5, seed=3)
+    assert (part >= 0).all()
+    for s in (1, 2, 3):
+        legs = part[(subjects == s) & np.isin(actions, common.MSR_LEG_ACTIONS)]
+        assert sorted(np.bincount(legs, minlength=5)) == [1, 2, 2, 2, 2]  # 9 legs dealt round robin
+        arms = part[(subjects == s) & np.isin(actions, common.MSR_ARM_ACTIONS)]
+        assert np.bincount(arms, minlength=5).min() == 9  # 45 arm recordings, 9 per part
+        for a in common.MSR_ARM_ACTIONS:  # one action's recordings of a subject in different parts
+            assert len(set(part[(subjects == s) & (actions == a)].tolist())) == 3
+    assert not np.array_equal(part, common.source_parts(actions, subjects, 5, seed=4))  # drawn from the seed
+    # a subject with fewer leg recordings than parts deals its arms only over the parts that have its legs
+    few = common.source_parts(np.array([14, 15, 1, 1, 2, 2, 3]), np.ones(7, int), 6, seed=0)
+    assert set(few[2:].tolist()) <= set(few[:2].tolist())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(4, 60), st.integers(2, 12), st.integers(0, 1000), st.booleans(), st.booleans())
+def test_independent_recordings_folds_keep_every_example_on_one_side(n, n_folds, seed, unseen, loo):
+    """Synthetic / Choreo1 / MSR single sequences are each their own recording: k-fold, leave-one-out and the
+    unseen-combination splits never put an example (its recording) on both sides, and unseen test combinations
+    are absent from training."""
+    rng = np.random.default_rng(seed)
+    Y = np.zeros((n, 6))
+    for row in Y:
+        row[rng.choice(6, rng.integers(1, 3), replace=False)] = 1
+    arrays = common.MotionArrays([np.zeros((2, 16))] * n, Y, list(range(6)), "synthetic", "")
+    splits = common.example_splits(arrays, None if loo else min(n_folds, n), seed, unseen=unseen)
+    if not splits:  # a single label combination: no unseen-combination split exists
+        assert unseen and len(set(common.combination_ids(Y).tolist())) == 1
+        return
+    groups = common.split_groups(arrays, splits)
+    assert groups["shared_sources"] == 0 and "independent draw" in groups["by"]
+    tested = np.sort(np.concatenate([te for _, te in splits]))
+    np.testing.assert_array_equal(tested, np.arange(n))  # every example tested once
+    combos = common.combination_ids(Y)
+    for tr, te in splits:
+        assert not set(tr.tolist()) & set(te.tolist())
+        if unseen:
+            assert not set(combos[te].tolist()) & set(combos[tr].tolist())
+
+
+def test_split_groups_raise_on_a_shared_recording():
+    Y = np.eye(2)[[0, 1, 0, 1]]
+    arrays = common.MotionArrays([np.zeros((2, 16))] * 4, Y, [0, 1], "msr-action3d", "",
+                                 sources=[(0, 9), (1, 8), (2, 9), (3, 7)], parts=np.array([0, 0, 1, 1]))
+    with pytest.raises(ExperimentError, match="recording"):  # recording 9 is behind a mixture of each part
+        common.split_groups(arrays, common.part_splits(arrays.parts))
+
+
+def test_part_splits_leave_out_the_test_combinations_only_when_asked():
+    parts = np.array([0, 0, 1, 1, 2, 2])
+    Y = np.eye(3)[[0, 1, 0, 2, 2, 1]]
+    plain = common.part_splits(parts)
+    assert [te.tolist() for _, te in plain] == [[0, 1], [2, 3], [4, 5]]
+    assert [tr.tolist() for tr, _ in plain] == [[2, 3, 4, 5], [0, 1, 4, 5], [0, 1, 2, 3]]
+    unseen = common.part_splits(parts, Y)
+    assert [tr.tolist() for tr, _ in unseen] == [[3, 4], [1, 5], [0, 2]]
+
+
+def test_fold_unit_is_k_fold_or_the_measured_ratio():
+    unit = common.fold_unit(common.kfold_splits(20, 4, 0), "x")
+    assert unit == SampleUnit.folds(4, "4 folds of x")
+    loo = common.fold_unit(common.kfold_splits(7, None, 0), "x")
+    assert loo.test_train_ratio == pytest.approx(1 / 6)  # leave-one-out over n is folds(n)
+    pruned = common.fold_unit(common.part_splits(np.array([0, 0, 1, 1, 2, 2]), np.eye(3)[[0, 1, 0, 2, 2, 1]]), "x")
+    assert pruned.kind == "resampled" and pruned.test_train_ratio == pytest.approx(1.0)  # 2 tested, 2 trained
+
+
+def test_msr_mixtures_in_parts_share_no_recording_across_parts():
+    folder = real_data_path("msr-action3d")
+    for subset in ("mixed_partial", "mixed_full"):
+        a = common.msr_subset(folder, subset, seed=0, n_records=150, n_parts=common.MSR_PARTS, split_seed=1)
+        assert len(np.unique(a.parts)) == common.MSR_PARTS and len(a.Y) == 150
+        for unseen in (False, True):
+            splits = common.example_splits(a, 10, seed=0, unseen=unseen)
+            assert common.split_groups(a, splits)["shared_sources"] == 0
+        # the splits stream deals the recordings: another split seed, other parts and other mixtures
+        b = common.msr_subset(folder, subset, seed=0, n_records=150, n_parts=common.MSR_PARTS, split_seed=2)
+        assert a.sources != b.sources
+    # without parts the mixtures share recordings across any split by example (why they are built per part)
+    c = common.msr_subset(folder, "mixed_partial", seed=0)
+    assert c.parts is None
+    legs = [s[-1] for s in c.sources]
+    assert len(set(legs)) < len(legs) / 3  # a leg recording joins several mixtures

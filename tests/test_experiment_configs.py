@@ -42,7 +42,7 @@ def test_presets_are_class_data_not_fields():
     assert {"QUICK", "FULL"}.isdisjoint(f.name for f in dataclasses.fields(Unseen))
     assert "QUICK" not in dataclasses.asdict(Unseen.quick())
     # a subclass extends its base's presets: ch3-unseen's quick preset is ch3-choreography's without the sensitivity
-    assert Unseen.quick() == Unseen(**dataclasses.asdict(dataclasses.replace(Choreography.quick(), sensitivity=False)))
+    assert Unseen.quick() == Unseen(**dataclasses.asdict(dataclasses.replace(Choreography.quick(), n_folds=5)))
     assert Unseen.full() == Unseen(**dataclasses.asdict(Choreography.full()))
 
 

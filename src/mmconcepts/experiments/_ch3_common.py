@@ -13,9 +13,19 @@ Thesis section 3.3. What the experiments have in common:
 - :func:`streams`: the independent random streams of an experiment (data, learner
   initialisation, splits, reference draws) spawned from its seed: the seed that drew the
   data never reaches a learner.
-- Splits: :func:`kfold_splits` (k-fold or leave-one-out, thesis section 3.3.1) and
+- Splits, grouped by source recording (no recording behind a test example feeds a training
+  example): :func:`example_splits` gives a protocol's (train, test) folds for a data set,
+  :func:`split_groups` checks and describes them for the record. Examples that are each
+  their own recording (Choreo1 demonstrations, synthetic draws, MSR single sequences) use
+  :func:`kfold_splits` (k-fold or leave-one-out, thesis section 3.3.1) and
   :func:`unseen_combination_splits` (test folds made only of label combinations absent from
-  their training folds, thesis Table 3.3: whole combinations are held out together).
+  their training folds, thesis Table 3.3: whole combinations held out together). The MSR
+  limb mixtures reuse their source recordings (a leg recording is spliced into about five
+  mixtures), so they are built per *part*: the recordings are dealt into parts first
+  (:func:`source_parts`, from the splits stream) and each part's mixtures are made of its
+  own recordings only (:func:`msr_mixture_plan`); the folds are the parts
+  (:func:`part_splits`), and for unseen combinations each fold's training set also leaves
+  out the mixtures whose combination its test part shows.
 - :func:`evaluate_folds` runs one fold per task through ``ctx.parallel``: histograms
   (grids / codebooks) are fitted on the fold's training recordings only, then each learner
   is fitted on the training examples and scores the test examples. Fold results are cached
@@ -59,6 +69,8 @@ from .._fingerprint import code_fingerprint
 from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
 from .base import RunContext, Streams, array_digest, streams
+from .splits import describe_split
+from .uncertainty import SampleUnit
 
 __all__ = [
     "MotionArrays",
@@ -67,13 +79,20 @@ __all__ = [
     "data_kind",
     "data_source_note",
     "evaluate_folds",
+    "example_splits",
     "fold_samples",
+    "fold_unit",
     "fold_thresholds",
     "kfold_splits",
+    "msr_mixture_plan",
     "msr_subset",
+    "part_splits",
     "pooled",
     "pooled_scores",
     "score_units",
+    "source_parts",
+    "split_groups",
+    "split_sources",
     "streams",
     "subset_arrays",
     "unseen_combination_splits",
@@ -91,6 +110,12 @@ class MotionArrays:
     angles : list of (T_i, 16) arrays (joint angles, :data:`~mmconcepts.motion.JOINT_ANGLE_NAMES`)
     Y : (n, L) binary label matrix; label_ids : the L label ids (columns of Y)
     source : "choreo1", "msr-action3d" or "synthetic"; description : what it is, in words
+    sources : per example, the ids of the recordings it is made of (one for a demonstration
+        recorded as such, two or three for an MSR limb mixture); None means each example is
+        its own recording
+    parts : (n,) int array or None: the part of the source recordings each example was
+        built from (MSR limb mixtures, :func:`msr_mixture_plan`); its folds are these parts
+        (:func:`part_splits`). None: the examples are independent recordings, split freely.
     """
 
     angles: list[np.ndarray]
@@ -99,6 +124,14 @@ class MotionArrays:
     source: str
     description: str
     info: dict[str, Any] = field(default_factory=dict)
+    sources: list[tuple[Any, ...]] | None = None
+    parts: np.ndarray | None = None
+
+    def example_sources(self) -> list[tuple[Any, ...]]:
+        """The recordings behind each example (each example its own when ``sources`` is None)."""
+        if self.sources is None:
+            return [(i,) for i in range(len(self.Y))]
+        return list(self.sources)
 
 
 def data_kind(ctx: RunContext) -> str:
@@ -116,7 +149,15 @@ def motion_arrays(ds) -> tuple[list[np.ndarray], np.ndarray, list[int]]:
     return angles, ds.label_matrix(label_ids).astype(np.float64), label_ids
 
 
-def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | None = None) -> MotionArrays:
+#: Parts of the source recordings of the MSR limb mixtures, in every preset: the folds of the protocols on
+#: them. A spliced mixture cannot be left out alone (its recordings feed other mixtures), so leave-one-out
+#: becomes leave-one-part-out; with fewer parts the unseen-combination protocol would leave too little training
+#: data (its training sets also drop the test part's combinations).
+MSR_PARTS = 10
+
+
+def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | None = None,
+                  split_seed: int | None = None) -> MotionArrays:
     """The Choreo1 subset ``subset`` from the run's data (choreo1 > msr-action3d > synthetic).
 
     Parameters
@@ -128,6 +169,15 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
     n_records : int, optional
         Keep fewer records (small runs): the first ones of real Choreo1 files, a random
         draw (data stream) of the MSR sets, the first generated ones of the synthetic set.
+    split_seed : int, optional
+        The *splits* stream: deals the recordings of the MSR mixed sets into
+        :data:`MSR_PARTS` parts, within which the mixtures are built (required for them).
+
+    Returns
+    -------
+    MotionArrays
+        Synthetic and Choreo1 examples are each their own recording (``sources`` None); the
+        MSR mixed sets carry ``sources`` and ``parts``.
     """
     if subset not in _SUBSETS:
         raise ValueError(f"subset must be one of {_SUBSETS}; got {subset!r}")
@@ -141,7 +191,13 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
         return MotionArrays(angles, Y, ids, kind, f"real Choreo1 {subset} ({len(Y)} records, {len(ids)} gestures) "
                                                    f"from {folder}")
     if kind == "msr-action3d":
-        return msr_subset(ctx.data["msr-action3d"], subset, seed=seed, n_records=n_records)
+        if subset == "primitive":
+            return msr_subset(ctx.data["msr-action3d"], subset, seed=seed, n_records=n_records)
+        if split_seed is None:
+            raise ValueError("the MSR mixed sets are built per part of their source recordings: pass split_seed "
+                             "(the splits stream)")
+        return msr_subset(ctx.data["msr-action3d"], subset, seed=seed, n_records=n_records, n_parts=MSR_PARTS,
+                          split_seed=split_seed)
     from ..motion.synthetic import make_choreo1
 
     ds = make_choreo1(subset, data_home=ctx.cache_dir, random_state=seed, n_records=n_records)
@@ -186,11 +242,121 @@ def _folder_stamp(folder: Path) -> tuple:
     return tuple(sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in folder.iterdir()))
 
 
-def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None) -> MotionArrays:
+def source_parts(actions: np.ndarray, subjects: np.ndarray, n_parts: int, seed: int) -> np.ndarray:
+    """Deal the source recordings of the MSR limb mixtures into ``n_parts`` parts, per subject.
+
+    Within each subject, the leg-action recordings are sorted by action (random order
+    within an action) and dealt round robin from a random part, so the subject's legs are
+    spread over as many parts as it has leg recordings; its arm-action recordings are dealt
+    the same way over the parts that hold one of its leg recordings (a mixture needs a leg
+    recording of the same subject in the same part). Recordings of other actions get -1.
+
+    Parameters
+    ----------
+    actions, subjects : (n_recordings,) int arrays
+    n_parts : int >= 2
+    seed : int
+        The *splits* stream: the parts are the folds of the protocol.
+
+    Returns
+    -------
+    (n_recordings,) int array, the part of each recording (-1: not used by mixtures)
+    """
+    if n_parts < 2:
+        raise ValueError(f"n_parts must be >= 2; got {n_parts}")
+    actions, subjects = np.asarray(actions), np.asarray(subjects)
+    rng = np.random.default_rng(seed)
+    part = np.full(len(actions), -1, dtype=np.int64)
+    for s in np.unique(subjects):
+        mine = subjects == s
+
+        def deal(which: np.ndarray, slots: np.ndarray) -> None:
+            idx = np.flatnonzero(which)
+            if not idx.size or not slots.size:
+                return
+            order = idx[np.lexsort((rng.random(idx.size), actions[idx]))]  # by action, random within
+            start = int(rng.integers(slots.size))
+            part[order] = slots[(start + np.arange(order.size)) % slots.size]
+
+        deal(mine & np.isin(actions, MSR_LEG_ACTIONS), np.arange(n_parts))
+        deal(mine & np.isin(actions, MSR_ARM_ACTIONS), np.unique(part[mine & np.isin(actions, MSR_LEG_ACTIONS)]))
+    return part
+
+
+def msr_mixture_plan(actions: np.ndarray, subjects: np.ndarray, subset: str, *, seed: int, n_parts: int | None = None,
+                     split_seed: int | None = None
+                     ) -> tuple[list[tuple[int, ...]], list[tuple[int, ...]], np.ndarray | None]:
+    """Which recordings each MSR limb mixture is made of, its label set and its part.
+
+    Parameters
+    ----------
+    actions, subjects : (n_recordings,) int arrays (the primitive set's order)
+    subset : {"mixed_partial", "mixed_full"} (see :func:`msr_subset`)
+    seed : int
+        The *data* stream: which leg (and left-arm) recording joins each arm recording.
+    n_parts : int, optional
+        Deal the recordings into this many parts first (:func:`source_parts`) and build each
+        mixture from recordings of its own part only, so that splits by part never put a
+        recording on both sides. None: every recording of the subject can join (one pool,
+        the mixtures share recordings; split them by part only).
+    split_seed : int, optional
+        The *splits* stream, required with ``n_parts``.
+
+    Returns
+    -------
+    sources : list of tuple of int
+        Per mixture, the recordings (indices) it is made of: (arm, leg) or (right arm, left
+        arm, leg).
+    labels : list of tuple of int
+        Per mixture, its label set.
+    parts : (n_mixtures,) int array or None
+        The part of each mixture's recordings (None without ``n_parts``).
+    """
+    if subset not in ("mixed_partial", "mixed_full"):
+        raise ValueError(f"subset must be 'mixed_partial' or 'mixed_full'; got {subset!r}")
+    actions, subjects = np.asarray(actions), np.asarray(subjects)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
+    if n_parts is not None:
+        if split_seed is None:
+            raise ValueError("n_parts needs split_seed (the splits stream)")
+        rec_part = source_parts(actions, subjects, int(n_parts), split_seed)
+    else:
+        rec_part = np.zeros(len(actions), dtype=np.int64)
+    by_pool: dict[tuple[int, int], list[int]] = {}
+    for i in range(len(actions)):
+        by_pool.setdefault((int(subjects[i]), int(rec_part[i])), []).append(i)
+    sources: list[tuple[int, ...]] = []
+    labels: list[tuple[int, ...]] = []
+    parts: list[int] = []
+    for i in range(len(actions)):
+        if actions[i] not in MSR_ARM_ACTIONS or rec_part[i] < 0:
+            continue
+        mine = by_pool[(int(subjects[i]), int(rec_part[i]))]
+        legs = [j for j in mine if actions[j] in MSR_LEG_ACTIONS]
+        if not legs:
+            continue
+        j = legs[int(rng.integers(len(legs)))]
+        if subset == "mixed_partial":
+            sources.append((i, j))
+            labels.append((int(actions[i]), int(actions[j])))
+            parts.append(int(rec_part[i]))
+            continue
+        others = [k for k in mine if actions[k] in MSR_ARM_ACTIONS and actions[k] != actions[i]]
+        if not others:
+            continue
+        k = others[int(rng.integers(len(others)))]
+        sources.append((i, k, j))
+        labels.append((int(actions[i]), LEFT_ARM_OFFSET + int(actions[k]), int(actions[j])))
+        parts.append(int(rec_part[i]))
+    return sources, labels, (np.array(parts, dtype=np.int64) if n_parts is not None else None)
+
+
+def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None, n_parts: int | None = None,
+               split_seed: int | None = None) -> MotionArrays:
     """A Choreo1-like subset made of real MSR Action3D skeletons (Li, Zhang and Liu 2010).
 
     - ``primitive``: every usable sequence, labelled by its action (20 labels), the analogue
-      of the thesis' single-gesture demonstrations.
+      of the thesis' single-gesture demonstrations; each example is its own recording.
     - ``mixed_partial`` (the small mixed set, thesis 16 gestures): the arm angles (both
       arms) of each sequence of an arm action (15 actions) joined with the torso and leg
       angles of a random sequence of a leg action (forward kick, side kick, jogging) of the
@@ -205,55 +371,48 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None) 
       MSR's one-arm actions are done with the right arm (its left arm barely moves: angle
       sd 0.07-0.14 rad against 0.40-0.65 rad), hence the mirroring.
 
+    A leg recording joins about five mixtures, so the mixtures are not independent
+    examples. With ``n_parts`` the recordings are first dealt into parts (splits stream,
+    :func:`source_parts`) and each mixture is made of recordings of one part
+    (:func:`msr_mixture_plan`): the parts are folds that keep every recording on one side.
+
     Whatever subjects the folder holds are used (no subject is named here); the random
-    pairings come from ``seed``.
+    pairings come from ``seed`` (the data stream).
     """
     if subset not in _SUBSETS:
         raise ValueError(f"subset must be one of {_SUBSETS}; got {subset!r}")
     folder = Path(folder)
     angles, actions, subjects, skipped = _msr_angles(str(folder.resolve()), _folder_stamp(folder))
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
-    out: list[np.ndarray] = []
-    labels: list[tuple[int, ...]] = []
-    sources: list[tuple[Any, ...]] = []  # indices of the source sequences (in the primitive set's order)
+    parts: np.ndarray | None = None
+    labels: list[tuple[int, ...]]
+    sources: list[tuple[int, ...]]
     if subset == "primitive":
         out = [a.copy() for a in angles]
         labels = [(int(a),) for a in actions]
         sources = [(i,) for i in range(len(angles))]
     else:
-        by_subject = {s: np.flatnonzero(subjects == s) for s in np.unique(subjects)}
-        for i in range(len(angles)):
-            if actions[i] not in MSR_ARM_ACTIONS:
-                continue
-            mine = by_subject[subjects[i]]
-            legs = [j for j in mine if actions[j] in MSR_LEG_ACTIONS]
-            if not legs:
-                continue
-            j = legs[int(rng.integers(len(legs)))]
-            if subset == "mixed_partial":
-                T = min(len(angles[i]), len(angles[j]))
-                x = angles[j][:T].copy()
-                x[:, ARM_COLUMNS] = angles[i][:T, ARM_COLUMNS]
-                out.append(x)
-                labels.append((int(actions[i]), int(actions[j])))
-                sources.append((i, j))
-                continue
-            others = [k for k in mine if actions[k] in MSR_ARM_ACTIONS and actions[k] != actions[i]]
-            if not others:
-                continue
-            k = others[int(rng.integers(len(others)))]
-            T = min(len(angles[i]), len(angles[j]), len(angles[k]))
-            x = angles[j][:T].copy()
-            x[:, RIGHT_ARM_COLUMNS] = angles[i][:T, RIGHT_ARM_COLUMNS]
-            x[:, LEFT_ARM_COLUMNS] = angles[k][:T, RIGHT_ARM_COLUMNS]
+        sources, labels, parts = msr_mixture_plan(actions, subjects, subset, seed=seed, n_parts=n_parts,
+                                                  split_seed=split_seed)
+        # the draw of n_records below: a stream of its own, apart from the pairing's
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset), 1]))
+        out = []
+        for src in sources:
+            T = min(len(angles[r]) for r in src)
+            x = angles[src[-1]][:T].copy()  # torso and legs of the leg recording
+            if len(src) == 2:
+                x[:, ARM_COLUMNS] = angles[src[0]][:T, ARM_COLUMNS]
+            else:
+                x[:, RIGHT_ARM_COLUMNS] = angles[src[0]][:T, RIGHT_ARM_COLUMNS]
+                x[:, LEFT_ARM_COLUMNS] = angles[src[1]][:T, RIGHT_ARM_COLUMNS]
             out.append(x)
-            labels.append((int(actions[i]), LEFT_ARM_OFFSET + int(actions[k]), int(actions[j])))
-            sources.append((i, k, j))
     if n_records is not None and n_records < len(out):
         keep = np.sort(rng.choice(len(out), int(n_records), replace=False))
         out = [out[i] for i in keep]
         labels = [labels[i] for i in keep]
         sources = [sources[i] for i in keep]
+        if parts is not None:
+            parts = parts[keep]
     ids = sorted({l for ls in labels for l in ls})
     col = {l: c for c, l in enumerate(ids)}
     Y = np.zeros((len(labels), len(ids)))
@@ -265,11 +424,13 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None) 
             "mixed_full": "right arm of an arm action + another arm action mirrored on the left arm + torso/legs of "
                           "a leg action, same subject"}[subset]
     desc = (f"real MSR Action3D skeletons ({n_subj} subjects, 15 fps), {subset}: {len(Y)} examples, {len(ids)} labels, "
-            f"{len(set(labels))} label combinations ({what})")
+            f"{len(set(labels))} label combinations ({what}")
+    desc += (f"; built within {len(np.unique(parts))} parts of the recordings)" if parts is not None else ")")
     if skipped:
         desc += f"; left out: {', '.join(skipped)} (unreadable, or no tracked frames, or too short)"
     return MotionArrays(out, Y, ids, "msr-action3d", desc, {"n_subjects": n_subj, "skipped": list(skipped),
-                                                                  "sources": sources})
+                                                                  "sources": sources},
+                        sources=list(sources), parts=parts)
 
 
 def data_source_note(ctx: RunContext, arrays: MotionArrays | list[MotionArrays] | None = None) -> str:
@@ -283,7 +444,9 @@ def data_source_note(ctx: RunContext, arrays: MotionArrays | list[MotionArrays] 
         head = (f"Data: real Kinect skeletons of MSR Action3D (Li, Zhang and Liu 2010) from {ctx.data['msr-action3d']}, "
                 "standing in for Choreo1: mixed 'choreographies' combine the limbs of different real recordings of one "
                 "subject (mmconcepts.experiments._ch3_common.msr_subset); the 16- and 47-gesture sets of the thesis are "
-                "its small (18 labels, 2 per example) and large (33 labels, 3 per example) mixed sets.")
+                "its small (18 labels, 2 per example) and large (33 labels, 3 per example) mixed sets. A recording "
+                "joins several mixtures, so the recordings are dealt into parts (the folds) first and each part's "
+                "mixtures are built from its own recordings: no recording behind a test mixture feeds a training one.")
     else:
         head = ("Data: synthetic Choreo1 (mmconcepts.motion.synthetic.make_choreo1: a kinematic dancer whose noise and "
                 "variability were measured on real Kinect skeletons of MSR Action3D); pass --data choreo1=DIR for the "
@@ -303,6 +466,95 @@ def kfold_splits(n: int, n_folds: int | None, seed: int, y: np.ndarray | None = 
     if y is not None and np.bincount(np.unique(y, return_inverse=True)[1]).min() >= n_folds:
         return [(tr, te) for tr, te in StratifiedKFold(n_folds, shuffle=True, random_state=seed).split(idx, y)]
     return [(tr, te) for tr, te in KFold(n_folds, shuffle=True, random_state=seed).split(idx)]
+
+
+def part_splits(parts: np.ndarray, Y: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Leave one part out: the folds of examples built per part of their source recordings.
+
+    Parameters
+    ----------
+    parts : (n,) int array
+        The part of each example (:attr:`MotionArrays.parts`).
+    Y : (n, L) label matrix, optional
+        Given, each fold's training set also leaves out the examples whose label combination
+        occurs in its test part (thesis Table 3.3: the test combinations are unseen in
+        training); the test set is the whole part, so every example is tested once.
+
+    Returns
+    -------
+    list of (train, test) index arrays, one per part (in part order), test parts non-empty
+    """
+    parts = np.asarray(parts)
+    groups = None if Y is None else combination_ids(Y)
+    out = []
+    for f in np.unique(parts):
+        te = np.flatnonzero(parts == f)
+        tr = np.flatnonzero(parts != f)
+        if groups is not None:
+            tr = tr[~np.isin(groups[tr], groups[te])]
+        if te.size and tr.size:
+            out.append((tr, te))
+    return out
+
+
+def example_splits(arrays: MotionArrays, n_folds: int | None, seed: int, *, unseen: bool = False,
+                   y: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The (train, test) folds of a protocol on ``arrays``, grouped by source recording.
+
+    Examples built per part of their recordings (MSR limb mixtures) are split by part
+    (:func:`part_splits`, whatever ``n_folds``); examples that are
+    each their own recording by :func:`kfold_splits` (``unseen=False``) or
+    :func:`unseen_combination_splits` (``unseen=True``).
+
+    Parameters
+    ----------
+    arrays : MotionArrays
+    n_folds : int or None
+        Folds (None: leave-one-out, or one combination out with ``unseen``).
+    seed : int
+        The *splits* stream.
+    unseen : bool, default=False
+        Test folds show only label combinations absent from their training set.
+    y : (n,) int array, optional
+        Single labels to stratify k-fold by.
+    """
+    if arrays.parts is not None:
+        return part_splits(arrays.parts, arrays.Y if unseen else None)
+    if unseen:
+        return unseen_combination_splits(arrays.Y, n_folds, seed)
+    return kfold_splits(len(arrays.Y), n_folds, seed, y=y)
+
+
+def split_sources(arrays: MotionArrays, splits) -> list[tuple[list[tuple[Any, ...]], list[tuple[Any, ...]]]]:
+    """Per fold, the source recordings of each training and each test example (for :func:`describe_split`)."""
+    src = arrays.example_sources()
+    return [([src[i] for i in tr], [src[i] for i in te]) for tr, te in splits]
+
+
+def split_groups(arrays: MotionArrays, splits) -> dict[str, Any]:
+    """What the folds keep apart, for the result's ``split_groups``: :func:`~mmconcepts.experiments.describe_split`
+    of :func:`split_sources`, which raises when a recording is behind examples on both sides of a fold."""
+    if arrays.parts is None:
+        own = {"synthetic": "each generated example is an independent draw of the dancer (its own recording)",
+               "choreo1": "each Choreo1 demonstration is its own recording",
+               "msr-action3d": "each MSR Action3D sequence is its own recording"}[arrays.source]
+        by = f"source recordings: {own}"
+    else:
+        by = ("source recordings: the MSR Action3D sequences spliced into each mixture (arms, legs); the recordings "
+              "are dealt into parts per subject and each part's mixtures are built from its own recordings")
+    return describe_split(by, split_sources(arrays, splits))
+
+
+def fold_unit(splits, what: str) -> SampleUnit:
+    """The sample unit of per-fold values: ``SampleUnit.folds(k)`` when each training set is the rest of the data
+    (k-fold; leave-one-out over n is ``folds(n)``), else resampled splits with the folds' mean n_test / n_train."""
+    n = len(np.unique(np.concatenate([np.asarray(te) for _, te in splits] + [np.asarray(tr) for tr, _ in splits])))
+    k = len(splits)
+    if all(len(tr) + len(te) == n for tr, te in splits):
+        return SampleUnit.folds(k, f"{k} folds of {what}")
+    ratio = float(np.mean([len(te) / len(tr) for tr, te in splits]))
+    return SampleUnit("resampled", ratio, f"{k} folds of {what} (training sets leave out more than the test fold: "
+                                          f"mean n_test / n_train {ratio:.3f})")
 
 
 def combination_ids(Y: np.ndarray) -> np.ndarray:
@@ -346,7 +598,7 @@ def unseen_combination_splits(Y: np.ndarray, n_folds: int | None, seed: int) -> 
 
 
 # ---------------------------------------------------------------------------- one fold
-def _learner(name: str, params: dict, seed: int):
+def _learner(name: str, params: dict, seed: int, features: dict | None = None):
     if name.startswith("nmf_"):
         beta = {"nmf_frobenius": 2.0, "nmf_kl": 1.0}[name]
         return LabelNMF(params["n_components"], beta_loss=beta, max_iter=params["max_iter"], cv=params["inner_cv"],
@@ -354,15 +606,19 @@ def _learner(name: str, params: dict, seed: int):
     if name == "svm":  # the thesis' baseline: a plain linear SVM per label on the raw histograms
         return make_svm_baseline(scale=False, random_state=seed)
     if name == "svm_std":  # ours: the same on standardised features
-        # make_svm_baseline(scale=True), solved in the dual: the same optimum, 3x faster here than
-        # the primal solver LinearSVC's dual="auto" picks when there are more examples than features.
+        # make_svm_baseline(scale=True), with the faster of LinearSVC's two solvers for the histograms (the same
+        # optimum): on standardised VQ histograms the dual is ~3.5x faster than the primal that dual="auto" picks
+        # when there are more examples than features; on standardised KDE histograms the primal is ~2x faster.
+        # Stopping tolerance 1e-3 (libsvm's and sklearn.svm.SVC's default; LinearSVC's is 1e-4): decision values
+        # within ~1e-3 of the tighter solution, a third less time.
         from sklearn.multiclass import OneVsRestClassifier
         from sklearn.pipeline import make_pipeline
         from sklearn.preprocessing import StandardScaler
         from sklearn.svm import LinearSVC
 
-        return OneVsRestClassifier(make_pipeline(StandardScaler(), LinearSVC(C=1.0, max_iter=10000, dual=True,
-                                                                             random_state=seed)))
+        dual = (features or {}).get("method") != "kde"
+        return OneVsRestClassifier(make_pipeline(StandardScaler(), LinearSVC(C=1.0, tol=1e-3, max_iter=10000,
+                                                                             dual=dual, random_state=seed)))
     raise ValueError(f"unknown learner {name!r}")
 
 
@@ -395,7 +651,7 @@ def _fold(task: dict) -> dict:
                 res["pred"] = np.tile(np.array(common), (len(test), 1))
             elif single:
                 y_tr = np.argmax(Ytr, axis=1)
-                model = _learner(name, task["params"], seed)
+                model = _learner(name, task["params"], seed, task["features"])
                 model.fit(Xtr, y_tr)
                 s = model.decision_function(Xte)
                 if s.ndim == 1:
@@ -404,7 +660,7 @@ def _fold(task: dict) -> dict:
                 scores[:, model.classes_] = s
                 res["scores"] = scores
             else:
-                model = _learner(name, task["params"], seed)
+                model = _learner(name, task["params"], seed, task["features"])
                 keep = Ytr.sum(axis=0) > 0  # labels absent from training cannot be learnt
                 model.fit(Xtr, Ytr[:, keep])
                 s = model.label_activations(Xte) if name.startswith("nmf_") else model.decision_function(Xte)
