@@ -188,10 +188,14 @@ def test_python_syntax_outside_the_language_is_refused(rule, fragment):
 def test_every_registered_claim_rule_parses():
     from mmconcepts.experiments import registry
 
-    rules = [claim.rule for exp in registry.all_experiments() for claim in exp.claims]
+    claims = [claim for exp in registry.all_experiments() for claim in exp.claims]
+    rules = [rule for claim in claims if claim.kind != "magnitude" for rule in claim.rules.values()]
     assert len(rules) > 40
     for rule in rules:
         assert parse_rule(rule).metrics  # every claim reads at least one metric
+    for claim in claims:  # a magnitude's rule is one metric name
+        if claim.kind == "magnitude":
+            assert parse_rule(f"{claim.rule} > 0").metrics == {claim.rule}
 
 
 from hypothesis import given, settings  # noqa: E402

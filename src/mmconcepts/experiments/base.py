@@ -100,6 +100,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "CLAIM_KINDS",
+    "fill_thesis_numbers",
     "Streams",
     "array_digest",
     "cached_call",
@@ -175,6 +176,32 @@ _THESIS_NUMBER = re.compile(r"\{thesis:([A-Za-z0-9_.]+)\}")
 
 def _format_thesis_number(value: float) -> str:
     return f"{value:.6g}" if abs(value) >= 0.01 or value == 0 else f"{value:.4g}"
+
+
+def fill_thesis_numbers(text: str, reference: Mapping[str, float]) -> str:
+    """``text`` with each ``{thesis:NAME}`` replaced by the thesis' number ``reference[NAME]``.
+
+    For claim texts (done when an experiment is made) and notes, so that each thesis number is
+    written once, in the experiment's reference table.
+
+    Raises
+    ------
+    ExperimentError
+        If a name is not in ``reference``.
+
+    Examples
+    --------
+    >>> fill_thesis_numbers("NMF {thesis:a} vs SVM {thesis:b}", {"a": 0.854, "b": 0.818})
+    'NMF 0.854 vs SVM 0.818'
+    """
+    def fill(match: re.Match[str]) -> str:
+        name = match.group(1)
+        if name not in reference:
+            raise ExperimentError(f"{text!r:.60} cites {{thesis:{name}}}, which is not in the reference table (known: "
+                                  f"{', '.join(sorted(reference)) or 'none'}).")
+        return _format_thesis_number(float(reference[name]))
+
+    return _THESIS_NUMBER.sub(fill, text)
 
 
 @dataclass(frozen=True)
@@ -259,17 +286,13 @@ class Claim:
         ExperimentError
             If a name is not in ``reference``, or a magnitude claim's metric has no thesis number.
         """
-        def fill(match: re.Match[str]) -> str:
-            name = match.group(1)
-            if name not in reference:
-                raise ExperimentError(f"experiment {exp_id!r}: claim {self.text!r:.60} cites {{thesis:{name}}}, which "
-                                      f"is not in the reference table (known: {', '.join(sorted(reference)) or 'none'}).")
-            return _format_thesis_number(float(reference[name]))
-
         if self.kind == "magnitude" and self.rule not in reference:
             raise ExperimentError(f"experiment {exp_id!r}: magnitude claim {self.text!r:.60} sets {self.rule!r} beside "
                                   "the thesis' number, but the reference table has none of that name.")
-        text = _THESIS_NUMBER.sub(fill, self.text)
+        try:
+            text = fill_thesis_numbers(self.text, reference)
+        except ExperimentError as exc:
+            raise ExperimentError(f"experiment {exp_id!r}: claim {exc}") from None
         return self if text == self.text else dataclasses.replace(self, text=text)
 
 

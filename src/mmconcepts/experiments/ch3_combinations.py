@@ -41,7 +41,7 @@ from matplotlib.figure import Figure
 
 from ..nmf import l_full, l_given_number
 from . import _ch3_common as common
-from .base import Claim, Experiment, Result, RunContext, Table
+from .base import Claim, Experiment, Result, RunContext, Table, fill_thesis_numbers
 from .ch3_choreography import LEARNERS, evaluate_mixed
 from .ch3_choreography import Config as _BaseConfig
 from .ch3_unseen import TABLE_3_3
@@ -164,14 +164,17 @@ def compute(config: Config, ctx: RunContext) -> Result:
                          ("holistic.l_full: the most a learner that recognises whole choreographies could score (it "
                           "can only answer a label set of its training set): per fold, the share of test examples "
                           "whose combination occurs in the fold's training set."),
-                         ("fraction_seen_once describes the data, it is no claim (and no magnitude): on the synthetic "
-                          "set it is an input of the generator (n_single = round(0.6 n), set from Fig. 3.8), on MSR "
-                          "Action3D it follows from our random limb pairings; on the thesis' Choreo1 it would be a "
-                          "fact about the recordings."),
-                         ("Restated: 'unique combinations: l_given_number at least 0.75 x Table 3.3's 0.653' -> "
-                          "magnitude claims (ratio with its interval) of once.* l_full and l_given_number against "
-                          "Table 3.3's 47-label numbers: 0.75 was our bar. Added: the thesis' argument of lines "
-                          "2815-2818 as a comparison with the holistic ceiling."),
+                         fill_thesis_numbers(
+                             "fraction_seen_once describes the data, it is no claim (and no magnitude): on the "
+                             "synthetic set it is an input of the generator (n_single = round({thesis:fraction_seen_once}"
+                             " n), set from Fig. 3.8), on MSR Action3D it follows from our random limb pairings; on the "
+                             "thesis' Choreo1 it would be a fact about the recordings.", REFERENCE),
+                         fill_thesis_numbers(
+                             "Restated: 'unique combinations: l_given_number at least 0.75 x Table 3.3's "
+                             "{thesis:once.nmf_frobenius.l_given_number}' -> "
+                             "magnitude claims (ratio with its interval) of once.* l_full and l_given_number against "
+                             "Table 3.3's 47-label numbers: 0.75 was our bar. Added: the thesis' argument of lines "
+                             "2815-2818 as a comparison with the holistic ceiling.", REFERENCE),
                          ("No claim compares with a random ranking of the labels: its expected l_given_number on "
                           "these examples is about 1e-4, so '5 times chance' would hold for almost any learner "
                           "(once.chance.l_given_number is shown for description).")])
