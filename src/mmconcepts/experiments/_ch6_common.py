@@ -26,26 +26,38 @@ part): the utterances, the motion records and the object views are each split by
 first, then every utterance gets a record (a view) of its concept from the same part,
 drawn without replacement while possible. So when a real set has fewer records than
 there are utterances (MSR Action3D: about 27 records per action for 50 utterances per
-word) a record may serve twice, but never in both training and test.
+word) a record may serve twice, but never in both training and test. Every example knows the
+recordings it is made of (:func:`example_sources`: the utterance's file, the motion record's
+id, the image's file), and :func:`fold_split_groups` / :func:`part_split_groups` check with
+:func:`~mmconcepts.experiments.splits.describe_split` that no recording behind a test (or
+reference) example is behind a training example, for the record's ``split_groups``. Object
+views are photos of the concept's one object (the thesis' design: one object per concept, so
+every split shows the same object on both sides); a view is one recording, never on both
+sides.
 
 Random streams (issue 12): :func:`streams` spawns independent seeds from the
 configuration's seed for the data (bijections, pairing, stream order), the folds (splits),
 the learners (HAC and histogram codebooks, NMF initialisation), the reference draws of the
 matching protocol, and the composition of the test utterances of the sliding windows.
 
-:func:`evaluate` runs every fold of Tables 6.2-6.4 through ``ctx.parallel`` and caches
-each fold's result on disk as the fold ends (key: the data, the setting, the fold and
-:func:`code_fingerprint`), so the three experiments share one computation and an
-interrupted run resumes from the folds it finished.
+:func:`evaluate` runs every fold of Tables 6.2-6.4 and Fig. 6.10 through ``ctx.parallel`` and
+caches each fold's result on disk as the fold ends (key: the data, the setting, the fold and
+:func:`code_fingerprint`), so the four experiments share one computation and an
+interrupted run resumes from the folds it finished. Each fold also fits the k = 15 learner of
+Fig. 6.10 on its training pairs and measures the mutual information between concepts and
+coefficients there (:func:`concept_analysis`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 from threadpoolctl import threadpool_limits
 
 from .._fingerprint import code_fingerprint
@@ -56,11 +68,16 @@ from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
 from .base import RunContext, Streams, array_digest, cached_call, streams
+from .config import PresetConfig
+from .splits import describe_split
 
-__all__ = ["Streams", "streams", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
+__all__ = ["Streams", "streams", "PairsConfig", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
            "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
-           "MSR_ACTIONS", "SPEECH_SETS", "MOTION_SETS", "IMAGE_SETS", "image_locals", "image_concepts",
-           "child_seeds", "space_pairs", "gesture_mapping", "eth80_objects", "KEYWORDS_NOTE"]
+           "MSR_ACTIONS", "SPEECH_SETS", "MOTION_SETS", "IMAGE_SETS", "image_locals", "image_concepts", "image_ids",
+           "child_seeds", "space_pairs", "gesture_mapping", "eth80_objects", "KEYWORDS_NOTE", "example_sources",
+           "fold_split_groups", "part_split_groups", "mutual_information_matrix", "concept_analysis",
+           "entropy_bits", "CONCEPT_METRICS", "SPECIALISED_FRACTION", "seen_columns", "single_threaded",
+           "TABLE_6_2", "TABLE_6_3", "TABLE_6_4", "THESIS_CHANCE"]
 
 #: Metric names of the tables -> metric of :func:`mmconcepts.multimodal.pairwise_divergence`.
 #: "kl" is the thesis' setting: the data are not normalised per example, so the divergence
@@ -93,6 +110,63 @@ def SPACE_NAMES(direction: str) -> dict[str, str]:
     return {"internal": "internal", "sound": "reference", "motion": "test"}
 
 
+# ---------------------------------------------------------------------------- the thesis' Tables 6.2-6.4
+#: "baseline random is in that case 0.11" (Tables 6.2 and 6.3; footnote 6: the keywords are not exactly uniform).
+THESIS_CHANCE = 0.11
+
+#: Thesis Table 6.2 (success rates; the shuffled control "generally scores around 0.116"; "baseline random is in
+#: that case 0.11", footnote 6: the keywords are not exactly uniform).
+TABLE_6_2 = {
+    "sound2motion.internal.kl": 0.608, "sound2motion.internal.euclidean": 0.612, "sound2motion.internal.cosine": 0.646,
+    "sound2motion.motion.kl": 0.552, "sound2motion.motion.euclidean": 0.379, "sound2motion.motion.cosine": 0.444,
+    "sound2motion.sound.kl": 0.238, "sound2motion.sound.euclidean": 0.126, "sound2motion.sound.cosine": 0.208,
+    "motion2sound.internal.kl": 0.610, "motion2sound.internal.euclidean": 0.704, "motion2sound.internal.cosine": 0.830,
+    "motion2sound.sound.kl": 0.106, "motion2sound.sound.euclidean": 0.090, "motion2sound.sound.cosine": 0.186,
+    "motion2sound.motion.kl": 0.676, "motion2sound.motion.euclidean": 0.642, "motion2sound.motion.cosine": 0.749,
+    "shuffled.mean": 0.116, "chance": THESIS_CHANCE,
+}
+#: Thesis Table 6.3 (with symbolic labels in training).
+TABLE_6_3 = {
+    "sound2motion.internal.kl": 0.387, "sound2motion.internal.euclidean": 0.699, "sound2motion.internal.cosine": 0.721,
+    "sound2motion.motion.kl": 0.543, "sound2motion.motion.euclidean": 0.261, "sound2motion.motion.cosine": 0.424,
+    "sound2motion.sound.kl": 0.136, "sound2motion.sound.euclidean": 0.089, "sound2motion.sound.cosine": 0.131,
+    "motion2sound.internal.kl": 0.573, "motion2sound.internal.euclidean": 0.620, "motion2sound.internal.cosine": 0.702,
+    "motion2sound.sound.kl": 0.114, "motion2sound.sound.euclidean": 0.090, "motion2sound.sound.cosine": 0.122,
+    "motion2sound.motion.kl": 0.519, "motion2sound.motion.euclidean": 0.469, "motion2sound.motion.cosine": 0.552,
+    "chance": THESIS_CHANCE,
+}
+#: Thesis Table 6.4 (label recognition: mean over folds, and the standard deviation over folds the thesis gives).
+TABLE_6_4 = {"sound_labels.s2l": 0.916, "sound_labels.s2l_std": 0.034,
+             "motion_labels.m2l": 0.906, "motion_labels.m2l_std": 0.052,
+             "all.s2l": 0.896, "all.s2l_std": 0.043,
+             "all.m2l": 0.910, "all.m2l_std": 0.054,
+             "all.sm2l": 0.917, "all.sm2l_std": 0.055}
+
+# ---------------------------------------------------------------------------- the folds' configuration
+@dataclass(frozen=True)
+class PairsConfig(PresetConfig):
+    """The cross-validation of sound-motion pairs behind Tables 6.2-6.4 and Fig. 6.10 (defaults: the thesis').
+
+    ``n_per_speaker`` and ``n_motion`` select the generated data; ``k`` and ``n_iter`` are
+    the learner of Tables 6.2-6.4 (k = 50, 50 iterations), ``concept_k`` and ``mi_bins`` the
+    learner and the discretisation of Fig. 6.10 (k = 15, 10 bins), fitted on the same
+    training folds. One config for the four experiments, so that they share the folds.
+    """
+
+    n_per_speaker: int = 1000
+    n_motion: int = 1100
+    n_folds: int = 10
+    k: int = 50
+    n_iter: int = 50
+    motion_bins: int = 25
+    concept_k: int = 15
+    mi_bins: int = 10
+    seed: int = 0
+
+    hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
+    QUICK = dict(n_per_speaker=250, n_motion=250, n_folds=5, hac_fit_frames=20_000)
+
+
 # ---------------------------------------------------------------------------- random streams
 def child_seeds(seed: int, n: int) -> list[int]:
     """``n`` independent seeds spawned from ``seed`` (one per fold or repetition)."""
@@ -105,7 +179,7 @@ def _speech_name(ctx: RunContext) -> str | None:
 
 
 def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
-    """Utterances of the first speaker: MFCC sequences, concepts, keyword spans.
+    """Utterances of the first speaker: MFCC sequences, concepts, keyword spans, recording ids (their files).
 
     A real speaker with more than ``n_per_speaker`` utterances is subsampled to that many,
     stratified by keyword (``seed``: the data stream); the generated corpus has exactly
@@ -120,7 +194,7 @@ def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
         sub, y = sub.subset(keep), y[keep]
     mfccs = ch5.corpus_mfcc(ctx, sub, MFCCConfig(n_mfcc=22))
     return {"corpus": sub, "speaker": first, "keywords": keywords, "y": y, "mfcc": mfccs,
-            "spans": sub.keyword_spans(), "n_available": n_all,
+            "spans": sub.keyword_spans(), "n_available": n_all, "ids": [str(u.path) for u in sub],
             "durations": np.array([len(m) * MFCCConfig(n_mfcc=22).hop_ms / 1000 for m in mfccs])}
 
 
@@ -162,10 +236,13 @@ def eth80_objects(labels, categories, n_objects: int) -> list[str]:
 
 
 def load_images(ctx: RunContext, n_objects: int, n_views: int):
-    """The image set: generic folder, ETH-80 (``n_objects`` objects over the categories) or synthetic objects."""
+    """The image set: generic folder, ETH-80 (``n_objects`` objects over the categories) or synthetic objects.
+
+    The synthetic objects are rendered once per code version and kept on disk (``ch6-objects``).
+    """
     import re
 
-    from ..vision import load_eth80, load_image_folder, make_objects
+    from ..vision import ImageSet, load_eth80, load_image_folder
 
     if "images" in ctx.data:
         return load_image_folder(ctx.data["images"], on_error="skip")
@@ -181,7 +258,23 @@ def load_images(ctx: RunContext, n_objects: int, n_views: int):
         ims = load_eth80(ctx.data["eth80"], categories=sorted({c for o, c in found if o in objs}),
                          instances=sorted({int(o.lstrip("abcdefghijklmnopqrstuvwxyz")) for o in objs}), on_error="skip")
         return ims.subset(np.isin(ims.labels, objs))
-    return make_objects(n_objects, n_views, random_state=0)
+    memo = ctx.memory("ch6-objects").cache(_cached_objects)
+    levels, labels, views, categories = cached_call(memo, int(n_objects), int(n_views), code_fingerprint())
+    # the generator's photos are on 8-bit levels (k / 255): the cache keeps the levels, so this is bit for bit
+    # make_objects(n_objects, n_views, random_state=0)
+    return ImageSet([lv.astype(np.float64) / 255 for lv in levels], list(labels), list(views), list(categories), None,
+                    "synthetic-objects")
+
+
+def _cached_objects(n_objects: int, n_views: int, code: str) -> tuple[np.ndarray, list, list, list]:
+    """``make_objects(n_objects, n_views, random_state=0)`` as 8-bit levels, labels, views and categories; cached
+    on disk by :func:`load_images` (``ctx.cache_dir/ch6-objects``) under the sizes and ``code`` (the package's
+    :func:`~mmconcepts._fingerprint.code_fingerprint`), so the three image experiments render them once."""
+    from ..vision import make_objects
+
+    ims = make_objects(n_objects, n_views, random_state=0)
+    levels = np.stack([np.round(np.asarray(im) * 255) for im in ims.images]).astype(np.uint8)
+    return levels, list(ims.labels), list(ims.views), list(ims.categories)
 
 
 def speech_note(ctx: RunContext, speech: dict | None = None) -> str:
@@ -267,6 +360,44 @@ def pair_within_parts(y: np.ndarray, part_y: np.ndarray, item_concept: np.ndarra
     return out
 
 
+def example_sources(**ids_of: Sequence[Hashable]) -> list[frozenset]:
+    """The recordings behind each example: one id per modality, prefixed with the modality's name.
+
+    ``example_sources(sound=["a.wav", "b.wav"], motion=["m1", "m1"])`` is
+    ``[{"sound:a.wav", "motion:m1"}, {"sound:b.wav", "motion:m1"}]``: the sources
+    :func:`~mmconcepts.experiments.splits.describe_split` compares across a split's sides.
+    """
+    lengths = {name: len(ids) for name, ids in ids_of.items()}
+    if len(set(lengths.values())) > 1:
+        raise DataError(f"every modality needs one recording id per example; got {lengths}.")
+    columns = [[f"{name}:{i}" for i in ids] for name, ids in ids_of.items()]
+    return [frozenset(parts) for parts in zip(*columns)]
+
+
+def part_split_groups(by: str, repetitions: Sequence[tuple[Sequence[Iterable[Hashable]], np.ndarray]],
+                      train_part: int = 0) -> dict:
+    """``describe_split`` of repetitions that split examples into parts: the training part against the others.
+
+    ``repetitions`` holds, per repetition, the sources of every example (:func:`example_sources`)
+    and its part (``train_part``: training; any other part, test or reference, is held out;
+    -1: unused). Raises when a held-out example shares a recording with a training example.
+    """
+    folds = []
+    for sources, part in repetitions:
+        part = np.asarray(part)
+        folds.append(([sources[i] for i in np.flatnonzero(part == train_part)],
+                      [sources[i] for i in np.flatnonzero((part != train_part) & (part >= 0))]))
+    return describe_split(by, folds)
+
+
+def fold_split_groups(data: dict) -> dict:
+    """``describe_split`` of the folds of :func:`load_pairs` (test fold against the training folds)."""
+    sources = data["sources"]
+    return describe_split("sound recordings and motion records (each example: one utterance and one motion record)",
+                          [([sources[i] for i in np.flatnonzero(data["fold"] != f)],
+                            [sources[i] for i in np.flatnonzero(data["fold"] == f)]) for f in range(data["n_folds"])])
+
+
 def gesture_mapping(keywords, gestures: np.ndarray, rng: np.random.Generator) -> tuple[dict, np.ndarray]:
     """Random keyword -> gesture bijection and the concept of each motion record (-1: unused gesture)."""
     gesture_ids = sorted(set(np.asarray(gestures).tolist()))
@@ -280,10 +411,13 @@ def gesture_mapping(keywords, gestures: np.ndarray, rng: np.random.Generator) ->
 
 def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int = 0, n_folds: int = 1,
                seeds: Streams | None = None) -> dict:
-    """Paired examples: MFCC sequences, joint-angle trajectories, concepts and folds.
+    """Paired examples: MFCC sequences, joint-angle trajectories, concepts, folds and sources.
 
     The data stream of ``seed`` (or ``seeds``) draws the bijection and the pairing, its fold
-    stream the folds (``n_folds`` = 1: a single part, every example used together).
+    stream the folds (``n_folds`` = 1: a single part, every example used together). The
+    utterances and the motion records are split into folds separately, by concept, and
+    paired within their fold, so no recording is behind examples of two folds; ``sources``
+    holds each example's recordings (:func:`example_sources`) for :func:`fold_split_groups`.
     """
     from sklearn.model_selection import StratifiedKFold
 
@@ -296,6 +430,9 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int 
     frng = np.random.default_rng(st.splits)
     if n_folds > 1:
         n_folds = min(n_folds, int(np.bincount(y).min()), int(np.bincount(item_concept[item_concept >= 0]).min()))
+        if n_folds < 2:
+            raise DataError("a concept has a single utterance or motion record: a cross-validation needs at least "
+                            "two of each concept.")
         fold_y = np.empty(len(y), dtype=np.int64)
         skf = StratifiedKFold(n_folds, shuffle=True, random_state=int(frng.integers(2**31 - 1)))
         for f, (_, te) in enumerate(skf.split(np.zeros(len(y)), y)):
@@ -304,13 +441,146 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int 
     else:
         fold_y, fold_m = np.zeros(len(y), dtype=np.int64), np.where(item_concept >= 0, 0, -1)
     motion_idx = pair_within_parts(y, fold_y, item_concept, fold_m, rng, "motion record")
+    sound_ids = speech.get("ids") or [f"utterance {i}" for i in range(len(y))]
+    sources = example_sources(sound=sound_ids, motion=[motion["ids"][i] for i in motion_idx])
     return {"mfcc": speech["mfcc"], "angles": [motion["angles"][i] for i in motion_idx], "y": y,
             "keywords": keywords, "mapping": mapping, "speaker": speech["speaker"], "fold": fold_y,
             "n_folds": int(fold_y.max()) + 1, "motion_idx": motion_idx, "motion_ids": motion["ids"],
-            "n_motion_records": len(motion["angles"]), "speech": speech, "motion": motion, "streams": st}
+            "n_motion_records": len(motion["angles"]), "speech": speech, "motion": motion, "streams": st,
+            "sources": sources}
 
 
-# ---------------------------------------------------------------------------- folds of Tables 6.2-6.4
+# ---------------------------------------------------------------------------- one task, one thread
+@contextlib.contextmanager
+def single_threaded() -> Iterator[None]:
+    """BLAS (threadpoolctl) and numba's parallel kernels limited to one thread, then restored.
+
+    The experiments run their folds and repetitions side by side (``ctx.parallel``), one per
+    worker process: a fit that also spread over every core would only compete with the
+    other tasks. The NMF kernels give the same numbers, bit for bit, with any number of
+    threads (the kernels sum every entry in the same order), so this changes the time, never the result.
+    """
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        with threadpool_limits(1):
+            yield
+    finally:
+        numba.set_num_threads(before)
+
+
+# ---------------------------------------------------------------------------- features
+def seen_columns(X_train) -> np.ndarray:
+    """Indices of the columns with a nonzero entry in the training examples ``X_train``.
+
+    The multiplicative updates set a dictionary's weight on a feature absent from every
+    training example to exactly zero after the first update, and a zero weight adds nothing
+    to an internal representation, so dropping those columns from training and test data
+    leaves the model and every internal-space comparison as they are (only the random
+    initialisation, drawn for fewer columns, differs), while a HAC vector's 110 000 columns
+    (mostly never seen in a few hundred utterances) no longer cost time at each update.
+    Comparisons in a modality's own space would change (the observed test vector loses
+    entries): the experiments that make them keep every column.
+    """
+    nnz = X_train.getnnz(axis=0) if hasattr(X_train, "getnnz") else np.count_nonzero(np.asarray(X_train), axis=0)
+    return np.flatnonzero(nnz)
+
+
+# ---------------------------------------------------------------------------- Fig. 6.10: mutual information
+def mutual_information_matrix(y: np.ndarray, W: np.ndarray, n_bins: int = 10) -> np.ndarray:
+    """I(X_l; Y_j) in bits for every concept l (rows) and coefficient j (columns).
+
+    X_l is the indicator "the example features concept l" and Y_j the coefficient j
+    discretised into ``n_bins`` equal-width bins over its range (thesis section 6.6.3). The
+    plug-in estimate from the joint counts, as :func:`sklearn.metrics.mutual_info_score`
+    gives for each pair (in nats), computed for every concept at once from one contingency
+    table per coefficient (hand-written: sklearn's per-pair call cost a second per fit).
+
+    Parameters
+    ----------
+    y : ndarray of int, shape (n_samples,)
+        Concept of each example.
+    W : ndarray of shape (n_samples, k)
+        Internal coefficients.
+    n_bins : int
+        Equal-width bins over each coefficient's range.
+    """
+    concepts, yi = np.unique(np.asarray(y), return_inverse=True)
+    n, n_concepts = yi.size, concepts.size
+    out = np.zeros((n_concepts, W.shape[1]))
+    n_c = np.bincount(yi, minlength=n_concepts)[:, None].astype(float)  # examples of each concept
+    for j in range(W.shape[1]):
+        col = W[:, j]
+        edges = np.linspace(col.min(), col.max(), n_bins + 1)[1:-1]
+        binned = np.digitize(col, edges)
+        # joint[c, b]: examples of concept c in bin b; the examples of the other concepts in bin b are the rest
+        joint = np.bincount(yi * n_bins + binned, minlength=n_concepts * n_bins).reshape(n_concepts, n_bins)
+        n_b = joint.sum(axis=0)[None, :].astype(float)
+        total = np.zeros(n_concepts)
+        for counts, n_x in ((joint, n_c), (n_b - joint, n - n_c)):  # X_l = 1, then X_l = 0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                terms = counts / n * np.log2(counts * n / (n_x * n_b))
+            total += np.where(counts > 0, terms, 0.0).sum(axis=1)
+        out[:, j] = np.maximum(total, 0.0)
+    return out
+
+
+def entropy_bits(p: np.ndarray) -> np.ndarray:
+    """Entropy (bits) of a binary variable that is 1 with probability ``p`` (elementwise)."""
+    p = np.clip(p, 1e-12, 1 - 1e-12)
+    return -(p * np.log2(p) + (1 - p) * np.log2(1 - p))
+
+
+def _align(y: np.ndarray, W: np.ndarray, n_bins: int) -> dict:
+    """Mutual information, its Kuhn-Munkres alignment of concepts and coefficients, and the matched fractions."""
+    mi = mutual_information_matrix(y, W, n_bins)
+    rows, cols = linear_sum_assignment(-mi)
+    matched = mi[rows, cols]
+    frac = matched / entropy_bits(np.bincount(y)[np.unique(y)] / len(y))[rows]
+    mask = np.ones_like(mi, dtype=bool)
+    mask[rows, cols] = False
+    order = list(cols[np.argsort(-matched)]) + [j for j in range(W.shape[1]) if j not in set(cols)]
+    return {"mi": mi, "matched": matched, "fraction": frac, "others": mi[mask], "order": order,
+            "rows": rows, "cols": cols}
+
+
+#: The values of one Fig. 6.10 analysis (:func:`concept_analysis`), each a number.
+CONCEPT_METRICS = ("matched.mean_mi", "matched.max_mi", "others.mean_mi", "matched.mean_fraction",
+                   "matched.max_fraction", "n_specialised", "shuffled.matched.mean_mi", "shuffled.matched.max_mi")
+
+#: A matched coefficient is counted as specialised when it captures more than this fraction of its concept's
+#: entropy (the project's threshold: the thesis reads Fig. 6.10 by eye).
+SPECIALISED_FRACTION = 0.5
+
+
+def concept_analysis(y: np.ndarray, W: np.ndarray, n_bins: int, control_seed: int) -> tuple[dict, dict, dict]:
+    """Fig. 6.10 on one set of internal coefficients: alignment, shuffled-concept control, values.
+
+    The matched coefficient of a concept is its Kuhn-Munkres partner (maximum total mutual
+    information); its *fraction* is ``I(X_l; Y_j) / H(X_l)``. The control repeats the
+    analysis with the concepts permuted across examples (``control_seed``), which measures
+    the estimator's bias. Returns the analysis, the control's, and the values of
+    :data:`CONCEPT_METRICS`.
+    """
+    y = np.asarray(y)
+    res = _align(y, W, n_bins)
+    shuffled = _align(np.random.default_rng(control_seed).permutation(y), W, n_bins)
+    values = {
+        "matched.mean_mi": float(res["matched"].mean()),
+        "matched.max_mi": float(res["matched"].max()),
+        "others.mean_mi": float(res["others"].mean()) if res["others"].size else 0.0,
+        "matched.mean_fraction": float(res["fraction"].mean()),
+        "matched.max_fraction": float(res["fraction"].max()),
+        "n_specialised": float(np.sum(res["fraction"] > SPECIALISED_FRACTION)),
+        "shuffled.matched.mean_mi": float(shuffled["matched"].mean()),
+        "shuffled.matched.max_mi": float(shuffled["matched"].max()),
+    }
+    return res, shuffled, values
+
+
+# ---------------------------------------------------------------------------- folds of Tables 6.2-6.4, Fig. 6.10
 def _labels(y: np.ndarray, n: int) -> np.ndarray:
     L = np.zeros((len(y), n))
     L[np.arange(len(y)), y] = 1.0
@@ -343,7 +613,7 @@ def _fold(task: dict) -> dict:
     seed, ref_seed = task["learner_seed"], task["reference_seed"]
     n_classes = int(y.max()) + 1
     out: dict[str, float] = {}
-    with threadpool_limits(1), warnings.catch_warnings():
+    with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         hac = HAC(random_state=seed, max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr])
         hist = MotionHistograms(**task["motion_features"], random_state=seed).fit([task["angles"][i] for i in tr])
@@ -383,25 +653,41 @@ def _fold(task: dict) -> dict:
         out["all.s2l"] = recognise(fits["symbolic"], ["sound"])
         out["all.m2l"] = recognise(fits["symbolic"], ["motion"])
         out["all.sm2l"] = recognise(fits["symbolic"], ["sound", "motion"])
+
+        # Fig. 6.10: the k = 15 learner on the training pairs, its coefficients of the training pairs
+        W = MultimodalNMF(n_components=task["concept_k"], max_iter=task["n_iter"], random_state=seed).fit_transform(
+            {"sound": Xtr["sound"], "motion": Xtr["motion"]})
+        res, _, values = concept_analysis(y[tr], W, task["mi_bins"], task["concept_seed"])
+        out["concepts"] = {"values": values, "mi": res["mi"], "order": [int(j) for j in res["order"]],
+                           "rows": res["rows"], "cols": res["cols"], "fraction": res["fraction"]}
     return out
 
 
 def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
-    """One task per fold; learner, reference and control seeds from their own streams."""
+    """One task per fold; learner, reference and control seeds from their own streams.
+
+    The shuffled pairs of the control are a draw of the data stream; the concept permutation
+    of Fig. 6.10's control is a child of the fold's reference seed (independent of the
+    reference draws made with that seed). A config without ``concept_k`` or ``mi_bins``
+    gets the thesis' k = 15 and 10 bins.
+    """
     n = data["n_folds"]
     features = {"data": "joint", "method": "vq", "n_bins": config.motion_bins, "delay": 3}
     learner, reference, control = child_seeds(st.learner, n), child_seeds(st.reference, n), child_seeds(st.data, n)
+    concept_k, mi_bins = int(getattr(config, "concept_k", 15)), int(getattr(config, "mi_bins", 10))
     return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
              "mfcc": data["mfcc"], "angles": data["angles"], "motion_features": features, "k": config.k,
              "n_iter": config.n_iter, "learner_seed": learner[f], "reference_seed": reference[f],
-             "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames} for f in range(n)]
+             "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames, "concept_k": concept_k,
+             "mi_bins": mi_bins, "concept_seed": child_seeds(reference[f], 1)[0]} for f in range(n)]
 
 
 def _fold_keys(data: dict, tasks: list[dict]) -> list[tuple]:
     """What each fold result of :func:`evaluate` depends on, besides the code."""
     data_key = (array_digest(data["mfcc"]), array_digest(data["angles"]), data["y"], data["fold"])
     return [(data_key, f, sorted(t["motion_features"].items()), t["k"], t["n_iter"], t["learner_seed"],
-             t["reference_seed"], t["control_seed"], t["hac_fit_frames"]) for f, t in enumerate(tasks)]
+             t["reference_seed"], t["control_seed"], t["hac_fit_frames"], t["concept_k"], t["mi_bins"],
+             t["concept_seed"]) for f, t in enumerate(tasks)]
 
 
 def _cached_fold(task: dict, key: tuple, code: str) -> dict:
@@ -456,7 +742,7 @@ def fold_samples(folds: list[dict], metrics: dict, rename: Callable[[str], str |
 def _locals_chunk(images: list) -> tuple[list, list]:
     from ..vision import THESIS_DESCRIPTORS, ImageFeatures
 
-    with threadpool_limits(1):
+    with single_threaded():
         colors, keypoints = ImageFeatures(THESIS_DESCRIPTORS).extract_locals(images)
     assert colors is not None and keypoints is not None  # the thesis' descriptors use both
     return colors, keypoints
@@ -483,6 +769,17 @@ def _cached_locals(ctx: RunContext, images: list, chunk: int, digest: str, code:
     parts = ctx.parallel(_locals_chunk, [images[i:i + chunk] for i in range(0, len(images), chunk)],
                          desc="image features")
     return [c for p in parts for c in p[0]], [k for p in parts for k in p[1]]
+
+
+def image_ids(ims) -> list[str]:
+    """A recording id per image: its file name, else its object and view, else its index."""
+    paths = getattr(ims, "paths", None)
+    if paths is not None and all(p is not None for p in paths):
+        return [str(p) for p in paths]
+    views = getattr(ims, "views", None)
+    if views is not None:
+        return [f"{lab}-{v}" for lab, v in zip(ims.labels, views)]
+    return [f"image {i}" for i in range(len(ims.labels))]
 
 
 def image_concepts(labels, objects_of_concept) -> np.ndarray:
