@@ -9,14 +9,17 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from conftest import real_data_path
 
 from mmconcepts.errors import DataError, ParameterError
-from mmconcepts.experiments import RunContext
+from mmconcepts.experiments import RunContext, SampleUnit
 from mmconcepts.experiments import _ch7_common as common
 from mmconcepts.experiments import ch7_compositional as ch7
 from mmconcepts.experiments.base import Streams
+from mmconcepts.experiments.splits import describe_split, shared_sources
 
 WORDS = ("eight", "five", "four", "nine", "one", "seven", "six", "three", "two", "zero")
 
@@ -208,11 +211,17 @@ def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus
         assert sorted(data["mapping"][k] for k in kws) == sorted(gs)  # keyword set -> gesture set
         assert sorted(data["keywords"].index(k) for k in kws) == list(combo)
         assert len({data["slots"][c] for c in combo}) == len(combo)
-    # no source utterance serves in two folds
+    # no source utterance serves in two folds, nor any recording behind an example (its sources)
     owner: dict[int, int] = {}
     for (srcs, _), f in zip(data["sound_plan"], data["fold"]):
         for s in srcs:
             assert owner.setdefault(s, int(f)) == int(f)
+    rec_owner: dict[str, int] = {}
+    for (srcs, _), sources, f in zip(data["sound_plan"], data["sources"], data["fold"]):
+        assert {f"sound:{data['files'][s]}" for s in srcs} <= sources
+        assert sum(x.startswith("motion:") for x in sources) == 1  # one generated motion per example
+        for x in sources:
+            assert rec_owner.setdefault(x, int(f)) == int(f)
     # every fold has single-concept examples of every concept (its references), each concept equally often
     single = data["kind"] == "single"
     for f in range(TINY.n_folds):
@@ -278,12 +287,22 @@ def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus,
             assert all(0.0 <= v <= 1.0 for v in values), key
     assert m["n2.chance.l_given_number"] == pytest.approx(1 / 45)
     assert m["n3.chance.l_given_number"] == pytest.approx(1 / 120)
-    assert m["unseen.chance.l_full"] == 0.0
+    # on unseen combinations the most frequent calibration label set never scores: the random set of the true size
+    # is the better useless labeller there
+    assert res.samples["unseen.chance.l_full"] == res.samples["unseen.chance.l_given_number"]
+    assert all(a >= b for a, b in zip(res.samples["chance.l_full"], res.samples["chance.l_given_number"]))
+    # every sampled metric is declared as the folds of one cross-validation; the split is grouped by recording
+    assert set(res.sample_units) == set(res.samples) and set(res.sample_units.values()) == {"folds"}
+    unit = res.units["folds"]
+    assert unit.kind == "resampled" and unit.test_train_ratio == pytest.approx(1 / (TINY.n_folds - 1))
+    groups = res.split_groups["folds"]
+    assert groups["shared_sources"] == 0 and groups["n_folds"] == TINY.n_folds
+    assert groups["n_test_examples"] >= 1 and groups["n_sources"] > TINY.n_compositional
     for claim in ch7.EXPERIMENT.claims:
         for name in parse_rule(claim.rule).metrics:
             assert name == "chance.retrieval" or len(res.samples[name]) == TINY.n_folds
-        verdict = claim_verdict(claim.rule, m, res.samples, units=res.sample_units)
-        assert verdict.verdict in ("holds", "fails", "inconclusive")
+        verdict = claim_verdict(claim.rule, m, res.samples, units=res.sample_units, unit_kinds=res.units)
+        assert verdict.verdict == "inconclusive"  # 2 folds: fewer than 5 units decide nothing
     figs = ch7.present(res, TINY)
     assert set(figs) == {"retrieval", "l_given_number", "l_full"}
     bars = figs["retrieval"].axes[0].patches
@@ -294,7 +313,7 @@ def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus,
 def test_real_data_builders(tmp_path):
     fsdd, msr = real_data_path("fsdd"), real_data_path("msr-action3d")
     ctx = RunContext(data={"fsdd": fsdd, "msr-action3d": msr}, cache_dir=tmp_path, workers=1, show_progress=False)
-    cfg = dataclasses.replace(ch7.Config.quick(), n_compositional=30, n_single=40)
+    cfg = dataclasses.replace(ch7.Config.quick(), n_compositional=30, n_single=50)
     data = ch7.build_data(ctx, cfg)
     assert data["real_motion"] and data["speech_source"] == "fsdd" and len(data["keywords"]) == 10
     assert sorted(data["mapping"].values()) == sorted(common.MSR_VOCABULARY.gestures)
@@ -302,7 +321,15 @@ def test_real_data_builders(tmp_path):
         assert sorted(data["mapping"][k] for k in kws) == sorted(gs)
     assert all(a.ndim == 2 and a.shape[1] == 16 and np.isfinite(a).all() for a in data["angles"])
     mf = ch7.utterance_mfcc(ctx, data)
-    assert len(mf) == 70 and all(x.shape[1] == 22 for x in mf)
+    assert len(mf) == 80 and all(x.shape[1] == 22 for x in mf)
+    # every recording behind an example (utterances, limbs, idle donor) belongs to that example's fold only
+    owner: dict[str, int] = {}
+    for sources, f in zip(data["sources"], data["fold"]):
+        assert sum(x.startswith("motion:") for x in sources) >= 2  # at least one gesture's limbs and an idle donor
+        for x in sources:
+            assert owner.setdefault(x, int(f)) == int(f)
+    tasks = ch7.fold_tasks(data, mf, cfg, Streams(1, 2, 3, 4, 5))
+    assert describe_split("recordings", ch7.split_sources(data, tasks))["shared_sources"] == 0
     # an utterance of 3 words lasts about 3 words and 2 pauses: longer on average than twice a single word
     frames = {n: np.mean([len(mf[i]) for i, c in enumerate(data["combos"]) if len(c) == n]) for n in (1, 3)}
     assert frames[3] > 2 * frames[1]
@@ -323,3 +350,97 @@ def test_example_scores_average_to_the_chapter3_scorers():
         assert full.mean() == pytest.approx(l_full(Y, A, threshold=eta))
         for mask in (np.arange(400) % 3 == 0, Y.sum(1) == 2):  # subsets score as the scorers on the subset
             assert gn[mask].mean() == pytest.approx(l_given_number(Y[mask], A[mask]))
+
+
+# --------------------------------------------------------------------------- claims, bars and splits
+def test_claims_are_ours_or_checks_and_chance_claims_ask_for_the_fair_bar():
+    claims = ch7.EXPERIMENT.claims
+    assert {c.kind for c in claims} == {"ours", "check"}  # the thesis does not run this experiment
+    assert sum(c.kind == "ours" for c in claims) == 7 and sum(c.kind == "check" for c in claims) == 2
+    for c in claims:
+        if c.source:
+            assert c.source.endswith("(lines 6113-6118)")
+        # a claim that names a chance level compares with the bar chance + 0.2 (1 - chance), never chance itself
+        for part in c.rule.split(" and "):
+            if "chance." in part:
+                left, op, right = part.partition(" > " if " > " in part else " < ")
+                chance = right.split(" + ")[0]
+                assert right == f"{chance} + {common.FAIR_AGREEMENT} * (1 - {chance})", part
+    # the bar against the random-ranking values it is built from
+    assert common.FAIR_AGREEMENT == 0.2
+    assert common.fair_bar(0.1) == pytest.approx(0.28)
+    assert common.fair_bar(common.given_number_chance(10, [2, 3])) == pytest.approx(0.2122, abs=1e-4)
+    assert common.fair_bar(0.0) == pytest.approx(0.2) and common.fair_bar(0.2, 0.5) == pytest.approx(0.26)
+    assert common.bar_rule("a", "b", below=True) == "a < b + 0.2 * (1 - b)"
+
+
+def test_a_useless_learner_fails_the_bar_and_a_fair_one_passes():
+    """Per-fold scores at the random-ranking value fail the bar; scores at chance-corrected 0.3 hold it."""
+    from mmconcepts.experiments.uncertainty import claim_verdict
+
+    rule = common.bar_rule("s2m.retrieval", "chance.retrieval")
+    unit = {"folds": SampleUnit.folds(5)}
+    noise = np.array([0.02, -0.01, 0.0, 0.01, -0.02])
+    for level, expected in ((0.1, "fails"), (0.1 + 0.3 * 0.9, "holds")):
+        vals = list(level + noise)
+        v = claim_verdict(rule, {"s2m.retrieval": float(np.mean(vals)), "chance.retrieval": 0.1},
+                          {"s2m.retrieval": vals}, units={"s2m.retrieval": "folds"}, unit_kinds=unit)
+        assert v.verdict == expected
+
+
+@st.composite
+def _split_problem(draw):
+    """A small vocabulary, recordings per label, examples of 1-3 concepts and folds."""
+    n_folds = draw(st.integers(2, 5))
+    n_labels = draw(st.integers(3, 6))
+    per_label = draw(st.integers(n_folds, n_folds + 4))
+    n_comp = draw(st.integers(n_folds, 40))
+    seed = draw(st.integers(0, 2**31 - 1))
+    return n_folds, n_labels, per_label, n_comp, seed
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_split_problem())
+def test_property_no_recording_on_both_sides_of_a_fold(problem):
+    """The split functions of the experiment (folds of the recordings and examples, the sources drawn per example,
+    fold_tasks' training sets, calibration sets and references) never put one recording on both sides."""
+    from mmconcepts.experiments._ch6_common import concept_parts
+
+    n_folds, L, per_label, n_comp, seed = problem
+    rng, frng = np.random.default_rng(seed), np.random.default_rng(seed + 1)
+    slots = [common.SLOTS[i % 3] for i in range(L)]
+    y_rec = rng.permutation(np.repeat(np.arange(L), per_label))  # sound recordings, by keyword
+    act = rng.permutation(np.repeat(np.arange(L + 1), per_label)) - 1  # motion recordings, -1 the idle donors
+    combos = common.draw_combinations(n_comp, (2, 3) if L >= 3 else (2,), slots, rng)
+    combos += [(c,) for c in np.concatenate([rng.permutation(L) for _ in range(n_folds)]).tolist()]
+    single = np.array([False] * n_comp + [True] * (len(combos) - n_comp))
+    rec_fold, mot_fold = concept_parts(y_rec, n_folds, frng), concept_parts(act + 1, n_folds, frng)
+    fold = common.example_folds(combos, single, n_folds, frng)
+    sound = common.draw_sources(combos, fold, y_rec, rec_fold, rng)
+    motion = common.draw_sources([tuple(c) + (-1,) for c in combos], fold, act, mot_fold, rng)
+    sources = [frozenset([f"sound:{j}" for j in s] + [f"motion:{j}" for j in m]) for s, m in zip(sound, motion)]
+    possible = [c for m in (2, 3) for c in common.possible_combinations(slots, m)]
+    data = {"kind": np.where(single, "single", "compositional"), "fold": fold, "combos": combos,
+            "Y": common.label_matrix(combos, L), "held_out": common.held_out_combinations(possible, n_folds, frng),
+            "angles": [None] * len(combos), "sources": sources}
+    cfg = dataclasses.replace(TINY, n_folds=n_folds, n_calibration=10)
+    tasks = ch7.fold_tasks(data, [None] * len(combos), cfg, Streams(1, 2, 3, 4, 5))
+    folds = ch7.split_sources(data, tasks)
+    assert len(folds) == n_folds
+    for f, (train, test) in enumerate(folds):
+        assert len(test) == int(np.sum(fold == f)) and not shared_sources(train, test)
+    assert describe_split("recordings", folds)["shared_sources"] == 0
+    # every example is composed of its own fold's recordings, of its own labels
+    for i, (s, m) in enumerate(zip(sound, motion)):
+        assert all(rec_fold[j] == fold[i] for j in s) and all(mot_fold[j] == fold[i] for j in m)
+        assert [int(y_rec[j]) for j in s] == list(combos[i]) and int(act[m[-1]]) == -1
+
+
+def test_draw_sources_bad_input():
+    rng = np.random.default_rng(0)
+    with pytest.raises(DataError, match="holds no recording of label 1"):
+        common.draw_sources([(0, 1)], np.array([0]), np.array([0, 1]), np.array([0, 1]), rng)
+    with pytest.raises(DataError, match="one fold per example"):
+        common.draw_sources([(0,)], np.array([0, 1]), np.array([0]), np.array([0]), rng)
+    with pytest.raises(DataError, match="several concepts"):
+        common.example_folds([(0, 1)], np.array([True]), 2, rng)

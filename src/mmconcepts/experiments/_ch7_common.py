@@ -33,13 +33,23 @@ Sound (:func:`compose_utterance`)
 
 Folds
     The source recordings (utterances, motion recordings) are split into folds within each
-    keyword / action (:func:`mmconcepts.experiments._ch6_common.concept_parts`), and the
-    examples of fold f are composed from fold f's sources only: a recording never serves
+    keyword / action (:func:`mmconcepts.experiments._ch6_common.concept_parts`), the
+    examples are dealt into folds (:func:`example_folds`), and the examples of fold f are
+    composed from fold f's sources only (:func:`draw_sources`): a recording never serves
     in both training and test. Each fold also holds out a set of combinations
     (:func:`held_out_combinations`, a partition of the possible pairs and triples): its
     training set leaves out the other folds' examples of those combinations, so part of
     its test examples show combinations never seen together in training (as thesis
     Table 3.3).
+
+Bars above chance
+    A claim that a score is "above chance" asks for a chance-corrected score
+    ``(p - p0) / (1 - p0)`` of at least :data:`FAIR_AGREEMENT` (:func:`fair_bar`), ``p0``
+    the score of a useless learner (a random ranking, an input-blind labelling, a
+    shuffled-concept control): the form of Cohen's kappa, whose values up to 0.2 are
+    "slight" agreement on the scale of Landis and Koch (1977). Fixed from the chance
+    values before any result was looked at; shared by ``ch7-compositional`` and
+    ``ch7-online``.
 
 Random streams: the data stream draws the bijection, the combinations, the sources of each
 example, the pauses and the synthetic motions; the splits stream the folds of the sources
@@ -59,13 +69,45 @@ import numpy as np
 from .._jit import njit
 from ..errors import DataError, ParameterError
 
-__all__ = ["SLOTS", "Vocabulary", "MSR_VOCABULARY", "MSR_IDLE_DONORS", "SYNTHETIC_VOCABULARY",
-           "concept_bijection", "draw_combinations", "possible_combinations", "held_out_combinations",
-           "check_pairing", "compose_utterance", "compose_msr_motion", "simulate_motion", "combination_retrieval",
-           "decompose_on_references", "example_scores", "given_number_chance", "label_matrix"]
+__all__ = ["SLOTS", "Vocabulary", "MSR_VOCABULARY", "MSR_IDLE_DONORS", "SYNTHETIC_VOCABULARY", "FAIR_AGREEMENT",
+           "fair_bar", "bar_rule", "concept_bijection", "draw_combinations", "possible_combinations",
+           "held_out_combinations", "example_folds", "draw_sources", "check_pairing", "compose_utterance",
+           "compose_msr_motion", "simulate_motion", "combination_retrieval", "decompose_on_references",
+           "example_scores", "given_number_chance", "label_matrix"]
 
 #: The limb groups a gesture is done with; a motion shows at most one gesture per slot.
 SLOTS = ("right_arm", "left_arm", "legs")
+
+#: The chance-corrected score ``(p - p0) / (1 - p0)`` a claim "above chance" asks for: the lower end of "fair"
+#: agreement on Landis and Koch's (1977) scale of Cohen's kappa (the same statistic for a success rate p against
+#: a chance level p0). A learner at chance scores 0, a perfect one 1; 0.2 means that beyond the share a useless
+#: learner gets by luck, at least one in five of the remaining examples is solved.
+FAIR_AGREEMENT = 0.2
+
+
+def fair_bar(chance: float, ceiling: float = 1.0) -> float:
+    """The bar of a claim "above chance": ``chance + FAIR_AGREEMENT * (ceiling - chance)``.
+
+    Examples
+    --------
+    >>> round(fair_bar(0.1), 3)   # 10 candidates: a random ranking succeeds 1 time in 10
+    0.28
+    """
+    return float(chance) + FAIR_AGREEMENT * (float(ceiling) - float(chance))
+
+
+def bar_rule(metric: str, chance: str, ceiling: str | None = None, *, below: bool = False) -> str:
+    """The rule ``metric > chance + FAIR_AGREEMENT * (ceiling - chance)`` over metric names (ceiling 1 if None).
+
+    With ``below``, the rule that ``metric`` stays under the bar (``<``), for a control.
+
+    Examples
+    --------
+    >>> bar_rule("s2m.retrieval", "chance.retrieval")
+    's2m.retrieval > chance.retrieval + 0.2 * (1 - chance.retrieval)'
+    """
+    top = "1" if ceiling is None else ceiling
+    return f"{metric} {'<' if below else '>'} {chance} + {FAIR_AGREEMENT} * ({top} - {chance})"
 
 
 @dataclass(frozen=True)
@@ -191,6 +233,94 @@ def held_out_combinations(combos: Sequence[tuple[int, ...]], n_folds: int, rng: 
     out: list[set] = [set() for _ in range(int(n_folds))]
     for r, j in enumerate(order):
         out[r % int(n_folds)].add(tuple(combos[j]))
+    return out
+
+
+def example_folds(combos: Sequence[Sequence[int]], single: np.ndarray, n_folds: int,
+                  rng: np.random.Generator) -> np.ndarray:
+    """The fold of each example: the others dealt round robin in a random order, single-concept ones by concept.
+
+    Single-concept examples are split within each concept
+    (:func:`mmconcepts.experiments._ch6_common.concept_parts`), so that every fold holds
+    single-concept examples of every concept that has at least ``n_folds`` of them (the
+    fold's references).
+
+    Parameters
+    ----------
+    combos : sequence of sequences of int
+        The concept set of each example.
+    single : bool ndarray of shape (n_examples,)
+        Which examples are single-concept ones (their concept is ``combos[i][0]``).
+    n_folds : int
+    rng : numpy.random.Generator
+        The splits stream.
+
+    Returns
+    -------
+    ndarray of int of shape (n_examples,), values in ``range(n_folds)``
+    """
+    from ._ch6_common import concept_parts
+
+    single = np.asarray(single, dtype=bool)
+    if single.shape != (len(combos),):
+        raise DataError(f"single must flag each of the {len(combos)} examples; got shape {single.shape}.")
+    if any(len(combos[int(i)]) != 1 for i in np.flatnonzero(single)):
+        raise DataError("an example flagged single-concept has several concepts.")
+    fold = np.empty(len(combos), dtype=np.int64)
+    idx = rng.permutation(np.flatnonzero(~single))
+    fold[idx] = np.arange(idx.size) % int(n_folds)
+    fold[single] = concept_parts(np.array([combos[int(i)][0] for i in np.flatnonzero(single)], dtype=np.int64),
+                                 int(n_folds), rng)
+    return fold
+
+
+def draw_sources(wanted: Sequence[Sequence[int]], fold: np.ndarray, source_label: np.ndarray,
+                 source_fold: np.ndarray, rng: np.random.Generator, *,
+                 what: str = "recording") -> list[tuple[int, ...]]:
+    """For each example, one source recording of each wanted label, drawn in the example's own fold.
+
+    Parameters
+    ----------
+    wanted : sequence of sequences of int
+        The labels whose recordings example i is made of (its keywords in the spoken order,
+        its gestures and an idle donor, ...), in the order they are used.
+    fold : ndarray of int of shape (n_examples,)
+        Each example's fold.
+    source_label, source_fold : ndarrays of int of shape (n_sources,)
+        Each source recording's label and fold.
+    rng : numpy.random.Generator
+        The data stream.
+    what : str
+        What a source is, for the error message.
+
+    Returns
+    -------
+    list of tuple of int
+        ``out[i][j]`` is the index of the recording of ``wanted[i][j]`` behind example i,
+        a recording of fold ``fold[i]`` (drawn uniformly there).
+
+    Raises
+    ------
+    DataError
+        If an example's fold holds no recording of a label it needs.
+    """
+    source_label, source_fold = np.asarray(source_label), np.asarray(source_fold)
+    if len(wanted) != len(fold):
+        raise DataError(f"{len(wanted)} examples but {len(fold)} folds; give one fold per example.")
+    pools: dict[tuple[int, int], np.ndarray] = {}
+    out = []
+    for labels, f in zip(wanted, np.asarray(fold)):
+        srcs = []
+        for c in labels:
+            key = (int(c), int(f))
+            if key not in pools:
+                pools[key] = np.flatnonzero((source_label == key[0]) & (source_fold == key[1]))
+            pool = pools[key]
+            if pool.size == 0:
+                raise DataError(f"fold {key[1]} holds no {what} of label {key[0]}: too few {what}s for this many "
+                                "folds; use fewer folds or more recordings.")
+            srcs.append(int(pool[rng.integers(pool.size)]))
+        out.append(tuple(srcs))
     return out
 
 
