@@ -111,10 +111,11 @@ def test_claims_declare_their_kind_and_source():
     import re
 
     claims = get("ch2-nmf-recovery").claims
-    assert [c.kind for c in claims] == ["check", "thesis", "ours"]
-    thesis = claims[1]
-    assert re.search(r"\(lines? \d+(?:-\d+)?\)\Z", thesis.source) and "A.2" in thesis.source
-    assert thesis.rule == "identifiable.median_distance < nonidentifiable.median_distance"  # the thesis' comparison
+    # chapter 2 runs no experiment in the thesis: Appendix A.2.3 states uniqueness, not how close a solver comes, so
+    # the comparison of recovery on identifiable and non-identifiable data is ours
+    assert [c.kind for c in claims] == ["check", "ours", "ours"]
+    assert claims[1].rule == "identifiable.median_distance < nonidentifiable.median_distance"
+    assert not re.search(r"\d", claims[1].rule)
     assert get("ch2-nmf-recovery").reference == {}  # the thesis gives no numbers here: no magnitude claim
 
 

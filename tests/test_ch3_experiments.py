@@ -259,7 +259,9 @@ def test_claims_declare_kind_and_thesis_source(exp_id):
                 assert not numbers & set(re.findall(r"(?<![\w.])\d*\.?\d+(?![\w.])", rule)), rule
         if claim.kind == "magnitude":
             assert claim.rule in exp.reference
-    assert any(c.kind == "thesis" for c in exp.claims)
+    # every experiment of the thesis tests thesis statements; ch3-msr-action3d is no thesis experiment (its thesis
+    # analogues are tested on the same data by ch3-choreography and ch3-unseen): its claims are all ours
+    assert any(c.kind == "thesis" for c in exp.claims) == (exp_id != "ch3-msr-action3d")
 
 
 @pytest.mark.parametrize(("exp_id", "table"), [("ch3-choreography", "TABLE_3_2"), ("ch3-unseen", "TABLE_3_3")])
@@ -289,7 +291,8 @@ def test_nmf_vs_svm_claims_are_decided_under_every_setting(exp_id, better):
     """The thesis' order at its comparison (strict), under soft VQ and KDE histograms, plain and standardised SVM."""
     from mmconcepts.experiments import registry
 
-    claims = [c for c in registry.get(exp_id).claims if c.kind == "thesis" and "SVM" in c.text]
+    kind = "ours" if exp_id == "ch3-msr-action3d" else "thesis"
+    claims = [c for c in registry.get(exp_id).claims if c.kind == kind and "SVM" in c.text and c.settings]
     assert len(claims) == len(better)
     for claim in claims:
         assert set(claim.settings) == {"soft VQ, plain SVM", "soft VQ, standardised SVM", "KDE, plain SVM",

@@ -504,13 +504,18 @@ def test_ch5_tree_search_matches_a_hand_computation(rng):
 def test_ch5_tree_cost_claim_reads_recall_and_cost_of_every_restart_search():
     from mmconcepts.experiments.ch5_tree import RESTART_B, SEARCHES
 
-    rule = next(r for r in _claims("ch5_tree") if "exact.n_distances" in r)
-    assert "restart.cost_fraction_at_recall_0.9" not in rule
+    claim = next(c for c in _experiment("ch5_tree").claims if c.settings and "exact.n_distances" in
+                 next(iter(c.settings.values())))
+    # one rule per restart search, a setting each: the verdict says under which b it holds (no best b picked)
+    assert list(claim.settings) == [f"restart search, b = {b}" for b in RESTART_B]
+    rule = claim.settings["restart search, b = 8"]
+    assert "restart.cost_fraction_at_recall_0.9" not in rule and "or" not in rule.split()
     base = {f"restart_b{b}.{n}": v for b in RESTART_B for n, v in (("recall", 0.5), ("n_distances", 100.0))}
     base["exact.n_distances"] = 1000.0
-    assert evaluate_rule(rule, base) is False  # no restart search reaches 0.9
+    assert evaluate_rule(rule, base) is False  # b = 8 does not reach 0.9
     assert evaluate_rule(rule, dict(base, **{"restart_b8.recall": 0.93})) is True  # 0.93 for 0.1 of the cost
     assert evaluate_rule(rule, dict(base, **{"restart_b8.recall": 0.93, "restart_b8.n_distances": 250.0})) is False
+    assert evaluate_rule(rule, dict(base, **{"restart_b4.recall": 0.93})) is False  # another b is another setting
     assert len(SEARCHES) == 10 and RESTART_B == (2, 4, 8, 12, 16, 24, 32)
 
 

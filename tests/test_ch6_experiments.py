@@ -68,7 +68,7 @@ def test_claims_declare_kinds_and_thesis_sources():
                 assert m, claim.source
                 lines = [int(x) for x in re.findall(r"\d+", m.group(0))]
                 assert all(5196 <= line <= 5815 for line in lines), claim.source
-                assert claim.source.startswith("Section 6.6."), claim.source
+                assert claim.source.startswith("Section 6.6"), claim.source
             if claim.kind == "magnitude":
                 assert claim.rule in exp.reference and f"{exp.reference[claim.rule]:g}" in claim.text
             if claim.kind == "thesis":  # no number at all: no thesis number, no fraction of one, no bar
@@ -86,13 +86,13 @@ def test_kinds_of_every_chapter_6_claim():
     from mmconcepts.experiments import registry
 
     kinds = {exp_id: dict(Counter(c.kind for c in registry.get(exp_id).claims)) for exp_id in _IDS}
-    assert kinds == {"ch6-motion-sound": {"thesis": 3, "ours": 1, "check": 1, "magnitude": 7},
-                     "ch6-symbolic": {"thesis": 2, "ours": 1, "magnitude": 6},
+    assert kinds == {"ch6-motion-sound": {"thesis": 4, "check": 1, "magnitude": 6},
+                     "ch6-symbolic": {"thesis": 1, "ours": 2, "magnitude": 6},
                      "ch6-labels": {"ours": 2, "magnitude": 5},
                      "ch6-image-features": {"thesis": 1, "ours": 2},
                      "ch6-concepts": {"thesis": 1, "ours": 2},
                      "ch6-modalities": {"thesis": 1, "ours": 2},
-                     "ch6-sliding": {"thesis": 4}}
+                     "ch6-sliding": {"thesis": 3, "ours": 1}}
 
 
 @pytest.mark.slow
@@ -238,16 +238,16 @@ def test_motion_sound_claims_compare_every_space_measure_and_direction():
     assert evaluate_rule(rule, ok) is True
     for key in [k for k in ok if ".sound." in k]:
         assert evaluate_rule(rule, dict(ok, **{key: 0.55})) is False  # above the motion space in one entry
-    # the control and its thesis number: a magnitude (0.116), a sanity check at chance (not evidence)
+    # the control: a sanity check at chance (not evidence); its thesis number is no magnitude (the thesis' chance
+    # is not ours by design)
     kinds = {c.rule: c.kind for c in registry.get("ch6-motion-sound").claims}
-    assert kinds["shuffled.mean"] == "magnitude" and kinds["abs(shuffled.mean - chance) < 0.05"] == "check"
+    assert "shuffled.mean" not in kinds and kinds["abs(shuffled.mean - chance) < 0.05"] == "check"
 
 
 @pytest.mark.parametrize(("exp_id", "thesis"), [
     ("ch6-motion-sound", {"sound2motion.internal.kl": 0.608, "sound2motion.internal.euclidean": 0.612,
                           "sound2motion.internal.cosine": 0.646, "motion2sound.internal.kl": 0.610,
-                          "motion2sound.internal.euclidean": 0.704, "motion2sound.internal.cosine": 0.830,
-                          "shuffled.mean": 0.116}),
+                          "motion2sound.internal.euclidean": 0.704, "motion2sound.internal.cosine": 0.830}),
     ("ch6-symbolic", {"sound2motion.internal.kl": 0.387, "sound2motion.internal.euclidean": 0.699,
                       "sound2motion.internal.cosine": 0.721, "motion2sound.internal.kl": 0.573,
                       "motion2sound.internal.euclidean": 0.620, "motion2sound.internal.cosine": 0.702}),
@@ -293,7 +293,7 @@ def test_symbolic_and_labels_absence_claims():
     assert run(0.2, literal) == "fails"  # labels help beyond the noise
     assert run(-0.2, literal) == "holds"
     assert run(0.0, literal) == "inconclusive"
-    ours = next(c for c in registry.get("ch6-symbolic").claims if c.kind == "ours")
+    ours = next(c for c in registry.get("ch6-symbolic").claims if c.kind == "ours" and "without_labels" in c.rule)
     assert run(0.0, ours) == "holds" and run(0.2, ours) == "fails"
 
 

@@ -67,7 +67,7 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
-from .base import RunContext, Streams, array_digest, cached_call, streams
+from .base import RunContext, Streams, array_digest, cached_call, fill_thesis_numbers, streams
 from .config import PresetConfig
 from .splits import describe_split
 
@@ -84,14 +84,6 @@ __all__ = ["Streams", "streams", "PairsConfig", "load_speech", "load_motion", "l
 #: is the I-divergence (generalised KL, section 6.6.1); "kl_normalised" is the KL divergence
 #: after normalising both sides to sum to one, reported beside it.
 METRIC_NAMES = {"kl": "idiv", "kl_normalised": "kl", "euclidean": "euclidean", "cosine": "cosine"}
-
-#: The thesis' "13 or 10 keywords" ambiguity and the reading taken (in every chapter-6 experiment's notes).
-KEYWORDS_NOTE = (
-    "Thesis ambiguity, 13 or 10 keywords: the Caregiver corpus is described with 13 keywords (sections 5.2 and "
-    "B.1), chapter 6 with 10 (section 6.5.2: '1000 utterances containing 10 keywords'; Table 6.1 lists ten; "
-    "'we consider 10 semantic classes'). Reading taken: 10 concepts, so chance is 0.1 (the thesis' baseline "
-    "0.11 comes from its non-uniform keyword counts, footnote 6); the generated corpus uses the ten keywords of "
-    "Table 6.1, FSDD its ten digit words, and a real corpus the keywords of its first speaker's utterances.")
 
 SPEECH_SETS = ("acorns", "fsdd", "audio")
 MOTION_SETS = ("choreo2", "msr-action3d")
@@ -114,8 +106,17 @@ def SPACE_NAMES(direction: str) -> dict[str, str]:
 #: "baseline random is in that case 0.11" (Tables 6.2 and 6.3; footnote 6: the keywords are not exactly uniform).
 THESIS_CHANCE = 0.11
 
-#: Thesis Table 6.2 (success rates; the shuffled control "generally scores around 0.116"; "baseline random is in
-#: that case 0.11", footnote 6: the keywords are not exactly uniform).
+#: The thesis' "13 or 10 keywords" ambiguity and the reading taken (in every chapter-6 experiment's notes).
+KEYWORDS_NOTE = fill_thesis_numbers(
+    "Thesis ambiguity, 13 or 10 keywords: the Caregiver corpus is described with 13 keywords (sections 5.2 and "
+    "B.1), chapter 6 with 10 (section 6.5.2: '1000 utterances containing 10 keywords'; Table 6.1 lists ten; "
+    "'we consider 10 semantic classes'). Reading taken: 10 concepts, so chance is 0.1 (the thesis' baseline "
+    "{thesis:chance} comes from its non-uniform keyword counts, footnote 6); the generated corpus uses the ten "
+    "keywords of Table 6.1, FSDD its ten digit words, and a real corpus the keywords of its first speaker's "
+    "utterances.", {"chance": THESIS_CHANCE})
+
+#: Thesis Table 6.2 (success rates; the shuffled control "generally scores around" shuffled.mean; "baseline random
+#: is in that case" THESIS_CHANCE, footnote 6: the keywords are not exactly uniform).
 TABLE_6_2 = {
     "sound2motion.internal.kl": 0.608, "sound2motion.internal.euclidean": 0.612, "sound2motion.internal.cosine": 0.646,
     "sound2motion.motion.kl": 0.552, "sound2motion.motion.euclidean": 0.379, "sound2motion.motion.cosine": 0.444,

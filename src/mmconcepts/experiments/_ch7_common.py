@@ -67,6 +67,7 @@ import numba as nb
 import numpy as np
 
 from .._jit import njit
+from .rules import FAIR_AGREEMENT, above_chance_rule, fair_bar
 from ..errors import DataError, ParameterError
 
 __all__ = ["SLOTS", "Vocabulary", "MSR_VOCABULARY", "MSR_IDLE_DONORS", "SYNTHETIC_VOCABULARY", "FAIR_AGREEMENT",
@@ -78,36 +79,12 @@ __all__ = ["SLOTS", "Vocabulary", "MSR_VOCABULARY", "MSR_IDLE_DONORS", "SYNTHETI
 #: The limb groups a gesture is done with; a motion shows at most one gesture per slot.
 SLOTS = ("right_arm", "left_arm", "legs")
 
-#: The chance-corrected score ``(p - p0) / (1 - p0)`` a claim "above chance" asks for: the lower end of "fair"
-#: agreement on Landis and Koch's (1977) scale of Cohen's kappa (the same statistic for a success rate p against
-#: a chance level p0). A learner at chance scores 0, a perfect one 1; 0.2 means that beyond the share a useless
-#: learner gets by luck, at least one in five of the remaining examples is solved.
-FAIR_AGREEMENT = 0.2
-
-
-def fair_bar(chance: float, ceiling: float = 1.0) -> float:
-    """The bar of a claim "above chance": ``chance + FAIR_AGREEMENT * (ceiling - chance)``.
-
-    Examples
-    --------
-    >>> round(fair_bar(0.1), 3)   # 10 candidates: a random ranking succeeds 1 time in 10
-    0.28
-    """
-    return float(chance) + FAIR_AGREEMENT * (float(ceiling) - float(chance))
-
-
-def bar_rule(metric: str, chance: str, ceiling: str | None = None, *, below: bool = False) -> str:
-    """The rule ``metric > chance + FAIR_AGREEMENT * (ceiling - chance)`` over metric names (ceiling 1 if None).
-
-    With ``below``, the rule that ``metric`` stays under the bar (``<``), for a control.
-
-    Examples
-    --------
-    >>> bar_rule("s2m.retrieval", "chance.retrieval")
-    's2m.retrieval > chance.retrieval + 0.2 * (1 - chance.retrieval)'
-    """
-    top = "1" if ceiling is None else ceiling
-    return f"{metric} {'<' if below else '>'} {chance} + {FAIR_AGREEMENT} * ({top} - {chance})"
+#: ``bar_rule(metric, chance, ceiling)``: the rule of a claim "above chance", a chance-corrected score ``(p - p0) /
+#: (1 - p0)`` above :data:`FAIR_AGREEMENT` (the lower end of "fair" agreement on Landis and Koch's (1977) scale of
+#: Cohen's kappa; :func:`mmconcepts.experiments.rules.above_chance_rule`). A learner at chance scores 0, a perfect
+#: one 1; 0.2 means that beyond the share a useless learner gets by luck, at least one in five of the remaining
+#: examples is solved.
+bar_rule = above_chance_rule
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ data; the thesis gives curves only, no numbers):
   better performances than using only the positions"; "for high values of the delay ...
   using only positions performs better"; "using only velocities or considering position
   and velocity histograms as separate dimensions leads to worse performances". Claims, at
-  the small delay ``bins_delay`` (3 frames, that of Table 3.2's features) and at the
+  the small delay ``bins_delay`` (3 frames, the delay of our Table 3.2 features: the thesis gives none) and at the
   largest delay of the config (our reading of "high"): joint beats angles at the small
   delay; angles beat joint at the large delay; velocities alone and separate histograms
   do worse than joint at both.
@@ -238,7 +238,8 @@ EXPERIMENT = register(Experiment(
               settings={f"{m.replace('vq_', '')} VQ": f"large_bins.{m}.l_single - large_bins.kde.l_single < "
                                                        f"small_bins.{m}.l_single - small_bins.kde.l_single"
                         for m in ("vq_hard", "vq_soft")}),
-        Claim("For a small velocity delay (3 frames, that of Table 3.2's features) joint angle-velocity histograms "
+        Claim("For a small velocity delay (3 frames, the delay of our Table 3.2 features; the thesis gives none) "
+              "joint angle-velocity histograms "
               "classify better than angles alone.",
               "joint.small_delay.l_single > angles.small_delay.l_single",
               kind="thesis", source="Fig. 3.6 (lines 2749-2750)"),

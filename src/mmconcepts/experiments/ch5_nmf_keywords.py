@@ -60,13 +60,15 @@ from ..sound.hac import HAC
 from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
 from .config import PresetConfig
+from .rules import above_chance_rule
 from .registry import register
 from .splits import describe_split
 from .uncertainty import SampleUnit
 
 __all__ = ["Config", "compute", "present", "run", "REFERENCE"]
 
-#: The thesis' number for this protocol: Table 6.4, S+L -> L (speaker 1, cross-validation; std 0.034 over folds).
+#: The thesis' number for this protocol: Table 6.4, S+L -> L (speaker 1, cross-validation). Chapter 6's
+#: experiments hold the same table; chapters do not import each other, so this one number is written here too.
 REFERENCE = {"nmf.accuracy": 0.916}
 
 
@@ -352,8 +354,8 @@ EXPERIMENT = register(Experiment(
         Claim("The two systems reach similar accuracies (section 5.2.4: 'quite similar'; our margin: within 0.15).",
               "abs(nmf.accuracy - voting.accuracy) < 0.15"),
         Claim("With one or several keywords per utterance (section 5.4), NMF reconstructs the whole set said, "
-              "given its size, far above chance (our bar: ten times chance).",
-              "composed.nmf.l_given_number > 10 * composed.chance.l_given_number"),
+              "given its size, well above chance (our bar: a chance-corrected score above 0.2).",
+              above_chance_rule("composed.nmf.l_given_number", "composed.chance.l_given_number")),
         Claim("NMF names each keyword of an utterance of several nearly as well as a keyword said alone (our bar: "
               "keyword recall at most 0.1 below the one-keyword accuracy; our expectation from the additive property "
               "of HAC, section 5.3).",

@@ -78,10 +78,10 @@ class Config(PresetConfig):
     QUICK = dict(n_per_speaker=250, n_train_utterances=120, n_queries=100)
 
 
-#: "Recall 0.9 for less than a fifth of exact search's cost": some restart search does both, decided on the
-#: per-repetition recall and cost of every restart search (restart.cost_fraction_at_recall_0.9 summarises it).
-COST_RULE = " or ".join(f"(restart_b{b}.recall >= 0.9 and restart_b{b}.n_distances < 0.2 * exact.n_distances)"
-                        for b in RESTART_B)
+#: "Recall 0.9 for less than a fifth of exact search's cost", one rule per restart search (a setting each: the
+#: verdict says under which b it holds, never the best b picked on the test queries).
+COST_RULES = {f"restart search, b = {b}": f"restart_b{b}.recall > 0.9 and restart_b{b}.n_distances < 0.2 * "
+              "exact.n_distances" for b in RESTART_B}
 
 
 def _key(search: str, b: int) -> str:
@@ -335,8 +335,8 @@ EXPERIMENT = register(Experiment(
               "descent (our bar for the thesis' 'minimize the impact of the approximate nature of our structure').",
               "1 - restart_b4.recall < 0.5 * (1 - greedy.recall)"),
         Claim("The tree retrieves the nearest leaf for a small fraction of the cost of exact search (our bar: recall "
-              "0.9 for less than a fifth of the distance evaluations).",
-              COST_RULE),
+              "above 0.9 for less than a fifth of the distance evaluations), decided for each restart search.",
+              settings=COST_RULES),
     ],
     datasets=("acorns", "fsdd", "audio"),
     description=__doc__.split("\n\n")[0],

@@ -45,7 +45,8 @@ from typing import cast
 
 from ..errors import ExperimentError
 
-__all__ = ["Rule", "Comparison", "parse_rule", "evaluate_rule", "is_valid_metric_name", "RESERVED_WORDS"]
+__all__ = ["Rule", "Comparison", "parse_rule", "evaluate_rule", "is_valid_metric_name", "RESERVED_WORDS",
+           "FAIR_AGREEMENT", "fair_bar", "above_chance_rule"]
 
 #: Words that cannot be metric names.
 RESERVED_WORDS = frozenset({"and", "or", "not", "abs", "min", "max"})
@@ -540,3 +541,38 @@ def evaluate_rule(rule: str, metrics: Mapping[str, float]) -> bool | None:
     True
     """
     return parse_rule(rule, metrics.keys()).evaluate(metrics)
+
+
+# --------------------------------------------------------------------------- bars above chance
+
+#: The chance-corrected score a claim "above chance" asks for: ``(p - p0) / (ceiling - p0)`` above 0.2, the form of
+#: Cohen's kappa, whose values up to 0.2 are "slight" agreement on the scale of Landis and Koch (1977). A useless
+#: learner (``p = p0``) scores 0 on it, so a bar set this way cannot be passed at chance, however small ``p0``.
+FAIR_AGREEMENT = 0.2
+
+
+def fair_bar(chance: float, ceiling: float = 1.0) -> float:
+    """The bar of a claim "above chance": ``chance + FAIR_AGREEMENT * (ceiling - chance)``.
+
+    Examples
+    --------
+    >>> round(fair_bar(0.1), 3)   # 10 candidates: a random ranking succeeds 1 time in 10
+    0.28
+    """
+    return float(chance) + FAIR_AGREEMENT * (float(ceiling) - float(chance))
+
+
+def above_chance_rule(metric: str, chance: str, ceiling: str | None = None, *, below: bool = False) -> str:
+    """The rule ``metric > chance + FAIR_AGREEMENT * (ceiling - chance)`` over metric names (ceiling 1 if None).
+
+    ``chance`` is the metric (or number) a useless learner scores (a random ranking, an input-blind labelling, a
+    shuffled control), computed by the experiment on the same folds; the rule asks for a chance-corrected score above
+    :data:`FAIR_AGREEMENT`. With ``below``, the rule that ``metric`` stays under the bar (``<``), for a control.
+
+    Examples
+    --------
+    >>> above_chance_rule("s2m.retrieval", "chance.retrieval")
+    's2m.retrieval > chance.retrieval + 0.2 * (1 - chance.retrieval)'
+    """
+    top = "1" if ceiling is None else ceiling
+    return f"{metric} {'<' if below else '>'} {chance} + {FAIR_AGREEMENT} * ({top} - {chance})"
