@@ -54,6 +54,7 @@ import contextlib
 import warnings
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -275,7 +276,7 @@ def _cached_objects(n_objects: int, n_views: int, code: str) -> tuple[np.ndarray
 
     ims = make_objects(n_objects, n_views, random_state=0)
     levels = np.stack([np.round(np.asarray(im) * 255) for im in ims.images]).astype(np.uint8)
-    return levels, list(ims.labels), list(ims.views), list(ims.categories)
+    return levels, list(ims.labels), list(ims.views or []), list(ims.categories or [])
 
 
 def speech_note(ctx: RunContext, speech: dict | None = None) -> str:
@@ -386,8 +387,8 @@ def part_split_groups(by: str, repetitions: Sequence[tuple[Sequence[Iterable[Has
     folds = []
     for sources, part in repetitions:
         part = np.asarray(part)
-        folds.append(([sources[i] for i in np.flatnonzero(part == train_part)],
-                      [sources[i] for i in np.flatnonzero((part != train_part) & (part >= 0))]))
+        folds.append(([sources[int(i)] for i in np.flatnonzero(part == train_part)],
+                      [sources[int(i)] for i in np.flatnonzero((part != train_part) & (part >= 0))]))
     return describe_split(by, folds)
 
 
@@ -613,7 +614,7 @@ def _fold(task: dict) -> dict:
     tr, te, y = task["train"], task["test"], task["y"]
     seed, ref_seed = task["learner_seed"], task["reference_seed"]
     n_classes = int(y.max()) + 1
-    out: dict[str, float] = {}
+    out: dict[str, Any] = {}
     with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         hac = HAC(random_state=seed, max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr])

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -450,8 +451,8 @@ def compute(config: Config, ctx: RunContext) -> Result:
                                                                f"tested; 40 % of the views held out), new stream, "
                                                                "codebooks and learners")}
 
-    rows = [[w, metrics[f"{tag}.n_windows"], metrics[f"{tag}.s2i"], metrics[f"{tag}.i2s"]]
-            for w, tag in zip(widths, tags)]
+    rows: list[list[Any]] = [[w, metrics[f"{tag}.n_windows"], metrics[f"{tag}.s2i"], metrics[f"{tag}.i2s"]]
+                             for w, tag in zip(widths, tags)]
     rows.append(["whole utterances", float(len(reps[0]["tr"])), metrics["whole.s2i"], metrics["whole.i2s"]])
     rep0 = reps[0]
     total = rep0["total"]
