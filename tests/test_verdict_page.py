@@ -115,3 +115,24 @@ def test_every_claim_in_the_docs_is_a_claim_of_the_code(page):
         assert claims[key] == row["kind"], f"{page.name}: {key} is of kind {claims[key]}, not {row['kind']}"
     text = page.read_text(encoding="utf-8")
     assert re.search(r"preset \*\*(quick|full)\*\*", text) and re.search(r"code of commit \*\*[0-9a-f]{7,}", text)
+
+
+def test_two_runs_compared_metric_by_metric(toy, tmp_path):
+    from mmconcepts.report.verdict_page import comparison_page
+
+    from mmconcepts.experiments import run_experiment
+
+    run_experiment("toy-mean", output=tmp_path / "old", progress=False)
+    run_experiment("toy-mean", output=tmp_path / "new", progress=False, seed=1)
+    old = json.loads((tmp_path / "old" / "toy-mean.json").read_text())["metrics"]
+    new = json.loads((tmp_path / "new" / "toy-mean.json").read_text())["metrics"]
+    assert old["mean"] != new["mean"]
+    page = comparison_page(tmp_path / "old", tmp_path / "new", ids=["toy-mean"], metrics=["mean", "*.chunk_mean"],
+                           title="T", old_commit="aaaaaaa", new_commit="bbbbbbb", write=tmp_path / "c.md")
+    assert (tmp_path / "c.md").read_text() == page and GENERATED_MARK in page
+    assert "*before*: commit **aaaaaaa**" in page and "*after*: commit **bbbbbbb**" in page
+    assert f"| mean | {old['mean']:.4g} | {new['mean']:.4g} |" in page
+    assert f"| 1.chunk_mean | {old['1.chunk_mean']:.4g} | {new['1.chunk_mean']:.4g} |" in page
+    assert "| std |" not in page  # not asked for
+    with pytest.raises(ExperimentError, match="no experiment"):
+        comparison_page(tmp_path / "old", tmp_path / "new", ids=["toy-mean"], metrics=["nothing*"], title="T")

@@ -246,6 +246,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the commit of the code that made the records (default: git's HEAD of the installed package)")
     p.add_argument("--allow-stale", action="store_true",
                    help="accept records of other code than the installed one (the page says so)")
+    p.add_argument("--compare", metavar="OLD_DIR", default=None,
+                   help="instead of the verdict page, set DIR's metrics beside those of an earlier run's folder "
+                        "OLD_DIR (with --only and --metrics)")
+    p.add_argument("--only", metavar="ID", nargs="+", default=None, help="the experiments to compare (--compare)")
+    p.add_argument("--metrics", metavar="PATTERN", nargs="+", default=["*"],
+                   help="the metric names to compare, as shell patterns (--compare; default: all)")
+    p.add_argument("--old-commit", default=None, help="the commit of the code that made OLD_DIR (--compare)")
     p.add_argument("--tallies", metavar="PAGE", default=None,
                    help="also copy the page's tallies into PAGE (the README) between its <!-- tallies:start --> and "
                         "<!-- tallies:end --> markers (with --write)")
@@ -561,6 +568,15 @@ def _cmd_verdicts(args: argparse.Namespace) -> int:
     from .report.verdict_page import update_tallies, verdict_page, write_verdict_page
 
     options = dict(title=args.title, command=args.made_by, commit=args.commit, allow_stale=args.allow_stale)
+    if args.compare:
+        if not args.only:
+            raise _UsageError("--compare needs the experiments to compare: --only ID [ID ...].")
+        from .report.verdict_page import comparison_page
+
+        text = comparison_page(args.compare, args.dir, ids=args.only, metrics=args.metrics, title=args.title,
+                               old_commit=args.old_commit, new_commit=args.commit, write=args.write)
+        print(f"wrote {args.write}" if args.write else text, end="\n" if args.write else "")
+        return 0
     if args.tallies and not args.write:
         raise _UsageError("--tallies copies the tallies of the page written with --write: give --write FILE too.")
     if args.write:
