@@ -176,8 +176,9 @@ def compute_motion_sound(config: Config, ctx: RunContext) -> Result:
                        f"shuffled.max ({top.removeprefix('shuffled.')}) is the best of the control's 24 comparisons, "
                        "a descriptive maximum chosen on the test folds: no claim uses it.",
                        fill_thesis_numbers(
-                       "Claims: 'cosine beats Euclidean in the internal space' is an order of Table 6.2 (a thesis "
-                       "statement, as the orders of Tables 3.2 and 3.3 are), though the thesis' text says nothing of "
+                       "Claims reclassified: 'cosine beats Euclidean in the internal space' is an order of Table 6.2 "
+                       "(a thesis statement, as the orders of Tables 3.2 and 3.3 are), though the thesis' text says "
+                       "nothing of "
                        "it; 'the shuffled control is at chance' is a check (a property of the control, not evidence), "
                        "and the control's 'around {thesis:shuffled.mean}' is no magnitude (the thesis' chance, "
                        "{thesis:chance}, comes from its non-uniform keywords; ours is 1/10 by design, so the ratio "
