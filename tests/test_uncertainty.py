@@ -298,6 +298,8 @@ def test_settings_say_under_which_the_claim_holds():
     assert combine_settings({"KDE": "fails", "VQ": "fails"}).detail == "fails under all"
     assert combine_settings({"KDE": "inconclusive", "VQ": "inconclusive"}).verdict == "inconclusive"
     assert combine_settings({"a": "holds", "b": "inconclusive"}).detail == "holds only under a; inconclusive under b"
+    listed = combine_settings({"KDE, plain": "holds", "VQ, plain": "inconclusive", "VQ, scaled": "inconclusive"})
+    assert listed.detail == "holds only under (KDE, plain); inconclusive under (VQ, plain), (VQ, scaled)"
 
 
 # --------------------------------------------------------------------------- claims and the runner
@@ -369,3 +371,12 @@ def test_runner_stores_units_tests_and_settings(toy, tmp_path):
     assert stored["intervals"]["a"] == pytest.approx([lo, hi])
     assert second["verdict"] == "depends" and second["detail"] == "holds only under B; fails under C"
     assert [s["verdict"] for s in second["settings"]] == ["holds", "fails"]
+
+
+def test_the_examples_in_the_docstrings_are_true():
+    import doctest
+
+    from mmconcepts.experiments import uncertainty
+
+    failed, tried = doctest.testmod(uncertainty, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert tried > 0 and failed == 0

@@ -91,8 +91,11 @@ def test_the_command_writes_the_page_and_the_readmes_tallies(toy, tmp_path, caps
     assert main(["verdicts", str(tmp_path / "nowhere")]) == 1  # an error, said in one line
 
 
-def _generated_pages() -> list[Path]:
-    return [p for p in sorted(DOCS.rglob("*.md")) if GENERATED_MARK in p.read_text(encoding="utf-8")]
+def _generated_pages(kind: str = "verdicts") -> list[Path]:
+    """The docs' pages written by ``mmconcepts verdicts`` (``kind="verdicts"``) or by its ``--compare`` form."""
+    pages = [p for p in sorted(DOCS.rglob("*.md")) if GENERATED_MARK in p.read_text(encoding="utf-8")]
+    compared = [p for p in pages if "mmconcepts verdicts --compare" in p.read_text(encoding="utf-8")]
+    return compared if kind == "compare" else [p for p in pages if p not in compared]
 
 
 def test_the_docs_have_a_generated_verdict_page_and_the_readme_its_tallies():
@@ -136,3 +139,25 @@ def test_two_runs_compared_metric_by_metric(toy, tmp_path):
     assert "| std |" not in page  # not asked for
     with pytest.raises(ExperimentError, match="no experiment"):
         comparison_page(tmp_path / "old", tmp_path / "new", ids=["toy-mean"], metrics=["nothing*"], title="T")
+
+
+@pytest.mark.parametrize("page", _generated_pages("compare"), ids=lambda p: p.name)
+def test_every_compared_experiment_in_the_docs_is_one_of_the_code(page):
+    ids = {exp.id for exp in all_experiments()}
+    text = page.read_text(encoding="utf-8")
+    sections = re.findall(r"^## (\S+) \((?:real|generated) data\)$", text, flags=re.M)
+    assert sections, f"{page.name} compares no experiment"
+    assert set(sections) <= ids, f"{page.name}: {sorted(set(sections) - ids)} are not experiments of the code"
+    assert re.search(r"\*before\*: commit \*\*[0-9a-f]{7,}", text) and re.search(r"\*after\*: commit \*\*[0-9a-f]{7,}", text)
+
+
+def test_where_a_thesis_statement_replicates():
+    from mmconcepts.report.verdict_page import NOT_RUN, _replicates_on
+
+    labels = ["real data", "generated data"]
+    assert _replicates_on(["holds", "holds (within one fit)"], labels) == "both"
+    assert _replicates_on(["fails", "holds"], labels) == "generated data only"
+    assert _replicates_on(["holds", "depends (holds only under a; fails under b)"], labels) == "real data only"
+    assert _replicates_on(["inconclusive", "fails"], labels) == "neither"
+    assert _replicates_on([NOT_RUN, "holds (within one fit)"], labels) == "generated data (the only data)"
+    assert _replicates_on([NOT_RUN, "fails"], labels) == "neither"

@@ -224,7 +224,7 @@ def metric_interval(metric: float, samples: Sequence[float] | None, unit: Sample
     (-0.484, 4.484)
     >>> lo, hi = metric_interval(2.0, [1.0, 2.0, 3.0], SampleUnit.folds(3))
     >>> round(hi - 2.0, 3)  # sqrt(1/3 + 1/2) / sqrt(1/3) = 1.58 times wider
-    3.917
+    3.928
     """
     x = _clean(samples)
     if x is None or metric is None or not math.isfinite(float(metric)):
@@ -586,6 +586,11 @@ def combine_settings(verdicts: Mapping[str, str]) -> SettingsVerdict:
     --------
     >>> combine_settings({"KDE": "holds", "VQ": "fails"}).detail
     'holds only under KDE; fails under VQ'
+
+    A label that holds a comma is put in parentheses, to keep the labels of a list apart:
+
+    >>> combine_settings({"KDE, plain SVM": "holds", "VQ, plain SVM": "fails", "VQ, scaled SVM": "fails"}).detail
+    'holds only under (KDE, plain SVM); fails under (VQ, plain SVM), (VQ, scaled SVM)'
     """
     if not verdicts:
         raise ExperimentError("combine_settings needs at least one setting.")
@@ -603,7 +608,7 @@ def combine_settings(verdicts: Mapping[str, str]) -> SettingsVerdict:
         labels = by_word.get(word)
         if labels:
             only = "only " if word == "holds" and len(labels) < len(verdicts) else ""
-            parts.append(f"{word} {only}under {', '.join(labels)}")
+            parts.append(f"{word} {only}under {', '.join(f'({x})' if ',' in x else x for x in labels)}")
     overall = "depends"
     if set(evaluated) == {"inconclusive"}:
         overall = "inconclusive"

@@ -44,6 +44,18 @@ def _git_commit(where: Path) -> str | None:
     return head + ("+changes" if dirty else "") if head else None
 
 
+NOT_RUN = "not run"  # the cell of a claim on data its experiment did not run on (chapters 2 and 4 have no real data)
+
+
+def _replicates_on(cells: Sequence[str], labels: Sequence[str]) -> str:
+    """Where a thesis statement holds, given its cell on each data: both, one of them, or neither."""
+    ran = [(label, cell.split(" (")[0] == "holds") for label, cell in zip(labels, cells) if cell != NOT_RUN]
+    held = [label for label, holds in ran if holds]
+    if len(ran) == 1:
+        return f"{ran[0][0]} (the only data)" if held else "neither"
+    return "both" if len(held) == len(ran) else (f"{held[0]} only" if held else "neither")
+
+
 def _cell(text: object) -> str:
     s = str(text).replace("\\", "\\\\").replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;")
     return " ".join(s.splitlines()) or " "
@@ -136,7 +148,7 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
                 if claim.kind != kind:
                     continue
                 key = (view.id, claim.text)
-                table.setdefault(key, [""] * len(variants))
+                table.setdefault(key, [NOT_RUN] * len(variants))
                 meta[key] = (claim.kind, claim.source)
                 cell = claim.cell
                 if kind == "magnitude" and claim.test:
@@ -150,8 +162,7 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
         for (exp_id, text), cells in sorted(table.items(), key=lambda kv: kv[0][0]):
             row = [exp_id, text, *meta[(exp_id, text)], *cells]
             if kind == "thesis" and len(variants) == 2:
-                held = [c.split(" (")[0] == "holds" for c in cells]
-                row.append("both" if all(held) else (f"{labels[held.index(True)]} only" if any(held) else "neither"))
+                row.append(_replicates_on(cells, labels))
             body.append(row)
         if kind == "thesis" and len(variants) == 2:
             cols.append("replicates on")
