@@ -259,6 +259,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_verdicts)
 
     p = sub.add_parser(
+        "compare", parents=[common], help="check that two runs give the same numbers and verdicts",
+        description="Compare the JSON result records of two results folders (two runs of the same experiments, "
+                    "e.g. before and after a change of the code that should not change the results): every "
+                    "metric, interval, sample, split and claim verdict. Wall-clock metrics (names matching "
+                    "*time*, *seconds*, *ms_per_query*) are left out. Prints each difference; the exit status is "
+                    "0 when the runs agree and 1 when they differ.",
+    )
+    p.add_argument("old", metavar="OLD_DIR", type=_folder, help="the results folder of the first run")
+    p.add_argument("new", metavar="NEW_DIR", type=_folder, help="the results folder of the second run")
+    p.add_argument("--only", metavar="ID", nargs="+", default=None, help="compare only these experiments")
+    p.add_argument("--rtol", type=float, default=0.0,
+                   help="relative tolerance of numbers (default: 0, equal to the bit)")
+    p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser(
         "data", parents=[common], help="list or fetch the real data sets",
         description="The real data sets the experiments use, by name, under a data root "
                     "(--data-root DIR, else $MMCONCEPTS_DATA_ROOT).",
@@ -586,6 +601,16 @@ def _cmd_verdicts(args: argparse.Namespace) -> int:
     else:
         print(verdict_page(args.dir, **options), end="")
     return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from .experiments.compare import compare_records, format_differences
+
+    if not (args.rtol >= 0.0):
+        raise _UsageError(f"--rtol must be a number >= 0; got {args.rtol}.")
+    diffs = compare_records(args.old, args.new, ids=args.only, rtol=args.rtol)
+    print(format_differences(diffs))
+    return 1 if diffs else 0
 
 
 # --------------------------------------------------------------------------- main

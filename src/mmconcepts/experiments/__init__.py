@@ -22,6 +22,7 @@ from .base import CLAIM_KINDS, PRESETS, Claim, Experiment, ExperimentSkipped, Re
 from .registry import all_experiments, get, load_experiments, register, unregister
 from .record import ClaimRecord, ResultRecord
 from .rules import Rule, evaluate_rule, parse_rule
+from .compare import compare_records
 from .splits import describe_split, shared_sources
 from .uncertainty import SampleUnit
 from .runner import (
@@ -78,6 +79,7 @@ __all__ = [
     "Table",
     "all_experiments",
     "check_data",
+    "compare_records",
     "describe_split",
     "evaluate_rule",
     "get",
