@@ -1,4 +1,4 @@
-"""Named data sets and the data root (issue 11, section 1).
+"""Named data sets and the data root.
 
 A *data root* is one folder holding the real data sets under their names::
 

@@ -607,10 +607,10 @@ def _learner(name: str, params: dict, seed: int, features: dict | None = None):
         return make_svm_baseline(scale=False, random_state=seed)
     if name == "svm_std":  # ours: the same on standardised features
         # make_svm_baseline(scale=True), with the faster of LinearSVC's two solvers for the histograms (the same
-        # optimum): on standardised VQ histograms the dual is ~3.5x faster than the primal that dual="auto" picks
-        # when there are more examples than features; on standardised KDE histograms the primal is ~2x faster.
-        # Stopping tolerance 1e-3 (libsvm's and sklearn.svm.SVC's default; LinearSVC's is 1e-4): decision values
-        # within ~1e-3 of the tighter solution, a third less time.
+        # optimum): the dual on standardised VQ histograms (dual="auto" would pick the primal when there are more
+        # examples than features), the primal on standardised KDE histograms (benchmarks/README.md has the
+        # measurements). Stopping tolerance 1e-3 (libsvm's and sklearn.svm.SVC's default; LinearSVC's is 1e-4):
+        # decision values within ~1e-3 of the tighter solution.
         from sklearn.multiclass import OneVsRestClassifier
         from sklearn.pipeline import make_pipeline
         from sklearn.preprocessing import StandardScaler

@@ -104,7 +104,7 @@ def _sizes(corpus) -> str:
             f"{len(corpus.keywords)} keywords{', %d files skipped' % len(corpus.skipped) if corpus.skipped else ''})")
 
 
-#: The thesis' ambiguity on the number of keywords, and the reading taken (issue 12, section 3).
+#: The thesis' ambiguity on the number of keywords, and the reading taken.
 KEYWORDS_READING = (
     "Reading of the thesis: Caregiver has 13 keywords in section 5.2.4 and appendix B.1, but 10 in section 6.5.2 "
     "(speaker 1, 1000 utterances), which names them only through Table 5.1's examples. The generated corpus uses "

@@ -35,7 +35,7 @@ views are photos of the concept's one object (the thesis' design: one object per
 every split shows the same object on both sides); a view is one recording, never on both
 sides.
 
-Random streams (issue 12): :func:`streams` spawns independent seeds from the
+Random streams: :func:`streams` spawns independent seeds from the
 configuration's seed for the data (bijections, pairing, stream order), the folds (splits),
 the learners (HAC and histogram codebooks, NMF initialisation), the reference draws of the
 matching protocol, and the composition of the test utterances of the sliding windows.

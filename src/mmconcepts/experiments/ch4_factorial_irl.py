@@ -140,8 +140,7 @@ def _pca(theta: np.ndarray, k: int) -> np.ndarray:
 def _point(job):
     """Fit the learners with m demos on the first N tasks; score on them and on the test tasks."""
     # The batched products here are small (S = 100): multi-threaded BLAS only oversubscribes the
-    # cores that the parallel workers already share (measured: a GradIRL objective on 30 tasks
-    # took 8.5 s with OpenBLAS threads on a busy 2-core machine, 0.15 s with one thread).
+    # cores that the parallel workers already share (benchmarks/README.md has the measurement).
     with threadpool_limits(limits=1, user_api="blas"):
         return _point_body(job)
 

@@ -78,8 +78,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
     init : {"random", "nndsvd", "nndsvda", "nndsvdar"} or None, default="random"
         Initialization of the factorization (see :func:`mmconcepts.nmf.beta_nmf`). Random
         (seeded) factors scaled to the data, as in the thesis' experiments; "nndsvda"
-        costs a truncated SVD of the stacked matrix (about 5 s for 900 x 110 000 HAC
-        vectors, a third of the whole fit).
+        costs a truncated SVD of the stacked matrix, a large part of the fit on HAC vectors
+        (``benchmarks/README.md``).
     random_state : int, Generator or None
     forget : float in (0, 1], default=1.0
         :meth:`partial_fit` only: the weight ``rho`` of the statistics of earlier batches

@@ -669,11 +669,10 @@ class ClusterTree(SaveLoadMixin, ClusterMixin, BaseEstimator):
     centroids, as thesis Algorithm 2 does.
 
     *k-means.* Splits cluster at most ``n_max`` points, hundreds to thousands of times per
-    tree. scikit-learn's ``KMeans`` spends milliseconds per call on input validation and
-    thread pools (1.6 ms with ``n_init=1`` on 10 points of 104 dimensions on a quiet
-    machine); the compiled k-means here (scikit-learn's greedy k-means++ seeding, then
-    Lloyd iterations, best of 3 seedings drawn from ``random_state``) takes 7 us on 10
-    points with k = 2 and 150 us on 24 points with k = 12, with the same inertia as
+    tree. scikit-learn's ``KMeans`` spends most of such a call on input validation and
+    thread pools; the compiled k-means here (scikit-learn's greedy k-means++ seeding, then
+    Lloyd iterations, best of 3 seedings drawn from ``random_state``) is orders of magnitude
+    faster on these small groups (``benchmarks/README.md``), with the same inertia as
     ``KMeans(n_init=3)`` on average (tested). When points coincide and a group is empty,
     the father gets fewer than ``k`` new nodes; if all points coincide, the children are
     dealt into ``k`` groups in order, so that every node keeps fewer than ``n_max``

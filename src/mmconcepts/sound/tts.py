@@ -11,7 +11,7 @@ Engines (extra ``speech``: ``pip install mmconcepts[speech]``):
 ``"espeak"`` -- :class:`EspeakEngine`
     eSpeak NG (formant synthesis, 22050 Hz) from the ``espeakng-loader`` wheel, driven
     through ctypes (``espeak_Initialize`` in ``AUDIO_OUTPUT_SYNCHRONOUS`` mode, a synth
-    callback collecting samples and events). Fast (about 10 ms per sentence), with many
+    callback collecting samples and events). Fast, with many
     voices and variants (``"en-us"``, ``"en-gb-x-rp+f3"``, ``"en-gb-scotland+m3"``, ...)
     and rate/pitch/pitch-range parameters. Word timings: always, from eSpeak's word
     events (start) and the next word's start or the next pause phoneme (end); eSpeak
@@ -23,7 +23,7 @@ Engines (extra ``speech``: ``pip install mmconcepts[speech]``):
     the same text synthesized twice in one process differs slightly. To make every call
     a pure function of its arguments, a private copy of the library (in a temporary
     folder removed at exit) is loaded, initialised, used and unloaded (``dlclose``) for
-    each utterance (about 8 ms), and eSpeak's own random
+    each utterance, and eSpeak's own random
     generator is seeded from ``random_state`` (``espeak_ng_SetRandSeed``; it only
     matters for noisy variants such as ``+whisper``).
 
