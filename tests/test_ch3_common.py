@@ -11,6 +11,7 @@ from conftest import real_data_path
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import RunContext, SampleUnit, describe_split
 from mmconcepts.experiments import _ch3_common as common
+from mmconcepts.motion import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
 
 
 def _label_sets(rng, n=80, L=10):
@@ -141,20 +142,20 @@ def test_msr_mixtures_join_the_limbs_of_their_sources():
     full = common.msr_subset(folder, "mixed_full", seed=0)
     assert part.Y.shape[1] == 18 and full.Y.shape[1] == 33
     assert np.all(part.Y.sum(axis=1) == 2) and np.all(full.Y.sum(axis=1) == 3)
-    legs = [c for c in range(16) if c not in common.ARM_COLUMNS]
+    legs = [c for c in range(16) if c not in ARM_COLUMNS]
     for r in range(0, len(part.Y), 37):
         i, j = part.info["sources"][r]
         assert actions[i] in common.MSR_ARM_ACTIONS and actions[j] in common.MSR_LEG_ACTIONS
         x = part.angles[r]
-        np.testing.assert_array_equal(x[:, common.ARM_COLUMNS], prim.angles[i][:len(x), common.ARM_COLUMNS])
+        np.testing.assert_array_equal(x[:, ARM_COLUMNS], prim.angles[i][:len(x), ARM_COLUMNS])
         np.testing.assert_array_equal(x[:, legs], prim.angles[j][:len(x), legs])
         assert set(np.array(part.label_ids)[part.Y[r] > 0]) == {actions[i], actions[j]}
     for r in range(0, len(full.Y), 37):
         i, k, j = full.info["sources"][r]
         assert actions[i] != actions[k]
         x = full.angles[r]
-        np.testing.assert_array_equal(x[:, common.RIGHT_ARM_COLUMNS], prim.angles[i][:len(x), common.RIGHT_ARM_COLUMNS])
-        np.testing.assert_array_equal(x[:, common.LEFT_ARM_COLUMNS], prim.angles[k][:len(x), common.RIGHT_ARM_COLUMNS])
+        np.testing.assert_array_equal(x[:, RIGHT_ARM_COLUMNS], prim.angles[i][:len(x), RIGHT_ARM_COLUMNS])
+        np.testing.assert_array_equal(x[:, LEFT_ARM_COLUMNS], prim.angles[k][:len(x), RIGHT_ARM_COLUMNS])
         assert set(np.array(full.label_ids)[full.Y[r] > 0]) == {actions[i], 100 + actions[k], actions[j]}
     # most large-set combinations are unique (as the thesis' Fig. 3.8), the small set's repeat
     assert len(np.unique(common.combination_ids(full.Y))) > len(full.Y) / 2

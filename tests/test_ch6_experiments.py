@@ -345,7 +345,7 @@ def test_image_features_colour_claim_is_the_thesis_comparison_in_each_direction(
 
 
 def test_mutual_information_matrix_by_construction(rng):
-    from mmconcepts.experiments.ch6_concepts import mutual_information_matrix
+    from mmconcepts.multimodal import mutual_information_matrix
 
     y = np.repeat(np.arange(4), 50)
     W = rng.random((200, 3)) * 0.1
@@ -361,7 +361,7 @@ def test_mutual_information_matrix_equals_sklearn(rng):
     """The vectorised estimate equals sklearn's mutual_info_score pair by pair (in bits), constant columns too."""
     from sklearn.metrics import mutual_info_score
 
-    from mmconcepts.experiments.ch6_concepts import mutual_information_matrix
+    from mmconcepts.multimodal import mutual_information_matrix
 
     y = rng.integers(0, 6, 120)
     W = rng.random((120, 7)) ** 3
@@ -384,7 +384,7 @@ def test_concepts_repetition_by_hand(rng):
     from itertools import permutations
 
     from mmconcepts.experiments._ch6_common import concept_analysis as _repetition
-    from mmconcepts.experiments.ch6_concepts import mutual_information_matrix
+    from mmconcepts.multimodal import mutual_information_matrix
 
     y = np.repeat(np.arange(3), 8)
     W = rng.random((24, 3))
@@ -563,7 +563,7 @@ def test_sliding_test_folds_are_balanced_and_stratified(rng):
 
 
 def test_sliding_repetition_streams():
-    from mmconcepts.experiments._ch6_common import child_seeds, streams
+    from mmconcepts.experiments.base import child_seeds, streams
     from mmconcepts.experiments.ch6_sliding import repetition_streams
 
     st = streams(3)
@@ -574,7 +574,7 @@ def test_sliding_repetition_streams():
 
 
 def test_streams_are_independent_and_reproducible():
-    from mmconcepts.experiments._ch6_common import child_seeds, streams
+    from mmconcepts.experiments.base import child_seeds, streams
 
     a, b = streams(0), streams(1)
     assert a == streams(0) and len(set(a)) == len(a)  # five different seeds from one
@@ -583,7 +583,8 @@ def test_streams_are_independent_and_reproducible():
 
 
 def test_pairing_stays_within_concept_and_part(rng):
-    from mmconcepts.experiments._ch6_common import concept_parts, pair_within_parts
+    from mmconcepts.experiments._ch6_common import pair_within_parts
+    from mmconcepts.experiments.splits import concept_parts
 
     y = np.repeat(np.arange(4), 30)  # 30 utterances per concept
     item_concept = np.r_[np.repeat(np.arange(4), 11), -np.ones(5, int)]  # 11 records per concept, 5 unused

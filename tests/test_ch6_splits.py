@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 from mmconcepts.errors import DataError, ExperimentError
 from mmconcepts.experiments import RunContext, describe_split
 from mmconcepts.experiments import _ch6_common as common
+from mmconcepts.experiments.splits import concept_parts
 
 _SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -46,7 +47,7 @@ def _ids(prefix: str, n: int) -> list[str]:
 def test_pairing_within_parts_never_shares_a_recording_across_parts(data, parts):
     y, items, seed = data
     rng = np.random.default_rng(seed)
-    part_y, part_i = common.concept_parts(y, parts, rng), common.concept_parts(items, parts, rng)
+    part_y, part_i = concept_parts(y, parts, rng), concept_parts(items, parts, rng)
     assert (part_i[items < 0] == -1).all()
     paired = common.pair_within_parts(y, part_y, items, part_i, rng, "record")
     assert (items[paired] == y).all() and (part_i[paired] == part_y).all()  # same concept, same part

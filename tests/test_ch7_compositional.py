@@ -404,7 +404,7 @@ def _split_problem(draw):
 def test_property_no_recording_on_both_sides_of_a_fold(problem):
     """The split functions of the experiment (folds of the recordings and examples, the sources drawn per example,
     fold_tasks' training sets, calibration sets and references) never put one recording on both sides."""
-    from mmconcepts.experiments._ch6_common import concept_parts
+    from mmconcepts.experiments.splits import concept_parts
 
     n_folds, L, per_label, n_comp, seed = problem
     rng, frng = np.random.default_rng(seed), np.random.default_rng(seed + 1)

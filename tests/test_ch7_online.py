@@ -18,6 +18,7 @@ from conftest import real_data_path
 
 import mmconcepts.experiments.ch7_online as ch7  # importing registers ch7-online
 from mmconcepts.experiments import RunContext
+from mmconcepts.experiments.splits import concept_parts
 
 _TINY = dict(n_per_speaker=50, n_motion=60, n_folds=2, k=10, n_iter=20, batch_size=10, partial_max_iter=5,
              points=(0.3, 1.0))
@@ -153,7 +154,7 @@ def test_property_streams_and_test_folds_share_no_recording(n_folds, per_concept
     rng = np.random.default_rng(seed)
     y = rng.permutation(np.repeat(np.arange(4), per_concept))
     item = rng.permutation(np.repeat(np.arange(4), n_records))
-    fold_y, fold_m = c6.concept_parts(y, n_folds, rng), c6.concept_parts(item, n_folds, rng)
+    fold_y, fold_m = concept_parts(y, n_folds, rng), concept_parts(item, n_folds, rng)
     motion_idx = c6.pair_within_parts(y, fold_y, item, fold_m, rng, "motion record")
     sources = c6.example_sources(sound=[f"u{i}" for i in range(len(y))], motion=[f"m{j}" for j in motion_idx])
     data = {"fold": fold_y, "n_folds": n_folds, "y": y, "mfcc": [None] * len(y), "angles": [None] * len(y)}

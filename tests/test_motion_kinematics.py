@@ -109,3 +109,30 @@ def test_orientation_angles_relative_rotation(rng):
     np.testing.assert_allclose(ang, np.tile([0.3, -0.2, 1.1], (T, 1)), atol=1e-10)
     with pytest.raises(DataError):
         orientation_angles(MotionRecording(rng.normal(size=(T, 2, 3)), ("torso", "neck")))
+
+
+def test_the_arm_columns_name_the_arms_and_pair_right_with_left():
+    from mmconcepts.motion import ARM_COLUMNS, JOINT_ANGLE_NAMES, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
+
+    arms = [n for n in JOINT_ANGLE_NAMES if n.split("_", 1)[1].startswith(("shoulder", "elbow", "forearm"))]
+    assert [JOINT_ANGLE_NAMES[i] for i in ARM_COLUMNS] == arms and len(arms) == 8
+    for r, l in zip(RIGHT_ARM_COLUMNS, LEFT_ARM_COLUMNS):
+        assert JOINT_ANGLE_NAMES[r].replace("right_", "left_") == JOINT_ANGLE_NAMES[l]
+    assert sorted([*RIGHT_ARM_COLUMNS, *LEFT_ARM_COLUMNS]) == sorted(ARM_COLUMNS)
+
+
+def test_msr_joint_angles_reads_a_folder_once_per_state(tmp_path):
+    from mmconcepts.motion import msr_joint_angles
+    from mmconcepts.motion.kinematics import _msr_joint_angles
+
+    rng = np.random.default_rng(0)
+    for name in ("a01_s02_e01_skeleton3D.txt", "a14_s03_e02_skeleton3D.txt"):
+        frames = rng.normal(size=(20 * 20, 4)) + [0, 0, 2, 1]  # 20 frames x 20 joints: x y z confidence
+        np.savetxt(tmp_path / name, frames, fmt="%.6f")
+    _msr_joint_angles.cache_clear()
+    angles, actions, subjects, skipped = msr_joint_angles(tmp_path)
+    assert [a.shape for a in angles] == [(20, 16), (20, 16)] and skipped == ()
+    assert list(actions) == [1, 14] and list(subjects) == [2, 3]
+    assert msr_joint_angles(tmp_path)[0] is angles  # cached
+    (tmp_path / "a01_s02_e01_skeleton3D.txt").unlink()
+    assert len(msr_joint_angles(tmp_path)[0]) == 1  # a new folder state is read again

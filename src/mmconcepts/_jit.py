@@ -30,10 +30,11 @@ from pathlib import Path
 from typing import Any
 
 import numba as nb
+import threadpoolctl
 
 from ._io import folder_lock
 
-__all__ = ["njit", "lock_file", "first_use"]
+__all__ = ["njit", "lock_file", "first_use", "single_threaded"]
 
 
 def _lock_dir() -> Path:
@@ -126,3 +127,21 @@ def first_use(name: str) -> Iterator[None]:
             stack.enter_context(folder_lock(path.parent, path.name))
         yield
     _FIRST_USES.add(name)
+
+
+@contextlib.contextmanager
+def single_threaded() -> Iterator[None]:
+    """BLAS (threadpoolctl) and numba's parallel kernels limited to one thread, then restored.
+
+    The experiments run their folds and repetitions side by side (``ctx.parallel``), one per
+    worker process: a fit that also spread over every core would only compete with the
+    other tasks. The NMF kernels give the same numbers, bit for bit, with any number of
+    threads (the kernels sum every entry in the same order), so this changes the time, never the result.
+    """
+    before = nb.get_num_threads()
+    nb.set_num_threads(1)
+    try:
+        with threadpoolctl.threadpool_limits(1):
+            yield
+    finally:
+        nb.set_num_threads(before)

@@ -53,8 +53,6 @@ a random tie-break).
 
 from __future__ import annotations
 
-import functools
-import re
 import time
 import warnings
 from collections import Counter
@@ -64,9 +62,10 @@ from typing import Any, overload
 
 import numpy as np
 
-from ..errors import ConvergenceWarning, DataError
+from ..errors import ConvergenceWarning
 from .._fingerprint import code_fingerprint
-from ..motion import JOINT_ANGLE_NAMES, MotionHistograms, joint_angles, load_choreo1, load_msr_action3d
+from ..motion import (ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS, MotionHistograms,
+                      joint_angles, load_choreo1, msr_joint_angles)
 from ..nmf import LabelNMF, l_full, l_given_number, l_single, make_svm_baseline
 from .base import RunContext, Streams, array_digest, streams
 from .splits import describe_split
@@ -208,38 +207,8 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
 # MSR Action3D: actions whose motion is in the arms (the right arm, when one arm moves) and in the legs.
 MSR_ARM_ACTIONS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 17, 18, 19)
 MSR_LEG_ACTIONS = (14, 15, 16)
-_ARM_PARTS = ("shoulder", "elbow", "forearm")
-ARM_COLUMNS = np.array([i for i, n in enumerate(JOINT_ANGLE_NAMES) if any(k in n for k in _ARM_PARTS)])
-RIGHT_ARM_COLUMNS = np.array([i for i in ARM_COLUMNS if JOINT_ANGLE_NAMES[i].startswith("right_")])
-LEFT_ARM_COLUMNS = np.array([JOINT_ANGLE_NAMES.index("left_" + JOINT_ANGLE_NAMES[i][len("right_"):])
-                             for i in RIGHT_ARM_COLUMNS])
 #: Label id of an arm action performed (mirrored) on the left arm in the ``mixed_full`` MSR set.
 LEFT_ARM_OFFSET = 100
-
-
-@functools.lru_cache(maxsize=4)
-def _msr_angles(folder: str, stamp: tuple) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, tuple[str, ...]]:
-    """Joint angles, action and subject of every usable MSR sequence, and the skipped files (cached per folder state)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # skipped files are listed in ds.skipped
-        ds = load_msr_action3d(folder, on_error="skip")
-    angles, actions, subjects, skipped = [], [], [], [s.record_id for s in ds.skipped]
-    for r in ds:
-        a = np.ascontiguousarray(joint_angles(r), dtype=np.float64)
-        if len(a) <= 8 or not np.isfinite(a).all():
-            skipped.append(r.record_id)
-            continue
-        angles.append(a)
-        actions.append(r.labels[0])
-        subject = re.search(r"_s(\d+)", r.record_id)
-        if subject is None:
-            raise DataError(f"MSR Action3D record id {r.record_id!r} names no subject (_sNN); expected aAA_sSS_eEE.")
-        subjects.append(int(subject.group(1)))
-    return tuple(angles), np.array(actions), np.array(subjects), tuple(skipped)
-
-
-def _folder_stamp(folder: Path) -> tuple:
-    return tuple(sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in folder.iterdir()))
 
 
 def source_parts(actions: np.ndarray, subjects: np.ndarray, n_parts: int, seed: int) -> np.ndarray:
@@ -382,7 +351,7 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None, 
     if subset not in _SUBSETS:
         raise ValueError(f"subset must be one of {_SUBSETS}; got {subset!r}")
     folder = Path(folder)
-    angles, actions, subjects, skipped = _msr_angles(str(folder.resolve()), _folder_stamp(folder))
+    angles, actions, subjects, skipped = msr_joint_angles(folder)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
     parts: np.ndarray | None = None
     labels: list[tuple[int, ...]]

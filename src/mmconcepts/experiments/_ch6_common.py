@@ -50,35 +50,33 @@ coefficients there (:func:`concept_analysis`).
 
 from __future__ import annotations
 
-import contextlib
 import warnings
-from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from threadpoolctl import threadpool_limits
 
 from .._fingerprint import code_fingerprint
 from ..errors import ConvergenceWarning, DataError
 from ..motion import MotionHistograms, MotionRecording, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
-from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
+from .._jit import single_threaded
+from ..multimodal import MultimodalNMF, matching_success_rate, mutual_information_matrix, pairwise_divergence
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as ch5
-from .base import RunContext, Streams, array_digest, cached_call, fill_thesis_numbers, streams
+from .base import RunContext, Streams, array_digest, cached_call, child_seeds, fill_thesis_numbers, streams
 from .config import PresetConfig
-from .splits import describe_split
+from .splits import concept_parts, describe_split
 
 __all__ = ["Streams", "streams", "PairsConfig", "load_speech", "load_motion", "load_images", "load_pairs", "evaluate",
-           "data_source_note", "concept_parts", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
+           "data_source_note", "pair_within_parts", "SPACE_NAMES", "METRIC_NAMES",
            "MSR_ACTIONS", "SPEECH_SETS", "MOTION_SETS", "IMAGE_SETS", "image_locals", "image_concepts", "image_ids",
-           "child_seeds", "space_pairs", "gesture_mapping", "eth80_objects", "KEYWORDS_NOTE", "example_sources",
-           "fold_split_groups", "part_split_groups", "mutual_information_matrix", "concept_analysis",
-           "entropy_bits", "CONCEPT_METRICS", "SPECIALISED_FRACTION", "seen_columns", "single_threaded",
-           "TABLE_6_2", "TABLE_6_3", "TABLE_6_4", "THESIS_CHANCE"]
+           "space_pairs", "gesture_mapping", "eth80_objects", "KEYWORDS_NOTE", "example_sources",
+           "fold_split_groups", "part_split_groups", "concept_analysis",
+           "entropy_bits", "CONCEPT_METRICS", "SPECIALISED_FRACTION", "seen_columns", "TABLE_6_2", "TABLE_6_3", "TABLE_6_4", "THESIS_CHANCE"]
 
 #: Metric names of the tables -> metric of :func:`mmconcepts.multimodal.pairwise_divergence`.
 #: "kl" is the thesis' setting: the data are not normalised per example, so the divergence
@@ -170,11 +168,6 @@ class PairsConfig(PresetConfig):
 
 
 # ---------------------------------------------------------------------------- random streams
-def child_seeds(seed: int, n: int) -> list[int]:
-    """``n`` independent seeds spawned from ``seed`` (one per fold or repetition)."""
-    return [int(k.generate_state(1, dtype=np.uint32)[0]) for k in np.random.SeedSequence(int(seed)).spawn(n)]
-
-
 # ---------------------------------------------------------------------------- data
 def _speech_name(ctx: RunContext) -> str | None:
     return next((n for n in SPEECH_SETS if n in ctx.data), None)
@@ -320,27 +313,6 @@ def data_source_note(ctx: RunContext, speech: dict | None = None, motion: dict |
     return speech_note(ctx, speech) + " " + motion_note(ctx, motion)
 
 
-# ---------------------------------------------------------------------------- pairing
-def concept_parts(concept: np.ndarray, parts, rng: np.random.Generator) -> np.ndarray:
-    """Part of each item, split within each concept (items of concept -1 get part -1).
-
-    ``parts`` is a number of folds (items dealt round robin after a random permutation)
-    or a sequence of fractions (e.g. ``(0.6, 0.2, 0.2)``; each part gets at least one item
-    of each concept that has enough).
-    """
-    concept = np.asarray(concept)
-    out = np.full(concept.shape, -1, dtype=np.int64)
-    for c in np.unique(concept[concept >= 0]):
-        idx = rng.permutation(np.flatnonzero(concept == c))
-        if isinstance(parts, (int, np.integer)):
-            out[idx] = np.arange(idx.size) % int(parts)
-        else:
-            frac = np.asarray(parts, dtype=float)
-            counts = np.maximum(1, np.floor(frac / frac.sum() * idx.size).astype(int)) if idx.size >= len(frac) \
-                else np.r_[idx.size, np.zeros(len(frac) - 1, int)]
-            counts[0] = idx.size - counts[1:].sum()
-            out[idx] = np.repeat(np.arange(len(frac)), counts)
-    return out
 
 
 def pair_within_parts(y: np.ndarray, part_y: np.ndarray, item_concept: np.ndarray, part_item: np.ndarray,
@@ -452,25 +424,6 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int 
             "sources": sources}
 
 
-# ---------------------------------------------------------------------------- one task, one thread
-@contextlib.contextmanager
-def single_threaded() -> Iterator[None]:
-    """BLAS (threadpoolctl) and numba's parallel kernels limited to one thread, then restored.
-
-    The experiments run their folds and repetitions side by side (``ctx.parallel``), one per
-    worker process: a fit that also spread over every core would only compete with the
-    other tasks. The NMF kernels give the same numbers, bit for bit, with any number of
-    threads (the kernels sum every entry in the same order), so this changes the time, never the result.
-    """
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        with threadpool_limits(1):
-            yield
-    finally:
-        numba.set_num_threads(before)
 
 
 # ---------------------------------------------------------------------------- features
@@ -490,43 +443,6 @@ def seen_columns(X_train) -> np.ndarray:
     return np.flatnonzero(nnz)
 
 
-# ---------------------------------------------------------------------------- Fig. 6.10: mutual information
-def mutual_information_matrix(y: np.ndarray, W: np.ndarray, n_bins: int = 10) -> np.ndarray:
-    """I(X_l; Y_j) in bits for every concept l (rows) and coefficient j (columns).
-
-    X_l is the indicator "the example features concept l" and Y_j the coefficient j
-    discretised into ``n_bins`` equal-width bins over its range (thesis section 6.6.3). The
-    plug-in estimate from the joint counts, as :func:`sklearn.metrics.mutual_info_score`
-    gives for each pair (in nats), computed for every concept at once from one contingency
-    table per coefficient (hand-written: sklearn's per-pair call cost a second per fit).
-
-    Parameters
-    ----------
-    y : ndarray of int, shape (n_samples,)
-        Concept of each example.
-    W : ndarray of shape (n_samples, k)
-        Internal coefficients.
-    n_bins : int
-        Equal-width bins over each coefficient's range.
-    """
-    concepts, yi = np.unique(np.asarray(y), return_inverse=True)
-    n, n_concepts = yi.size, concepts.size
-    out = np.zeros((n_concepts, W.shape[1]))
-    n_c = np.bincount(yi, minlength=n_concepts)[:, None].astype(float)  # examples of each concept
-    for j in range(W.shape[1]):
-        col = W[:, j]
-        edges = np.linspace(col.min(), col.max(), n_bins + 1)[1:-1]
-        binned = np.digitize(col, edges)
-        # joint[c, b]: examples of concept c in bin b; the examples of the other concepts in bin b are the rest
-        joint = np.bincount(yi * n_bins + binned, minlength=n_concepts * n_bins).reshape(n_concepts, n_bins)
-        n_b = joint.sum(axis=0)[None, :].astype(float)
-        total = np.zeros(n_concepts)
-        for counts, n_x in ((joint, n_c), (n_b - joint, n - n_c)):  # X_l = 1, then X_l = 0
-            with np.errstate(divide="ignore", invalid="ignore"):
-                terms = counts / n * np.log2(counts * n / (n_x * n_b))
-            total += np.where(counts > 0, terms, 0.0).sum(axis=1)
-        out[:, j] = np.maximum(total, 0.0)
-    return out
 
 
 def entropy_bits(p: np.ndarray) -> np.ndarray:

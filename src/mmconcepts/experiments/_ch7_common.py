@@ -33,7 +33,7 @@ Sound (:func:`compose_utterance`)
 
 Folds
     The source recordings (utterances, motion recordings) are split into folds within each
-    keyword / action (:func:`mmconcepts.experiments._ch6_common.concept_parts`), the
+    keyword / action (:func:`mmconcepts.experiments.splits.concept_parts`), the
     examples are dealt into folds (:func:`example_folds`), and the examples of fold f are
     composed from fold f's sources only (:func:`draw_sources`): a recording never serves
     in both training and test. Each fold also holds out a set of combinations
@@ -218,7 +218,7 @@ def example_folds(combos: Sequence[Sequence[int]], single: np.ndarray, n_folds: 
     """The fold of each example: the others dealt round robin in a random order, single-concept ones by concept.
 
     Single-concept examples are split within each concept
-    (:func:`mmconcepts.experiments._ch6_common.concept_parts`), so that every fold holds
+    (:func:`mmconcepts.experiments.splits.concept_parts`), so that every fold holds
     single-concept examples of every concept that has at least ``n_folds`` of them (the
     fold's references).
 
@@ -236,7 +236,7 @@ def example_folds(combos: Sequence[Sequence[int]], single: np.ndarray, n_folds: 
     -------
     ndarray of int of shape (n_examples,), values in ``range(n_folds)``
     """
-    from ._ch6_common import concept_parts
+    from .splits import concept_parts
 
     single = np.asarray(single, dtype=bool)
     if single.shape != (len(combos),):
@@ -389,7 +389,7 @@ def compose_msr_motion(parts: dict, donor: np.ndarray) -> np.ndarray:
     -------
     ndarray of shape (T, 16), T the shortest of the recordings used
     """
-    from ._ch3_common import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
+    from ..motion import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
 
     unknown = set(parts) - set(SLOTS)
     if unknown:

@@ -104,6 +104,7 @@ __all__ = [
     "Streams",
     "array_digest",
     "cached_call",
+    "child_seeds",
     "streams",
     "Claim",
     "Experiment",
@@ -137,6 +138,11 @@ class Streams(NamedTuple):
     splits: int
     reference: int
     composition: int = 0
+
+
+def child_seeds(seed: int, n: int) -> list[int]:
+    """``n`` independent seeds spawned from ``seed`` (one per fold or repetition)."""
+    return [int(k.generate_state(1, dtype=np.uint32)[0]) for k in np.random.SeedSequence(int(seed)).spawn(n)]
 
 
 def streams(seed: int) -> Streams:

@@ -14,7 +14,7 @@ acoustic patterns of one word. Here no label reaches the learner:
 - learner: HAC vectors (22 MFCC, codebooks 150/150/100, lags 2 and 5, fitted on these
   utterances), NMF with the I-divergence, k atoms (default: as many as words, as the
   cited work's 11 atoms for 11 digit names), 50 iterations (the thesis' chapter 6);
-- alignment, as thesis Fig. 6.10 (:func:`~mmconcepts.experiments.ch6_concepts.mutual_information_matrix`):
+- alignment, as thesis Fig. 6.10 (:func:`~mmconcepts.multimodal.mutual_information_matrix`):
   the mutual information between each word's presence in the utterance and each atom's
   coefficient (10 equal-width bins), atoms matched to words by the Kuhn-Munkres
   algorithm (maximum total mutual information); how specialised a matched atom is: the
@@ -50,7 +50,7 @@ from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch5_common as common
 from .base import Claim, Experiment, Result, RunContext, Table
-from .ch6_concepts import mutual_information_matrix
+from ..multimodal import mutual_information_matrix
 from .config import PresetConfig
 from .registry import register
 from .splits import describe_split
@@ -99,7 +99,7 @@ def word_atom_mi(Y: np.ndarray, W: np.ndarray, n_bins: int = 10) -> np.ndarray:
     """I(word l present; atom j's coefficient) in bits, shape (n_words, n_atoms).
 
     Word l's presence is the 0/1 column ``Y[:, l]``; each coefficient is discretised into
-    ``n_bins`` equal-width bins (:func:`~mmconcepts.experiments.ch6_concepts.mutual_information_matrix`,
+    ``n_bins`` equal-width bins (:func:`~mmconcepts.multimodal.mutual_information_matrix`,
     thesis section 6.6.3). A word present in every utterance or in none carries no
     information (row of zeros).
 

@@ -31,11 +31,12 @@ from matplotlib.figure import Figure
 
 from ..errors import ParameterError
 from . import _ch6_common as common
-from ._ch6_common import CONCEPT_METRICS, mutual_information_matrix
+from ..multimodal import mutual_information_matrix
+from ._ch6_common import CONCEPT_METRICS
 from .base import Claim, Experiment, Result, RunContext, SampleUnit, Table
 from .registry import register
 
-__all__ = ["Config", "compute", "present", "run", "mutual_information_matrix", "REPEATED", "training_folds"]
+__all__ = ["Config", "compute", "present", "run", "REPEATED", "training_folds"]
 
 #: The folds of ch6-motion-sound (the same config, so that the four experiments share the folds' computation):
 #: ``concept_k`` (15) and ``mi_bins`` (10) are Fig. 6.10's.

@@ -31,6 +31,9 @@ from ..errors import ConvergenceWarning, DataError
 from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ..sound.hac import HAC
 from . import _ch6_common as common
+from .base import child_seeds
+from .splits import concept_parts
+from .._jit import single_threaded
 from .base import Claim, Experiment, Result, RunContext, SampleUnit, Table
 from .config import PresetConfig
 from .rules import above_chance_rule
@@ -79,9 +82,9 @@ def _repeat(task: dict) -> dict:
     tr, te, ref = task["train"], task["test"], task["ref"]
     c_loc, k_loc, mfcc = task["c_loc"], task["k_loc"], task["mfcc"]
     out = {}
-    with common.single_threaded(), warnings.catch_warnings():
+    with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        learner = common.child_seeds(seed, 3)
+        learner = child_seeds(seed, 3)
         hac = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([mfcc[i] for i in tr])
         S = hac.transform(mfcc)
         S = S[:, common.seen_columns(S[tr])]  # internal-space comparisons only: unseen features change nothing
@@ -113,8 +116,8 @@ def split_repetition(y: np.ndarray, image_concept: np.ndarray, frng: np.random.G
     utterance gets a view of its concept from its own part (``drng``), so a view serves in one
     part only.
     """
-    part_y = common.concept_parts(y, SPLIT, frng)
-    part_i = common.concept_parts(image_concept, SPLIT, frng)
+    part_y = concept_parts(y, SPLIT, frng)
+    part_i = concept_parts(image_concept, SPLIT, frng)
     return part_y, common.pair_within_parts(y, part_y, image_concept, part_i, drng, "image")
 
 
@@ -133,7 +136,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     image_concept = common.image_concepts(ims.labels, object_of)
     c_loc, k_loc = common.image_locals(ctx, ims)
     view_ids = common.image_ids(ims)
-    learner, reference = common.child_seeds(st.learner, config.n_repeats), common.child_seeds(st.reference,
+    learner, reference = child_seeds(st.learner, config.n_repeats), child_seeds(st.reference,
                                                                                              config.n_repeats)
     tasks, grouping = [], []
     for r in range(config.n_repeats):

@@ -34,6 +34,9 @@ from ..errors import ConvergenceWarning, DataError
 from ..motion import MotionHistograms
 from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from . import _ch6_common as common
+from .base import child_seeds
+from .splits import concept_parts
+from .._jit import single_threaded
 from .base import Claim, Experiment, Result, RunContext, SampleUnit, Table
 from .config import PresetConfig
 from .registry import register
@@ -93,9 +96,9 @@ def _repeat(task: dict) -> dict:
     tr, te, ref, y = task["train"], task["test"], task["ref"], task["y"]
     ref_seed = task["reference_seed"]
     out: dict[str, float] = {}
-    with common.single_threaded(), warnings.catch_warnings():
+    with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        learner = common.child_seeds(task["learner_seed"], 3)
+        learner = child_seeds(task["learner_seed"], 3)
         S = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr]).transform(task["mfcc"])
         angles = [task["angles"][i] for i in task["motion_of"]]
         M = MotionHistograms(data="joint", method="vq", n_bins=task["motion_bins"], delay=3,
@@ -148,10 +151,10 @@ def split_repetition(keywords, y: np.ndarray, gestures: np.ndarray, image_labels
     """
     _, motion_concept = common.gesture_mapping(keywords, gestures, drng)
     image_concept = common.image_concepts(image_labels, drng.permutation(objects)[:len(keywords)].tolist())
-    part_y = common.concept_parts(y, SPLIT, frng)
-    motion_of = common.pair_within_parts(y, part_y, motion_concept, common.concept_parts(motion_concept, SPLIT, frng),
+    part_y = concept_parts(y, SPLIT, frng)
+    motion_of = common.pair_within_parts(y, part_y, motion_concept, concept_parts(motion_concept, SPLIT, frng),
                                          drng, "motion record")
-    image_of = common.pair_within_parts(y, part_y, image_concept, common.concept_parts(image_concept, SPLIT, frng),
+    image_of = common.pair_within_parts(y, part_y, image_concept, concept_parts(image_concept, SPLIT, frng),
                                         drng, "image")
     return part_y, motion_of, image_of
 
@@ -170,8 +173,8 @@ def compute(config: Config, ctx: RunContext) -> Result:
         raise DataError(f"{n_concepts} concepts but only {len(objects)} objects.")
     c_loc, _ = common.image_locals(ctx, ims)
     drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
-    learner = common.child_seeds(st.learner, config.n_repeats)
-    reference = common.child_seeds(st.reference, config.n_repeats)
+    learner = child_seeds(st.learner, config.n_repeats)
+    reference = child_seeds(st.reference, config.n_repeats)
     tasks, grouping = [], []
     view_ids = common.image_ids(ims)
     for r in range(config.n_repeats):

@@ -56,6 +56,9 @@ from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergen
 from ..sound.features import MFCCConfig
 from ..sound.hac import HAC
 from . import _ch6_common as common
+from .base import child_seeds
+from .splits import concept_parts
+from .._jit import single_threaded
 from .base import Claim, Experiment, Result, RunContext, SampleUnit, Table
 from .config import PresetConfig
 from .registry import register
@@ -156,7 +159,7 @@ def stratified_folds(concept: np.ndarray, n_folds: int, rng: np.random.Generator
 
 def _fold_rates(D: np.ndarray, y_test: np.ndarray, y_ref: np.ndarray, folds: list[np.ndarray], seed: int) -> list[float]:
     """Matching success rate of each fold of test rows (references drawn from all of ``y_ref``)."""
-    seeds = common.child_seeds(seed, len(folds))
+    seeds = child_seeds(seed, len(folds))
     return [matching_success_rate(D[rows], y_test[rows], y_ref, random_state=s) if rows.size else float("nan")
             for rows, s in zip(folds, seeds)]
 
@@ -189,7 +192,7 @@ def _repetition(task: dict) -> dict:
     tr, te = task["tr"], task["te"]
     learner = task["learner"]  # HAC, colour codebook, NMF
     out: dict = {"widths": []}
-    with common.single_threaded(), warnings.catch_warnings():
+    with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         hac = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([mfcc[i] for i in tr])
         feats = ImageFeatures(("color",), random_state=learner[1])
@@ -287,7 +290,7 @@ def repetition_streams(st: common.Streams, r: int, n_repeats: int) -> common.Str
     """The streams of repetition ``r``: the run's own with one repetition, else child ``r`` of each."""
     if n_repeats == 1:
         return st
-    return common.Streams(*(common.child_seeds(s, n_repeats)[r] for s in st))
+    return common.Streams(*(child_seeds(s, n_repeats)[r] for s in st))
 
 
 def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams) -> dict:
@@ -303,10 +306,10 @@ def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams)
     drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
     obj = drng.permutation(objects)[: len(keywords)].tolist()
     image_concept = common.image_concepts(ims.labels, obj)
-    part_y = common.concept_parts(y, (0.6, 0.2, 0.2), frng)
+    part_y = concept_parts(y, (0.6, 0.2, 0.2), frng)
     tr, te = np.flatnonzero(part_y == 0), np.flatnonzero(part_y == 1)
     # images: each concept's views split between the stream (training) and the references
-    part_i = common.concept_parts(image_concept, (0.6, 0.4), frng)
+    part_i = concept_parts(image_concept, (0.6, 0.4), frng)
     img_train = [np.flatnonzero((image_concept == c) & (part_i == 0)) for c in range(len(keywords))]
     img_ref = [np.flatnonzero((image_concept == c) & (part_i == 1)) for c in range(len(keywords))]
     order = drng.permutation(tr)
@@ -345,7 +348,7 @@ def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams)
     task = {"mfcc": mfcc, "y": y, "tr": tr, "te": te, "order": order, "hop": hop, "starts": starts,
             "durations": durations, "shift": config.shift, "frame_rate": config.frame_rate, "frame_img": frame_img,
             "whole_img": whole_img, "img_train": np.concatenate(img_train), "ref_imgs": ref_imgs, "c_loc": c_loc,
-            "k": config.k, "n_iter": config.n_iter, "learner": common.child_seeds(st.learner, 3),
+            "k": config.k, "n_iter": config.n_iter, "learner": child_seeds(st.learner, 3),
             "hac_fit_frames": config.hac_fit_frames, "reference_seed": st.reference, "y_test": y[te],
             "y_ref": y_ref_img, "folds_test": folds_test, "folds_image": folds_image,
             "widths": tuple(config.widths), "probe_at": tuple(j == fixed_at for j in range(len(config.widths))),

@@ -52,7 +52,9 @@ from .._fingerprint import code_fingerprint
 from ..errors import ConvergenceWarning, DataError, ParameterError
 from . import _ch5_common as ch5
 from . import _ch7_common as common
-from ._ch6_common import child_seeds, concept_parts, single_threaded
+from .._jit import single_threaded
+from .base import child_seeds
+from .splits import concept_parts
 from .base import (Claim, Experiment, Result, RunContext, SampleUnit, Streams, Table, array_digest, cached_call,
                    streams)
 from .config import PresetConfig
@@ -129,10 +131,9 @@ def _speech(ctx: RunContext, config: Config) -> dict:
 
 
 def _msr_sources(folder) -> dict:
-    from ._ch3_common import _folder_stamp, _msr_angles
+    from ..motion import msr_joint_angles
 
-    folder = Path(folder)
-    angles, actions, subjects, skipped = _msr_angles(str(folder.resolve()), _folder_stamp(folder))
+    angles, actions, subjects, skipped = msr_joint_angles(folder)
     want = set(common.MSR_VOCABULARY.gestures) | set(common.MSR_IDLE_DONORS)
     keep = [i for i in range(len(angles)) if int(actions[i]) in want]
     have = {int(actions[i]) for i in keep}

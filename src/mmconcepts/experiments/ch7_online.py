@@ -53,8 +53,10 @@ from ..motion import MotionHistograms
 from ..multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ..sound.hac import HAC
 from . import _ch6_common as common
+from .base import child_seeds
+from .._jit import single_threaded
+from ..multimodal import mutual_information_matrix
 from . import _ch7_common as ch7
-from ._ch6_common import mutual_information_matrix
 from .base import Claim, Experiment, Result, RunContext, SampleUnit, Table
 from .config import PresetConfig
 from .registry import register
@@ -173,7 +175,7 @@ def _fold(task: dict) -> dict:
     """One fold: features, the online stream and the batch refits at the same points."""
     tr, te, y = task["train"], task["test"], task["y"]
     cfg = task["config"]
-    with common.single_threaded(), warnings.catch_warnings():
+    with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         hac = HAC(random_state=task["feature_seed"], max_fit_frames=cfg["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr])
         hist = MotionHistograms(data="joint", method="vq", n_bins=cfg["motion_bins"], delay=3,
@@ -212,8 +214,8 @@ def _tasks(data: dict, config: Config, st: common.Streams) -> list[dict]:
     n = data["n_folds"]
     # children of each stream, one per fold: codebooks and NMF initialisations (learner), the stream's order
     # (splits), the reference draws and the shuffled-concept control (reference)
-    learner = common.child_seeds(st.learner, 2 * n)
-    order, reference = common.child_seeds(st.splits, n), common.child_seeds(st.reference, 2 * n)
+    learner = child_seeds(st.learner, 2 * n)
+    order, reference = child_seeds(st.splits, n), child_seeds(st.reference, 2 * n)
     cfg = {"k": config.k, "n_iter": config.n_iter, "batch_size": config.batch_size, "forget": config.forget,
            "partial_max_iter": config.partial_max_iter, "points": tuple(config.points), "n_bins": config.n_bins,
            "motion_bins": config.motion_bins, "hac_fit_frames": config.hac_fit_frames}

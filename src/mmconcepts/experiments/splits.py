@@ -13,9 +13,11 @@ from __future__ import annotations
 from collections.abc import Hashable, Iterable, Sequence
 from typing import Any
 
+import numpy as np
+
 from ..errors import ExperimentError
 
-__all__ = ["describe_split", "shared_sources"]
+__all__ = ["concept_parts", "describe_split", "shared_sources"]
 
 
 def _sources(examples: Iterable[Iterable[Hashable]]) -> set[Hashable]:
@@ -94,3 +96,25 @@ def describe_split(by: str, folds: Sequence[tuple[Sequence[Iterable[Hashable]], 
         n_test.append(len(test))
     return {"by": str(by), "n_folds": len(folds), "n_sources": len(seen), "n_train_examples": min(n_train),
             "n_test_examples": min(n_test), "shared_sources": shared_max}
+
+
+def concept_parts(concept: np.ndarray, parts, rng: np.random.Generator) -> np.ndarray:
+    """Part of each item, split within each concept (items of concept -1 get part -1).
+
+    ``parts`` is a number of folds (items dealt round robin after a random permutation)
+    or a sequence of fractions (e.g. ``(0.6, 0.2, 0.2)``; each part gets at least one item
+    of each concept that has enough).
+    """
+    concept = np.asarray(concept)
+    out = np.full(concept.shape, -1, dtype=np.int64)
+    for c in np.unique(concept[concept >= 0]):
+        idx = rng.permutation(np.flatnonzero(concept == c))
+        if isinstance(parts, (int, np.integer)):
+            out[idx] = np.arange(idx.size) % int(parts)
+        else:
+            frac = np.asarray(parts, dtype=float)
+            counts = np.maximum(1, np.floor(frac / frac.sum() * idx.size).astype(int)) if idx.size >= len(frac) \
+                else np.r_[idx.size, np.zeros(len(frac) - 1, int)]
+            counts[0] = idx.size - counts[1:].sum()
+            out[idx] = np.repeat(np.arange(len(frac)), counts)
+    return out

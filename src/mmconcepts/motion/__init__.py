@@ -45,9 +45,13 @@ from .data import (
     save_motion_folder,
 )
 from .kinematics import (
+    ARM_COLUMNS,
     JOINT_ANGLE_NAMES,
+    LEFT_ARM_COLUMNS,
+    RIGHT_ARM_COLUMNS,
     delayed_velocity,
     joint_angles,
+    msr_joint_angles,
     orientation_angles,
 )
 

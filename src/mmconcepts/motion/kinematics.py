@@ -41,19 +41,28 @@ between pairs of frames along the limbs, as Euler angles on static x-y-z axes
 
 from __future__ import annotations
 
+import functools
+import os
+import re
+import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import DataError, ParameterError
-from .data import MotionRecording
+from .data import MotionRecording, load_msr_action3d
 
 __all__ = [
+    "ARM_COLUMNS",
     "CHOREO2_FRAME_PAIRS",
     "JOINT_ANGLE_NAMES",
+    "LEFT_ARM_COLUMNS",
+    "RIGHT_ARM_COLUMNS",
     "delayed_velocity",
     "joint_angles",
+    "msr_joint_angles",
     "orientation_angle_names",
     "orientation_angles",
 ]
@@ -66,6 +75,15 @@ JOINT_ANGLE_NAMES: tuple[str, ...] = ("torso_lean_forward", "torso_lean_side") +
     for s in _SIDES
     for a in ("shoulder_elev", "shoulder_out", "elbow_flex", "forearm_elev", "hip_front", "hip_out", "knee_flex")
 )
+
+_ARM_PARTS = ("shoulder", "elbow", "forearm")
+#: Columns of :data:`JOINT_ANGLE_NAMES` that move with the arms (shoulders, elbows, forearms).
+ARM_COLUMNS = np.array([i for i, n in enumerate(JOINT_ANGLE_NAMES) if any(k in n for k in _ARM_PARTS)])
+#: The right arm's columns of :data:`ARM_COLUMNS`.
+RIGHT_ARM_COLUMNS = np.array([i for i in ARM_COLUMNS if JOINT_ANGLE_NAMES[i].startswith("right_")])
+#: The left arm's columns, in the order of their right-arm counterparts in :data:`RIGHT_ARM_COLUMNS`.
+LEFT_ARM_COLUMNS = np.array([JOINT_ANGLE_NAMES.index("left_" + JOINT_ANGLE_NAMES[i][len("right_"):])
+                             for i in RIGHT_ARM_COLUMNS])
 
 #: Parent/child frame pairs along the limbs used by :func:`orientation_angles` (OpenNI
 #: frames: a joint's frame is the orientation of the segment starting at that joint; the
@@ -252,3 +270,56 @@ def delayed_velocity(x: np.ndarray, delay: int = 1, *, period: float | None = No
     if period is not None:
         v = (v + period / 2) % period - period / 2
     return v
+
+
+def msr_joint_angles(folder: str | os.PathLike[str]) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray,
+                                                             tuple[str, ...]]:
+    """Joint angles, action and subject of every usable MSR Action3D sequence of ``folder``.
+
+    A sequence is usable when :func:`joint_angles` gives more than 8 finite frames. The
+    result is cached per folder state (its files' names, sizes and modification times), so
+    several experiments of one process read a folder once.
+
+    Parameters
+    ----------
+    folder : path-like
+        An MSR Action3D folder (see :func:`~mmconcepts.motion.load_msr_action3d`).
+
+    Returns
+    -------
+    angles : tuple of ndarray of shape (T_i, 16)
+        The joint angles (:data:`JOINT_ANGLE_NAMES`) of each usable sequence, float64.
+    actions, subjects : ndarray of int, shape (n_usable,)
+        Each sequence's action (1-20) and subject (from its ``_sNN`` record id).
+    skipped : tuple of str
+        Record ids of the files that could not be read or gave no usable angles.
+
+    Raises
+    ------
+    DataError
+        If a record id names no subject.
+    """
+    folder = Path(folder)
+    stamp = tuple(sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in folder.iterdir()))
+    return _msr_joint_angles(str(folder.resolve()), stamp)
+
+
+@functools.lru_cache(maxsize=4)
+def _msr_joint_angles(folder: str, stamp: tuple) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray,
+                                                            tuple[str, ...]]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # skipped files are listed in ds.skipped
+        ds = load_msr_action3d(folder, on_error="skip")
+    angles, actions, subjects, skipped = [], [], [], [s.record_id for s in ds.skipped]
+    for r in ds:
+        a = np.ascontiguousarray(joint_angles(r), dtype=np.float64)
+        if len(a) <= 8 or not np.isfinite(a).all():
+            skipped.append(r.record_id)
+            continue
+        angles.append(a)
+        actions.append(r.labels[0])
+        subject = re.search(r"_s(\d+)", r.record_id)
+        if subject is None:
+            raise DataError(f"MSR Action3D record id {r.record_id!r} names no subject (_sNN); expected aAA_sSS_eEE.")
+        subjects.append(int(subject.group(1)))
+    return tuple(angles), np.array(actions), np.array(subjects), tuple(skipped)

@@ -8,10 +8,14 @@ crossmodal_distances, matching_success_rate, pairwise_divergence
     The cross-modal matching protocol of section 6.6.1 (Fig. 6.3): comparison in the
     internal, test or reference space with KL, reversed or symmetric KL, Euclidean or
     cosine dissimilarities.
+mutual_information_matrix
+    The information each learnt coefficient carries about each concept (section 6.6.3,
+    Fig. 6.10).
 """
 
 from .learner import FORMAT_VERSION, MultimodalNMF
 from .matching import METRICS, SPACES, crossmodal_distances, matching_success_rate, pairwise_divergence
+from .metrics import mutual_information_matrix
 
 __all__ = [
     "FORMAT_VERSION",
@@ -20,5 +24,6 @@ __all__ = [
     "MultimodalNMF",
     "crossmodal_distances",
     "matching_success_rate",
+    "mutual_information_matrix",
     "pairwise_divergence",
 ]
