@@ -8,7 +8,7 @@ RESULTS ?= results
 # The folder of real data sets (fsdd, msr-action3d, eth80, ...); empty: $$MMCONCEPTS_DATA_ROOT, else generated data only.
 DATA_ROOT ?=
 
-.PHONY: reproduce test browser typecheck docs bench clean
+.PHONY: reproduce test test-fast browser typecheck docs bench clean
 
 # Installs into the environment with uv (itself installed from PyPI into the environment), which installs the same
 # packages in about half pip's time (benchmarks/README.md); with pip when uv cannot be had or fails. Both write the
@@ -48,6 +48,11 @@ reproduce: $(STAMP)
 test: $(VENV)/.installed-dev browser
 	$(BIN)/python -m pytest -q
 	$(MAKE) --no-print-directory typecheck docs
+
+## The fast tests only (no test marked slow, no type check or documentation build): a few minutes, for the edit-test
+## loop; CI runs `make test`
+test-fast: $(VENV)/.installed-dev
+	$(BIN)/python -m pytest -q -m "not slow"
 
 ## Install headless Chromium and its driver (Debian packages) for tests/test_report_browser.py when they are
 ## missing and this user may (root, or passwordless sudo); otherwise do nothing (that test then skips, saying why)

@@ -174,6 +174,7 @@ def _task_events(client) -> int:
     return client.run_on_scheduler(count)
 
 
+@pytest.mark.slow
 def test_cli_run_with_a_local_cluster_and_reproduce_concurrently(tmp_path, monkeypatch, registry):
     """`run --scheduler local:2` and `reproduce --concurrent 2 --scheduler ADDR` write the records of a local run.
 

@@ -61,6 +61,7 @@ def _compared(path: Path) -> dict:
     return {k: rec.get(k) for k in _COMPARED}
 
 
+@pytest.mark.slow
 def test_concurrent_runs_give_the_records_of_one_at_a_time_on_reused_processes(toy, monkeypatch):
     ids = ["cluster-a", "cluster-b"]
     local = reproduce(ids=ids, output=toy / "local", progress=False)
@@ -82,6 +83,7 @@ def test_concurrent_runs_give_the_records_of_one_at_a_time_on_reused_processes(t
     assert not _drivers()  # the driver was stopped
 
 
+@pytest.mark.slow
 def test_a_driver_that_dies_fails_its_run_only(toy, monkeypatch):
     """The run whose process dies gets a failed record (exit code, last output); the lane goes on."""
     monkeypatch.setenv("CLUSTER_TEST_EXIT_BETA", "2")  # cluster-b

@@ -129,6 +129,7 @@ def _computed(log):
     return sorted(int(p.name.split("-")[0]) for p in log.iterdir())
 
 
+@pytest.mark.slow
 def test_sigkill_leaves_no_worker_and_the_rerun_keeps_what_was_finished(tmp_path):
     env, log = _setup(tmp_path, n_calls=8, seconds=1.5)
     out = tmp_path / "out"
@@ -221,6 +222,7 @@ def _both(tmp_path, env, out, force, slow_a=None, delay_b=0.0):
     _check_folder(out, ["fault-a", "fault-b"])
 
 
+@pytest.mark.slow
 def test_two_runs_into_one_folder(tmp_path):
     """Two ``reproduce`` runs write records and the report of one folder at once; nothing is torn or lost."""
     env, log = _setup(tmp_path, n_calls=3, seconds=0.3)

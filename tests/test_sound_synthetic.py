@@ -195,6 +195,7 @@ def test_tiny_corpus_loads_with_labels_and_timings(tiny):
 
 
 @needs_both
+@pytest.mark.slow
 def test_corpus_is_deterministic_for_a_seed(tiny, tmp_path):
     if not all(get_engine(n).deterministic for n in ENGINES):
         pytest.skip("an engine is not deterministic here (Piper needs the onnx package)")
