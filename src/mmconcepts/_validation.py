@@ -17,7 +17,7 @@ __all__ = ["check_random_state", "check_nonnegative_matrix", "check_positive_int
 RandomLike = "int | np.random.Generator | np.random.RandomState | None"
 
 
-def _is_finite_real(value: numbers.Real) -> bool:
+def is_finite_real(value: numbers.Real) -> bool:
     """Whether a real number is finite as a float (False for an int too large for a float).
 
     ``math.isfinite`` rather than ``np.isfinite``: the ufunc raises TypeError for real numbers
@@ -74,7 +74,7 @@ def check_scalar(
     high_inclusive: bool = True,
 ) -> float:
     """Return ``value`` as a finite float in the given range, or raise :class:`ParameterError`."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not _is_finite_real(value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not is_finite_real(value):
         raise ParameterError(f"{name} must be a finite real number; got {value!r}.")
     value = float(value)
     bad = (
@@ -213,7 +213,7 @@ class Interval:
         if self.kind == "int":
             if not isinstance(value, (numbers.Integral, np.integer)):
                 return False
-        elif not isinstance(value, numbers.Real) or not _is_finite_real(value):
+        elif not isinstance(value, numbers.Real) or not is_finite_real(value):
             return False
         left = self.closed in ("both", "left")
         right = self.closed in ("both", "right")

@@ -39,7 +39,7 @@ from .._validation import Interval, Options, check_nonnegative_matrix, validate_
 from ..errors import DataError, DataFormatError, MMConceptsError
 from ..nmf import NMF, mm_exponent
 from ..nmf._beta import EPSILON, resolve_beta
-from ..nmf._dask import _check_row_chunks, hstack_row_chunks, is_dask_array
+from ..nmf._dask import check_row_chunks, hstack_row_chunks, is_dask_array
 
 __all__ = ["MultimodalNMF", "FORMAT_VERSION"]
 
@@ -193,7 +193,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
             if not isinstance(name, str):
                 raise DataError(f"modality names must be strings; got {name!r}.")
             if is_dask_array(Xm):  # checked chunk by chunk by the distributed solver (negative values name the chunk)
-                _check_row_chunks(Xm, f"modality {name!r}")
+                check_row_chunks(Xm, f"modality {name!r}")
             else:
                 try:
                     Xm = check_nonnegative_matrix(Xm, f"modality {name!r}")

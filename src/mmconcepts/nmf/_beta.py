@@ -101,18 +101,18 @@ def elementwise_beta_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np
         return (x**beta + (beta - 1.0) * y**beta - beta * cross) / (beta * (beta - 1.0))
 
 
-def _dense_blocks(n_rows: int, n_cols: int):
+def dense_blocks(n_rows: int, n_cols: int):
     step = max(1, _BLOCK_CELLS // max(1, n_cols))
     for start in range(0, n_rows, step):
         yield slice(start, min(n_rows, start + step))
 
 
-def _mask_block(mask, rows: slice) -> np.ndarray:
+def mask_block(mask, rows: slice) -> np.ndarray:
     block = mask[rows]
     return block.toarray() if sp.issparse(block) else block
 
 
-def _sum_power_lowrank(W: np.ndarray, Ht: np.ndarray, power: float, mask=None) -> float:
+def sum_power_lowrank(W: np.ndarray, Ht: np.ndarray, power: float, mask=None) -> float:
     """sum_ij m_ij (W Ht.T)_ij ** power, without forming W Ht.T at once."""
     if power == 1.0:
         if mask is None:
@@ -128,12 +128,12 @@ def _sum_power_lowrank(W: np.ndarray, Ht: np.ndarray, power: float, mask=None) -
         np.maximum(Y, 0.0, out=Y)
         return float(np.sum(Y**power * M.data, dtype=np.float64))
     total = 0.0
-    for rows in _dense_blocks(W.shape[0], Ht.shape[0]):
+    for rows in dense_blocks(W.shape[0], Ht.shape[0]):
         Y = W[rows] @ Ht.T
         np.maximum(Y, 0.0, out=Y)
         Y **= power
         if mask is not None:
-            Y *= _mask_block(mask, rows)
+            Y *= mask_block(mask, rows)
         total += float(Y.sum())
     return total
 
@@ -150,7 +150,7 @@ def check_beta_zeros(X, beta: float, mask=None, name: str = "X") -> None:
         else:
             observed = int(mask.sum()) if not sp.issparse(mask) else int(mask.count_nonzero())
             rows, cols = X.nonzero()
-            observed_nonzero = int(np.asarray(_gather(mask, rows, cols)).astype(bool).sum())
+            observed_nonzero = int(np.asarray(gather(mask, rows, cols)).astype(bool).sum())
             has_zero = observed_nonzero < observed
     else:
         zeros = X == 0
@@ -165,7 +165,7 @@ def check_beta_zeros(X, beta: float, mask=None, name: str = "X") -> None:
         )
 
 
-def _gather(mask, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+def gather(mask, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Mask values at the given cells (dense or sparse mask)."""
     if sp.issparse(mask):
         if rows.size == 0:

@@ -44,7 +44,6 @@ import json
 import math
 import os
 import shutil
-import sys
 import tempfile
 import uuid
 import warnings
@@ -63,14 +62,15 @@ from ._beta import check_beta_zeros, mm_exponent
 from ._problem import Problem, Side
 from ._solver import (
     NMFResult,
-    _check_objective_range,
-    _data_scale,
-    _in_units_of_X,
-    _Penalty,
-    _resolve_penalties,
-    _scale_penalties,
+    check_objective_range,
+    data_scale,
+    in_units_of_X,
+    Penalty,
+    resolve_penalties,
+    scale_penalties,
     check_mask,
     constant_coefficients,
+    is_dask_array,
     mu_update,
     validate_data,
 )
@@ -93,12 +93,6 @@ _MANIFEST = "manifest.json"
 
 # ---------------------------------------------------------------------------------------------
 # dask, imported lazily
-
-
-def is_dask_array(x: Any) -> bool:
-    """Whether ``x`` is a ``dask.array.Array`` (False, without importing dask, when dask is not loaded)."""
-    mod = sys.modules.get("dask.array")
-    return mod is not None and isinstance(x, mod.Array)
 
 
 def _require_dask(what: str):
@@ -203,7 +197,7 @@ def save_npz_chunks(X: Any, folder: str | os.PathLike[str], *, chunk_rows: int |
 
 def _iter_chunks(X: Any, chunk_rows: int | None) -> Iterator[Any]:
     if is_dask_array(X):
-        _check_row_chunks(X, "X")
+        check_row_chunks(X, "X")
         for i in range(X.numblocks[0]):
             yield X.blocks[i].compute()
         return
@@ -311,7 +305,7 @@ def load_npz_chunks(folder: str | os.PathLike[str]):
 # Checks of the dask input
 
 
-def _check_row_chunks(X: Any, name: str) -> None:
+def check_row_chunks(X: Any, name: str) -> None:
     if X.ndim != 2:
         raise DataError(f"{name} must be 2-D (n_samples, n_features); got a dask array of shape {X.shape}.")
     rows, cols = X.chunks
@@ -342,7 +336,7 @@ def _mask_blocks(mask: Any, X: Any, bounds: list[tuple[int, int]], dask) -> list
     if is_dask_array(mask):
         if mask.ndim != 2 or mask.shape != X.shape:
             raise DataError(f"mask must have the shape of X, {X.shape}; got {mask.shape}.")
-        _check_row_chunks(mask, "mask")
+        check_row_chunks(mask, "mask")
         if tuple(mask.chunks[0]) != tuple(X.chunks[0]):
             raise DataError(
                 f"mask must be chunked like X: expected row chunks {tuple(X.chunks[0])}; got {tuple(mask.chunks[0])}. "
@@ -559,7 +553,7 @@ class _Rule:
 
     beta: float
     gamma: float
-    pen_W: _Penalty
+    pen_W: Penalty
     scale: float
     k: int
     dtype: str
@@ -624,7 +618,7 @@ def _transform_chunk(problem: Problem | None, w, Ht, rule: _Rule, spec: _ChunkSp
 
 
 def _prepare_w(w: Any, spec: _ChunkSpec, k: int, dtype: str, divide: float, w_out: str | None):
-    """A given starting W chunk: checked as in memory (_check_factor), in X's dtype, divided by the W scale."""
+    """A given starting W chunk: checked as in memory (check_factor), in X's dtype, divided by the W scale."""
     try:
         A = check_nonnegative_matrix(w, "W", accept_sparse=False)
     except DataError as exc:
@@ -742,7 +736,7 @@ def beta_nmf_dask(
     in-memory solver keeps) are persisted in the cluster's memory for the whole fit, with W.
     """
     dask = _require_dask("beta_nmf of a dask array")
-    _check_row_chunks(X, "X")
+    check_row_chunks(X, "X")
     if solver != "mu":
         raise ParameterError(
             f"solver={solver!r} is not available for a dask array: its line search needs the whole of W at every "
@@ -773,9 +767,9 @@ def beta_nmf_dask(
     k = int(n_components)
 
     # The scales of beta_nmf: X / scale for the updates, scale = scale_W * scale_H.
-    scale = _data_scale(np.array([[stats.xmax]]), beta) if np.isfinite(stats.xmax) else 1.0
+    scale = data_scale(np.array([[stats.xmax]]), beta) if np.isfinite(stats.xmax) else 1.0
     if not update_H:
-        scale_H = 1.0 if H is None else _data_scale(np.asarray(H, dtype=float), beta)
+        scale_H = 1.0 if H is None else data_scale(np.asarray(H, dtype=float), beta)
     else:
         scale_H = scale
     scale_W = scale / scale_H
@@ -791,9 +785,9 @@ def beta_nmf_dask(
         store = _WStore(dask, len(specs), folder, in_flight)
         W_refs, Ht = _start(store, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
                             scale, scale_W, scale_H, x_mean, random_state, dask)
-        pen_W, pen_H = _resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
+        pen_W, pen_H = resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
         if rescaled:
-            pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
+            pen_W, pen_H = scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
         gamma = mm_exponent(beta) if update_rule == "mm" else 1.0
         rule = _Rule(beta, gamma, pen_W, scale, k, str(dtype))
         # Each chunk's Problem (its validated rows of X / scale, and their CSR transpose for sparse data) is
@@ -810,9 +804,9 @@ def beta_nmf_dask(
             raise DataError(f"the fit left the range of {dtype}: its factors are not finite (X spans more than the "
                             "range of its dtype, e.g. subnormal values beside ordinary ones with beta_loss <= 1). "
                             "Set such values to 0, or use beta_loss > 1.")
-        divergence = float(_in_units_of_X(final.div, scale, beta)) if rescaled else float(final.div)
+        divergence = float(in_units_of_X(final.div, scale, beta)) if rescaled else float(final.div)
         if rescaled:
-            hist = _in_units_of_X(hist, scale, beta)
+            hist = in_units_of_X(hist, scale, beta)
             Ht = Ht * dtype.type(scale_H)
         W_out = _finish_w(store, W_refs, specs, k, dtype, scale_W, w_folder, dask)
     finally:
@@ -838,12 +832,12 @@ def _traffic_bytes(final: _Partial, Ht: np.ndarray, specs: Sequence[_ChunkSpec])
 def _start(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
            scale, scale_W, scale_H, x_mean, random_state, dask):
     """The starting W chunks (in ``store``) and Ht, as beta_nmf starts on the whole matrix."""
-    from ._solver import _check_factor
+    from ._solver import check_factor
 
     if not update_H:
         if H is None:
             raise ParameterError("update_H=False needs the fixed dictionary H.")
-        Hs = _check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
+        Hs = check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
         if W is None:
             value = constant_coefficients(np.full((1, 1), x_mean, dtype=dtype), Hs)[0, 0]
             W_refs = store.put(np.full((b.stop - b.start, k), value, dtype=dtype) for b in specs)
@@ -853,7 +847,7 @@ def _start(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, upda
     if init == "custom" or (init is None and W is not None and H is not None):
         if W is None or H is None:
             raise ParameterError("init='custom' needs both W and H.")
-        Hs = _check_factor(H, (k, m), "H", dtype)
+        Hs = check_factor(H, (k, m), "H", dtype)
         Hs /= dtype.type(scale_H)
         return _given_w(store, W, specs, n, k, dtype, scale_W, dask), np.ascontiguousarray(Hs.T)
     if init is None:
@@ -880,9 +874,9 @@ def _given_w(store: _WStore, W: Any, specs, n: int, k: int, dtype, scale_W: floa
         dask.compute(*[dask.delayed(_prepare_w)(b, s, k, str(dtype), scale_W, store.path(s.index))
                        for b, s in zip(blocks, specs)])
         return [store.path(s.index) for s in specs]
-    from ._solver import _check_factor
+    from ._solver import check_factor
 
-    Wa = _check_factor(W, (n, k), "W", dtype)
+    Wa = check_factor(W, (n, k), "W", dtype)
     Wa /= dtype.type(scale_W)
     return store.put(Wa[s.start:s.stop] for s in specs)
 
@@ -1006,7 +1000,7 @@ def _objective_pass(store, sources, specs, W_refs, Ht, rule, evaluate, update, s
     return (new if update else W_refs), total, int(update)
 
 
-def _objective(part: _Partial, Ht: np.ndarray, pen_H: _Penalty) -> float:
+def _objective(part: _Partial, Ht: np.ndarray, pen_H: Penalty) -> float:
     return part.div + part.pen + pen_H.value(Ht)
 
 
@@ -1052,7 +1046,7 @@ def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, los
             if i == 0:
                 stop = _Stopping(f, tol)
                 if check_scale is not None:
-                    _check_objective_range(f, check_scale, rule.beta)
+                    check_objective_range(f, check_scale, rule.beta)
             elif cast(_Stopping, stop).converged(f):
                 converged = True
             final = part
@@ -1091,7 +1085,7 @@ def _transform_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, to
             its.append(0)
             stop = _Stopping(f0, tol)
             if check_scale is not None:
-                _check_objective_range(f0, check_scale, rule.beta)
+                check_objective_range(f0, check_scale, rule.beta)
             if c == 0:  # max_iter == 0
                 final = part0
                 final.finite = part.finite
@@ -1172,7 +1166,7 @@ def hstack_row_chunks(arrays: Sequence[Any], weights: Sequence[float] | None = N
         if not is_dask_array(a):
             raise DataError(f"{nm} must be a dask array like the others; got {type(a).__name__}. Convert it with "
                             f"dask.array.from_array(..., chunks={arrays[0].chunks[0] if is_dask_array(arrays[0]) else '...'}).")
-        _check_row_chunks(a, nm)
+        check_row_chunks(a, nm)
     rows = tuple(arrays[0].chunks[0])
     for a, nm in zip(arrays[1:], names[1:]):
         if tuple(a.chunks[0]) != rows:

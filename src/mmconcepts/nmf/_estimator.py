@@ -17,13 +17,13 @@ from ._init import initialize
 from ._problem import Problem
 from ._solver import (
     BETA_NMF_CONSTRAINTS,
-    _is_dask_array,
-    _check_fit_in_range,
-    _check_objective_range,
-    _in_units_of_X,
-    _data_scale,
-    _resolve_penalties,
-    _scale_penalties,
+    is_dask_array,
+    check_fit_in_range,
+    check_objective_range,
+    in_units_of_X,
+    data_scale,
+    resolve_penalties,
+    scale_penalties,
     beta_nmf,
     constant_coefficients,
     mu_update,
@@ -377,7 +377,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         ``solver`` says; ``tol`` is not used (each call runs ``max_iter`` iterations).
         """
         validate_params(self, self._parameter_constraints)
-        if _is_dask_array(X) or _is_dask_array(mask):
+        if is_dask_array(X) or is_dask_array(mask):
             raise DataError(
                 "partial_fit takes one in-memory batch; got a dask array. Pass X.compute() for a batch, or fit the "
                 "whole dask array with fit (each pass goes over all its chunks)."
@@ -393,13 +393,13 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         # As beta_nmf, the updates run on X / scale (a power of two, 1 at ordinary scales); the scale
         # is fixed by the first batch, so that the pooled statistics of all batches share it.
         stats: tuple[np.ndarray, np.ndarray] | None = getattr(self, "_stats", None) if hasattr(self, "components_") else None
-        scale = float(getattr(self, "_scale", 1.0)) if stats is not None else _data_scale(Xv, beta)
+        scale = float(getattr(self, "_scale", 1.0)) if stats is not None else data_scale(Xv, beta)
         if scale != 1.0:
             Xv = Xv / scale if sp.issparse(Xv) else np.divide(Xv, Xv.dtype.type(scale))
         gamma = mm_exponent(beta) if self.update_rule == "mm" else 1.0
-        pen_W, pen_H = _resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, n, m)
+        pen_W, pen_H = resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, n, m)
         if scale != 1.0:
-            pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, 1.0, scale, beta)
+            pen_W, pen_H = scale_penalties(pen_W, pen_H, scale, 1.0, scale, beta)
         touched = None if stats is None or max_iter == 0 else _touched_columns(Xv, maskv, beta, gamma, pen_H, stats)
         if not hasattr(self, "components_"):
             k = int(self.n_components if self.n_components is not None else min(n, m))
@@ -441,23 +441,23 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             A_full[touched] = A[:-1]
             A, B = A_full, np.broadcast_to(b, A_full.shape)
             internal_loss = problem.divergence(W, Ht, beta)
-            _check_fit_in_range(X_T, beta, W, Ht, [internal_loss])
+            check_fit_in_range(X_T, beta, W, Ht, [internal_loss])
             Ht = np.divide(A, b)
         else:
             problem = Problem(Xv, maskv)
             W, Ht, A, B = _online_iterations(problem, np.ascontiguousarray(W), np.ascontiguousarray(H.T), stats, rho,
                                              beta, gamma, pen_W, pen_H, max_iter)
             internal_loss = problem.divergence(W, Ht, beta)
-            _check_fit_in_range(Xv, beta, W, Ht, [internal_loss])  # before any state changes
+            check_fit_in_range(Xv, beta, W, Ht, [internal_loss])  # before any state changes
         if scale != 1.0:
-            _check_objective_range(internal_loss, scale, beta)
+            check_objective_range(internal_loss, scale, beta)
         if A is not None and B is not None:
             self._stats = (A, B)
         self._scale = scale
         self._set_fitted(np.ascontiguousarray(Ht.T) * Ht.dtype.type(scale), X)
         self.n_iter_ = max_iter
         self.n_steps_ = getattr(self, "n_steps_", 0) + 1
-        loss = float(_in_units_of_X(internal_loss, scale, beta))
+        loss = float(in_units_of_X(internal_loss, scale, beta))
         self.loss_history_ = np.array([loss])
         self.loss_iterations_ = np.array([max_iter])
         self.reconstruction_err_ = float(np.sqrt(2.0 * max(loss, 0.0)))
@@ -493,7 +493,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         """
         check_is_fitted(self)
         idx = resolve_features(features, self.n_features_in_)
-        if _is_dask_array(X) or _is_dask_array(mask):
+        if is_dask_array(X) or is_dask_array(mask):
             return self._transform_dask(X, idx, features is None, mask)
         Xv, maskv = validate_data(X, mask)
         if features is None:
@@ -527,7 +527,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         """transform() of a dask array of row chunks: the same steps, chunk by chunk (nmf/_dask.py)."""
         from ._dask import beta_nmf_dask
 
-        if not _is_dask_array(X):
+        if not is_dask_array(X):
             raise DataError(
                 "mask is a dask array but X is not; give X as a dask array chunked like the mask "
                 "(dask.array.from_array(X, chunks=mask.chunks)), or the mask in memory."
@@ -566,7 +566,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             A dask array when W is one.
         """
         check_is_fitted(self)
-        if _is_dask_array(W):  # a dask array of coefficients (transform of a dask array): stays one
+        if is_dask_array(W):  # a dask array of coefficients (transform of a dask array): stays one
             if W.ndim != 2 or W.shape[1] != self.components_.shape[0]:
                 raise DataError(f"W must have shape (n_samples, {self.components_.shape[0]}); got {W.shape}.")
             return W @ self.components_[:, resolve_features(features, self.n_features_in_)]

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _kernels
-from ._beta import EPSILON, _dense_blocks, _gather, _mask_block, _sum_power_lowrank, elementwise_beta_divergence
+from ._beta import EPSILON, dense_blocks, gather, mask_block, sum_power_lowrank, elementwise_beta_divergence
 
 __all__ = ["Side", "Problem"]
 
@@ -304,13 +304,13 @@ class Side:
             den = np.asarray(sp.csr_matrix((Y, Ms.indices, Ms.indptr), shape=Ms.shape) @ R)
         else:
             den = np.empty_like(L)
-            for rows in _dense_blocks(L.shape[0], R.shape[0]):
+            for rows in dense_blocks(L.shape[0], R.shape[0]):
                 Y = L[rows] @ R.T
                 np.maximum(Y, EPSILON if beta < 2.0 else 0.0, out=Y)
                 if beta != 2.0:
                     Y **= beta - 1.0
                 if M is not None:
-                    Y *= _mask_block(M, rows)
+                    Y *= mask_block(M, rows)
                 den[rows] = Y @ R
         return num, den
 
@@ -332,7 +332,7 @@ class Side:
             total = float(np.sum(on_nnz, dtype=np.float64))
             if zero_term is not None:
                 total -= float(np.sum(zero_term, dtype=np.float64))
-                total += (1.0 if beta == 1.0 else 1.0 / beta) * _sum_power_lowrank(L, R, beta, M)
+                total += (1.0 if beta == 1.0 else 1.0 / beta) * sum_power_lowrank(L, R, beta, M)
             return total
         Y = self._product(L, R)
         empty = np.empty((0, 0), dtype=X.dtype)
@@ -356,10 +356,10 @@ class Problem:
             MT = None
             if mask is not None:
                 rows0 = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
-                w0 = np.ascontiguousarray(_gather(mask, rows0, X.indices), dtype=X.dtype)
+                w0 = np.ascontiguousarray(gather(mask, rows0, X.indices), dtype=X.dtype)
                 MT = sp.csr_matrix(mask.T) if sp.issparse(mask) else np.ascontiguousarray(mask.T)
                 rows1 = np.repeat(np.arange(XT.shape[0]), np.diff(XT.indptr))
-                w1 = np.ascontiguousarray(_gather(MT, rows1, XT.indices), dtype=X.dtype)
+                w1 = np.ascontiguousarray(gather(MT, rows1, XT.indices), dtype=X.dtype)
             self.sides = (Side(X, mask, w0, False), Side(XT, MT, w1, False))
         else:
             if sp.issparse(mask):

@@ -61,7 +61,7 @@ class NMFResult:
 
 
 @dataclass
-class _Penalty:
+class Penalty:
     l1: float = 0.0
     l2: float = 0.0
 
@@ -105,7 +105,7 @@ class _Solver:
     """Alternating updates of the two stored factors W (side 0) and Ht (side 1)."""
 
     def __init__(self, problem: Problem, beta: float, solver: str, update_rule: str,
-                 penalties: tuple[_Penalty, _Penalty], hoyer: tuple[_Hoyer | None, _Hoyer | None]):
+                 penalties: tuple[Penalty, Penalty], hoyer: tuple[_Hoyer | None, _Hoyer | None]):
         self.problem = problem
         self.beta = beta
         self.solver = solver
@@ -198,7 +198,7 @@ class _Solver:
         return L
 
 
-def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: _Penalty,
+def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: Penalty,
               R_sum: np.ndarray | None = None) -> np.ndarray:
     """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1).
 
@@ -222,14 +222,14 @@ def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: floa
     return L
 
 
-def _resolve_penalties(alpha_W, alpha_H, l1_ratio, n_samples, n_features):
+def resolve_penalties(alpha_W, alpha_H, l1_ratio, n_samples, n_features):
     # validated by the caller's constraints table (BETA_NMF_CONSTRAINTS)
     alpha_W = float(alpha_W)
     alpha_H = alpha_W if isinstance(alpha_H, str) and alpha_H == "same" else float(alpha_H)
     l1_ratio = float(l1_ratio)
     # Scaled as scikit-learn: the penalty on W grows with n_features, the one on H with n_samples.
-    pen_W = _Penalty(l1=n_features * alpha_W * l1_ratio, l2=n_features * alpha_W * (1 - l1_ratio))
-    pen_H = _Penalty(l1=n_samples * alpha_H * l1_ratio, l2=n_samples * alpha_H * (1 - l1_ratio))
+    pen_W = Penalty(l1=n_features * alpha_W * l1_ratio, l2=n_features * alpha_W * (1 - l1_ratio))
+    pen_H = Penalty(l1=n_samples * alpha_H * l1_ratio, l2=n_samples * alpha_H * (1 - l1_ratio))
     return pen_W, pen_H
 
 
@@ -294,7 +294,7 @@ def validate_data(X: Any, mask: Any = None, name: str = "X"):
     return check_nonnegative_matrix(X, name), mask
 
 
-def _check_factor(A: Any, shape: tuple[int, int], name: str, dtype) -> np.ndarray:
+def check_factor(A: Any, shape: tuple[int, int], name: str, dtype) -> np.ndarray:
     A = check_nonnegative_matrix(A, name, accept_sparse=False)
     if A.shape != shape:
         raise DataError(f"{name} must have shape {shape}; got {A.shape}.")
@@ -321,7 +321,7 @@ BETA_NMF_CONSTRAINTS: dict[str, list] = {
 }
 
 
-def _is_dask_array(x: Any) -> bool:
+def is_dask_array(x: Any) -> bool:
     """Whether x is a dask array; dask is never imported here (an array of it means it is loaded)."""
     mod = sys.modules.get("dask.array")
     return mod is not None and isinstance(x, mod.Array)
@@ -487,8 +487,8 @@ def beta_nmf(
              sparseness_W=sparseness_W, sparseness_H=sparseness_H, loss_every=loss_every, random_state=random_state),
         BETA_NMF_CONSTRAINTS, owner="beta_nmf")
     beta = resolve_beta(beta_loss)
-    if _is_dask_array(X) or _is_dask_array(mask):  # distributed / out of core (nmf/_dask.py)
-        if not _is_dask_array(X):
+    if is_dask_array(X) or is_dask_array(mask):  # distributed / out of core (nmf/_dask.py)
+        if not is_dask_array(X):
             raise DataError(
                 "mask is a dask array but X is not; give X as a dask array chunked like the mask "
                 "(dask.array.from_array(X, chunks=mask.chunks)), or the mask in memory."
@@ -518,9 +518,9 @@ def beta_nmf(
     # the division is exact) with W = scale_W * W' and H = scale_H * H', scale_W * scale_H = scale:
     # the scale goes into H, or into W when H has unit-norm atoms (sparseness_H); a fixed H
     # (update_H=False) is brought to an ordinary scale of its own.
-    scale = _data_scale(X, beta)
+    scale = data_scale(X, beta)
     if not update_H:
-        scale_H = 1.0 if H is None else _data_scale(np.asarray(H, dtype=float), beta)
+        scale_H = 1.0 if H is None else data_scale(np.asarray(H, dtype=float), beta)
     else:
         scale_H = 1.0 if sparseness_H is not None else scale
     scale_W = scale / scale_H
@@ -531,16 +531,16 @@ def beta_nmf(
     if not update_H:
         if H is None:
             raise ParameterError("update_H=False needs the fixed dictionary H.")
-        H = _check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
+        H = check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
         if W is None:
             W = constant_coefficients(X, H, mask)
         else:
-            W = _check_factor(W, (n, k), "W", dtype) / dtype.type(scale_W)
+            W = check_factor(W, (n, k), "W", dtype) / dtype.type(scale_W)
     elif init == "custom" or (init is None and W is not None and H is not None):
         if W is None or H is None:
             raise ParameterError("init='custom' needs both W and H.")
-        W = _check_factor(W, (n, k), "W", dtype)
-        H = _check_factor(H, (k, m), "H", dtype)
+        W = check_factor(W, (n, k), "W", dtype)
+        H = check_factor(H, (k, m), "H", dtype)
         W /= dtype.type(scale_W)
         H /= dtype.type(scale_H)
     else:
@@ -548,9 +548,9 @@ def beta_nmf(
             init = "nndsvda" if k <= min(n, m) else "random"
         W, H = initialize(X, k, init, check_random_state(random_state), mask=mask)
 
-    pen_W, pen_H = _resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
+    pen_W, pen_H = resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
     if rescaled:
-        pen_W, pen_H = _scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
+        pen_W, pen_H = scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
     hoyer = (
         None if sparseness_W is None else _Hoyer(sparseness_W, keep_norm=True),
         None if sparseness_H is None else _Hoyer(sparseness_H, keep_norm=False),
@@ -572,12 +572,12 @@ def beta_nmf(
                 "Use a lower sparseness, more components, or beta_loss > 1."
             )
     if rescaled:
-        _check_objective_range(sol.objective(W, Ht), scale, beta)
+        check_objective_range(sol.objective(W, Ht), scale, beta)
     shrink = _EmptyColumns.of(problem) if (update_H and solver == "mu" and hoyer == (None, None)) else None
     W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every, shrink)
-    _check_fit_in_range(X, beta, W, Ht, hist)
+    check_fit_in_range(X, beta, W, Ht, hist)
     if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
-        hist = _in_units_of_X(hist, scale, beta)
+        hist = in_units_of_X(hist, scale, beta)
         W = W * dtype.type(scale_W)
         Ht = Ht * dtype.type(scale_H)
     if tol > 0 and not converged and max_iter > 0:
@@ -596,7 +596,7 @@ def beta_nmf(
 _SAFE_LO, _SAFE_HI = -10, 20
 
 
-def _data_scale(X, beta: float) -> float:
+def data_scale(X, beta: float) -> float:
     """The power of two X is divided by for the fit: 1 when X's largest value is at an ordinary scale.
 
     Beta-divergences are homogeneous, d_beta(c x | c y) = c ** beta d_beta(x | y), so the
@@ -618,7 +618,7 @@ def _data_scale(X, beta: float) -> float:
     return math.ldexp(1.0, exponent - 1)  # X / scale has its largest value in [1, 2); 2 ** 1024 would overflow
 
 
-def _check_fit_in_range(X, beta: float, W: np.ndarray, Ht: np.ndarray, hist) -> None:
+def check_fit_in_range(X, beta: float, W: np.ndarray, Ht: np.ndarray, hist) -> None:
     """Refuse a fit whose factors left the range of the float type.
 
     Checked after the fit rather than refused up front: data with subnormal values beside
@@ -639,7 +639,7 @@ def _check_fit_in_range(X, beta: float, W: np.ndarray, Ht: np.ndarray, hist) -> 
     raise DataError(f"the fit left the range of {values.dtype}: its factors are not finite.{cause}")
 
 
-def _scale_penalties(pen_W: _Penalty, pen_H: _Penalty, scale: float, scale_W: float, scale_H: float, beta: float):
+def scale_penalties(pen_W: Penalty, pen_H: Penalty, scale: float, scale_W: float, scale_H: float, beta: float):
     """The penalties of the fit on X / scale that give the minimisers of the fit on X.
 
     With W = a W', H = b H' (a = scale_W, b = scale_H, a b = scale) the objective is
@@ -654,7 +654,7 @@ def _scale_penalties(pen_W: _Penalty, pen_H: _Penalty, scale: float, scale_W: fl
     with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):
         out = []
         for pen, f in ((pen_W, np.float64(scale_W)), (pen_H, np.float64(scale_H))):
-            out.append(_Penalty(l1=times(pen.l1, f / s**beta), l2=times(pen.l2, f * f / s**beta)))
+            out.append(Penalty(l1=times(pen.l1, f / s**beta), l2=times(pen.l2, f * f / s**beta)))
     if not all(np.isfinite(v) for p in out for v in (p.l1, p.l2)):
         raise DataError(
             f"X's largest value is about {scale:.3g}: at that scale the penalties (alpha_W, alpha_H) outweigh the "
@@ -664,7 +664,7 @@ def _scale_penalties(pen_W: _Penalty, pen_H: _Penalty, scale: float, scale_W: fl
     return out[0], out[1]
 
 
-def _in_units_of_X(values, scale: float, beta: float) -> np.ndarray:
+def in_units_of_X(values, scale: float, beta: float) -> np.ndarray:
     """Objectives of the fit on X / scale in X's units: times scale ** beta.
 
     A divergence is >= 0: values at or below 0 are 0 up to rounding and stay 0 (a rounding error
@@ -674,7 +674,7 @@ def _in_units_of_X(values, scale: float, beta: float) -> np.ndarray:
         return np.where(values == 0, 0.0, values * np.float64(scale) ** beta)
 
 
-def _check_objective_range(f0: float, scale: float, beta: float) -> None:
+def check_objective_range(f0: float, scale: float, beta: float) -> None:
     """Refuse data whose objective (in X's units) float64 cannot hold: the fit itself would be fine."""
     with np.errstate(over="ignore", under="ignore"):
         f = float(np.float64(f0) * np.float64(scale) ** beta) if f0 > 0 else 0.0

@@ -78,7 +78,7 @@ from sklearn.metrics.pairwise import euclidean_distances
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
-from .._validation import InstanceOf, Interval, Options, _is_finite_real, check_random_state, validate_params
+from .._validation import InstanceOf, Interval, Options, is_finite_real, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 from .data import as_rgb_image, check_images
 
@@ -476,7 +476,7 @@ def tuple_columns(words: np.ndarray) -> np.ndarray:
 
 
 def _check_real(value, name: str, *, low: float = 0.0) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not _is_finite_real(value) or value < low:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not is_finite_real(value) or value < low:
         raise ParameterError(f"{name} must be a real >= {low}; got {value!r}.")
     return float(value)
 
