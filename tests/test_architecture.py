@@ -72,12 +72,8 @@ def _only_shrinks(found: set, allowed: set, what: str) -> None:
 SOURCE = PACKAGE.parent
 
 #: Private names still imported from another module (importer, module, name); the list may only shrink. The
-#: engine's process helpers (base -> runner, _drivers) and the unchecked MDP/IRL solvers (mdp -> irl -> factorial)
-#: are the rest.
+#: unchecked MDP/IRL solvers (mdp -> irl -> factorial) are most of the rest.
 PRIVATE_NOT_YET_MOVED = {
-    ("experiments/_drivers.py", "base", "_end_with_parent"),
-    ("experiments/runner.py", "base", "_workers_end_with_this_process"),
-    ("experiments/runner.py", "base", "_progress_enabled"),
     ("motion/synthetic.py", "data", "_write_json"),
     ("sound/tree.py", "dtw", "_dtw_to_rows"),
     ("tasks/factorial.py", "irl", "_HINTS"),

@@ -169,7 +169,7 @@ def test_an_experiment_on_the_cluster_gives_the_local_record(client, tmp_path):
 def _task_events(client) -> int:
     """How many task-state events the scheduler has seen for RunContext.parallel's tasks."""
     def count(dask_scheduler):
-        prefix = dask_scheduler.task_prefixes.get("_WarningsCarried")
+        prefix = dask_scheduler.task_prefixes.get("WarningsCarried")
         return 0 if prefix is None else int(sum(prefix.state_counts.values()))
     return client.run_on_scheduler(count)
 

@@ -566,7 +566,7 @@ def test_a_runs_workers_keep_what_they_load(toy, tmp_path):
     from joblib import Parallel, delayed
     from joblib.externals.loky import process_executor
 
-    from mmconcepts.experiments.base import WORKER_MEMORY_GROWTH
+    from mmconcepts.experiments._workers import WORKER_MEMORY_GROWTH
 
     assert WORKER_MEMORY_GROWTH > process_executor._MAX_MEMORY_LEAK_SIZE  # loky's own, in this process
 

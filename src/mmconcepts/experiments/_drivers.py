@@ -14,7 +14,7 @@ A driver's stdout and stderr (with log messages at WARNING and above, as ``mmcon
 crash, the out-of-memory killer), that experiment gets a failed record quoting its exit
 code and the file's last lines, and the lane starts a new driver for the next one. A
 driver ends with the process that started it, even when that one is killed
-(:func:`~mmconcepts.experiments.base._end_with_parent`), and so do its workers. On
+(:func:`~mmconcepts.experiments._workers.end_with_parent`), and so do its workers. On
 Ctrl-C (or any error in the caller), the drivers are stopped and nothing more is started.
 """
 
@@ -106,9 +106,9 @@ class Driver:
 
 def _main(conn: Any, parent_pid: int, log_path: str) -> None:
     """A driver's loop: run each (id, variant, kwargs) received, answer ("ok", record) or ("error", text)."""
-    from .base import _end_with_parent
+    from ._workers import end_with_parent
 
-    _end_with_parent(parent_pid)
+    end_with_parent(parent_pid)
     fd = os.open(log_path, os.O_WRONLY | os.O_APPEND)
     sys.stdout.flush()
     sys.stderr.flush()

@@ -69,16 +69,12 @@ A complete experiment module (``src/mmconcepts/experiments/ch2_example.py``)::
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import logging
 import numbers
 import os
 import re
-import sys
-import threading
-import time
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -91,6 +87,7 @@ import numpy as np
 from .._paths import data_home
 from ..errors import ExperimentError, ParameterError
 from .rules import is_valid_metric_name, parse_rule
+from ._workers import WarningsCarried, progress_enabled, workers_end_with_this_process
 from .uncertainty import SampleUnit
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -464,93 +461,6 @@ class Result:
             raise ExperimentError(f"Result.split_groups must be a dict; got {type(self.split_groups).__name__}.")
 
 
-class _WarningsCarried:
-    """Call ``fn`` in a worker process and return its result with the warnings it raised."""
-
-    def __init__(self, fn: Callable[[Any], Any]) -> None:
-        self.fn = fn
-
-    def __call__(self, item: Any) -> tuple[Any, list[tuple[type[Warning], str, str, int]]]:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            result = self.fn(item)
-        return result, [(w.category, str(w.message), w.filename, w.lineno) for w in caught]
-
-
-def _workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
-    """A joblib config under which the (loky) worker processes end when this process ends.
-
-    loky's workers outlive a parent killed with SIGKILL: one busy with a task finishes it, and
-    an idle one waits for its idle timeout (300 s). Under this config each worker runs
-    :func:`_init_worker` when it starts. Another joblib back end chosen by the caller
-    (``joblib.parallel_config``) is left as it is.
-    """
-    try:
-        from joblib import parallel_config
-        from joblib.parallel import get_active_backend
-
-        backend, _ = get_active_backend()
-    except ImportError:  # pragma: no cover - an older joblib
-        return contextlib.nullcontext()
-    if type(backend).__name__ != "LokyBackend":
-        return contextlib.nullcontext()
-    return cast("contextlib.AbstractContextManager[Any]",
-                parallel_config(backend="loky", initializer=_init_worker, initargs=(os.getpid(),)))
-
-
-#: How much a worker's memory may grow after its first task before loky replaces it (loky's
-#: own guard against leaks is 300 MB). A run's workers keep what they load on purpose, from one
-#: task and one experiment to the next: the numba kernels, librosa, the text-to-speech voice
-#: (its size is in ``benchmarks/README.md``); at 300 MB loky kept replacing them, and each new
-#: worker imported and loaded all of it again.
-WORKER_MEMORY_GROWTH = 2**30
-
-
-def _init_worker(parent_pid: int) -> None:
-    """Initializer of a worker process: :func:`_end_with_parent`, and loky's leak guard at
-    :data:`WORKER_MEMORY_GROWTH` (a private loky setting, read by the worker after each task)."""
-    _end_with_parent(parent_pid)
-    with contextlib.suppress(ImportError):
-        from joblib.externals.loky import process_executor
-
-        if isinstance(getattr(process_executor, "_MAX_MEMORY_LEAK_SIZE", None), int):
-            process_executor._MAX_MEMORY_LEAK_SIZE = max(process_executor._MAX_MEMORY_LEAK_SIZE,
-                                                         WORKER_MEMORY_GROWTH)
-
-
-def _end_with_parent(parent_pid: int) -> None:
-    """Initializer of a worker process: end this worker as soon as ``parent_pid`` (its parent) ends.
-
-    On Linux the kernel sends the worker SIGKILL when its parent dies (``prctl`` with
-    ``PR_SET_PDEATHSIG``), even while the worker computes; everywhere a daemon thread also
-    checks every half second that the parent is still the same process.
-    """
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-            import signal
-
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1: PR_SET_PDEATHSIG
-        except (OSError, AttributeError):  # pragma: no cover - no libc prctl
-            pass
-    if os.getppid() != parent_pid:  # the parent ended before the worker got here
-        os._exit(1)
-    threading.Thread(target=_watch_parent, args=(parent_pid,), name="mmconcepts-watch-parent", daemon=True).start()
-
-
-def _watch_parent(parent_pid: int) -> None:
-    while os.getppid() == parent_pid:
-        time.sleep(0.5)
-    os._exit(1)
-
-
-def _progress_enabled(show: bool) -> bool:
-    try:
-        return bool(show) and sys.stderr is not None and sys.stderr.isatty()
-    except (AttributeError, ValueError):  # closed or replaced stream
-        return False
-
-
 @dataclass
 class RunContext:
     """What an experiment's ``run`` gets besides its config.
@@ -604,7 +514,7 @@ class RunContext:
         """
         from tqdm.auto import tqdm
 
-        return tqdm(iterable, total=total, desc=desc, disable=not _progress_enabled(self.show_progress), leave=False)
+        return tqdm(iterable, total=total, desc=desc, disable=not progress_enabled(self.show_progress), leave=False)
 
     def parallel(self, fn: Callable[[_T], _R], items: Iterable[_T], *, desc: str | None = None,
                  on_result: Callable[[int, _R], None] | None = None) -> list[_R]:
@@ -646,8 +556,8 @@ class RunContext:
         from joblib import Parallel, delayed
 
         n_jobs = min(self.workers, len(items))
-        with _workers_end_with_this_process():
-            gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_WarningsCarried(fn))(item) for item in items)
+        with workers_end_with_this_process():
+            gen = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(WarningsCarried(fn))(item) for item in items)
             for result, caught in self.progress(gen, total=len(items), desc=desc):
                 for category, message, filename, lineno in caught:
                     warnings.warn_explicit(message, category, filename, lineno)
@@ -667,7 +577,7 @@ class RunContext:
             if on_result is not None:
                 on_result(i, result)
 
-        carried = map_in_order(self.client, _WarningsCarried(fn), items,
+        carried = map_in_order(self.client, WarningsCarried(fn), items,
                                progress=lambda it, n: self.progress(it, total=n, desc=desc), on_result=emit)
         return [result for result, _ in carried]
 

@@ -90,9 +90,9 @@ from .base import (
     Result,
     RunContext,
     Table,
-    _workers_end_with_this_process,
     check_seed,
 )
+from ._workers import workers_end_with_this_process
 from .cluster import open_client, parse_scheduler
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord, to_jsonable
 from .registry import all_experiments, get
@@ -630,7 +630,7 @@ def run_experiment(
     t0 = time.perf_counter()
     # every joblib call of the run (RunContext.parallel's and the library's own n_jobs) under one
     # config: loky keeps the same worker processes from one to the next instead of starting new ones
-    with _client(scheduler) as client, _workers_end_with_this_process():
+    with _client(scheduler) as client, workers_end_with_this_process():
         ctx.client = client
         error = _execute(exp, config, ctx, record, target)
     record.elapsed_s = round(time.perf_counter() - t0, 3)
@@ -755,7 +755,7 @@ def _run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
     from tqdm.auto import tqdm
 
     from ._drivers import run_lanes
-    from .base import _progress_enabled
+    from ._workers import progress_enabled
 
     client = common["scheduler"]
     kwargs = dict(
@@ -766,7 +766,7 @@ def _run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
         force=common["force"], progress=False, raise_errors=False,
     )
     bar = tqdm(total=len(runs), desc="experiments", leave=False,
-               disable=not _progress_enabled(bool(common["progress"])))
+               disable=not progress_enabled(bool(common["progress"])))
     lock = threading.Lock()
 
     def done(i: int, record: ResultRecord | None, why: str | None) -> ResultRecord:
