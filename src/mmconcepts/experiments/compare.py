@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ExperimentError
-from .record import ResultRecord
+from .runner import load_record
 
 __all__ = ["CLOCK_PATTERNS", "Difference", "compare_records", "format_differences"]
 
@@ -86,10 +86,10 @@ def _records(folder: Path, ids: Sequence[str] | None) -> dict[str, dict[str, Any
         raise ExperimentError(f"results folder {str(folder)!r} does not exist; expected the output folder of a run.")
     out: dict[str, dict[str, Any]] = {}
     for path in sorted(folder.glob("*.json")):
-        try:
-            record = ResultRecord.from_json(path.read_text(encoding="utf-8")).to_dict()
-        except (ExperimentError, ValueError):
+        loaded = load_record(path)
+        if loaded is None:
             continue  # not a result record (a report's side file, a config)
+        record = loaded.to_dict()
         if ids is not None and record["experiment"] not in ids:
             continue
         out[f"{record['experiment']} ({record.get('variant') or 'synthetic'})"] = record

@@ -56,6 +56,14 @@ def _replicates_on(cells: Sequence[str], labels: Sequence[str]) -> str:
     return "both" if len(held) == len(ran) else (f"{held[0]} only" if held else "neither")
 
 
+def _results_folder(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a Path, when it is a folder (else the error says how to make one)."""
+    folder = Path(path)
+    if not folder.is_dir():
+        raise ExperimentError(f"results folder {str(folder)!r} does not exist; run `mmconcepts reproduce` first.")
+    return folder
+
+
 def _cell(text: object) -> str:
     s = str(text).replace("\\", "\\\\").replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;")
     return " ".join(s.splitlines()) or " "
@@ -105,9 +113,7 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
         If the folder holds no record that ran, records of several presets or code
         fingerprints, or (without ``allow_stale``) records of other code than the installed.
     """
-    results_dir = Path(results_dir)
-    if not results_dir.is_dir():
-        raise ExperimentError(f"results folder {str(results_dir)!r} does not exist; run `mmconcepts reproduce` first.")
+    results_dir = _results_folder(results_dir)
     views = collect(results_dir)
     variants, ran = _runs(views)
     if not ran:
@@ -251,10 +257,7 @@ def comparison_page(old_dir: str | os.PathLike[str], new_dir: str | os.PathLike[
 
     runs = []
     for folder in (old_dir, new_dir):
-        folder = Path(folder)
-        if not folder.is_dir():
-            raise ExperimentError(f"results folder {str(folder)!r} does not exist.")
-        runs.append({(v.id, v.variant): v for v in collect(folder) if v.status == "ok"})
+        runs.append({(v.id, v.variant): v for v in collect(_results_folder(folder)) if v.status == "ok"})
     if new_commit is None and {v.code for v in runs[1].values()} == {code_fingerprint()}:
         new_commit = _git_commit(Path(__file__).resolve().parent)
     out = [f"# {title}", "", GENERATED_MARK, ""]
