@@ -47,7 +47,7 @@ from scipy import stats
 
 import mmconcepts
 from mmconcepts.multimodal import MultimodalNMF
-from mmconcepts.experiments.ch7_online import _segments, crossmodal_success
+from mmconcepts.experiments.ch7.online import _segments, crossmodal_success
 
 N_SOUND = 110_000
 N_MOTION = 300

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mmconcepts.experiments import Claim, Experiment, Result, RunContext, register
-from mmconcepts.experiments.config import PresetConfig
+from mmconcepts.engine.config import PresetConfig
 
 
 @dataclass(frozen=True)

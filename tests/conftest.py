@@ -14,6 +14,13 @@ import pytest
 TESTS_DIR = Path(__file__).resolve().parent
 
 
+def experiment_module(name: str):
+    """The experiment module ``name``: ``"ch3_unseen"`` (a chapter and a module) or ``"ch3.unseen"``."""
+    import importlib
+
+    return importlib.import_module("mmconcepts.experiments." + (name if "." in name else name.replace("_", ".", 1)))
+
+
 def _data_root() -> Path | None:
     """The data root of the real-data tests: $MMCONCEPTS_DATA_ROOT, else ../shared/data beside the checkout."""
     env = os.environ.get("MMCONCEPTS_DATA_ROOT")
@@ -67,19 +74,18 @@ def rng() -> np.random.Generator:
 
 @pytest.fixture
 def registry(monkeypatch, tmp_path):
-    """A fresh, empty experiment registry whose EXPERIMENT_MODULES is the toy module.
+    """A fresh, empty experiment registry whose EXPERIMENT_PACKAGES is the toy module.
 
     The real experiment modules are not imported; ``tests/_toy_experiment.py`` is
     (re)imported on the first ``get()``/``all_experiments()`` call and registers
     ``toy-mean`` and ``toy-data``. Caches go to a temporary folder. Everything is
     restored afterwards.
     """
-    import mmconcepts.experiments as experiments
-    from mmconcepts.experiments import registry as reg
+    from mmconcepts.engine import registry as reg
 
     monkeypatch.setattr(reg, "_REGISTRY", {})
     monkeypatch.setattr(reg, "_LOADED", False)
-    monkeypatch.setattr(experiments, "EXPERIMENT_MODULES", ("_toy_experiment",))
+    monkeypatch.setattr(reg, "EXPERIMENT_PACKAGES", ("_toy_experiment",))
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
     monkeypatch.syspath_prepend(str(TESTS_DIR))
     sys.modules.pop("_toy_experiment", None)

@@ -10,7 +10,7 @@ import pytest
 import dataclasses
 
 from mmconcepts.experiments import RunContext, get, run_experiment
-from mmconcepts.experiments.ch2_nmf_recovery import Config, compute, make_data, present, streams
+from mmconcepts.experiments.ch2.nmf_recovery import Config, compute, make_data, present, streams
 from mmconcepts.report import write_report
 
 
@@ -71,8 +71,8 @@ def test_tiny_run_keeps_per_repeat_samples():
 
 
 def test_tiny_run_keeps_samples_behind_every_claim():
-    from mmconcepts.experiments.rules import parse_rule
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.engine.rules import parse_rule
+    from mmconcepts.engine.evidence import claim_verdict
 
     res = compute(TINY, RunContext(show_progress=False))
     m, s = res.metrics, res.samples
@@ -125,7 +125,8 @@ def test_quick_preset_has_five_independent_repetitions():
 
 def test_uniqueness_claim_can_fail():
     """Recovered dictionaries closer to the truth on the non-identifiable data fail the thesis' statement."""
-    from mmconcepts.experiments.uncertainty import SampleUnit, claim_verdict
+    from mmconcepts.engine.uncertainty import SampleUnit
+    from mmconcepts.engine.evidence import claim_verdict
 
     rule = get("ch2-nmf-recovery").claims[1].rule
     ident = [0.05, 0.06, 0.04, 0.07, 0.05]
@@ -154,7 +155,7 @@ def test_present_draws_the_computed_numbers():
 
 
 def test_max_relative_increase_known_answer():
-    from mmconcepts.experiments.ch2_nmf_recovery import max_relative_increase
+    from mmconcepts.experiments.ch2.nmf_recovery import max_relative_increase
 
     assert max_relative_increase(np.array([10.0, 8.0, 8.5, 7.0, 7.2])) == pytest.approx(0.05)
     assert max_relative_increase(np.array([10.0, 8.0, 7.0])) == 0.0  # a decrease is not an increase
@@ -163,7 +164,7 @@ def test_max_relative_increase_known_answer():
 
 def test_monotonicity_check_can_fail():
     """An MM run whose objective rises by 1e-6 of its start fails the check (a fact of the run: no samples)."""
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.engine.evidence import claim_verdict
 
     check = get("ch2-nmf-recovery").claims[0]
     assert check.kind == "check"

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from conftest import real_data_path
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import RunContext, SampleUnit, describe_split
-from mmconcepts.experiments import _ch3_common as common
+from mmconcepts.experiments.ch3 import protocol as common
 from mmconcepts.motion import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
 
 

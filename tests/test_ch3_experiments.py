@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from conftest import real_data_path
-from mmconcepts.experiments import _ch3_common as common
+from conftest import experiment_module, real_data_path
+from mmconcepts.experiments.ch3 import protocol as common
 from mmconcepts.experiments import run_experiment
 
 TINY = {"n_folds": 5, "n_components": 20, "max_iter": 40, "inner_cv": 2, "n_records_partial": 60, "n_records_full": 90,
@@ -20,7 +20,7 @@ _SOURCE = re.compile(r"\((?:line \d+|lines \d+(?:-\d+|, \d+))\)\Z")
 
 
 def _run(monkeypatch, tmp_path, module, exp_id, data=None, record=False, **tiny):
-    mod = importlib.import_module(f"mmconcepts.experiments.{module}")
+    mod = experiment_module(module)
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
     out = run_experiment(exp_id, config=mod.Config(**tiny), output=tmp_path / "out", workers=2, progress=False,
                          data=data)
@@ -45,8 +45,8 @@ def _check_record(record, split_names):
 
 
 def _claim_metrics(exp_id):
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.rules import parse_rule
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.rules import parse_rule
 
     claims = registry.get(exp_id).claims
     return ({name for c in claims if c.kind != "magnitude" for rule in c.rules.values()
@@ -71,7 +71,7 @@ def test_choreography_tiny(monkeypatch, tmp_path):
         for setting in claim.get("settings") or []:
             assert setting["verdict"] != "not evaluated", (claim["text"], setting)
     from mmconcepts.experiments import RunContext
-    from mmconcepts.experiments import ch3_choreography as mod
+    from mmconcepts.experiments.ch3 import choreography as mod
 
     config = mod.Config(**dict(TINY, sensitivity=True))
     for nl in ("16", "47"):
@@ -134,8 +134,8 @@ def test_representations_tiny(monkeypatch, tmp_path):
 @pytest.mark.slow
 def test_threshold_and_combinations_tiny(monkeypatch, tmp_path):
     from mmconcepts.experiments import RunContext
-    from mmconcepts.experiments import ch3_threshold as thr_mod
-    from mmconcepts.experiments.ch3_choreography import LEARNERS, SENSITIVITY_LEARNERS, evaluate_mixed
+    from mmconcepts.experiments.ch3 import threshold as thr_mod
+    from mmconcepts.experiments.ch3.choreography import LEARNERS, SENSITIVITY_LEARNERS, evaluate_mixed
     from mmconcepts.nmf import l_full, l_given_number
 
     record = _run(monkeypatch, tmp_path, "ch3_threshold", "ch3-threshold", record=True, **dict(TINY, sensitivity=True))
@@ -224,7 +224,7 @@ def test_choreography_tiny_on_msr_has_the_synthetic_metric_names(monkeypatch, tm
 
 def test_msr_skips_without_data(tmp_path):
     from mmconcepts.experiments import ExperimentSkipped, RunContext
-    from mmconcepts.experiments import ch3_msr_action3d as mod
+    from mmconcepts.experiments.ch3 import msr_action3d as mod
 
     with pytest.raises(ExperimentSkipped, match=r"--data-root DIR.*--data msr-action3d=DIR"):
         mod.compute(mod.Config.quick(), RunContext(cache_dir=tmp_path))
@@ -234,9 +234,9 @@ def test_no_machine_paths_in_chapter3_code():
     """Data only through ctx.data: no chapter-3 module looks for ../shared or any path of its own."""
     import inspect
 
-    for module in ("_ch3_common", "ch3_choreography", "ch3_unseen", "ch3_threshold", "ch3_combinations",
-                   "ch3_representations", "ch3_msr_action3d"):
-        src = inspect.getsource(importlib.import_module(f"mmconcepts.experiments.{module}"))
+    for module in ("ch3.protocol", "ch3.choreography", "ch3.unseen", "ch3.threshold", "ch3.combinations",
+                   "ch3.representations", "ch3.msr_action3d"):
+        src = inspect.getsource(experiment_module(module))
         assert "shared" not in src and "parents[" not in src, module
 
 
@@ -244,7 +244,7 @@ def test_no_machine_paths_in_chapter3_code():
 @pytest.mark.parametrize("exp_id", _CH3)
 def test_claims_declare_kind_and_thesis_source(exp_id):
     """Thesis and magnitude claims cite a line of the thesis; no thesis claim's rule holds a thesis number."""
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
     exp = registry.get(exp_id)
     numbers = {f"{v:g}" for v in exp.reference.values()}
@@ -268,7 +268,7 @@ def test_claims_declare_kind_and_thesis_source(exp_id):
 def test_every_thesis_number_has_a_magnitude_claim(exp_id, table):
     """Each number of the thesis' table is written once and set beside ours as a ratio; so is NMF's gain, computed
     from the table; no claim keeps a bar at a fraction of a thesis number."""
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
     exp = registry.get(exp_id)
     numbers = getattr(importlib.import_module(exp.compute.__module__), table)
@@ -289,7 +289,7 @@ def test_every_thesis_number_has_a_magnitude_claim(exp_id, table):
                                                 ("ch3-msr-action3d", {"mixed": "nmf", "unseen": "svm"})])
 def test_nmf_vs_svm_claims_are_decided_under_every_setting(exp_id, better):
     """The thesis' order at its comparison (strict), under soft VQ and KDE histograms, plain and standardised SVM."""
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
     kind = "ours" if exp_id == "ch3-msr-action3d" else "thesis"
     claims = [c for c in registry.get(exp_id).claims if c.kind == kind and "SVM" in c.text and c.settings]
@@ -314,7 +314,7 @@ def test_chapter3_claims_read_no_oracle():
 def test_threshold_claims_at_fixed_thresholds():
     """Fig. 3.7's claims compare fixed thresholds and the CV one, not the test curve's maximum (a near identity),
     under each loss and histogram setting; only "worse at the extremes" is the thesis'."""
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
     claims = registry.get("ch3-threshold").claims
     assert [c.kind for c in claims] == ["thesis", "ours", "ours"]
@@ -332,7 +332,7 @@ def test_threshold_claims_at_fixed_thresholds():
 
 def test_threshold_metrics_by_hand_under_leave_one_out(rng):
     """Per-unit curves, fixed-threshold values and CV scores equal nmf.l_full on thresholded scores."""
-    from mmconcepts.experiments import ch3_threshold as mod
+    from mmconcepts.experiments.ch3 import threshold as mod
     from mmconcepts.nmf import l_full
 
     n, L = 43, 6
@@ -368,7 +368,7 @@ def test_threshold_metrics_by_hand_under_leave_one_out(rng):
 
 
 def test_combination_subset_scores_by_hand(rng):
-    from mmconcepts.experiments.ch3_combinations import subset_unit_scores
+    from mmconcepts.experiments.ch3.combinations import subset_unit_scores
     from mmconcepts.nmf import l_full, l_given_number
 
     n, L = 30, 5
@@ -391,9 +391,9 @@ def test_combination_subset_scores_by_hand(rng):
 def test_threshold_leave_one_out_gives_ten_blocks(tmp_path):
     """Under leave-one-out (the full preset's protocol) every metric has one sample per block of examples."""
     from mmconcepts.experiments import RunContext
-    from mmconcepts.experiments import ch3_threshold as mod
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.experiments.ch3 import threshold as mod
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.evidence import claim_verdict
 
     config = mod.Config(n_folds=None, n_components=10, max_iter=20, inner_cv=2, n_records_partial=16,
                         sensitivity=True)

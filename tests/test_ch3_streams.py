@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import real_data_path
+from conftest import experiment_module, real_data_path
 from mmconcepts.experiments import RunContext, evaluate_rule
-from mmconcepts.experiments import _ch3_common as common
+from mmconcepts.experiments.ch3 import protocol as common
 from mmconcepts.nmf import l_full, l_given_number
 
 # experiment module -> tiny config overrides (the data only has to be drawn, nothing is fitted)
@@ -43,7 +42,7 @@ class _Stop(Exception):
 
 def _capture(monkeypatch, tmp_path, module, streams, data=None, **tiny):
     """Run an experiment up to its first evaluate_folds call with the given streams; return what it got."""
-    mod = importlib.import_module(f"mmconcepts.experiments.{module}")
+    mod = experiment_module(module)
     seen = {}
 
     def spy(ctx, angles, Y, splits, **kw):
@@ -120,7 +119,7 @@ def test_no_identity_claim_l_given_number_vs_l_full(exp_id):
 def test_gain_is_a_magnitude_claim_that_can_fall_short(exp_id):
     """The gain l_given_number - l_full is set beside the thesis' gain as a ratio: no gain is 'below'."""
     from mmconcepts.experiments import get
-    from mmconcepts.experiments.uncertainty import magnitude_verdict
+    from mmconcepts.engine.evidence import magnitude_verdict
 
     exp = get(exp_id)
     gains = [c for c in exp.claims if c.rule.endswith("gain_given_number")]

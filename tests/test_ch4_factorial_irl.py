@@ -12,9 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mmconcepts.experiments import RunContext, get
-from mmconcepts.experiments.ch4_factorial_irl import Config, _world, compute, run, score_rewards, world_streams
-from mmconcepts.experiments.rules import parse_rule
-from mmconcepts.experiments.verdicts import decide_claim
+from mmconcepts.experiments.ch4.factorial_irl import Config, _world, compute, run, score_rewards, world_streams
+from mmconcepts.engine.rules import parse_rule
+from mmconcepts.engine.verdicts import decide_claim
 from mmconcepts.tasks import FactorialIRL, GradIRL, grid_world
 
 SMALL = Config(grid_size=4, n_tasks=6, n_test_tasks=3, demos_curve=(2,), tasks_curve=(6,), n_worlds=1)

@@ -12,9 +12,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mmconcepts.experiments import RunContext, get
-from mmconcepts.experiments.ch4_inverse_control import (SETTINGS, THESIS, Config, _matched_error, compute, make_data,
-                                                         mixing_error, observe, run, setting_label, streams)
-from mmconcepts.experiments.verdicts import decide_claim
+from mmconcepts.experiments.ch4.inverse_control import (
+    SETTINGS,
+    THESIS,
+    Config,
+    _matched_error,
+    compute,
+    make_data,
+    mixing_error,
+    observe,
+    run,
+    setting_label,
+    streams,
+)
+from mmconcepts.engine.verdicts import decide_claim
 from mmconcepts.tasks import FactorialInverseControl, RBFFeatures, control_trajectories, relative_l2_error
 
 TINY = dataclasses.replace(Config.quick(), n_train=30, n_test=6, n_steps=30, max_iter=3, n_repeats=1,
@@ -180,7 +191,7 @@ def test_no_stream_is_shared_and_repetitions_differ():
 
 
 def test_learner_children_do_not_depend_on_what_was_spawned_before():
-    from mmconcepts.experiments.ch4_inverse_control import _children
+    from mmconcepts.experiments.ch4.inverse_control import _children
 
     seq = streams(TINY)[0]["learner"]
     first = [_state(c) for c in _children(seq, 3)]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import re
 
 import numpy as np
@@ -11,10 +10,11 @@ import pytest
 from _fake_audio import fake_fsdd
 from sklearn.exceptions import NotFittedError
 
-from conftest import real_data_path
+from conftest import experiment_module, real_data_path
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.experiments import RunContext, evaluate_rule
-from mmconcepts.experiments import _ch5_common as common
+from mmconcepts.experiments.ch5 import protocol as common
+from mmconcepts.experiments.protocols import speech as speech_protocol
 from mmconcepts.sound.tree import ClusterTree
 from mmconcepts.sound.voting import TreeVotingClassifier
 
@@ -81,7 +81,7 @@ def ctx_for(root, tmp_path):
 
 @pytest.mark.slow
 def test_ch5_incremental_small(tiny_corpus, tmp_path):
-    from mmconcepts.experiments.ch5_incremental import Config, run
+    from mmconcepts.experiments.ch5.incremental import Config, run
 
     cfg = dataclasses.replace(Config.quick(), n_train=30, n_test=10, session=10, multi_session=20)
     res = run(cfg, ctx_for(tiny_corpus, tmp_path))
@@ -97,7 +97,7 @@ def test_ch5_incremental_small(tiny_corpus, tmp_path):
 
 @pytest.mark.slow
 def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
-    from mmconcepts.experiments.ch5_nmf_keywords import Config, compute, present
+    from mmconcepts.experiments.ch5.nmf_keywords import Config, compute, present
 
     cfg = dataclasses.replace(Config.quick(), n_folds=3, n_components=12, max_iter=40, n_composed_per_fold=10,
                               threshold_cv=2)
@@ -126,7 +126,7 @@ def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
 
 @pytest.mark.slow
 def test_ch5_tree_small(tiny_corpus, tmp_path):
-    from mmconcepts.experiments.ch5_tree import Config, compute
+    from mmconcepts.experiments.ch5.tree import Config, compute
 
     cfg = dataclasses.replace(Config.quick(), n_train_utterances=40, n_queries=150)
     res = compute(cfg, ctx_for(tiny_corpus, tmp_path))
@@ -167,7 +167,7 @@ def test_load_corpus_prefers_acorns_then_fsdd_then_audio(fake_fsdd, tmp_path):
     assert common.data_source(RunContext(data={"audio": fake_fsdd}, cache_dir=tmp_path)) == "audio"
     assert common.data_source(RunContext(data={"acorns": tmp_path, "fsdd": fake_fsdd}, cache_dir=tmp_path)) == "acorns"
     assert common.data_source(RunContext(data={}, cache_dir=tmp_path)) == "synthetic"
-    sub, speaker, keywords, y = common.first_speaker(ctx, n_per_speaker=1)  # chapter 6's entry point
+    sub, speaker, keywords, y = speech_protocol.first_speaker(ctx, n_per_speaker=1)  # chapters 6 and 7's entry point
     assert speaker == "amy" and len(sub) == 40 and len(keywords) == 10 and y.shape == (40,)
 
 
@@ -180,7 +180,7 @@ def test_mfcc_cache_is_keyed_on_the_code_fingerprint(fake_fsdd, tmp_path, monkey
     assert len(list((tmp_path / "ch5-mfcc").rglob("*.npz"))) == 1
     common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
     assert len(list((tmp_path / "ch5-mfcc").rglob("*.npz"))) == 1  # reused
-    monkeypatch.setattr(common, "code_fingerprint", lambda: "0" * 16)  # other code: recomputed
+    monkeypatch.setattr(speech_protocol, "code_fingerprint", lambda: "0" * 16)  # other code: recomputed
     common.corpus_mfcc(ctx, corpus, MFCCConfig(n_mfcc=13))
     assert len(list((tmp_path / "ch5-mfcc").rglob("*.npz"))) == 2
 
@@ -216,7 +216,7 @@ BASE = common.Streams(data=11, learner=22, splits=33, reference=44)
 
 
 def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams, **tiny):
-    mod = importlib.import_module(f"mmconcepts.experiments.{module}")
+    mod = experiment_module(module)
     monkeypatch.setattr(common, "streams", lambda seed: streams)
     ctx = _SpyContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False)
     ctx.stop_at = stop_at
@@ -282,9 +282,9 @@ CH5 = ("ch5_incremental", "ch5_nmf_keywords", "ch5_tree", "ch5_label_sets", "ch5
 
 
 def _experiment(module):
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
-    importlib.import_module(f"mmconcepts.experiments.{module}")
+    experiment_module(module)
     return registry.get(module.replace("_", "-"))
 
 
@@ -294,14 +294,14 @@ def _claims(module):
 
 
 def _claim_metrics(module):
-    from mmconcepts.experiments.rules import parse_rule
+    from mmconcepts.engine.rules import parse_rule
 
     names = {m for rule in _claims(module) for m in parse_rule(rule).metrics}
     return sorted(names | {c.rule for c in _experiment(module).claims if c.kind == "magnitude"})
 
 
 def _verdicts(module, res):
-    from mmconcepts.experiments.verdicts import decide_claim
+    from mmconcepts.engine.verdicts import decide_claim
 
     exp = _experiment(module)
     return [decide_claim(c, res.metrics, res.samples, reference=exp.reference, units=res.sample_units,
@@ -380,7 +380,7 @@ def test_ch5_tree_claims_can_fail():
 
 
 def test_ch5_tree_trade_off_is_the_thesis_claim_under_each_first_search():
-    from mmconcepts.experiments.ch5_tree import FIRST_SEARCH_B
+    from mmconcepts.experiments.ch5.tree import FIRST_SEARCH_B
 
     claim = next(c for c in _experiment("ch5_tree").claims if c.kind == "thesis")
     assert "lines 4209-4211" in claim.source and len(claim.settings) == len(FIRST_SEARCH_B) == 2
@@ -419,7 +419,7 @@ def test_ch5_incremental_claims():
 
 
 def test_recall_score_known_answer():
-    from mmconcepts.experiments.ch5_nmf_keywords import _recall
+    from mmconcepts.experiments.ch5.nmf_keywords import _recall
 
     Y = np.array([[1, 1, 0, 0], [0, 0, 1, 0]])
     S = np.array([[0.9, 0.1, 0.5, 0.0], [0.0, 0.0, 1.0, 0.2]])
@@ -445,7 +445,7 @@ def real_fsdd_subset(tmp_path):
 
 
 def test_ch5_incremental_on_real_voices(real_fsdd_subset, tmp_path):
-    from mmconcepts.experiments.ch5_incremental import Config, compute
+    from mmconcepts.experiments.ch5.incremental import Config, compute
 
     cfg = dataclasses.replace(Config.quick(), n_train=40, n_test=20, session=20, multi_session=40)
     res = compute(cfg, RunContext(data={"fsdd": real_fsdd_subset}, cache_dir=tmp_path / "cache", show_progress=False))
@@ -459,7 +459,7 @@ def test_ch5_incremental_on_real_voices(real_fsdd_subset, tmp_path):
 
 # -- per-repetition samples behind every claim, units and split groups ------------------------------
 def test_cost_fraction_at_recall_known_answer():
-    from mmconcepts.experiments.ch5_tree import cost_fraction_at_recall
+    from mmconcepts.experiments.ch5.tree import cost_fraction_at_recall
 
     recalls, costs = {2: 0.8, 4: 0.92, 8: 0.97}, {2: 50.0, 4: 70.0, 8: 110.0}
     assert cost_fraction_at_recall(recalls, costs, 1400.0) == pytest.approx(0.05)
@@ -468,7 +468,7 @@ def test_cost_fraction_at_recall_known_answer():
 
 
 def test_recall_at_cost_known_answer():
-    from mmconcepts.experiments.ch5_tree import recall_at_cost
+    from mmconcepts.experiments.ch5.tree import recall_at_cost
 
     costs, recalls = {2: 50.0, 4: 70.0, 8: 110.0}, {2: 0.8, 4: 0.9, 8: 0.98}
     assert recall_at_cost(costs, recalls, 60.0) == pytest.approx(0.85)
@@ -479,7 +479,7 @@ def test_recall_at_cost_known_answer():
 
 def test_ch5_tree_search_matches_a_hand_computation(rng):
     """Recall, cost and excess of a search over all queries, recomputed query by query on a small tree."""
-    from mmconcepts.experiments.ch5_tree import _search
+    from mmconcepts.experiments.ch5.tree import _search
     from mmconcepts.sound.tree import ClusterTree
 
     X = rng.normal(size=(400, 4)) * rng.uniform(0.3, 3, size=4)
@@ -502,7 +502,7 @@ def test_ch5_tree_search_matches_a_hand_computation(rng):
 
 
 def test_ch5_tree_cost_claim_reads_recall_and_cost_of_every_restart_search():
-    from mmconcepts.experiments.ch5_tree import RESTART_B, SEARCHES
+    from mmconcepts.experiments.ch5.tree import RESTART_B, SEARCHES
 
     claim = next(c for c in _experiment("ch5_tree").claims if c.settings and "exact.n_distances" in
                  next(iter(c.settings.values())))
@@ -520,7 +520,7 @@ def test_ch5_tree_cost_claim_reads_recall_and_cost_of_every_restart_search():
 
 
 def test_ch5_tree_samples_per_repetition_behind_every_claim(tmp_path, fake_fsdd):
-    from mmconcepts.experiments import ch5_tree
+    from mmconcepts.experiments.ch5 import tree as ch5_tree
 
     cfg = dataclasses.replace(ch5_tree.Config.quick(), n_train_utterances=10, n_queries=30)
     res = ch5_tree.compute(cfg, RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache",
@@ -545,7 +545,7 @@ def test_ch5_tree_samples_per_repetition_behind_every_claim(tmp_path, fake_fsdd)
 
 
 def test_ch5_incremental_keeps_one_value_per_repetition(tmp_path, rng):
-    from mmconcepts.experiments.ch5_incremental import Config, compute
+    from mmconcepts.experiments.ch5.incremental import Config, compute
 
     fsdd = _fake_fsdd(tmp_path / "fsdd", rng, speakers=("amy", "bob", "cy"), per_digit=3)
     cfg = dataclasses.replace(Config.quick(), n_train=10, n_test=10, session=5, multi_session=10)
@@ -577,12 +577,16 @@ def test_ch5_incremental_keeps_one_value_per_repetition(tmp_path, rng):
 
 def test_thesis_readings_are_in_the_notes(monkeypatch):
     """The thesis' ambiguities that decide a setting are listed in the notes with the reading taken."""
-    from mmconcepts.experiments import _ch5_common as common
+    from mmconcepts.experiments.ch5 import protocol as common
 
     assert "13 keywords" in common.KEYWORDS_READING and "10 in section 6.5.2" in common.KEYWORDS_READING
     import inspect
 
-    from mmconcepts.experiments import ch5_incremental, ch5_nmf_keywords, ch5_tree
+    from mmconcepts.experiments.ch5 import (
+        incremental as ch5_incremental,
+        nmf_keywords as ch5_nmf_keywords,
+        tree as ch5_tree,
+    )
 
     for mod in (ch5_incremental, ch5_nmf_keywords, ch5_tree):
         assert "common.KEYWORDS_READING" in inspect.getsource(mod.compute), mod.__name__

@@ -13,8 +13,8 @@ from _fake_audio import fake_fsdd
 from conftest import real_data_path
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.experiments import RunContext, evaluate_rule
-from mmconcepts.experiments import _ch5_common as common
-from mmconcepts.experiments import ch5_label_sets as ls
+from mmconcepts.experiments.ch5 import protocol as common
+from mmconcepts.experiments.ch5 import label_sets as ls
 from mmconcepts.nmf.scores import l_full
 from mmconcepts.sound.voting import EventVoting, relative_votes
 

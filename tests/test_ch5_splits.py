@@ -6,7 +6,7 @@ recordings only; single-word utterances are one recording each, split per speake
 thesis' protocols are speaker-dependent); the cluster tree's queries come from utterances the
 tree was not built from, each repetition from its own part of the corpus. These property
 tests draw random corpora and check every split function of the chapter with
-:func:`~mmconcepts.experiments.splits.describe_split` (which raises on a shared recording).
+:func:`~mmconcepts.engine.splits.describe_split` (which raises on a shared recording).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from hypothesis import strategies as st
 
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import RunContext, describe_split
-from mmconcepts.experiments import _ch5_common as common
-from mmconcepts.experiments import ch5_incremental, ch5_tree
+from mmconcepts.experiments.ch5 import protocol as common
+from mmconcepts.experiments.ch5 import incremental as ch5_incremental, tree as ch5_tree
 
 _SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -13,8 +13,8 @@ from sklearn.metrics import mutual_info_score
 from conftest import real_data_path
 from mmconcepts.errors import ParameterError
 from mmconcepts.experiments import RunContext, evaluate_rule
-from mmconcepts.experiments import _ch5_common as common
-from mmconcepts.experiments import ch5_word_discovery as wd
+from mmconcepts.experiments.ch5 import protocol as common
+from mmconcepts.experiments.ch5 import word_discovery as wd
 
 
 def _entropy(p):

@@ -11,6 +11,7 @@ import pytest
 from conftest import real_data_path
 
 from mmconcepts.experiments import RunContext
+from mmconcepts.experiments.protocols import pairs as pairs_protocol
 
 
 # --------------------------------------------------------------------------- claims, units, split groups
@@ -23,7 +24,7 @@ _SOURCE = re.compile(r"\((?:line (\d+)|lines (\d+)-(\d+)|lines (\d+(?:, \d+)+))\
 
 
 def _claim_metrics(claim) -> set[str]:
-    from mmconcepts.experiments.rules import parse_rule
+    from mmconcepts.engine.rules import parse_rule
 
     if claim.kind == "magnitude":
         return {claim.rule}
@@ -32,9 +33,9 @@ def _claim_metrics(claim) -> set[str]:
 
 def _check_result(exp_id, res, n):
     """Every claim reads metrics with n samples each (no oracle), of a declared unit; split groups share nothing."""
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.uncertainty import MAGNITUDE_VERDICTS, VERDICTS
-    from mmconcepts.experiments.verdicts import decide_claim
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.uncertainty import MAGNITUDE_VERDICTS, VERDICTS
+    from mmconcepts.engine.verdicts import decide_claim
 
     exp = registry.get(exp_id)
     assert exp.claims
@@ -56,7 +57,8 @@ def _check_result(exp_id, res, n):
 
 def test_claims_declare_kinds_and_thesis_sources():
     """Each claim has a kind; thesis and magnitude claims cite section 6.6 by line; no thesis number in a rule."""
-    from mmconcepts.experiments import CLAIM_KINDS, registry
+    from mmconcepts.experiments import CLAIM_KINDS
+    from mmconcepts.engine import registry
 
     for exp_id in _IDS:
         exp = registry.get(exp_id)
@@ -83,7 +85,7 @@ def test_kinds_of_every_chapter_6_claim():
     """The tally of kinds per experiment (a reclassification is a deliberate change of this table)."""
     from collections import Counter
 
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
     kinds = {exp_id: dict(Counter(c.kind for c in registry.get(exp_id).claims)) for exp_id in _IDS}
     assert kinds == {"ch6-motion-sound": {"thesis": 4, "check": 1, "magnitude": 6},
@@ -97,10 +99,15 @@ def test_kinds_of_every_chapter_6_claim():
 
 @pytest.mark.slow
 def test_ch6_motion_sound_symbolic_labels_concepts_small(tiny_speech_corpus, tmp_path):
-    from mmconcepts.experiments import _ch6_common as common
-    from mmconcepts.experiments.ch6_concepts import compute as compute_concepts
-    from mmconcepts.experiments.ch6_motion_sound import (Config, compute_labels, compute_motion_sound,
-                                                         compute_symbolic, present_motion_sound)
+    from mmconcepts.experiments.ch6 import protocol as common
+    from mmconcepts.experiments.ch6.concepts import compute as compute_concepts
+    from mmconcepts.experiments.ch6.motion_sound import (
+        Config,
+        compute_labels,
+        compute_motion_sound,
+        compute_symbolic,
+        present_motion_sound,
+    )
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_motion=60, n_folds=3, k=12, n_iter=30, concept_k=8)
@@ -155,16 +162,16 @@ def test_ch6_motion_sound_symbolic_labels_concepts_small(tiny_speech_corpus, tmp
 
 def _fake_evaluation(monkeypatch, n_folds=5):
     """``common.evaluate`` without learning: real pairs and folds of fake recordings, made-up fold results."""
-    from mmconcepts.experiments import _ch6_common as common
-    from mmconcepts.experiments.ch6_motion_sound import LABEL_KEYS, _matching_keys
+    from mmconcepts.experiments.ch6 import protocol as common
+    from mmconcepts.experiments.ch6.motion_sound import LABEL_KEYS, _matching_keys
 
     rng = np.random.default_rng(3)
     y = np.repeat(np.arange(10), 10)
     speech = {"y": y, "keywords": [f"k{c}" for c in range(10)], "mfcc": [np.zeros((5, 2))] * len(y), "speaker": "s",
               "ids": [f"u{i}.wav" for i in range(len(y))], "n_available": len(y)}
     motion = {"angles": [np.zeros((4, 3))] * 60, "gesture": np.arange(60) % 12, "ids": [f"r{i}" for i in range(60)]}
-    monkeypatch.setattr(common, "load_speech", lambda ctx, **kw: speech)
-    monkeypatch.setattr(common, "load_motion", lambda ctx, **kw: motion)
+    monkeypatch.setattr(pairs_protocol, "load_speech", lambda ctx, **kw: speech)
+    monkeypatch.setattr(pairs_protocol, "load_motion", lambda ctx, **kw: motion)
     monkeypatch.setattr(common, "data_source_note", lambda ctx, *a: "fake data")
 
     def evaluate(ctx, config, **kw):
@@ -186,7 +193,7 @@ def _fake_evaluation(monkeypatch, n_folds=5):
 
 def test_units_and_split_groups_of_the_fold_experiments(monkeypatch, tmp_path):
     """Tables 6.2-6.4 and Fig. 6.10 on made-up fold results: units declared, split grouped, 5 units decide claims."""
-    from mmconcepts.experiments import ch6_concepts, ch6_motion_sound
+    from mmconcepts.experiments.ch6 import concepts as ch6_concepts, motion_sound as ch6_motion_sound
 
     _fake_evaluation(monkeypatch)
     ctx = RunContext(data={}, cache_dir=tmp_path, show_progress=False)
@@ -208,7 +215,7 @@ def test_units_and_split_groups_of_the_fold_experiments(monkeypatch, tmp_path):
 def test_training_folds_unit():
     """Two training folds of k share (k - 2) / (k - 1) of their examples: rho / (1 - rho) = k - 2."""
     from mmconcepts.errors import ParameterError
-    from mmconcepts.experiments.ch6_concepts import training_folds
+    from mmconcepts.experiments.ch6.concepts import training_folds
 
     assert training_folds(5).test_train_ratio == 3.0 and training_folds(10).test_train_ratio == 8.0
     assert training_folds(5).kind == "resampled"
@@ -221,8 +228,8 @@ def test_training_folds_unit():
 def test_motion_sound_claims_compare_every_space_measure_and_direction():
     """'The sound space is not a good choice': below both other spaces, with each of KL, Euclidean and cosine, both
     ways; one entry above the motion space is enough to fail it."""
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.rules import evaluate_rule, parse_rule
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.rules import evaluate_rule, parse_rule
 
     claims = {c.text.split(":")[0]: c for c in registry.get("ch6-motion-sound").claims}
     rule = claims["The sound space is not a good choice for the comparison"].rule
@@ -256,8 +263,8 @@ def test_motion_sound_claims_compare_every_space_measure_and_direction():
 ])
 def test_magnitude_claims_against_tables_6_2_to_6_4(exp_id, thesis):
     """The thesis' numbers (pinned here against the thesis' text) are magnitudes: ratio and interval, no bar."""
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.uncertainty import magnitude_verdict
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.evidence import magnitude_verdict
 
     exp = registry.get(exp_id)
     assert {n: exp.reference[n] for n in thesis} == thesis
@@ -274,8 +281,8 @@ def test_magnitude_claims_against_tables_6_2_to_6_4(exp_id, thesis):
 def test_symbolic_and_labels_absence_claims():
     """'No significant improvement' as the thesis words it (fails on an improvement beyond the noise) and ours with a
     margin; 'does not change' only with our margin."""
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.evidence import claim_verdict
 
     literal = next(c for c in registry.get("ch6-symbolic").claims if c.kind == "thesis" and "not (" in c.rule)
     names = [f"{d}.internal.{m}" for d in ("sound2motion", "motion2sound") for m in ("kl", "euclidean", "cosine")]
@@ -299,7 +306,7 @@ def test_symbolic_and_labels_absence_claims():
 
 @pytest.mark.slow
 def test_ch6_image_features_small(tiny_speech_corpus, tmp_path):
-    from mmconcepts.experiments.ch6_image_features import SETS, Config, compute
+    from mmconcepts.experiments.ch6.image_features import SETS, Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_views=6, n_repeats=2, k=12, n_iter=30)
@@ -326,8 +333,8 @@ def test_ch6_image_features_small(tiny_speech_corpus, tmp_path):
 
 def test_image_features_colour_claim_is_the_thesis_comparison_in_each_direction():
     """'The colour and colour-pair representations work best': both beat every other single set, each direction."""
-    from mmconcepts.experiments import registry
-    from mmconcepts.experiments.rules import evaluate_rule
+    from mmconcepts.engine import registry
+    from mmconcepts.engine.rules import evaluate_rule
 
     claims = registry.get("ch6-image-features").claims
     assert not any("best" in r for c in claims for r in c.rules.values())
@@ -383,7 +390,7 @@ def test_concepts_repetition_by_hand(rng):
     """MI, the Kuhn-Munkres matching, the fraction of entropy and the shuffled control against a computation by hand."""
     from itertools import permutations
 
-    from mmconcepts.experiments._ch6_common import concept_analysis as _repetition
+    from mmconcepts.experiments.ch6.protocol import concept_analysis as _repetition
     from mmconcepts.multimodal import mutual_information_matrix
 
     y = np.repeat(np.arange(3), 8)
@@ -426,8 +433,8 @@ def test_concepts_repetition_by_hand(rng):
 
 @pytest.mark.slow
 def test_ch6_modalities_small(tiny_speech_corpus, tmp_path, monkeypatch):
-    from mmconcepts.experiments import ch6_modalities
-    from mmconcepts.experiments.ch6_modalities import Config, _key, _setups, run
+    from mmconcepts.experiments.ch6 import modalities as ch6_modalities
+    from mmconcepts.experiments.ch6.modalities import Config, _key, _setups, run
 
     # every model gets the same id, as a freed model's id can be reused by the next one: the cache
     # of internal representations must still never serve one model's to another (regression)
@@ -462,7 +469,7 @@ def test_ch6_modalities_small(tiny_speech_corpus, tmp_path, monkeypatch):
 
 
 def test_stream_windows_cover_the_stream():
-    from mmconcepts.experiments.ch6_sliding import stream_windows
+    from mmconcepts.experiments.ch6.sliding import stream_windows
 
     win = stream_windows(np.array([0.0, 1.5]), np.array([1.5, 1.0]), 0.5, 0.25)
     assert win[0].tolist() == [0.0, 0.5] and win[-1, 1] <= 2.5 + 1e-9
@@ -471,7 +478,7 @@ def test_stream_windows_cover_the_stream():
 
 @pytest.mark.slow
 def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
-    from mmconcepts.experiments.ch6_sliding import Config, run
+    from mmconcepts.experiments.ch6.sliding import Config, run
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_views=6, widths=(0.2, 0.5), k=12, n_iter=30,
@@ -510,7 +517,7 @@ def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
 @pytest.mark.slow
 def test_ch6_sliding_repetitions_small(tiny_speech_corpus, tmp_path):
     """With several repetitions, every rate keeps one value per repetition (a new random split of one set each)."""
-    from mmconcepts.experiments.ch6_sliding import Config, compute
+    from mmconcepts.experiments.ch6.sliding import Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_views=6, widths=(0.5,), k=8, n_iter=20,
@@ -528,7 +535,7 @@ def test_ch6_sliding_repetitions_small(tiny_speech_corpus, tmp_path):
 
 def test_sliding_fixed_width_must_be_a_width(tmp_path):
     from mmconcepts.errors import ParameterError
-    from mmconcepts.experiments.ch6_sliding import Config, compute
+    from mmconcepts.experiments.ch6.sliding import Config, compute
 
     cfg = dataclasses.replace(Config.quick(), widths=(0.1, 1.0), fixed_width=0.3)
     with pytest.raises(ParameterError, match="fixed_width must be one of the widths"):
@@ -537,7 +544,7 @@ def test_sliding_fixed_width_must_be_a_width(tmp_path):
 
 def test_sliding_fold_rates_by_hand(rng):
     """Per-fold success with one reference per class: the nearest reference has the test example's class."""
-    from mmconcepts.experiments.ch6_sliding import _fold_rates
+    from mmconcepts.experiments.ch6.sliding import _fold_rates
 
     y_ref = np.arange(4)  # one reference per class: nothing to draw
     y_test = rng.integers(0, 4, 30)
@@ -550,7 +557,7 @@ def test_sliding_fold_rates_by_hand(rng):
 
 
 def test_sliding_test_folds_are_balanced_and_stratified(rng):
-    from mmconcepts.experiments.ch6_sliding import stratified_folds as make_folds
+    from mmconcepts.experiments.ch6.sliding import stratified_folds as make_folds
 
     concept = np.repeat(np.arange(10), 1)  # one item per concept: still three non-empty folds
     assert sorted(len(f) for f in make_folds(concept, 3, rng)) == [3, 3, 4]
@@ -563,8 +570,8 @@ def test_sliding_test_folds_are_balanced_and_stratified(rng):
 
 
 def test_sliding_repetition_streams():
-    from mmconcepts.experiments.base import child_seeds, streams
-    from mmconcepts.experiments.ch6_sliding import repetition_streams
+    from mmconcepts.engine.streams import child_seeds, streams
+    from mmconcepts.experiments.ch6.sliding import repetition_streams
 
     st = streams(3)
     assert repetition_streams(st, 0, 1) == st  # one repetition: the run's own streams
@@ -574,7 +581,7 @@ def test_sliding_repetition_streams():
 
 
 def test_streams_are_independent_and_reproducible():
-    from mmconcepts.experiments.base import child_seeds, streams
+    from mmconcepts.engine.streams import child_seeds, streams
 
     a, b = streams(0), streams(1)
     assert a == streams(0) and len(set(a)) == len(a)  # five different seeds from one
@@ -583,8 +590,8 @@ def test_streams_are_independent_and_reproducible():
 
 
 def test_pairing_stays_within_concept_and_part(rng):
-    from mmconcepts.experiments._ch6_common import pair_within_parts
-    from mmconcepts.experiments.splits import concept_parts
+    from mmconcepts.experiments.ch6.protocol import pair_within_parts
+    from mmconcepts.engine.splits import concept_parts
 
     y = np.repeat(np.arange(4), 30)  # 30 utterances per concept
     item_concept = np.r_[np.repeat(np.arange(4), 11), -np.ones(5, int)]  # 11 records per concept, 5 unused
@@ -604,7 +611,7 @@ def test_pairing_stays_within_concept_and_part(rng):
 
 
 def test_composed_test_utterances_place_the_target_exactly(rng):
-    from mmconcepts.experiments.ch6_sliding import compose_test_utterances
+    from mmconcepts.experiments.ch6.sliding import compose_test_utterances
 
     lengths = rng.integers(20, 60, size=40)
     mfccs = [np.full((n, 3), float(i)) for i, n in enumerate(lengths)]  # each frame names its recording
@@ -621,7 +628,7 @@ def test_composed_test_utterances_place_the_target_exactly(rng):
 
 
 def test_eth80_objects_round_robin_over_categories():
-    from mmconcepts.experiments._ch6_common import eth80_objects
+    from mmconcepts.experiments.ch6.protocol import eth80_objects
 
     objs = ["car11", "car2", "car1", "apple2", "apple1", "cow1"]
     assert eth80_objects(objs, ["car", "car", "car", "apple", "apple", "cow"], 5) == \
@@ -633,8 +640,8 @@ def _real_ctx(tmp_path, *names):
 
 
 def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
-    from mmconcepts.experiments import _ch6_common as common
-    from mmconcepts.experiments.ch6_motion_sound import Config
+    from mmconcepts.experiments.ch6 import protocol as common
+    from mmconcepts.experiments.ch6.motion_sound import Config
 
     ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
     st = common.streams(0)
@@ -669,7 +676,7 @@ def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
 
 @pytest.mark.slow
 def test_ch6_labels_on_real_voices_and_motion(tmp_path):
-    from mmconcepts.experiments.ch6_motion_sound import Config, compute_labels
+    from mmconcepts.experiments.ch6.motion_sound import Config, compute_labels
 
     ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
     res = compute_labels(dataclasses.replace(Config.quick(), n_per_speaker=100, n_folds=2, k=12, n_iter=30), ctx)
@@ -682,7 +689,7 @@ def test_ch6_labels_on_real_voices_and_motion(tmp_path):
 
 @pytest.mark.slow
 def test_ch6_sliding_on_real_words_and_objects(tmp_path):
-    from mmconcepts.experiments.ch6_sliding import Config, compute
+    from mmconcepts.experiments.ch6.sliding import Config, compute
 
     ctx = _real_ctx(tmp_path, "fsdd", "eth80")
     cfg = dataclasses.replace(Config.quick(), n_per_speaker=100, widths=(0.2, 0.5), k=12, n_iter=30,
@@ -699,15 +706,15 @@ def test_ch6_sliding_on_real_words_and_objects(tmp_path):
 
 def test_learner_seed_alone_leaves_the_data_unchanged_and_vice_versa(monkeypatch, tmp_path):
     """Without any data set: fake loaders, then the streams of load_pairs and fold_tasks."""
-    from mmconcepts.experiments import _ch6_common as common
-    from mmconcepts.experiments.ch6_motion_sound import Config
+    from mmconcepts.experiments.ch6 import protocol as common
+    from mmconcepts.experiments.ch6.motion_sound import Config
 
     y = np.repeat(np.arange(4), 12)
     speech = {"y": y, "keywords": ["a", "b", "c", "d"], "mfcc": [np.zeros((5, 2))] * len(y), "speaker": "s"}
     motion = {"angles": [np.full((4, 3), float(i)) for i in range(30)], "gesture": np.arange(30) % 6,
               "ids": [str(i) for i in range(30)]}
-    monkeypatch.setattr(common, "load_speech", lambda ctx, **kw: speech)
-    monkeypatch.setattr(common, "load_motion", lambda ctx, **kw: motion)
+    monkeypatch.setattr(pairs_protocol, "load_speech", lambda ctx, **kw: speech)
+    monkeypatch.setattr(pairs_protocol, "load_motion", lambda ctx, **kw: motion)
     ctx = RunContext(data={}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_folds=3)
     st = common.streams(7)
@@ -736,7 +743,7 @@ def test_seen_columns_and_why_dropping_the_others_changes_nothing(rng):
     """Columns absent from training get exactly zero dictionary weight, so an internal representation ignores them."""
     import scipy.sparse as sp
 
-    from mmconcepts.experiments._ch6_common import seen_columns
+    from mmconcepts.experiments.ch6.protocol import seen_columns
     from mmconcepts.multimodal import MultimodalNMF
 
     X = sp.random(40, 300, density=0.1, random_state=2, format="csc")

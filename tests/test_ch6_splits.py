@@ -5,7 +5,7 @@ both; a window of the training stream with the views shown while it plays) are s
 splitting each modality's recordings by concept and pairing within each part. These
 property tests draw random set sizes (concepts with few or many recordings, more examples
 than records, unused gestures or objects) and check every split function of the chapter
-with :func:`~mmconcepts.experiments.splits.describe_split` (which raises on a shared
+with :func:`~mmconcepts.engine.splits.describe_split` (which raises on a shared
 recording), and that each example's recordings are of its concept.
 """
 
@@ -20,8 +20,9 @@ from hypothesis import strategies as st
 
 from mmconcepts.errors import DataError, ExperimentError
 from mmconcepts.experiments import RunContext, describe_split
-from mmconcepts.experiments import _ch6_common as common
-from mmconcepts.experiments.splits import concept_parts
+from mmconcepts.experiments.protocols import pairs as pairs_protocol
+from mmconcepts.experiments.ch6 import protocol as common
+from mmconcepts.engine.splits import concept_parts
 
 _SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -78,8 +79,8 @@ def _fake_loaders(monkeypatch, y, gestures, n_keywords):
               "speaker": "s", "ids": _ids("utt", len(y))}
     motion = {"angles": [np.full((3, 2), float(i)) for i in range(len(gestures))], "gesture": gestures,
               "ids": _ids("rec", len(gestures))}
-    monkeypatch.setattr(common, "load_speech", lambda ctx, **kw: speech)
-    monkeypatch.setattr(common, "load_motion", lambda ctx, **kw: motion)
+    monkeypatch.setattr(pairs_protocol, "load_speech", lambda ctx, **kw: speech)
+    monkeypatch.setattr(pairs_protocol, "load_motion", lambda ctx, **kw: motion)
     return keywords, motion
 
 
@@ -121,7 +122,7 @@ def _views(n_objects: int, n_views: int) -> _Images:
 @_SETTINGS
 @given(data=_sets(), n_views=st.integers(3, 9), extra_objects=st.integers(0, 2))
 def test_image_features_repetitions_are_grouped_by_recording(data, n_views, extra_objects):
-    from mmconcepts.experiments.ch6_image_features import split_repetition
+    from mmconcepts.experiments.ch6.image_features import split_repetition
 
     y, _, seed = data
     n_concepts = int(y.max()) + 1
@@ -142,7 +143,7 @@ def test_image_features_repetitions_are_grouped_by_recording(data, n_views, extr
 @_SETTINGS
 @given(data=_sets(), n_views=st.integers(3, 9), extra=st.integers(0, 2))
 def test_modalities_repetitions_are_grouped_by_recording(data, n_views, extra):
-    from mmconcepts.experiments.ch6_modalities import split_repetition
+    from mmconcepts.experiments.ch6.modalities import split_repetition
 
     y, items, seed = data
     n_concepts = int(y.max()) + 1
@@ -173,7 +174,7 @@ def _sliding_inputs(y: np.ndarray, n_views: int, rng: np.random.Generator):
 @given(data=_sets(min_items=5), n_views=st.integers(3, 8), seed=st.integers(0, 1000),
        n_repeats=st.sampled_from([1, 3]))
 def test_sliding_repetitions_are_grouped_by_recording(data, n_views, seed, n_repeats):
-    from mmconcepts.experiments.ch6_sliding import Config, _prepare, repetition_streams
+    from mmconcepts.experiments.ch6.sliding import Config, _prepare, repetition_streams
 
     y, _, _ = data
     speech, ims = _sliding_inputs(y, n_views, np.random.default_rng(seed))

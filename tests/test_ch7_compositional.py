@@ -16,10 +16,10 @@ from conftest import real_data_path
 
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.experiments import RunContext, SampleUnit
-from mmconcepts.experiments import _ch7_common as common
-from mmconcepts.experiments import ch7_compositional as ch7
-from mmconcepts.experiments.base import Streams
-from mmconcepts.experiments.splits import describe_split, shared_sources
+from mmconcepts.experiments.ch7 import protocol as common
+from mmconcepts.experiments.ch7 import compositional as ch7
+from mmconcepts.engine.streams import Streams
+from mmconcepts.engine.splits import describe_split, shared_sources
 
 WORDS = ("eight", "five", "four", "nine", "one", "seven", "six", "three", "two", "zero")
 
@@ -105,7 +105,7 @@ def test_compose_utterance_known_answer():
 
 
 def test_compose_msr_motion_takes_each_limb_from_its_recording():
-    from mmconcepts.experiments._ch3_common import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
+    from mmconcepts.experiments.ch3.protocol import ARM_COLUMNS, LEFT_ARM_COLUMNS, RIGHT_ARM_COLUMNS
 
     rec = {name: np.full((10 + i, 16), float(i + 1)) for i, name in enumerate(("right", "left", "legs", "donor"))}
     rec["donor"][:, LEFT_ARM_COLUMNS] = 9.0
@@ -273,8 +273,8 @@ def test_config_bad_input(tone_corpus, tmp_path):
 # --------------------------------------------------------------------------- a reduced run
 @pytest.mark.slow
 def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus, tmp_path):
-    from mmconcepts.experiments.rules import parse_rule
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.engine.rules import parse_rule
+    from mmconcepts.engine.evidence import claim_verdict
 
     ctx = _ctx(tone_corpus, tmp_path)
     res = ch7.compute(TINY, ctx)
@@ -376,7 +376,7 @@ def test_claims_are_ours_or_checks_and_chance_claims_ask_for_the_fair_bar():
 
 def test_a_useless_learner_fails_the_bar_and_a_fair_one_passes():
     """Per-fold scores at the random-ranking value fail the bar; scores at chance-corrected 0.3 hold it."""
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.engine.evidence import claim_verdict
 
     rule = common.bar_rule("s2m.retrieval", "chance.retrieval")
     unit = {"folds": SampleUnit.folds(5)}
@@ -404,7 +404,7 @@ def _split_problem(draw):
 def test_property_no_recording_on_both_sides_of_a_fold(problem):
     """The split functions of the experiment (folds of the recordings and examples, the sources drawn per example,
     fold_tasks' training sets, calibration sets and references) never put one recording on both sides."""
-    from mmconcepts.experiments.splits import concept_parts
+    from mmconcepts.engine.splits import concept_parts
 
     n_folds, L, per_label, n_comp, seed = problem
     rng, frng = np.random.default_rng(seed), np.random.default_rng(seed + 1)

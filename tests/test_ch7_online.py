@@ -16,17 +16,17 @@ from sklearn.metrics import mutual_info_score
 
 from conftest import real_data_path
 
-import mmconcepts.experiments.ch7_online as ch7  # importing registers ch7-online
+import mmconcepts.experiments.ch7.online as ch7  # importing registers ch7-online
 from mmconcepts.experiments import RunContext
-from mmconcepts.experiments.splits import concept_parts
+from mmconcepts.engine.splits import concept_parts
 
 _TINY = dict(n_per_speaker=50, n_motion=60, n_folds=2, k=10, n_iter=20, batch_size=10, partial_max_iter=5,
              points=(0.3, 1.0))
 
 
 def _check_result(res, n_folds):
-    from mmconcepts.experiments.rules import parse_rule
-    from mmconcepts.experiments.uncertainty import claim_verdict
+    from mmconcepts.engine.rules import parse_rule
+    from mmconcepts.engine.evidence import claim_verdict
 
     res.validate()
     m = res.metrics
@@ -130,7 +130,7 @@ def test_information_ceiling_is_the_mean_indicator_entropy_and_bounds_the_matche
 
 
 def test_claims_are_ours_and_ask_for_the_fair_bar():
-    from mmconcepts.experiments import _ch7_common as common
+    from mmconcepts.experiments.ch7 import protocol as common
 
     claims = ch7.EXPERIMENT.claims
     assert {c.kind for c in claims} == {"ours"} and len(claims) == 5
@@ -149,7 +149,7 @@ def test_claims_are_ours_and_ask_for_the_fair_bar():
 def test_property_streams_and_test_folds_share_no_recording(n_folds, per_concept, n_records, seed):
     """Pairs made as load_pairs makes them (utterances and records split by concept, paired within their fold):
     the stream of every fold (its training pairs) and its test pairs share no utterance and no motion record."""
-    from mmconcepts.experiments import _ch6_common as c6
+    from mmconcepts.experiments.ch6 import protocol as c6
 
     rng = np.random.default_rng(seed)
     y = rng.permutation(np.repeat(np.arange(4), per_concept))

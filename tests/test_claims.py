@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from mmconcepts.experiments import CLAIM_KINDS, all_experiments
-from mmconcepts.experiments.rules import parse_rule
+from mmconcepts.engine.rules import parse_rule
 
 THESIS = Path(__file__).resolve().parents[2] / "shared" / "reference" / "000_282ac1a69b9c20d0.txt"
 _SOURCE = re.compile(r"\((?:line (\d+)|lines (\d+(?:(?:-|, )\d+)+))\)\Z")

@@ -21,7 +21,7 @@ distributed = pytest.importorskip("distributed", reason="the dask extra (dask.di
 from mmconcepts.cli import main  # noqa: E402
 from mmconcepts.errors import ExperimentError, ParameterError  # noqa: E402
 from mmconcepts.experiments import RunContext, run_experiment  # noqa: E402
-from mmconcepts.experiments.cluster import map_in_order, open_client, parse_scheduler  # noqa: E402
+from mmconcepts.engine.cluster import map_in_order, open_client, parse_scheduler  # noqa: E402
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -99,7 +99,7 @@ def test_unreachable_scheduler_is_a_clear_error_within_seconds(tmp_path):
 
 
 def test_cli_unreachable_scheduler_names_it(tmp_path, capsys, monkeypatch):
-    import mmconcepts.experiments.cluster as cluster
+    import mmconcepts.engine.cluster as cluster
 
     monkeypatch.setattr(cluster, "DEFAULT_CONNECT_TIMEOUT", 2.0)
     address = f"tcp://127.0.0.1:{_free_port()}"
@@ -153,7 +153,7 @@ def _record(path: Path) -> dict:
 
 
 def test_an_experiment_on_the_cluster_gives_the_local_record(client, tmp_path):
-    from mmconcepts.experiments.ch2_nmf_recovery import Config
+    from mmconcepts.experiments.ch2.nmf_recovery import Config
 
     config = Config(**_TINY)
     local = run_experiment("ch2-nmf-recovery", config=config, output=tmp_path / "local", progress=False)

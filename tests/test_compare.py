@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from mmconcepts.cli import main
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import run_experiment
-from mmconcepts.experiments.compare import _same, compare_records, format_differences
+from mmconcepts.engine.compare import _same, compare_records, format_differences
 
 
 def _edit(path, change):
@@ -83,7 +83,7 @@ def test_tolerance_of_numbers(two_runs):
 
 
 def test_the_listing_is_cut_at_its_limit():
-    from mmconcepts.experiments.compare import Difference
+    from mmconcepts.engine.compare import Difference
 
     diffs = [Difference("x (real)", f"metrics['m{i}']", i, i + 1) for i in range(5)]
     text = format_differences(diffs, limit=2)

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pytest
 
-import mmconcepts.experiments.runner as runner
+import mmconcepts.engine.batch as batch
 from mmconcepts.experiments import reproduce
-from mmconcepts.experiments.registry import get
+from mmconcepts.engine.registry import get
 
 TESTS_DIR = Path(__file__).parent
 _COMPARED = ("status", "experiment", "preset", "config", "seed", "variant", "metrics", "intervals", "samples",
@@ -77,7 +77,7 @@ def test_concurrent_runs_give_the_records_of_one_at_a_time_on_reused_processes(t
     # one lane, four runs: one process runs them all
     (toy / "pids").unlink()
     runs = [(get(i), "auto") for i in ids * 2]
-    records = runner._run_concurrently(runs, 1, _common(toy / "again"))
+    records = batch.run_concurrently(runs, 1, _common(toy / "again"))
     assert [r.status for r in records] == ["ok"] * 4
     assert len(set(_pids(toy / "pids"))) == 1
     assert not _drivers()  # the driver was stopped
@@ -91,7 +91,7 @@ def test_a_driver_that_dies_fails_its_run_only(toy, monkeypatch):
     monkeypatch.setenv("CLUSTER_TEST_SAY", "1")
     runs = [(get("cluster-a"), "auto"), (get("cluster-b"), "auto"), (get("cluster-a"), "auto"),
             (get("cluster-a"), "auto")]
-    records = runner._run_concurrently(runs, 1, _common(toy / "out"))
+    records = batch.run_concurrently(runs, 1, _common(toy / "out"))
     assert [r.status for r in records] == ["ok", "failed", "ok", "ok"]
     # the exit code and the dying run's own output, not the previous run's
     assert "exit code 3" in records[1].message and "running beta=2\nboom" in records[1].message
@@ -108,7 +108,7 @@ def test_a_driver_that_dies_fails_its_run_only(toy, monkeypatch):
 def test_an_error_outside_the_experiment_is_a_failed_record(toy):
     """An argument the runner refuses in the driver (here an unknown variant) fails that run, not the others."""
     runs = [(get("cluster-a"), "nonsense"), (get("cluster-b"), "auto")]
-    records = runner._run_concurrently(runs, 1, _common(toy / "out"))
+    records = batch.run_concurrently(runs, 1, _common(toy / "out"))
     assert [r.status for r in records] == ["failed", "ok"]
     assert "variant must be" in records[0].message
 
@@ -138,7 +138,7 @@ def test_interrupting_stops_the_drivers_at_once(toy, monkeypatch):
         threading.Thread(target=interrupt_when_both_run, daemon=True).start()
         t0 = time.monotonic()
         with pytest.raises(KeyboardInterrupt):
-            runner._run_concurrently(runs, 2, _common(toy / "out"))
+            batch.run_concurrently(runs, 2, _common(toy / "out"))
         assert time.monotonic() - t0 < 40
     finally:
         returned.set()
@@ -186,7 +186,7 @@ def _alive(pid: int) -> bool:
 def test_a_driver_with_workers_ends_when_asked(toy):
     """A driver whose experiment started loky workers ends by itself when closed (exit code 0, not killed):
     multiprocessing would wait for the idle workers' timeout (300 s)."""
-    from mmconcepts.experiments._drivers import Driver
+    from mmconcepts.engine.lanes import Driver
 
     driver = Driver(toy)
     record, why = driver.run("cluster-a", "auto", _common(toy / "out", workers=2))

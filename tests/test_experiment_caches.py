@@ -2,7 +2,7 @@
 
 Each cache (chapter-3 folds, chapter-5 MFCC, chapter-6 folds and image local features) is a
 folder of ``.npz`` entries (arrays + the structure as JSON) under ``ctx.cache_dir/<name>``
-(:meth:`RunContext.memory`, :mod:`mmconcepts.experiments._store`). What the tests pin: an
+(:meth:`RunContext.memory`, :mod:`mmconcepts.engine.cache`). What the tests pin: an
 entry is reused for the same data, parameters and code fingerprint; a change of code
 fingerprint recomputes; a torn entry recomputes instead of crashing; the result is the same
 (types, dtypes, bits) whether it was computed or read back; nothing in the cache folder is
@@ -25,12 +25,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mmconcepts.experiments import RunContext, _store
-from mmconcepts.experiments._store import FORMAT
-from mmconcepts.experiments.base import cached_call
-from mmconcepts.experiments import _ch3_common as ch3
-from mmconcepts.experiments import _ch5_common as ch5
-from mmconcepts.experiments import _ch6_common as ch6
+from mmconcepts.experiments import RunContext
+from mmconcepts.engine import codec
+from mmconcepts.engine.codec import FORMAT
+from mmconcepts.engine.context import cached_call
+from mmconcepts.experiments.ch3 import protocol as ch3
+from mmconcepts.experiments.ch5 import protocol as ch5
+from mmconcepts.experiments.protocols import speech as speech_protocol
+from mmconcepts.experiments.ch6 import protocol as ch6
 
 
 def _entries(folder):
@@ -135,7 +137,7 @@ def test_ch5_mfcc_reused_recomputed_and_torn(wav_corpus, tmp_path, monkeypatch):
     from mmconcepts.sound.features import MFCCConfig
 
     ctx = RunContext(workers=1, cache_dir=tmp_path / "cache", show_progress=False)
-    calls = _counting(monkeypatch, ch5, "_mfcc_one")
+    calls = _counting(monkeypatch, speech_protocol, "_mfcc_one")
     first = ch5.corpus_mfcc(ctx, wav_corpus, MFCCConfig(n_mfcc=13))
     assert len(calls) == 3 and [s.shape[1] for s in first] == [13] * 3
     (entry,) = _entries(tmp_path / "cache" / "ch5-mfcc")
@@ -150,7 +152,7 @@ def test_ch5_mfcc_reused_recomputed_and_torn(wav_corpus, tmp_path, monkeypatch):
         np.testing.assert_array_equal(a, b)
     ch5.corpus_mfcc(ctx, wav_corpus, MFCCConfig(n_mfcc=12))  # another configuration
     assert len(calls) == 9
-    monkeypatch.setattr(ch5, "code_fingerprint", lambda: "another code")
+    monkeypatch.setattr(speech_protocol, "code_fingerprint", lambda: "another code")
     ch5.corpus_mfcc(ctx, wav_corpus, MFCCConfig(n_mfcc=13))
     assert len(calls) == 12
     wav_corpus.paths[0].write_bytes(wav_corpus.paths[1].read_bytes() + b"\0\0")  # a file changed (size)
@@ -379,7 +381,7 @@ def _local_features():
         hnp.arrays(np.float64, (k,))))
 
 
-_CH3_FOLD = st.builds(  # _ch3_common._fold: test indices, seconds, per learner scores / pred / threshold
+_CH3_FOLD = st.builds(  # ch3.protocol._fold: test indices, seconds, per learner scores / pred / threshold
     lambda n, L, learners, data: {"test": data.draw(hnp.arrays(np.int64, n)), "feature_seconds": data.draw(_FLOATS),
                                   **{name: {"scores": data.draw(hnp.arrays(np.float64, (n, L), elements=_FLOATS)),
                                             "pred": data.draw(hnp.arrays(np.int64, (n, L))),
@@ -399,10 +401,10 @@ def test_round_trip_is_exact(value):
     """What is read back from an entry is what was computed: types (tuples stay tuples), dtypes, shapes, bits."""
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(tmp) / "e.npz"
-        _store.write_entry(path, value, "k")
-        _same(value, _store.read_entry(path, "k"))
-        structure, arrays = _store.encode(value)
-        _same(value, _store.decode(json.loads(json.dumps(structure)), arrays))
+        codec.write_entry(path, value, "k")
+        _same(value, codec.read_entry(path, "k"))
+        structure, arrays = codec.encode(value)
+        _same(value, codec.decode(json.loads(json.dumps(structure)), arrays))
 
 
 def test_a_hit_returns_what_the_miss_returned(tmp_path):

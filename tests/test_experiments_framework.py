@@ -143,9 +143,7 @@ def test_register_rejects_duplicate_ids(toy):
 
 
 def test_broken_experiment_module_is_an_error_not_skipped(registry, monkeypatch):
-    import mmconcepts.experiments as experiments
-
-    monkeypatch.setattr(experiments, "EXPERIMENT_MODULES", ("_toy_experiment", "_no_such_module_xyz"))
+    monkeypatch.setattr(registry, "EXPERIMENT_PACKAGES", ("_toy_experiment", "_no_such_module_xyz"))
     with pytest.raises(ExperimentError, match="_no_such_module_xyz"):
         all_experiments()
 
@@ -566,7 +564,7 @@ def test_a_runs_workers_keep_what_they_load(toy, tmp_path):
     from joblib import Parallel, delayed
     from joblib.externals.loky import process_executor
 
-    from mmconcepts.experiments._workers import WORKER_MEMORY_GROWTH
+    from mmconcepts.engine.workers import WORKER_MEMORY_GROWTH
 
     assert WORKER_MEMORY_GROWTH > process_executor._MAX_MEMORY_LEAK_SIZE  # loky's own, in this process
 
@@ -687,12 +685,12 @@ def test_experiment_run_compute_present_combinations(kwargs, fragment):
 
 
 def test_every_registered_experiment_computes_and_presents_apart():
-    """The pattern of issue 13 everywhere: numbers from compute, figures from present (none for a table alone)."""
+    """Numbers from compute, figures from present (none for a table alone)."""
     import importlib
 
-    import mmconcepts.experiments as experiments
+    from mmconcepts.engine.registry import EXPERIMENT_PACKAGES, experiment_modules
 
-    exps = [obj for name in experiments.EXPERIMENT_MODULES for obj in vars(importlib.import_module(name)).values()
+    exps = [obj for name in experiment_modules(EXPERIMENT_PACKAGES) for obj in vars(importlib.import_module(name)).values()
             if isinstance(obj, Experiment)]
     assert len(exps) >= 19
     for exp in exps:

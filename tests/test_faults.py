@@ -2,7 +2,7 @@
 
 The runs are real ``mmconcepts`` command lines in subprocesses. Their experiments are small
 test experiments written into a temporary folder and put in place of the package's
-(``EXPERIMENT_MODULES``) by the launcher below: each calls a slow cached function over
+(``EXPERIMENT_PACKAGES``) by the launcher below: each calls a slow cached function over
 ``ctx.parallel_cached``, the path the folds of chapters 3 and 6 take, and logs every call it
 computes, so that a test can tell what a rerun computed again.
 """
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from mmconcepts.experiments import Experiment, Result, register
-from mmconcepts.experiments.config import PresetConfig
+from mmconcepts.engine.config import PresetConfig
 
 
 @dataclass(frozen=True)
@@ -66,9 +66,9 @@ import os
 import sys
 import time
 
-import mmconcepts.experiments as e
+import mmconcepts.engine.registry as e
 
-e.EXPERIMENT_MODULES = ("_fault_experiment",)
+e.EXPERIMENT_PACKAGES = ("_fault_experiment",)
 if os.environ.get("FAULT_SLOW_REPORT"):
     import mmconcepts.report as report
 

@@ -57,7 +57,7 @@ def sandbox(tmp_path_factory):
         fsdd=str(data_root / "fsdd"),
     )
 
-    from mmconcepts.experiments import runner
+    from mmconcepts.engine import runner
 
     def no_compute(exp, config, ctx, record, target):
         record.status, record.message = "skipped", "not run by the fuzz test"

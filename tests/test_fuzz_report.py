@@ -30,7 +30,7 @@ from hypothesis import HealthCheck, given, note
 from hypothesis import strategies as st
 
 from mmconcepts.cli import main
-from mmconcepts.experiments.record import RECORD_KEYS
+from mmconcepts.engine.record import RECORD_KEYS
 
 RECORDS = Path(__file__).resolve().parent / "data" / "records"
 GOOD = {  # file name -> experiment id of the good records put beside the damaged one

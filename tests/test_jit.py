@@ -100,12 +100,12 @@ def test_same_results_as_numba(jitmod):
 
 
 def test_the_package_kernels_compile_under_the_lock():
-    from mmconcepts.experiments import _ch7_common
+    from mmconcepts.experiments.ch7 import protocol as ch7_protocol
     from mmconcepts.nmf import _kernels
     from mmconcepts.sound import dtw, tree
 
     found = 0
-    for module in (_kernels, tree, dtw, _ch7_common):
+    for module in (_kernels, tree, dtw, ch7_protocol):
         for value in vars(module).values():
             if isinstance(value, numba.core.registry.CPUDispatcher):
                 found += 1

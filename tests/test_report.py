@@ -411,8 +411,8 @@ def _figure_problems(fig) -> list[str]:
 def _factorial_irl_result():
     import numpy as np
 
-    from mmconcepts.experiments.base import Result
-    from mmconcepts.experiments.ch4_factorial_irl import Config
+    from mmconcepts.engine.spec import Result
+    from mmconcepts.experiments.ch4.factorial_irl import Config
 
     cfg = Config(grid_size=3, n_primitives=2, n_tasks=4, n_demos=2, demos_curve=(1, 2), tasks_curve=(2, 4))
     S, A, rng = 9, 4, np.random.default_rng(0)
@@ -433,7 +433,7 @@ def _factorial_irl_result():
 
 def test_figures_of_chapter_4_have_colour_bars_labels_and_legends():
     """Fig. 4.4 had no colour bar (and overlapping titles); every figure of ch4-factorial-irl is now readable."""
-    from mmconcepts.experiments.ch4_factorial_irl import present
+    from mmconcepts.experiments.ch4.factorial_irl import present
 
     figures = present(*_factorial_irl_result())
     for name, fig in figures.items():
@@ -451,9 +451,9 @@ def test_figures_of_chapter_6_name_their_chance_line():
     """Fig. 6.5-6.6 drew an unlabelled chance line; Table 6.2's bars now carry their spread over folds."""
     import numpy as np
 
-    from mmconcepts.experiments.base import Result
-    from mmconcepts.experiments.ch6_modalities import Config, _key, _setups, present
-    from mmconcepts.experiments.ch6_motion_sound import DIRECTIONS, METRICS, _figure, _spaces
+    from mmconcepts.engine.spec import Result
+    from mmconcepts.experiments.ch6.modalities import Config, _key, _setups, present
+    from mmconcepts.experiments.ch6.motion_sound import DIRECTIONS, METRICS, _figure, _spaces
 
     cfg = Config(n_repeats=3, k_sweep=(5, 10))
     reps = [{_key(*s): 0.5 + 0.1 * r for s in _setups()} for r in range(3)]

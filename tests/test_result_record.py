@@ -209,7 +209,7 @@ def test_json_round_trip_property(record):
 
 def test_a_metric_too_big_for_a_float_is_an_experiment_error():
     from mmconcepts.errors import ExperimentError
-    from mmconcepts.experiments.record import ResultRecord
+    from mmconcepts.engine.record import ResultRecord
 
     with pytest.raises(ExperimentError, match="OverflowError"):
         ResultRecord.from_dict({"schema_version": 2, "experiment": "x", "status": "ok", "metrics": {"a": 10**400}})

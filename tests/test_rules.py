@@ -7,7 +7,7 @@ import math
 import pytest
 
 from mmconcepts.errors import ExperimentError
-from mmconcepts.experiments.rules import evaluate_rule, is_valid_metric_name, parse_rule
+from mmconcepts.engine.rules import evaluate_rule, is_valid_metric_name, parse_rule
 
 M = {
     "16.nmf_kl.l_full": 0.9,
@@ -186,7 +186,7 @@ def test_python_syntax_outside_the_language_is_refused(rule, fragment):
 
 
 def test_every_registered_claim_rule_parses():
-    from mmconcepts.experiments import registry
+    from mmconcepts.engine import registry
 
     claims = [claim for exp in registry.all_experiments() for claim in exp.claims]
     rules = [rule for claim in claims if claim.kind != "magnitude" for rule in claim.rules.values()]

@@ -1,4 +1,4 @@
-"""Intervals and verdicts (mmconcepts.experiments.uncertainty): a verdict is what the interval shown says."""
+"""Intervals and verdicts (mmconcepts.engine.uncertainty): a verdict is what the interval shown says."""
 
 from __future__ import annotations
 
@@ -13,16 +13,9 @@ from scipy import stats
 
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import Claim, Result, SampleUnit, run_experiment
-from mmconcepts.experiments.uncertainty import (
-    LEVEL,
-    MIN_UNITS,
-    VERDICTS,
-    claim_verdict,
-    combine_settings,
-    magnitude_verdict,
-    metric_interval,
-    t_interval,
-)
+from mmconcepts.engine.uncertainty import LEVEL, MIN_UNITS, VERDICTS, metric_interval, t_interval
+from mmconcepts.engine.evidence import claim_verdict, magnitude_verdict
+from mmconcepts.engine.verdicts import combine_settings
 
 
 # --------------------------------------------------------------------------- intervals
@@ -376,7 +369,7 @@ def test_runner_stores_units_tests_and_settings(toy, tmp_path):
 def test_the_examples_in_the_docstrings_are_true():
     import doctest
 
-    from mmconcepts.experiments import uncertainty
+    from mmconcepts.engine import uncertainty
 
     failed, tried = doctest.testmod(uncertainty, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert tried > 0 and failed == 0

@@ -72,7 +72,7 @@ def _workers(text: str) -> int:
 
 def _scheduler(text: str) -> str:
     from .errors import ParameterError
-    from .experiments.cluster import parse_scheduler
+    from .engine.cluster import parse_scheduler
 
     try:
         parse_scheduler(text)
@@ -350,7 +350,7 @@ def _columns(rows: list[list[str]], indent: str = "  ") -> str:
 
 
 def _claims_summary(claims: list[dict[str, Any]]) -> str:
-    from .experiments.verdicts import format_tally, tally_claims
+    from .engine.verdicts import format_tally, tally_claims
 
     return format_tally(tally_claims(claims))
 
@@ -393,7 +393,7 @@ def _print_record(record: Mapping[str, Any], json_path: Path) -> None:
 
 def _data(args: argparse.Namespace) -> dict[str, Path]:
     from .errors import MMConceptsError
-    from .experiments import parse_data_args
+    from .engine import parse_data_args
 
     try:
         return parse_data_args(args.data)
@@ -402,7 +402,7 @@ def _data(args: argparse.Namespace) -> dict[str, Path]:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    from .experiments import all_experiments
+    from .engine import all_experiments
 
     experiments = all_experiments()
     if not experiments:
@@ -416,8 +416,9 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .errors import MMConceptsError
-    from .experiments import check_data, get, load_experiments, run_experiment
-    from .experiments.runner import record_path, resolve_data
+    from .engine import check_data, get, load_experiments, run_experiment
+    from .engine.outputs import record_path
+    from .engine.data import resolve_data
 
     data = _data(args)
     load_experiments()  # an experiment module that does not import is not a usage error
@@ -441,7 +442,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from .errors import MMConceptsError
-    from .experiments import all_experiments, check_data, get, load_experiments, reproduce
+    from .engine import all_experiments, check_data, get, load_experiments, reproduce
 
     data = _data(args)
     load_experiments()
@@ -604,7 +605,7 @@ def _cmd_verdicts(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .experiments.compare import compare_records, format_differences
+    from .engine.compare import compare_records, format_differences
 
     if not (args.rtol >= 0.0):
         raise _UsageError(f"--rtol must be a number >= 0; got {args.rtol}.")

@@ -12,9 +12,9 @@ from typing import Any
 
 from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
-from ..experiments.record import RECORD_KEYS, ClaimRecord, ResultRecord
-from ..experiments.uncertainty import LEVEL, VERDICTS
-from ..experiments.verdicts import TALLY_KINDS, redecide, tally_claims, verdict_words
+from ..engine.record import RECORD_KEYS, ClaimRecord, ResultRecord
+from ..engine.uncertainty import LEVEL, VERDICTS
+from ..engine.verdicts import TALLY_KINDS, redecide, tally_claims, verdict_words
 
 logger = logging.getLogger("mmconcepts.report")
 

@@ -17,8 +17,8 @@ from importlib import resources
 from urllib.parse import quote
 
 from .. import __version__
-from ..experiments.uncertainty import MAGNITUDE_VERDICTS, VERDICTS
-from ..experiments.verdicts import TALLY_KINDS
+from ..engine.uncertainty import MAGNITUDE_VERDICTS, VERDICTS
+from ..engine.verdicts import TALLY_KINDS
 from ._model import (KIND_SECTIONS, STATUS_LABELS, VARIANT_LABELS, ExperimentGroup, ExperimentView, Plan, chance_line, claims_by_data,
                      group, kind_tally_rows, slug_part, variant_summaries)
 

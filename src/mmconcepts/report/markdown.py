@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from urllib.parse import quote
 
 from .. import __version__
-from ..experiments.verdicts import TALLY_KINDS
+from ..engine.verdicts import TALLY_KINDS
 from ._model import (KIND_SECTIONS, VARIANT_LABELS, ExperimentGroup, ExperimentView, Plan, chance_line, claims_by_data,
                      group, kind_tally_rows, variant_summaries)
 

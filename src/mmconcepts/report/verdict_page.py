@@ -20,7 +20,7 @@ from pathlib import Path
 from .._fingerprint import code_fingerprint
 from .._io import atomic_write
 from ..errors import ExperimentError
-from ..experiments.uncertainty import LEVEL
+from ..engine.uncertainty import LEVEL
 from ._model import KIND_SECTIONS, VARIANT_LABELS, ExperimentView, chance_line, collect, kind_tally_rows
 
 __all__ = ["verdict_page", "write_verdict_page", "update_tallies", "comparison_page", "GENERATED_MARK", "TALLIES_START", "TALLIES_END"]

@@ -1,0 +1,108 @@
+"""The worker processes of a run (internal): they end with their parent, keep what they load, and carry
+their warnings back.
+
+:meth:`~mmconcepts.engine.context.RunContext.parallel` and the batch runner run tasks on joblib's loky
+worker processes (or a Dask cluster) under :func:`workers_end_with_this_process`; each task is wrapped in
+:class:`WarningsCarried` so that the warnings it raises reach the caller.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any, cast
+
+__all__ = ["WORKER_MEMORY_GROWTH", "WarningsCarried", "end_with_parent", "init_worker", "progress_enabled",
+           "workers_end_with_this_process"]
+
+
+class WarningsCarried:
+    """Call ``fn`` in a worker process and return its result with the warnings it raised."""
+
+    def __init__(self, fn: Callable[[Any], Any]) -> None:
+        self.fn = fn
+
+    def __call__(self, item: Any) -> tuple[Any, list[tuple[type[Warning], str, str, int]]]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = self.fn(item)
+        return result, [(w.category, str(w.message), w.filename, w.lineno) for w in caught]
+
+
+def workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
+    """A joblib config under which the (loky) worker processes end when this process ends.
+
+    loky's workers outlive a parent killed with SIGKILL: one busy with a task finishes it, and
+    an idle one waits for its idle timeout (300 s). Under this config each worker runs
+    :func:`init_worker` when it starts. Another joblib back end chosen by the caller
+    (``joblib.parallel_config``) is left as it is.
+    """
+    try:
+        from joblib import parallel_config
+        from joblib.parallel import get_active_backend
+
+        backend, _ = get_active_backend()
+    except ImportError:  # pragma: no cover - an older joblib
+        return contextlib.nullcontext()
+    if type(backend).__name__ != "LokyBackend":
+        return contextlib.nullcontext()
+    return cast("contextlib.AbstractContextManager[Any]",
+                parallel_config(backend="loky", initializer=init_worker, initargs=(os.getpid(),)))
+
+
+#: How much a worker's memory may grow after its first task before loky replaces it (loky's
+#: own guard against leaks is 300 MB). A run's workers keep what they load on purpose, from one
+#: task and one experiment to the next: the numba kernels, librosa, the text-to-speech voice
+#: (its size is in ``benchmarks/README.md``); at 300 MB loky kept replacing them, and each new
+#: worker imported and loaded all of it again.
+WORKER_MEMORY_GROWTH = 2**30
+
+
+def init_worker(parent_pid: int) -> None:
+    """Initializer of a worker process: :func:`end_with_parent`, and loky's leak guard at
+    :data:`WORKER_MEMORY_GROWTH` (a private loky setting, read by the worker after each task)."""
+    end_with_parent(parent_pid)
+    with contextlib.suppress(ImportError):
+        from joblib.externals.loky import process_executor
+
+        if isinstance(getattr(process_executor, "_MAX_MEMORY_LEAK_SIZE", None), int):
+            process_executor._MAX_MEMORY_LEAK_SIZE = max(process_executor._MAX_MEMORY_LEAK_SIZE,
+                                                         WORKER_MEMORY_GROWTH)
+
+
+def end_with_parent(parent_pid: int) -> None:
+    """Initializer of a worker process: end this worker as soon as ``parent_pid`` (its parent) ends.
+
+    On Linux the kernel sends the worker SIGKILL when its parent dies (``prctl`` with
+    ``PR_SET_PDEATHSIG``), even while the worker computes; everywhere a daemon thread also
+    checks every half second that the parent is still the same process.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - no libc prctl
+            pass
+    if os.getppid() != parent_pid:  # the parent ended before the worker got here
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="mmconcepts-watch-parent", daemon=True).start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(0.5)
+    os._exit(1)
+
+
+def progress_enabled(show: bool) -> bool:
+    try:
+        return bool(show) and sys.stderr is not None and sys.stderr.isatty()
+    except (AttributeError, ValueError):  # closed or replaced stream
+        return False
