@@ -8,7 +8,7 @@ RESULTS ?= results
 # The folder of real data sets (fsdd, msr-action3d, eth80, ...); empty: $$MMCONCEPTS_DATA_ROOT, else generated data only.
 DATA_ROOT ?=
 
-.PHONY: reproduce test test-fast browser typecheck docs bench clean
+.PHONY: reproduce test test-fast golden browser typecheck docs bench clean
 
 # Installs into the environment with uv (itself installed from PyPI into the environment), which installs the same
 # packages in about half pip's time (benchmarks/README.md); with pip when uv cannot be had or fails. Both write the
@@ -53,6 +53,14 @@ test: $(VENV)/.installed-dev browser
 ## loop; CI runs `make test`
 test-fast: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -m "not slow"
+
+## Rewrite tests/golden/, the records of the experiments that declare a smoke preset (one per chapter, on generated
+## data, against which tests/test_golden_records.py compares), after a change meant to change their results
+golden: $(VENV)/.installed-dev
+	rm -rf $(VENV)/golden-run
+	MMCONCEPTS_DATA_ROOT= $(BIN)/mmconcepts reproduce --smoke --workers 2 --output $(VENV)/golden-run
+	rm -f tests/golden/*.json
+	cp $(VENV)/golden-run/*.json tests/golden/
 
 ## Install headless Chromium and its driver (Debian packages) for tests/test_report_browser.py when they are
 ## missing and this user may (root, or passwordless sudo); otherwise do nothing (that test then skips, saying why)

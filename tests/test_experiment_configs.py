@@ -10,8 +10,11 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import json
 import pkgutil
 import re
+
+from pathlib import Path
 
 import pytest
 
@@ -61,5 +64,33 @@ def test_a_preset_naming_no_field_or_no_preset_is_an_error():
     assert Config.full() == Config()
     with pytest.raises(ParameterError, match=r"Config.QUICK sets \['n_typo'\], which are not fields"):
         Config.quick()
-    with pytest.raises(ParameterError, match="preset must be one of quick, full; got 'fast'"):
+    with pytest.raises(ParameterError, match="preset must be one of quick, full, smoke; got 'fast'"):
         Config.preset("fast")
+
+
+def test_the_smoke_preset_is_the_quick_one_changed_by_smoke():
+    from mmconcepts.engine import all_experiments, get
+
+    exps = [e for e in all_experiments() if e.has_smoke]
+    assert exps
+    for exp in exps:
+        cls = exp.config_cls
+        assert dataclasses.asdict(cls.smoke()) == {**dataclasses.asdict(cls()), **cls.QUICK, **cls.SMOKE}, exp.id
+        assert cls.smoke() != cls.quick(), exp.id
+        assert exp.make_config("smoke", seed=4).seed == 4
+    plain = get("ch3-unseen")
+    assert not plain.has_smoke
+    with pytest.raises(ParameterError, match="no smoke preset"):
+        plain.make_config("smoke")
+
+
+def test_a_smoke_config_is_recorded_under_the_smoke_preset():
+    from mmconcepts.engine import get
+    from mmconcepts.engine.runner import config_and_preset
+
+    exp = get("ch2-nmf-recovery")
+    assert config_and_preset(exp, None, exp.config_cls.smoke(), None)[1] == "smoke"
+    assert config_and_preset(exp, "smoke", None, 3)[1] == "smoke"
+    assert config_and_preset(exp, None, dataclasses.replace(exp.config_cls.smoke(), n_repeats=3), None)[1] == "custom"
+    golden = Path(__file__).resolve().parent / "golden"
+    assert {json.loads(p.read_text())["preset"] for p in golden.glob("*.json")} == {"smoke"}

@@ -116,6 +116,11 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         "--full", dest="preset", action="store_const", const="full",
         help="the thesis-sized config (can take hours)",
     )
+    preset.add_argument(
+        "--smoke", dest="preset", action="store_const", const="smoke",
+        help="the quick config made as small as it runs, for the experiments that declare one: seconds, to check "
+             "that everything runs and that the records stay the same (the numbers mean nothing)",
+    )
     parser.set_defaults(preset="quick")
     parser.add_argument(
         "--output", "-o", metavar="DIR", type=_folder, default=DEFAULT_RESULTS_DIR,

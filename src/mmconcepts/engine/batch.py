@@ -13,7 +13,7 @@ from typing import Any
 from .._io import check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR
 from ..errors import ExperimentError, ParameterError
-from .experiment import PRESETS, Experiment
+from .experiment import PRESETS, SMOKE, Experiment
 from .cluster import parse_scheduler, scheduler_client
 from .data import check_data, resolve_data
 from .outputs import record_path
@@ -56,7 +56,8 @@ def reproduce(
 
     Parameters
     ----------
-    preset : {"quick", "full"}, default="quick"
+    preset : {"quick", "full", "smoke"}, default="quick"
+        ``"smoke"`` runs only the experiments that have a smoke preset (all of ``ids`` when given).
     output : str or path-like, default="results"
     data : mapping of str to path, optional
         Real data sets by name; each name must be known (declared by some registered
@@ -87,9 +88,11 @@ def reproduce(
     list of ResultRecord
         One record per run, in the order run (the real-data run of an experiment first).
     """
-    if preset not in PRESETS:
-        raise ParameterError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}.")
+    if preset not in (*PRESETS, SMOKE):
+        raise ParameterError(f"preset must be one of {', '.join((*PRESETS, SMOKE))}; got {preset!r}.")
     experiments = [get(i) for i in dict.fromkeys(ids)] if ids else all_experiments()
+    if preset == SMOKE:  # the experiments that have a smoke preset (all of ``ids``, which must have one)
+        experiments = [e for e in experiments if e.has_smoke or ids]
     if not experiments:
         raise ExperimentError("no experiments are registered; nothing to reproduce.")
     if isinstance(concurrent, bool) or not isinstance(concurrent, int) or concurrent < 1:

@@ -85,10 +85,14 @@ from .rules import is_valid_metric_name
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["PRESETS", "Experiment", "check_seed"]
+__all__ = ["PRESETS", "SMOKE", "Experiment", "check_seed"]
 
 #: The preset names every experiment config provides.
 PRESETS = ("quick", "full")
+
+#: A preset a config may provide (:meth:`~mmconcepts.engine.PresetConfig.smoke`): the quick one made as small as
+#: the experiment can run, to check that everything runs and that its records stay the same.
+SMOKE = "smoke"
 
 _ID = re.compile(r"[a-z0-9]+(?:-[a-z0-9]+)*\Z")
 
@@ -270,12 +274,16 @@ class Experiment:
 
         Parameters
         ----------
-        preset : {"quick", "full"}
+        preset : {"quick", "full", "smoke"}
+            ``"smoke"`` only for a config that has that preset (see :attr:`has_smoke`).
         seed : int, optional
             A non-negative seed replacing the preset's.
         """
-        if preset not in PRESETS:
-            raise ParameterError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}.")
+        if preset not in (*PRESETS, SMOKE):
+            raise ParameterError(f"preset must be one of {', '.join((*PRESETS, SMOKE))}; got {preset!r}.")
+        if preset == SMOKE and not self.has_smoke:
+            raise ParameterError(f"experiment {self.id!r} has no smoke preset ({self.config_cls.__name__} declares no "
+                                 "SMOKE); run it with the quick preset, or declare SMOKE in its config.")
         config = getattr(self.config_cls, preset)()
         if not isinstance(config, self.config_cls):
             raise ExperimentError(
@@ -285,6 +293,11 @@ class Experiment:
         if seed is not None:
             config = dataclasses.replace(cast(Any, config), seed=check_seed(seed))
         return config
+
+    @property
+    def has_smoke(self) -> bool:
+        """Whether the config declares a smoke preset (a non-empty ``SMOKE``)."""
+        return bool(getattr(self.config_cls, "SMOKE", None)) and callable(getattr(self.config_cls, SMOKE, None))
 
     def __repr__(self) -> str:
         return f"Experiment(id={self.id!r}, title={self.title!r}, thesis_ref={self.thesis_ref!r})"

@@ -24,7 +24,7 @@ from .._fingerprint import code_fingerprint
 from .._io import atomic_write, check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, ParameterError
-from .experiment import PRESETS, Experiment, check_seed
+from .experiment import PRESETS, SMOKE, Experiment, check_seed
 from .spec import ExperimentSkipped, Result, Table
 from .context import RunContext
 from .workers import workers_end_with_this_process
@@ -91,7 +91,8 @@ def config_and_preset(exp: Experiment, preset: str | None, config: Any, seed: in
     if seed is not None:
         # an instance of exp.config_cls, a frozen dataclass (checked when the experiment was declared)
         config = dataclasses.replace(cast("DataclassInstance", config), seed=check_seed(seed))
-    name = next((p for p in PRESETS if exp.make_config(p, seed=check_seed(config.seed)) == config), CUSTOM_PRESET)
+    names = (*PRESETS, SMOKE) if exp.has_smoke else PRESETS
+    name = next((p for p in names if exp.make_config(p, seed=check_seed(config.seed)) == config), CUSTOM_PRESET)
     return config, name
 
 

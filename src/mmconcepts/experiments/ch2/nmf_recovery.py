@@ -74,6 +74,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     QUICK = dict(n_samples=200, n_features=50, n_components=5, max_iter=300, pg_max_iter=300, n_repeats=5)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_samples=40, n_features=12, n_components=3, max_iter=30, pg_max_iter=30, n_repeats=2)
     FULL = dict(n_samples=1000, n_features=200, n_components=10, max_iter=2000, pg_max_iter=1000, n_repeats=5)
 
 

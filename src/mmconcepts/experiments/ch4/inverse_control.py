@@ -132,6 +132,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     QUICK = dict(n_test=25, max_iter=40, diagnostics=False)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_train=30, n_test=6, n_steps=30, max_iter=3, n_repeats=1)
 
 
 def _mix(rng, n, k):

@@ -72,6 +72,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     QUICK = dict(n_per_speaker=250, n_train_utterances=120, n_queries=100)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=20, n_repeats=2, n_train_utterances=8, n_queries=20)
 
 
 #: "Recall 0.9 for less than a fifth of exact search's cost", one rule per restart search (a setting each: the

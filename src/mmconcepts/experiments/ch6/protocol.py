@@ -174,6 +174,8 @@ class PairsConfig(PresetConfig):
 
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
     QUICK = dict(n_per_speaker=250, n_motion=250, n_folds=5, hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=50, n_motion=60, n_folds=3, k=10, n_iter=20, concept_k=5, hac_fit_frames=5_000)
 
 
 

@@ -106,6 +106,9 @@ class Config(PresetConfig):
 
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
     QUICK = dict(n_per_speaker=250, n_motion=250, batch_size=40, points=(0.1, 0.4, 1.0), hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=50, n_motion=60, n_folds=2, k=10, n_iter=20, batch_size=10, partial_max_iter=5,
+                 points=(0.3, 1.0), hac_fit_frames=5_000)
 
 
 def crossmodal_success(model: MultimodalNMF, X_test: dict, y_test: np.ndarray, *, random_state: Any = None,
