@@ -16,7 +16,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from mmconcepts.errors import DataFormatError, ParameterError, VersionMismatchError
 from mmconcepts.nmf import NMF, LabelNMF, beta_nmf
-from mmconcepts.nmf._solver import BETA_NMF_CONSTRAINTS
+from mmconcepts.nmf._updates import BETA_NMF_CONSTRAINTS
 
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 

@@ -801,3 +801,42 @@ def test_stopping_rule_waits_for_a_finite_objective():
     errs = np.sqrt(2 * res.loss_history[1:])
     # it stopped where scikit-learn's rule says, measured from the first finite error
     assert (errs[-2] - errs[-1]) / errs[0] < 1e-4 <= (errs[-3] - errs[-2]) / errs[0]
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+def test_rescale_features_scales_the_dictionary_and_the_pooled_statistics(rng, beta):
+    """A known answer: columns times c, A times c ** (1/gamma + beta - 1), B times c ** (beta - 1) (I-divergence: B
+    untouched, still one broadcast row); other columns and a factor of 1 change nothing."""
+    from mmconcepts.nmf import mm_exponent
+
+    X = rng.random((30, 8)) + 0.1
+    model = NMF(3, beta_loss=beta, max_iter=5, random_state=0)
+    model.partial_fit(X[:15]).partial_fit(X[15:])
+    H0 = model.components_.copy()
+    A0, B0 = (np.array(s, copy=True) for s in model._stats)
+    cols, c = slice(2, 5), 3.0
+    assert model.rescale_features(cols, 1.0) is model and np.array_equal(model.components_, H0)
+    model.rescale_features(cols, c)
+    gamma = mm_exponent(beta)
+    expected_H = H0.astype(np.float64)
+    expected_H[:, cols] *= c
+    np.testing.assert_array_equal(model.components_, expected_H)
+    A, B = model._stats
+    np.testing.assert_allclose(A[cols], A0[cols] * c ** (1 / gamma + beta - 1), rtol=1e-12)
+    np.testing.assert_array_equal(np.delete(A, np.s_[2:5], axis=0), np.delete(A0, np.s_[2:5], axis=0))
+    np.testing.assert_allclose(B[cols], B0[cols] * c ** (beta - 1), rtol=1e-12)
+    if beta == 1.0:
+        assert B.strides[0] == 0  # still one row broadcast over the features
+    model.rescale_features(cols, 1 / c)  # and back
+    np.testing.assert_allclose(model.components_, H0, rtol=1e-12)
+
+
+def test_rescale_features_refuses_a_bad_factor_or_an_unfitted_model(rng):
+    from sklearn.exceptions import NotFittedError
+
+    with pytest.raises(NotFittedError):
+        NMF(2).rescale_features(slice(None), 2.0)
+    model = NMF(2, max_iter=3, random_state=0).fit(rng.random((10, 4)))
+    for bad in (0.0, -1.0, np.inf, np.nan):
+        with pytest.raises(ParameterError, match="positive finite"):
+            model.rescale_features(slice(None), bad)

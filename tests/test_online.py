@@ -15,7 +15,6 @@ What is checked, and against what:
 from __future__ import annotations
 
 import tracemalloc
-import types
 import warnings
 
 import numpy as np
@@ -25,7 +24,7 @@ from sklearn.base import clone
 
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.multimodal import MultimodalNMF
-from mmconcepts.nmf import beta_divergence, mm_exponent
+from mmconcepts.nmf import NMF, beta_divergence, mm_exponent
 from mmconcepts.nmf._problem import Problem
 
 
@@ -122,7 +121,8 @@ def test_rescaling_is_the_statistics_recomputed_in_the_new_units(beta):
     old, new = {"sound": 2.0, "motion": 5.0}, {"sound": 1.6, "motion": 6.5}
     c = np.r_[np.full(n_s, old["sound"] / new["sound"]), np.full(n_m, old["motion"] / new["motion"])]
     A2, B2 = stats(X * c, Ht * c[:, None])
-    fake = types.SimpleNamespace(components_=Ht.T.copy(), _stats=(A, B))
+    fake = NMF(k, beta_loss=beta)  # a fitted NMF's state, set by hand
+    fake.components_, fake._stats = Ht.T.copy(), (A, B)
     MultimodalNMF(k, beta_loss=beta)._rescale(fake, ["sound", "motion"], {"sound": n_s, "motion": n_m}, old, new)
     np.testing.assert_allclose(fake.components_, (Ht * c[:, None]).T, rtol=1e-13)
     np.testing.assert_allclose(fake._stats[0], A2, rtol=1e-12)

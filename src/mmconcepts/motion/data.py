@@ -413,7 +413,7 @@ def _write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
     _atomic_write_bytes(path, w)
 
 
-def _write_json(path: Path, obj: object) -> None:
+def write_json(path: Path, obj: object) -> None:
     def w(tmp):
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump(obj, f, indent=1)
@@ -601,7 +601,7 @@ def save_choreo1(dataset: MotionDataset | Sequence[MotionRecording], folder: str
         records.append({"data-id": i, "labels": [int(x) for x in r.labels]})
     _write_npz(folder / f"{subset}.npz", arrays)
     meta = {"marker-names": list(names), "data-file": f"{subset}.npz", "records": records}
-    _write_json(folder / f"{subset}.json", meta)
+    write_json(folder / f"{subset}.json", meta)
     return folder / f"{subset}.json"
 
 
@@ -726,7 +726,7 @@ def save_choreo2(dataset: MotionDataset | Sequence[MotionRecording], folder: str
     _write_npz(folder / "choreo2.npz", arrays)
     meta = {"name": name, "marker_names": list(names), "label_descriptions": list(label_descriptions),
             "data_file": "choreo2.npz", "records": records}
-    _write_json(folder / "choreo2.json", meta)
+    write_json(folder / "choreo2.json", meta)
     return folder / "choreo2.json"
 
 

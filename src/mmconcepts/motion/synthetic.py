@@ -85,7 +85,7 @@ from .data import (
     CHOREO2_TO_CHOREO1,
     MotionDataset,
     MotionRecording,
-    _write_json,
+    write_json,
     load_choreo1,
     load_choreo2,
     save_choreo1,
@@ -786,10 +786,10 @@ def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None
                 os.replace(tmp / f"{subset}.npz", folder / f"{stem}.npz")
                 meta = json.loads((tmp / f"{subset}.json").read_text())
                 meta["data-file"] = f"{stem}.npz"
-                _write_json(folder / f"{stem}.json", meta)
+                write_json(folder / f"{stem}.json", meta)
                 (tmp / f"{subset}.json").unlink()
                 tmp.rmdir()
-                _write_json(folder / f"{stem}.complete.json", info)
+                write_json(folder / f"{stem}.complete.json", info)
     ds = load_choreo1(folder / f"{stem}.json", frame_rate=FRAME_RATE)
     ds.name = subset
     return ds
@@ -806,5 +806,5 @@ def make_choreo2(*, data_home: str | os.PathLike[str] | None = None, random_stat
         with folder_lock(folder, ".choreo2.lock"):
             if force or not _complete(folder, "choreo2", info):
                 write_choreo2(folder, random_state=seed, n_records=n_records)
-                _write_json(folder / "choreo2.complete.json", info)
+                write_json(folder / "choreo2.complete.json", info)
     return load_choreo2(folder / "choreo2.json", frame_rate=FRAME_RATE)

@@ -37,8 +37,8 @@ from sklearn.utils.validation import check_is_fitted
 from .._persist import SaveLoadMixin
 from .._validation import Interval, Options, check_nonnegative_matrix, validate_params
 from ..errors import DataError, DataFormatError, MMConceptsError
-from ..nmf import NMF, mm_exponent
-from ..nmf._beta import EPSILON, resolve_beta
+from ..nmf import NMF
+from ..nmf._beta import EPSILON
 from ..nmf._dask import check_row_chunks, hstack_row_chunks, is_dask_array
 
 __all__ = ["MultimodalNMF", "FORMAT_VERSION"]
@@ -427,28 +427,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                  old: Mapping[str, float], new: Mapping[str, float]) -> None:
         """Bring the dictionary and partial_fit's statistics from the scales ``old`` to ``new`` (see partial_fit),
         and floor the dictionary's zero entries (see the comment below)."""
-        beta = resolve_beta(self.beta_loss)
-        gamma = mm_exponent(beta)
         columns = self._columns(names, n_features)
-        H = np.array(nmf.components_, dtype=np.float64, copy=True)
-        stats = getattr(nmf, "_stats", None)
-        A, B = None, None
-        if stats is not None and any(old[name] != new[name] for name in names):
-            A0, B0 = stats
-            A = np.array(A0, copy=True)
-            # The I-divergence's pooled denominator does not scale (c ** (beta - 1) = 1): it stays as it is,
-            # and so keeps its form of one row broadcast over the features, which partial_fit relies on.
-            B = B0 if beta == 1.0 else np.array(B0, copy=True)
         for name in names:
-            c = old[name] / new[name]
-            if c == 1.0:
-                continue
-            cols = columns[name]
-            H[:, cols] *= c
-            if A is not None and B is not None:
-                A[cols] *= c ** (1.0 / gamma + beta - 1.0)
-                if beta != 1.0:
-                    B[cols] *= c ** (beta - 1.0)
+            nmf.rescale_features(columns[name], old[name] / new[name])
+        H = np.array(nmf.components_, dtype=np.float64, copy=True)
         # Multiplicative updates never move an exact zero: a feature absent from every batch so far
         # (most HAC columns are absent from a small batch) has a zero column, and would stay zero when
         # it appears, with an infinite divergence for beta <= 1. Entries are floored at a tiny fraction
@@ -460,8 +442,6 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
             if floor > 0:
                 np.maximum(H[:, cols], floor, out=H[:, cols])
         nmf.components_ = H
-        if A is not None and B is not None:
-            nmf._stats = (A, B)
 
     def transform(self, X: Mapping[str, Any]) -> np.ndarray:
         """Internal representations from any subset of the modalities (eq. 6.3).

@@ -38,10 +38,12 @@ beta_nmf_out_of_core, save_npz_chunks, load_npz_chunks, hstack_row_chunks
     loading it whole (the ``dask`` extra).
 """
 
-from ._beta import beta_divergence, elementwise_beta_divergence, mm_exponent
+from ._beta import elementwise_beta_divergence, mm_exponent
 from ._dask import beta_nmf_out_of_core, hstack_row_chunks, load_npz_chunks, save_npz_chunks
 from ._estimator import NMF
-from ._solver import NMFResult, beta_nmf
+from ._problem import beta_divergence
+from ._solver import beta_nmf
+from ._updates import NMFResult
 from .compare import ComponentMatching, dictionary_distance, match_components
 from .labels import DEFAULT_THRESHOLD_GRID, LabelNMF, make_svm_baseline
 from .scores import l_full, l_full_curve, l_given_number, l_single, threshold_scores

@@ -1,8 +1,8 @@
 """The beta-divergence (thesis eq. 2.2-2.3) and its derivative (eq. 2.13).
 
-Elementwise helpers work on arrays; :func:`beta_divergence` evaluates the divergence
-between a data matrix and a low-rank product, dense or sparse, with an optional mask,
-without ever densifying a sparse X.
+Elementwise helpers work on arrays, and the sums of the divergence over blocks of a dense
+or sparse X; :func:`mmconcepts.nmf.beta_divergence` (in :mod:`._problem`) evaluates it between a
+data matrix and a low-rank product, with an optional mask, without ever densifying a sparse X.
 """
 
 from __future__ import annotations
@@ -13,11 +13,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import DataError, ParameterError
+from ._kernels import EPSILON, lowrank_at_nonzeros
 
-__all__ = ["beta_divergence", "elementwise_beta_divergence", "mm_exponent", "resolve_beta"]
+__all__ = ["EPSILON", "elementwise_beta_divergence", "mm_exponent", "resolve_beta"]
 
-#: Lower clip of the low-rank product where negative powers of it are taken (as scikit-learn).
-EPSILON = float(np.finfo(np.float32).eps)
 
 _BETA_ALIASES = {
     "frobenius": 2.0,
@@ -121,8 +120,6 @@ def sum_power_lowrank(W: np.ndarray, Ht: np.ndarray, power: float, mask=None) ->
     if power == 2.0 and mask is None:
         return float(np.sum((W.T @ W) * (Ht.T @ Ht)))
     if sp.issparse(mask):  # only at the observed cells: a sparse mask is never densified
-        from ._kernels import lowrank_at_nonzeros
-
         M = sp.csr_matrix(mask)
         Y = lowrank_at_nonzeros(M.indptr, M.indices, W, Ht, np.empty(M.nnz, dtype=W.dtype))
         np.maximum(Y, 0.0, out=Y)
@@ -174,67 +171,3 @@ def gather(mask, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return mask[rows, cols]
 
 
-def beta_divergence(
-    X: Any,
-    W: np.ndarray,
-    H: np.ndarray,
-    beta: float | str = 2.0,
-    *,
-    mask: Any = None,
-) -> float:
-    """Beta-divergence between X and the low-rank product W @ H (thesis eq. 2.2).
-
-    .. math:: D_\\beta(X | WH) = \\sum_{ij} m_{ij}\\, d_\\beta(X_{ij} | (WH)_{ij})
-
-    X is (n_samples, n_features) as everywhere in :mod:`mmconcepts.nmf`; the thesis'
-    V (features x examples) is ``X.T``. For beta = 2 this is half the squared
-    Frobenius norm, for beta = 1 the I-divergence (generalized KL), for beta = 0 the
-    Itakura-Saito divergence. It equals scikit-learn's ``_beta_divergence`` on data
-    without zeros.
-
-    Parameters
-    ----------
-    X : {ndarray, sparse matrix} of shape (n_samples, n_features)
-        Nonnegative data. A sparse X is never densified: the product is evaluated only
-        at its nonzeros, and the terms of the zeros are summed blockwise.
-    W : ndarray of shape (n_samples, n_components)
-    H : ndarray of shape (n_components, n_features)
-    beta : float or {'frobenius', 'kullback-leibler', 'itakura-saito'}, default=2
-    mask : {ndarray, sparse matrix} of shape (n_samples, n_features), optional
-        True (or 1) where X is observed; unobserved cells do not count.
-
-    Returns
-    -------
-    float
-        The divergence (``inf`` if WH is zero where X is not, for beta <= 1, or where it exceeds
-        the range of float64).
-
-    Raises
-    ------
-    DataError
-        X negative, NaN or infinite on observed cells, zero with beta <= 0, W or H of the wrong
-        shape, negative or not finite.
-    """
-    from ._problem import Problem  # the problem module builds on this one
-
-    from ._solver import validate_data  # the solver module builds on this one
-
-    beta = resolve_beta(beta)
-    X, mask = validate_data(X, mask)
-    check_beta_zeros(X, beta, mask)
-    W = np.ascontiguousarray(W, dtype=np.result_type(np.asarray(W).dtype, np.float32))
-    Ht = np.ascontiguousarray(np.asarray(H, dtype=W.dtype).T)
-    if W.ndim != 2 or Ht.ndim != 2 or W.shape[0] != X.shape[0] or Ht.shape[0] != X.shape[1] or W.shape[1] != Ht.shape[1]:
-        raise DataError(
-            f"W and H must have shapes (n_samples, k) and (k, n_features) with X of shape {X.shape}; got "
-            f"{W.shape} and {np.shape(H)}."
-        )
-    if not (np.isfinite(W).all() and np.isfinite(Ht).all()) or (W < 0).any() or (Ht < 0).any():
-        raise DataError("W and H must be finite and nonnegative.")
-    if sp.issparse(X):
-        X = sp.csr_matrix(X)
-        if X.dtype != W.dtype:
-            X = X.astype(W.dtype)
-    else:
-        X = np.asarray(X, dtype=W.dtype)
-    return Problem(X, mask).divergence(W, Ht, beta)

@@ -10,7 +10,7 @@ written with our orientation: the thesis' V, W, H are our X.T, H.T, W.T) are sum
     D = \\sum_c (M_c \\odot (W_c H)^{\\beta-1})^T W_c .
 
 So each iteration is one pass over the chunks: a task per chunk, run where the chunk lives,
-updates its W_c with exactly the in-memory update (:func:`mmconcepts.nmf._solver.mu_update` on
+updates its W_c with exactly the in-memory update (:func:`mmconcepts.nmf._updates.mu_update` on
 the chunk's :class:`~mmconcepts.nmf._problem.Problem`), and returns its (N_c, D_c), two
 n_features x k arrays (D_c is a k-vector for the I-divergence and a k x k Gram matrix for the
 Frobenius loss without a mask, as in memory); the sums are reduced in a tree, and H is updated
@@ -60,19 +60,18 @@ from .._validation import check_nonnegative_matrix, check_random_state
 from ..errors import ConvergenceWarning, DataError, DataFormatError, ParameterError
 from ._beta import check_beta_zeros, mm_exponent
 from ._problem import Problem, Side
-from ._solver import (
+from ._data import check_factor, check_mask, is_dask_array, validate_data
+from ._updates import (
+    BETA_NMF_CONSTRAINTS,
     NMFResult,
+    Penalty,
     check_objective_range,
+    constant_coefficients,
     data_scale,
     in_units_of_X,
-    Penalty,
+    mu_update,
     resolve_penalties,
     scale_penalties,
-    check_mask,
-    constant_coefficients,
-    is_dask_array,
-    mu_update,
-    validate_data,
 )
 
 __all__ = [
@@ -832,7 +831,6 @@ def _traffic_bytes(final: _Partial, Ht: np.ndarray, specs: Sequence[_ChunkSpec])
 def _start(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
            scale, scale_W, scale_H, x_mean, random_state, dask):
     """The starting W chunks (in ``store``) and Ht, as beta_nmf starts on the whole matrix."""
-    from ._solver import check_factor
 
     if not update_H:
         if H is None:
@@ -874,7 +872,6 @@ def _given_w(store: _WStore, W: Any, specs, n: int, k: int, dtype, scale_W: floa
         dask.compute(*[dask.delayed(_prepare_w)(b, s, k, str(dtype), scale_W, store.path(s.index))
                        for b, s in zip(blocks, specs)])
         return [store.path(s.index) for s in specs]
-    from ._solver import check_factor
 
     Wa = check_factor(W, (n, k), "W", dtype)
     Wa /= dtype.type(scale_W)
@@ -1227,7 +1224,6 @@ def beta_nmf_out_of_core(
         ``W`` is ``load_npz_chunks(out)`` (lazy), ``H`` a numpy array.
     """
     from .._validation import validate_params
-    from ._solver import BETA_NMF_CONSTRAINTS
 
     if isinstance(X, (str, os.PathLike)):
         X = load_npz_chunks(X)

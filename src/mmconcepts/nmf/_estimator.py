@@ -15,19 +15,18 @@ from ..errors import DataError, ParameterError
 from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
 from ._init import initialize
 from ._problem import Problem
-from ._solver import (
+from ._data import is_dask_array, validate_data
+from ._solver import beta_nmf
+from ._updates import (
     BETA_NMF_CONSTRAINTS,
-    is_dask_array,
     check_fit_in_range,
     check_objective_range,
-    in_units_of_X,
+    constant_coefficients,
     data_scale,
+    in_units_of_X,
+    mu_update,
     resolve_penalties,
     scale_penalties,
-    beta_nmf,
-    constant_coefficients,
-    mu_update,
-    validate_data,
 )
 
 __all__ = ["NMF", "resolve_features"]
@@ -354,7 +353,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             self.feature_names_in_ = np.asarray(names, dtype=object)
 
     def _reconstruction_err(self, X, W, H, mask) -> float:
-        from ._beta import beta_divergence
+        from ._problem import beta_divergence
 
         Xv, maskv = validate_data(X, mask)
         d = beta_divergence(Xv, W, H, resolve_beta(self.beta_loss), mask=maskv)
@@ -469,6 +468,51 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             raise DataError(
                 f"X has {n} features, but {type(self).__name__} is expecting {self.n_features_in_} features as input."
             )
+
+    def rescale_features(self, columns: Any, factor: float) -> NMF:
+        """Multiply the fitted dictionary's ``columns`` by ``factor``, and ``partial_fit``'s statistics with them.
+
+        For data whose features are divided by a scale that changes between ``partial_fit``
+        calls (the modality scales of :class:`~mmconcepts.multimodal.MultimodalNMF`): when the
+        scale of a feature goes from ``s`` to ``s'``, its dictionary column is multiplied by
+        ``factor = s / s'``, and the pooled statistics (A, B) of the multiplicative updates by
+        ``factor ** (1 / gamma + beta - 1)`` and ``factor ** (beta - 1)``, so that the next
+        ``partial_fit`` goes on as if every past batch had been scaled so.
+
+        Parameters
+        ----------
+        columns : slice, int array or boolean mask over the ``n_features`` columns
+        factor : float
+            Positive; 1 changes nothing.
+
+        Returns
+        -------
+        NMF
+            ``self``, its ``components_`` now a float64 array.
+        """
+        check_is_fitted(self)
+        factor = float(factor)
+        if not factor > 0 or not np.isfinite(factor):
+            raise ParameterError(f"factor must be a positive finite number; got {factor!r}.")
+        if factor == 1.0:
+            return self
+        H = np.array(self.components_, dtype=np.float64, copy=True)
+        H[:, columns] *= factor
+        stats = getattr(self, "_stats", None)
+        if stats is not None:
+            beta = resolve_beta(self.beta_loss)
+            gamma = mm_exponent(beta) if self.update_rule == "mm" else 1.0
+            A = np.array(stats[0], copy=True)
+            A[columns] *= factor ** (1.0 / gamma + beta - 1.0)
+            # The I-divergence's pooled denominator does not scale (factor ** (beta - 1) = 1): it stays as it is,
+            # and so keeps its form of one row broadcast over the features, which partial_fit relies on.
+            B = stats[1]
+            if beta != 1.0:
+                B = np.array(B, copy=True)
+                B[columns] *= factor ** (beta - 1.0)
+            self._stats = (A, B)
+        self.components_ = H
+        return self
 
     def transform(self, X: Any, *, features: Any = None, mask: Any = None) -> np.ndarray:
         """Coefficients W of X with the dictionary fixed.

@@ -17,7 +17,9 @@ import numba as nb
 import numpy as np
 
 from .._jit import njit
-from ._beta import EPSILON
+
+#: Lower clip of the low-rank product where negative powers of it are taken (as scikit-learn).
+EPSILON = float(np.finfo(np.float32).eps)
 
 # Reassociation lets LLVM vectorise the length-k dot products (results change in the last bits only).
 _OPTS: dict[str, Any] = dict(nogil=True, cache=True, fastmath={"reassoc", "contract"}, error_model="numpy")

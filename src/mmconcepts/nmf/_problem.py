@@ -22,10 +22,21 @@ from typing import Any, cast
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import DataError
 from . import _kernels
-from ._beta import EPSILON, dense_blocks, gather, mask_block, sum_power_lowrank, elementwise_beta_divergence
+from ._beta import (
+    EPSILON,
+    check_beta_zeros,
+    dense_blocks,
+    elementwise_beta_divergence,
+    gather,
+    mask_block,
+    resolve_beta,
+    sum_power_lowrank,
+)
+from ._data import validate_data
 
-__all__ = ["Side", "Problem"]
+__all__ = ["Side", "Problem", "beta_divergence"]
 
 #: Bytes of one block of the dense I-divergence numerator's product (1 to 8 MB measured on the
 #: 2-core project machine, ``benchmarks/README.md``: 4 MB was fastest).
@@ -389,3 +400,65 @@ class Problem:
 
     def divergence(self, W: np.ndarray, Ht: np.ndarray, beta: float) -> float:
         return self.sides[0].divergence(W, Ht, beta)
+
+
+def beta_divergence(
+    X: Any,
+    W: np.ndarray,
+    H: np.ndarray,
+    beta: float | str = 2.0,
+    *,
+    mask: Any = None,
+) -> float:
+    """Beta-divergence between X and the low-rank product W @ H (thesis eq. 2.2).
+
+    .. math:: D_\\beta(X | WH) = \\sum_{ij} m_{ij}\\, d_\\beta(X_{ij} | (WH)_{ij})
+
+    X is (n_samples, n_features) as everywhere in :mod:`mmconcepts.nmf`; the thesis'
+    V (features x examples) is ``X.T``. For beta = 2 this is half the squared
+    Frobenius norm, for beta = 1 the I-divergence (generalized KL), for beta = 0 the
+    Itakura-Saito divergence. It equals scikit-learn's ``_beta_divergence`` on data
+    without zeros.
+
+    Parameters
+    ----------
+    X : {ndarray, sparse matrix} of shape (n_samples, n_features)
+        Nonnegative data. A sparse X is never densified: the product is evaluated only
+        at its nonzeros, and the terms of the zeros are summed blockwise.
+    W : ndarray of shape (n_samples, n_components)
+    H : ndarray of shape (n_components, n_features)
+    beta : float or {'frobenius', 'kullback-leibler', 'itakura-saito'}, default=2
+    mask : {ndarray, sparse matrix} of shape (n_samples, n_features), optional
+        True (or 1) where X is observed; unobserved cells do not count.
+
+    Returns
+    -------
+    float
+        The divergence (``inf`` if WH is zero where X is not, for beta <= 1, or where it exceeds
+        the range of float64).
+
+    Raises
+    ------
+    DataError
+        X negative, NaN or infinite on observed cells, zero with beta <= 0, W or H of the wrong
+        shape, negative or not finite.
+    """
+    beta = resolve_beta(beta)
+    X, mask = validate_data(X, mask)
+    check_beta_zeros(X, beta, mask)
+    W = np.ascontiguousarray(W, dtype=np.result_type(np.asarray(W).dtype, np.float32))
+    Ht = np.ascontiguousarray(np.asarray(H, dtype=W.dtype).T)
+    if W.ndim != 2 or Ht.ndim != 2 or W.shape[0] != X.shape[0] or Ht.shape[0] != X.shape[1] or W.shape[1] != Ht.shape[1]:
+        raise DataError(
+            f"W and H must have shapes (n_samples, k) and (k, n_features) with X of shape {X.shape}; got "
+            f"{W.shape} and {np.shape(H)}."
+        )
+    if not (np.isfinite(W).all() and np.isfinite(Ht).all()) or (W < 0).any() or (Ht < 0).any():
+        raise DataError("W and H must be finite and nonnegative.")
+    if sp.issparse(X):
+        X = sp.csr_matrix(X)
+        if X.dtype != W.dtype:
+            X = X.astype(W.dtype)
+    else:
+        X = np.asarray(X, dtype=W.dtype)
+    return Problem(X, mask).divergence(W, Ht, beta)

@@ -2,83 +2,37 @@
 
 from __future__ import annotations
 
-import math
 import os
-import sys
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal, cast
 
 import numpy as np
 import scipy.sparse as sp
 
-from .._validation import (
-    Interval,
-    Options,
-    check_nonnegative_matrix,
-    check_random_state,
-    validate_params,
-)
+from .._validation import check_random_state, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
-from ._beta import EPSILON, BetaLoss, check_beta_zeros, mm_exponent, resolve_beta
-from ._init import INITS, initialize
+from ._beta import check_beta_zeros, mm_exponent, resolve_beta
+from ._init import initialize
+from ._data import check_factor, is_dask_array, validate_data
 from ._problem import Problem, Side
+from ._updates import (
+    BETA_NMF_CONSTRAINTS,
+    SOLVERS,
+    NMFResult,
+    Penalty,
+    check_fit_in_range,
+    check_objective_range,
+    constant_coefficients,
+    data_scale,
+    in_units_of_X,
+    mu_update,
+    resolve_penalties,
+    scale_penalties,
+)
 from .sparseness import l1_for_sparseness, project_hoyer
 
 __all__ = ["beta_nmf", "BETA_NMF_CONSTRAINTS", "NMFResult", "SOLVERS"]
-
-SOLVERS = ("mu", "pg")
-UPDATE_RULES = ("mm", "heuristic")
-
-
-@dataclass
-class NMFResult:
-    """What :func:`beta_nmf` returns.
-
-    Attributes
-    ----------
-    W : ndarray of shape (n_samples, n_components)
-        Coefficients (the thesis' H, transposed).
-    H : ndarray of shape (n_components, n_features)
-        Dictionary, one atom per row (the thesis' W, transposed).
-    n_iter : int
-        Iterations done.
-    loss_history : ndarray
-        The objective (divergence + penalties) at ``loss_iterations``.
-    loss_iterations : ndarray of int
-        Iteration number of each entry of ``loss_history`` (0 is the initialisation).
-    converged : bool
-        Whether the tolerance was met before ``max_iter`` (always False with tol=0).
-    """
-
-    W: np.ndarray
-    H: np.ndarray
-    n_iter: int
-    loss_history: np.ndarray
-    loss_iterations: np.ndarray
-    converged: bool
-    extra: dict = field(default_factory=dict)
-
-
-@dataclass
-class Penalty:
-    l1: float = 0.0
-    l2: float = 0.0
-
-    def value(self, L: np.ndarray) -> float:
-        out = 0.0
-        if self.l1:
-            out += self.l1 * float(L.sum(dtype=np.float64))
-        if self.l2:
-            out += 0.5 * self.l2 * float(np.sum(L * L, dtype=np.float64))
-        return out
-
-    def add_to(self, den: np.ndarray, L: np.ndarray) -> np.ndarray:
-        if self.l1 or self.l2:
-            den = den + self.l1 if self.l1 else np.array(den)
-            if self.l2:
-                den = den + self.l2 * L
-        return den
 
 
 @dataclass
@@ -196,135 +150,6 @@ class _Solver:
             mu /= 2.0
         self.step[s] = mu
         return L
-
-
-def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: Penalty,
-              R_sum: np.ndarray | None = None) -> np.ndarray:
-    """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1).
-
-    ``R_sum`` is R's column sums when the caller already has them (R fixed across updates,
-    as in ``transform``); the sparse, unmasked I-divergence update uses them as its denominator.
-    """
-    if (beta == 1.0 and gamma == 1.0 and not (penalty.l1 or penalty.l2) and isinstance(side, Side)
-            and side.sparse and side.mask is None):
-        den_row = R.sum(axis=0) if R_sum is None else R_sum
-        if np.any(den_row == 0):
-            den_row = np.where(den_row == 0, L.dtype.type(EPSILON), den_row)
-        return side.kl_update(L, R, den_row)
-    num, den = side.numerator_denominator(L, R, beta)
-    den = penalty.add_to(den, L)
-    if np.any(den == 0):
-        den = np.where(den == 0, L.dtype.type(EPSILON), den)
-    ratio = np.divide(num, den, out=num if num.flags.writeable else None)
-    if gamma != 1.0:
-        ratio **= gamma
-    L *= ratio
-    return L
-
-
-def resolve_penalties(alpha_W, alpha_H, l1_ratio, n_samples, n_features):
-    # validated by the caller's constraints table (BETA_NMF_CONSTRAINTS)
-    alpha_W = float(alpha_W)
-    alpha_H = alpha_W if isinstance(alpha_H, str) and alpha_H == "same" else float(alpha_H)
-    l1_ratio = float(l1_ratio)
-    # Scaled as scikit-learn: the penalty on W grows with n_features, the one on H with n_samples.
-    pen_W = Penalty(l1=n_features * alpha_W * l1_ratio, l2=n_features * alpha_W * (1 - l1_ratio))
-    pen_H = Penalty(l1=n_samples * alpha_H * l1_ratio, l2=n_samples * alpha_H * (1 - l1_ratio))
-    return pen_W, pen_H
-
-
-def check_mask(mask: Any, shape: tuple[int, int], name: str = "mask"):
-    """Validate a mask of observed cells: a boolean (or 0/1) array or sparse matrix of X's shape."""
-    if mask is None:
-        return None
-    if sp.issparse(mask):
-        mask = sp.csr_matrix(mask)
-        values = mask.data
-    else:
-        mask = np.asarray(mask)
-        values = mask
-    if mask.ndim != 2 or mask.shape != tuple(shape):
-        raise DataError(f"{name} must have the shape of X, {tuple(shape)}; got {mask.shape}.")
-    if values.dtype != bool:
-        if not np.issubdtype(values.dtype, np.number) or not np.isin(values, (0, 1)).all():
-            raise DataError(f"{name} must be boolean (True where X is observed) or hold only 0 and 1.")
-    if sp.issparse(mask):
-        mask = mask.astype(bool)
-        mask.eliminate_zeros()
-        if mask.nnz == 0:
-            raise DataError(f"{name} observes no cell of X; at least one cell must be True.")
-        return mask
-    mask = mask.astype(bool)
-    if not mask.any():
-        raise DataError(f"{name} observes no cell of X; at least one cell must be True.")
-    return mask
-
-
-def validate_data(X: Any, mask: Any = None, name: str = "X"):
-    """Validate X (and its mask). With a mask, unobserved cells may hold anything (NaN too); they are zeroed."""
-    if mask is None:
-        try:
-            return check_nonnegative_matrix(X, name), None
-        except ValueError as exc:  # a TypeError (objects that are not numbers) stays one, as scikit-learn's
-            if isinstance(exc, DataError):
-                raise
-            raise DataError(f"{name} must be a nonnegative matrix of numbers; {exc}") from exc
-    if sp.issparse(X):
-        X = sp.csr_matrix(X, dtype=X.dtype if X.dtype in (np.float32, np.float64) else np.float64, copy=True)
-        X.sum_duplicates()
-    else:
-        X = np.array(X, dtype=None, copy=True)
-        if X.dtype not in (np.float32, np.float64):
-            try:
-                X = X.astype(np.float64)
-            except (TypeError, ValueError) as exc:
-                raise DataError(f"{name} must hold numbers; got dtype {X.dtype}.") from exc
-    if X.ndim != 2:
-        raise DataError(f"{name} must be 2-D (n_samples, n_features); got an array of shape {X.shape}.")
-    mask = check_mask(mask, X.shape)
-    if sp.issparse(X):
-        if X.nnz:
-            rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
-            observed = np.asarray(mask[rows, X.indices]).ravel() if sp.issparse(mask) else mask[rows, X.indices]
-            X.data[~observed.astype(bool)] = 0.0
-            X.eliminate_zeros()
-    else:
-        dense_mask = mask.toarray() if sp.issparse(mask) else mask
-        X[~dense_mask] = 0.0
-    return check_nonnegative_matrix(X, name), mask
-
-
-def check_factor(A: Any, shape: tuple[int, int], name: str, dtype) -> np.ndarray:
-    A = check_nonnegative_matrix(A, name, accept_sparse=False)
-    if A.shape != shape:
-        raise DataError(f"{name} must have shape {shape}; got {A.shape}.")
-    return np.array(A, dtype=dtype, copy=True)
-
-
-#: The parameters of :func:`beta_nmf`, declared once (the estimators built on it reuse the entries).
-BETA_NMF_CONSTRAINTS: dict[str, list] = {
-    "n_components": [Interval("int", 1), None],
-    "beta_loss": [BetaLoss()],
-    "solver": [Options(*SOLVERS)],
-    "update_rule": [Options(*UPDATE_RULES)],
-    "init": [Options(*INITS), None],
-    "update_H": ["boolean"],
-    "max_iter": [Interval("int", 0)],
-    "tol": [Interval("real", 0)],
-    "alpha_W": [Interval("real", 0)],
-    "alpha_H": [Interval("real", 0), Options("same")],
-    "l1_ratio": [Interval("real", 0, 1)],
-    "sparseness_W": [Interval("real", 0, 1), None],
-    "sparseness_H": [Interval("real", 0, 1), None],
-    "loss_every": [Interval("int", 1)],
-    "random_state": ["random_state"],
-}
-
-
-def is_dask_array(x: Any) -> bool:
-    """Whether x is a dask array; dask is never imported here (an array of it means it is loaded)."""
-    mod = sys.modules.get("dask.array")
-    return mod is not None and isinstance(x, mod.Array)
 
 
 def _physical_memory() -> int | None:
@@ -514,39 +339,11 @@ def beta_nmf(
     k = int(n_components)
     _check_fits_in_memory(n, m, k, dtype)
 
-    # The fit runs on X / scale (scale = 1 for data at ordinary scales, else a power of two, so
-    # the division is exact) with W = scale_W * W' and H = scale_H * H', scale_W * scale_H = scale:
-    # the scale goes into H, or into W when H has unit-norm atoms (sparseness_H); a fixed H
-    # (update_H=False) is brought to an ordinary scale of its own.
-    scale = data_scale(X, beta)
-    if not update_H:
-        scale_H = 1.0 if H is None else data_scale(np.asarray(H, dtype=float), beta)
-    else:
-        scale_H = 1.0 if sparseness_H is not None else scale
-    scale_W = scale / scale_H
+    scale, scale_W, scale_H = _fit_scales(X, H, beta, update_H, sparseness_H)
     rescaled = scale != 1.0 or scale_H != 1.0
     if scale != 1.0:
         X = X / scale if sp.issparse(X) else np.divide(X, dtype.type(scale))
-
-    if not update_H:
-        if H is None:
-            raise ParameterError("update_H=False needs the fixed dictionary H.")
-        H = check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
-        if W is None:
-            W = constant_coefficients(X, H, mask)
-        else:
-            W = check_factor(W, (n, k), "W", dtype) / dtype.type(scale_W)
-    elif init == "custom" or (init is None and W is not None and H is not None):
-        if W is None or H is None:
-            raise ParameterError("init='custom' needs both W and H.")
-        W = check_factor(W, (n, k), "W", dtype)
-        H = check_factor(H, (k, m), "H", dtype)
-        W /= dtype.type(scale_W)
-        H /= dtype.type(scale_H)
-    else:
-        if init is None:
-            init = "nndsvda" if k <= min(n, m) else "random"
-        W, H = initialize(X, k, init, check_random_state(random_state), mask=mask)
+    W, H = _starting_factors(X, mask, k, init, W, H, update_H, (scale_W, scale_H), random_state)
 
     pen_W, pen_H = resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
     if rescaled:
@@ -557,20 +354,7 @@ def beta_nmf(
     )
     problem = Problem(X, mask)
     sol = _Solver(problem, beta, solver, update_rule, (pen_W, pen_H), hoyer)
-    W = np.ascontiguousarray(W)
-    Ht = np.ascontiguousarray(H.T)
-    if hoyer[0] is not None:
-        W = hoyer[0].project(W)
-    if hoyer[1] is not None and update_H:
-        Ht = hoyer[1].project(Ht)
-    if hoyer[0] is not None or hoyer[1] is not None:
-        f_start = sol.objective(W, Ht)
-        if not np.isfinite(f_start):  # the Hoyer steps accept only a finite, not larger objective
-            raise DataError(
-                f"with sparseness_W={sparseness_W} and sparseness_H={sparseness_H} the projected starting factors "
-                f"leave W @ H zero where X is not, and the beta={beta:g} divergence is infinite there (beta <= 1). "
-                "Use a lower sparseness, more components, or beta_loss > 1."
-            )
+    W, Ht = _projected_start(sol, hoyer, W, H, update_H)
     if rescaled:
         check_objective_range(sol.objective(W, Ht), scale, beta)
     shrink = _EmptyColumns.of(problem) if (update_H and solver == "mu" and hoyer == (None, None)) else None
@@ -590,114 +374,67 @@ def beta_nmf(
     return NMFResult(W, np.ascontiguousarray(Ht.T), n_iter, hist, its, converged)
 
 
-#: Data whose largest observed value lies in [2 ** _SAFE_LO, 2 ** _SAFE_HI] is fitted as given;
-#: beyond, it is rescaled (the clipping of the low-rank product at EPSILON and the powers of it
-#: are not scale-invariant, and float64 overflows near 1e308).
-_SAFE_LO, _SAFE_HI = -10, 20
+def _fit_scales(X, H, beta: float, update_H: bool, sparseness_H: float | None) -> tuple[float, float, float]:
+    """The scales of a fit: X / scale, W = scale_W * W', H = scale_H * H', with scale_W * scale_H = scale.
 
-
-def data_scale(X, beta: float) -> float:
-    """The power of two X is divided by for the fit: 1 when X's largest value is at an ordinary scale.
-
-    Beta-divergences are homogeneous, d_beta(c x | c y) = c ** beta d_beta(x | y), so the
-    minimisers scale with X: fitting X / s and multiplying one factor by s gives the fit of X.
-    In floating point the updates are not scale-invariant at extreme scales (the product is
-    clipped below at EPSILON, powers of it overflow), so X far from 1 is brought near 1. A
-    power of two divides exactly; data at ordinary scales is not touched at all.
+    The fit runs on X / scale (scale = 1 for data at ordinary scales, else a power of two, so
+    the division is exact): the scale goes into H, or into W when H has unit-norm atoms
+    (sparseness_H); a fixed H (update_H=False) is brought to an ordinary scale of its own.
     """
-    values = X.data if sp.issparse(X) else X
-    if values.size == 0:
-        return 1.0
-    xmax = float(values.max())
-    if not xmax > 0.0 or not np.isfinite(xmax):
-        return 1.0
-    exponent = math.frexp(xmax)[1]  # xmax = f * 2 ** exponent, 0.5 <= f < 1
-    hi = min(_SAFE_HI, int(100 / max(2.0, abs(beta), abs(beta - 1.0) + 1.0)))
-    if _SAFE_LO <= exponent <= hi:
-        return 1.0
-    return math.ldexp(1.0, exponent - 1)  # X / scale has its largest value in [1, 2); 2 ** 1024 would overflow
-
-
-def check_fit_in_range(X, beta: float, W: np.ndarray, Ht: np.ndarray, hist) -> None:
-    """Refuse a fit whose factors left the range of the float type.
-
-    Checked after the fit rather than refused up front: data with subnormal values beside
-    ordinary ones (e.g. the tails of kernel density histograms, chapter 3) gives finite
-    factors in practice, though its beta <= 1 objective may overflow (``hist`` is then
-    infinite, which is not refused here: the factors are usable). Only non-finite factors
-    are refused, naming the subnormal values when they are the likely cause.
-    """
-    if np.isfinite(W).all() and np.isfinite(Ht).all():
-        return
-    values = X.data if sp.issparse(X) else X
-    tiny = np.finfo(values.dtype).tiny
-    cause = ""
-    if beta <= 1.0 and values.size and bool(np.any((values > 0) & (values < tiny))):
-        cause = (f" X spans more than the range of {values.dtype}: its smallest nonzero values are subnormal "
-                 f"(below {tiny:.3g} times its largest), and with beta_loss={beta:g} <= 1 their divergence terms "
-                 "overflow. Set them to 0 (beta > 0) or use beta_loss > 1.")
-    raise DataError(f"the fit left the range of {values.dtype}: its factors are not finite.{cause}")
-
-
-def scale_penalties(pen_W: Penalty, pen_H: Penalty, scale: float, scale_W: float, scale_H: float, beta: float):
-    """The penalties of the fit on X / scale that give the minimisers of the fit on X.
-
-    With W = a W', H = b H' (a = scale_W, b = scale_H, a b = scale) the objective is
-    scale ** beta * [D(X' | W' H') + (l1_W a |W'| + l2_W a^2 |W'|^2 / 2 + l1_H b |H'| + l2_H b^2 |H'|^2 / 2)
-    / scale ** beta].
-    """
-    s = np.float64(scale)
-
-    def times(value: float, factor) -> float:  # 0 stays 0 (no penalty), whatever the factor
-        return float(value * factor) if value else 0.0
-
-    with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):
-        out = []
-        for pen, f in ((pen_W, np.float64(scale_W)), (pen_H, np.float64(scale_H))):
-            out.append(Penalty(l1=times(pen.l1, f / s**beta), l2=times(pen.l2, f * f / s**beta)))
-    if not all(np.isfinite(v) for p in out for v in (p.l1, p.l2)):
-        raise DataError(
-            f"X's largest value is about {scale:.3g}: at that scale the penalties (alpha_W, alpha_H) outweigh the "
-            f"beta={beta:g} divergence by more than the range of float64 (the fit would be W = 0). Rescale X by a "
-            "constant c first (the divergence scales as c ** beta) or lower the penalties."
-        )
-    return out[0], out[1]
-
-
-def in_units_of_X(values, scale: float, beta: float) -> np.ndarray:
-    """Objectives of the fit on X / scale in X's units: times scale ** beta.
-
-    A divergence is >= 0: values at or below 0 are 0 up to rounding and stay 0 (a rounding error
-    times a huge scale ** beta would otherwise read -inf)."""
-    values = np.maximum(np.asarray(values, dtype=np.float64), 0.0)
-    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-        return np.where(values == 0, 0.0, values * np.float64(scale) ** beta)
-
-
-def check_objective_range(f0: float, scale: float, beta: float) -> None:
-    """Refuse data whose objective (in X's units) float64 cannot hold: the fit itself would be fine."""
-    with np.errstate(over="ignore", under="ignore"):
-        f = float(np.float64(f0) * np.float64(scale) ** beta) if f0 > 0 else 0.0
-    if f0 > 0 and (not np.isfinite(f) or f < np.finfo(np.float64).tiny):
-        raise DataError(
-            f"X's largest value is about {scale:.3g}: at that scale the beta={beta:g} objective (about "
-            f"{f0:.3g} * {scale:.3g} ** {beta:g}) is outside the range of float64. Rescale X by a constant c "
-            "first: the fit of c X is (W, c H)."
-        )
-
-
-def constant_coefficients(X, H: np.ndarray, mask=None) -> np.ndarray:
-    """A flat start for W given a fixed H: every entry equal, so that mean(W H) = mean(X)."""
-    n, k = X.shape[0], H.shape[0]
-    if mask is None:
-        x_mean = float(X.mean())
-    elif sp.issparse(mask):  # X is zero off the mask (validate_data); the mask is never densified
-        x_mean = float(X.sum() if sp.issparse(X) else mask.multiply(X).sum()) / max(float(mask.count_nonzero()), 1.0)
+    scale = data_scale(X, beta)
+    if not update_H:
+        scale_H = 1.0 if H is None else data_scale(np.asarray(H, dtype=float), beta)
     else:
-        x_mean = float((X.multiply(mask) if sp.issparse(X) else X * mask).sum()) / max(float(mask.sum()), 1.0)
-    h_mean = float(H.mean())
-    value = x_mean / (k * h_mean) if h_mean > 0 else 0.0
-    return np.full((n, k), max(value, np.sqrt(np.finfo(X.dtype).eps)), dtype=X.dtype)
+        scale_H = 1.0 if sparseness_H is not None else scale
+    return scale, scale / scale_H, scale_H
+
+
+def _starting_factors(X, mask, k: int, init, W, H, update_H: bool, scales: tuple[float, float], random_state):
+    """The starting (W, H) of a fit on the scaled X: given (checked, scaled), or initialised (``init``)."""
+    n, m = X.shape
+    dtype = X.dtype
+    scale_W, scale_H = scales
+    if not update_H:
+        if H is None:
+            raise ParameterError("update_H=False needs the fixed dictionary H.")
+        H = check_factor(H, (k, m), "H", dtype) / dtype.type(scale_H)
+        if W is None:
+            W = constant_coefficients(X, H, mask)
+        else:
+            W = check_factor(W, (n, k), "W", dtype) / dtype.type(scale_W)
+    elif init == "custom" or (init is None and W is not None and H is not None):
+        if W is None or H is None:
+            raise ParameterError("init='custom' needs both W and H.")
+        W = check_factor(W, (n, k), "W", dtype)
+        H = check_factor(H, (k, m), "H", dtype)
+        W /= dtype.type(scale_W)
+        H /= dtype.type(scale_H)
+    else:
+        if init is None:
+            init = "nndsvda" if k <= min(n, m) else "random"
+        W, H = initialize(X, k, init, check_random_state(random_state), mask=mask)
+    return W, H
+
+
+def _projected_start(sol: "_Solver", hoyer: tuple, W: np.ndarray, H: np.ndarray, update_H: bool):
+    """(W, H.T) contiguous, projected onto Hoyer's constraints when there are any (the objective then checked)."""
+    W = np.ascontiguousarray(W)
+    Ht = np.ascontiguousarray(H.T)
+    if hoyer[0] is not None:
+        W = hoyer[0].project(W)
+    if hoyer[1] is not None and update_H:
+        Ht = hoyer[1].project(Ht)
+    if hoyer[0] is not None or hoyer[1] is not None:
+        f_start = sol.objective(W, Ht)
+        if not np.isfinite(f_start):  # the Hoyer steps accept only a finite, not larger objective
+            sparseness_W = None if hoyer[0] is None else hoyer[0].sparseness
+            sparseness_H = None if hoyer[1] is None else hoyer[1].sparseness
+            raise DataError(
+                f"with sparseness_W={sparseness_W} and sparseness_H={sparseness_H} the projected starting factors "
+                f"leave W @ H zero where X is not, and the beta={sol.beta:g} divergence is infinite there (beta <= 1). "
+                "Use a lower sparseness, more components, or beta_loss > 1."
+            )
+    return W, Ht
 
 
 class _EmptyColumns:

@@ -53,7 +53,7 @@ from .._validation import (
 )
 from ..errors import DataError, ParameterError
 from ._estimator import NMF
-from ._solver import BETA_NMF_CONSTRAINTS
+from ._updates import BETA_NMF_CONSTRAINTS
 from .scores import l_full_curve
 
 __all__ = ["DEFAULT_THRESHOLD_GRID", "LabelNMF", "make_svm_baseline"]

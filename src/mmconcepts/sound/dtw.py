@@ -102,7 +102,7 @@ _PARALLEL_MIN_CELLS = 100_000
 # enabled either, so results are reproducible across machines with and without FMA.
 # ``fastmath=False`` is written out: a kernel that does not set it inherits the fastmath
 # flags of a compiled caller (numba's flag inheritance), and the cluster tree's kernels,
-# which call :func:`_dtw_to_rows`, are compiled with fastmath.
+# which call :func:`dtw_to_rows`, are compiled with fastmath.
 _OPTS: dict[str, Any] = dict(nogil=True, cache=True, error_model="numpy", fastmath=False)
 
 
@@ -421,7 +421,7 @@ def _fixed_serial(q, X, radius, squared, out):  # pragma: no cover - compiled
 
 
 @njit(**_OPTS)
-def _dtw_to_rows(q, T, R, ids, buf, out):  # pragma: no cover - compiled
+def dtw_to_rows(q, T, R, ids, buf, out):  # pragma: no cover - compiled
     """out[j] = DTW between the window ``q`` and the window in row ``ids[j]`` of ``R``.
 
     The compiled path of the cluster tree (:class:`~mmconcepts.sound.tree.ClusterTree` with

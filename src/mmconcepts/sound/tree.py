@@ -63,7 +63,7 @@ from .._jit import njit
 from .._persist import SaveLoadMixin
 from .._validation import Interval, Options, check_random_state, validate_params
 from ..errors import DataError, DataFormatError, ParameterError
-from .dtw import _dtw_to_rows
+from .dtw import dtw_to_rows
 
 __all__ = ["SEARCHES", "ClusterTree"]
 
@@ -115,13 +115,13 @@ def _dist2(center, i, q):  # pragma: no cover - compiled
 @njit(**_OPTS)
 def _node_dists(metric, T, center, ids, q, cand, dbuf):  # pragma: no cover - compiled
     """dbuf[j] = d(q, centroid of node ids[j]) for every j: Euclidean (metric 0) or DTW on
-    (T, d) windows (metric 1, :func:`mmconcepts.sound.dtw._dtw_to_rows`; ``cand`` is its
+    (T, d) windows (metric 1, :func:`mmconcepts.sound.dtw.dtw_to_rows`; ``cand`` is its
     work buffer)."""
     if metric == _EUCLIDEAN:
         for j in range(ids.shape[0]):
             dbuf[j] = _dist(center, ids[j], q)
     else:
-        _dtw_to_rows(q, T, center, ids, cand, dbuf)
+        dtw_to_rows(q, T, center, ids, cand, dbuf)
 
 
 @njit(nogil=True, cache=True, error_model="numpy")  # no fastmath: the rounding of the reference

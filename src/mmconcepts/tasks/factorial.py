@@ -29,10 +29,10 @@ from .._persist import SaveLoadMixin
 from .._validation import InstanceOf, Interval, Options, check_random_state, validate_params
 from ..errors import ConvergenceWarning, ParameterError
 from .irl import (
-    _HINTS as _IRL_HINTS,
+    IRL_HINTS,
     GradIRL,
-    _gradirl_objective,
-    _stats,
+    gradirl_objective_unchecked,
+    demonstration_stats,
     armijo_descent,
     check_features,
     check_task_demonstrations,
@@ -71,7 +71,7 @@ def factorial_objective(mdp: MDP, components: np.ndarray, coefficients: np.ndarr
     """
     validate_params(dict(mdp=mdp, beta=beta, init=init), _OBJECTIVE_CONSTRAINTS, owner="factorial_objective")
     theta = coefficients @ components
-    losses, G = _gradirl_objective(mdp, theta, mu, pi_E, features=features, beta=beta, init=init)
+    losses, G = gradirl_objective_unchecked(mdp, theta, mu, pi_E, features=features, beta=beta, init=init)
     return float(losses.sum()), coefficients.T @ G, G @ components.T
 
 
@@ -137,7 +137,7 @@ class FactorialIRL(SaveLoadMixin, BaseEstimator):
         "flat_max_iter": [Interval("int", 1, None)],
         "random_state": ["random_state"],
     }
-    _hints = {**_IRL_HINTS,
+    _hints = {**IRL_HINTS,
               "tol": "The learner stops when an alternation lowers the loss by less than tol (relative); tol = 0 runs "
                      "max_iter alternations.",
               "init": "An array has shape (n_components, d)."}
@@ -176,7 +176,7 @@ class FactorialIRL(SaveLoadMixin, BaseEstimator):
         d = mdp.n_states * mdp.n_actions if F is None else F.shape[2]
         if k > min(n, d):
             raise ParameterError(f"n_components={k} must be at most min(n_tasks, d) = {min(n, d)}.")
-        mu, pi_E = _stats(mdp, demos)
+        mu, pi_E = demonstration_stats(mdp, demos)
 
         self.flat_theta_ = None
         if isinstance(self.init, str) and self.init == "pca":
@@ -202,20 +202,20 @@ class FactorialIRL(SaveLoadMixin, BaseEstimator):
         V_warm = np.zeros((n, mdp.n_states))
 
         def fun_h(X, rows):
-            loss, grad, V = _gradirl_objective(mdp, X @ D, mu[rows], pi_E[rows], features=F, beta=beta,
+            loss, grad, V = gradirl_objective_unchecked(mdp, X @ D, mu[rows], pi_E[rows], features=F, beta=beta,
                                                init=V_warm[rows], return_values=True)
             V_warm[rows] = V
             return loss, grad @ D.T
 
         def fun_d(X, rows):
             Dx = X.reshape(k, d)
-            loss, grad, V = _gradirl_objective(mdp, Hc @ Dx, mu, pi_E, features=F, beta=beta, init=V_warm,
+            loss, grad, V = gradirl_objective_unchecked(mdp, Hc @ Dx, mu, pi_E, features=F, beta=beta, init=V_warm,
                                                return_values=True)
             V_warm[:] = V
             return np.array([loss.sum()]), (Hc.T @ grad).reshape(1, -1)
 
         def total():
-            loss, _, V = _gradirl_objective(mdp, Hc @ D, mu, pi_E, features=F, beta=beta, init=V_warm,
+            loss, _, V = gradirl_objective_unchecked(mdp, Hc @ D, mu, pi_E, features=F, beta=beta, init=V_warm,
                                             return_values=True)
             V_warm[:] = V
             return float(loss.sum())

@@ -36,11 +36,11 @@ from .._validation import InstanceOf, Interval, Options, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
 from .mdp import (
     MDP,
-    _boltzmann_policy,
-    _greedy_policy,
-    _policy_iteration,
-    _soft_value_iteration,
-    _value_iteration,
+    boltzmann_policy_unchecked,
+    greedy_policy_unchecked,
+    policy_iteration_unchecked,
+    soft_value_iteration_unchecked,
+    value_iteration_unchecked,
     check_trajectories,
     policy_transitions,
 )
@@ -60,7 +60,7 @@ __all__ = [
 ]
 
 # Parameters of the public functions, declared once and checked by one validate_params call at
-# their start; the learners' inner loops call the private twins (_gradirl_objective, ...), which
+# their start; the learners' inner loops call the unchecked twins (gradirl_objective_unchecked, ...), which
 # do not check. A stopping test "change < tol" can never be met with tol = 0, hence tol > 0 for the
 # fixed-point iterations; the descents stop on "relative decrease < tol", where tol = 0 means
 # "run max_iter steps".
@@ -277,11 +277,11 @@ def gradirl_objective(mdp: MDP, theta: np.ndarray, mu: np.ndarray, pi_E: np.ndar
     """
     validate_params(dict(mdp=mdp, beta=beta, init=init, return_values=return_values, method=method),
                     _PARAMETER_CONSTRAINTS["gradirl_objective"], owner="gradirl_objective")
-    return _gradirl_objective(mdp, theta, mu, pi_E, features=features, beta=beta, init=init,
+    return gradirl_objective_unchecked(mdp, theta, mu, pi_E, features=features, beta=beta, init=init,
                               return_values=return_values, method=method)
 
 
-def _gradirl_objective(mdp: MDP, theta: np.ndarray, mu: np.ndarray, pi_E: np.ndarray, *,
+def gradirl_objective_unchecked(mdp: MDP, theta: np.ndarray, mu: np.ndarray, pi_E: np.ndarray, *,
                        features: np.ndarray | None = None, beta: float = 1.0, init: np.ndarray | None = None,
                        return_values: bool = False, method: str = "auto"):
     """:func:`gradirl_objective` without the parameter checks (for the learners' inner loops)."""
@@ -290,13 +290,13 @@ def _gradirl_objective(mdp: MDP, theta: np.ndarray, mu: np.ndarray, pi_E: np.nda
     # adjoint's 'auto'): warm-started from the last values it needs 1-3 iterations where
     # value iteration needed about 200 sweeps (measured on the chapter-4 grid world).
     small = mdp.n_states <= 1500 if method == "auto" else method == "solve"
-    V, Q = _policy_iteration(mdp, r, init=init) if small else _value_iteration(mdp, r, init=init)
-    pib = _boltzmann_policy(Q, beta)
+    V, Q = policy_iteration_unchecked(mdp, r, init=init) if small else value_iteration_unchecked(mdp, r, init=init)
+    pib = boltzmann_policy_unchecked(Q, beta)
     diff = pib - pi_E
     loss = (mu * (diff**2).sum(axis=2)).sum(axis=1)
     e = 2.0 * mu[:, :, None] * diff  # dJ/dpi
     g = beta * pib * (e - (e * pib).sum(axis=2, keepdims=True))  # dJ/dQ by eq. (2.33)
-    z = _adjoint_gradient(mdp, g, _greedy_policy(Q), method=method)
+    z = _adjoint_gradient(mdp, g, greedy_policy_unchecked(Q), method=method)
     grad = _pullback(features, z)
     return (loss, grad, V) if return_values else (loss, grad)
 
@@ -319,7 +319,7 @@ def _maxent_objective(mdp: MDP, theta: np.ndarray, counts: np.ndarray, *, featur
                       l2: float = 0.0, init: np.ndarray | None = None, return_values: bool = False):
     """:func:`maxent_objective` without the parameter checks (for the learners' inner loops)."""
     r = features_to_rewards(mdp, theta, features)
-    V, Q = _soft_value_iteration(mdp, r, init=init)
+    V, Q = soft_value_iteration_unchecked(mdp, r, init=init)
     logpi = Q - V[:, :, None]
     pi = np.exp(logpi)
     n = counts.sum(axis=(1, 2))
@@ -399,7 +399,7 @@ def armijo_descent(fun: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.
     return X, f, it, t
 
 
-def _stats(mdp: MDP, demos: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+def demonstration_stats(mdp: MDP, demos: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     mus, pis = zip(*(empirical_policy(mdp, task) for task in demos))
     return np.array(mus), np.array(pis)
 
@@ -411,7 +411,7 @@ class _WarmVI:
         self.V = np.zeros((n_tasks, n_states))
 
 
-_HINTS = {
+IRL_HINTS = {
     "beta": "beta is the Boltzmann inverse temperature of eq. (2.32); at beta = 0 every policy is uniform and the "
             "loss has no gradient.",
     "tol": "A task stops when its relative loss decrease falls below tol; tol = 0 runs max_iter steps.",
@@ -489,13 +489,13 @@ class GradIRL(SaveLoadMixin, BaseEstimator):
         DataError
             If the demonstrations are malformed.
         """
-        validate_params(self, self._parameter_constraints, hints=_HINTS)
+        validate_params(self, self._parameter_constraints, hints=IRL_HINTS)
         if not isinstance(mdp, MDP):
             raise ParameterError(f"mdp must be an MDP; got {type(mdp).__name__}.")
         beta = float(self.beta)
         F = check_features(mdp, self.features)
         demos = check_task_demonstrations(mdp, demonstrations)
-        mu, pi_E = _stats(mdp, demos)
+        mu, pi_E = demonstration_stats(mdp, demos)
         d = mdp.n_states * mdp.n_actions if F is None else F.shape[2]
         x0 = np.zeros((len(demos), d)) if theta0 is None else np.asarray(theta0, dtype=float)
         if x0.shape != (len(demos), d):
@@ -503,7 +503,7 @@ class GradIRL(SaveLoadMixin, BaseEstimator):
         warm = _WarmVI(len(demos), mdp.n_states)
 
         def fun(X, rows):
-            loss, grad, V = _gradirl_objective(mdp, X, mu[rows], pi_E[rows], features=F, beta=beta,
+            loss, grad, V = gradirl_objective_unchecked(mdp, X, mu[rows], pi_E[rows], features=F, beta=beta,
                                                init=warm.V[rows], return_values=True)
             warm.V[rows] = V
             return loss, grad
@@ -559,7 +559,7 @@ class MaxEntIRL(SaveLoadMixin, BaseEstimator):
 
     def fit(self, mdp: MDP, demonstrations: Sequence[Sequence[Any]]) -> "MaxEntIRL":
         """Learn one reward per task from ``demonstrations`` (as in :meth:`GradIRL.fit`)."""
-        validate_params(self, self._parameter_constraints, hints=_HINTS)
+        validate_params(self, self._parameter_constraints, hints=IRL_HINTS)
         if not isinstance(mdp, MDP):
             raise ParameterError(f"mdp must be an MDP; got {type(mdp).__name__}.")
         l2 = float(self.l2)

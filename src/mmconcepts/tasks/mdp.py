@@ -12,6 +12,10 @@ Shapes
   task axis: one array operation per sweep for all tasks);
 * values ``V`` : (..., n_states); action values ``Q`` : (..., n_states, n_actions);
 * policies ``pi`` : (..., n_states, n_actions), rows summing to one.
+
+Each solver and policy function checks its arguments; its ``*_unchecked`` twin
+(``value_iteration_unchecked``, ...) does the same without the checks, for the learners'
+inner loops (:mod:`mmconcepts.tasks.irl`), and is not part of the public API.
 """
 
 from __future__ import annotations
@@ -292,10 +296,11 @@ def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_it
         :func:`q_values` for one Bellman backup) or ``tol <= 0`` (never met).
     """
     _check("value_iteration", mdp, tol=tol, max_iter=max_iter, init=init)
-    return _value_iteration(mdp, rewards, tol=tol, max_iter=max_iter, init=init)
+    return value_iteration_unchecked(mdp, rewards, tol=tol, max_iter=max_iter, init=init)
 
 
-def _value_iteration(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_iter: int = 10_000, init: Any = None):
+def value_iteration_unchecked(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_iter: int = 10_000,
+                              init: Any = None):
     """:func:`value_iteration` without the parameter checks (for the learners' inner loops)."""
     batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
@@ -346,10 +351,10 @@ def policy_iteration(mdp: MDP, rewards: Any = None, *, max_iter: int = 1000,
     V, Q : as :func:`value_iteration`.
     """
     _check("policy_iteration", mdp, max_iter=max_iter, init=init)
-    return _policy_iteration(mdp, rewards, max_iter=max_iter, init=init)
+    return policy_iteration_unchecked(mdp, rewards, max_iter=max_iter, init=init)
 
 
-def _policy_iteration(mdp: MDP, rewards: Any, *, max_iter: int = 1000, init: Any = None):
+def policy_iteration_unchecked(mdp: MDP, rewards: Any, *, max_iter: int = 1000, init: Any = None):
     """:func:`policy_iteration` without the parameter checks (for the learners' inner loops)."""
     batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
@@ -397,10 +402,11 @@ def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, m
     errors are those of :func:`value_iteration` (``max_iter >= 1``, ``tol > 0``).
     """
     _check("soft_value_iteration", mdp, tol=tol, max_iter=max_iter, init=init)
-    return _soft_value_iteration(mdp, rewards, tol=tol, max_iter=max_iter, init=init)
+    return soft_value_iteration_unchecked(mdp, rewards, tol=tol, max_iter=max_iter, init=init)
 
 
-def _soft_value_iteration(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_iter: int = 10_000, init: Any = None):
+def soft_value_iteration_unchecked(mdp: MDP, rewards: Any, *, tol: float = 1e-10, max_iter: int = 10_000,
+                                   init: Any = None):
     """:func:`soft_value_iteration` without the parameter checks (for the learners' inner loops)."""
     batch, V, Pf, RT = _batched_setup(mdp, rewards, init)
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
@@ -441,7 +447,7 @@ def greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
         If Q holds NaN.
     """
     validate_params({"tie_tol": tie_tol}, _PARAMETER_CONSTRAINTS["greedy_policy"], owner="greedy_policy")
-    return _greedy_policy(_check_q(Q), tie_tol=tie_tol)
+    return greedy_policy_unchecked(_check_q(Q), tie_tol=tie_tol)
 
 
 def _check_q(Q: Any) -> np.ndarray:
@@ -458,7 +464,7 @@ def _check_q(Q: Any) -> np.ndarray:
     return Q
 
 
-def _greedy_policy(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
+def greedy_policy_unchecked(Q: Any, *, tie_tol: float = 1e-8) -> np.ndarray:
     """:func:`greedy_policy` without the parameter check."""
     Q = np.asarray(Q, dtype=float)
     best = Q.max(axis=-1, keepdims=True)
@@ -485,22 +491,22 @@ def boltzmann_policy(Q: Any, beta: float = 1.0) -> np.ndarray:
     if beta == 0.0:  # 0 * inf is undefined; the limit is the uniform policy whatever Q
         return np.full(Q.shape, 1.0 / Q.shape[-1])
     if np.isinf(beta):  # the limit is the greedy policy, ties shared
-        return _greedy_policy(Q, tie_tol=0.0)
+        return greedy_policy_unchecked(Q, tie_tol=0.0)
     if np.isinf(Q).any():
         # limits: +inf actions share the state; -inf actions get 0; a state whose actions are all -inf is uniform
         best = Q.max(axis=-1, keepdims=True)
         finite_rows = np.isfinite(best)
         Qf = np.where(finite_rows, Q, 0.0)
         with np.errstate(over="ignore"):  # shifted by the row maximum: beta * Qf cannot overflow to +inf
-            pi = _boltzmann_policy(Qf - Qf.max(axis=-1, keepdims=True), beta)
-        return np.where(finite_rows, pi, _greedy_policy(Q, tie_tol=0.0))
+            pi = boltzmann_policy_unchecked(Qf - Qf.max(axis=-1, keepdims=True), beta)
+        return np.where(finite_rows, pi, greedy_policy_unchecked(Q, tie_tol=0.0))
     with np.errstate(over="ignore"):
         if not np.isfinite(beta * Q).all():  # beta Q overflows: shift first (-inf differences weigh 0, as they should)
-            return _boltzmann_policy(Q - Q.max(axis=-1, keepdims=True), beta)
-    return _boltzmann_policy(Q, beta)
+            return boltzmann_policy_unchecked(Q - Q.max(axis=-1, keepdims=True), beta)
+    return boltzmann_policy_unchecked(Q, beta)
 
 
-def _boltzmann_policy(Q: Any, beta: float) -> np.ndarray:
+def boltzmann_policy_unchecked(Q: Any, beta: float) -> np.ndarray:
     """:func:`boltzmann_policy` without the parameter check (finite Q and beta)."""
     with np.errstate(over="ignore"):
         Z = float(beta) * np.asarray(Q, dtype=float)
