@@ -371,7 +371,7 @@ def current_record(target: RunTarget, fresh: ResultRecord, output: Path) -> Resu
     return existing if existing is not None and up_to_date(existing, fresh, output) else None
 
 
-def remove_secondary_record(output: Path, exp_id: str, *, only_if: bool = True) -> None:
+def remove_secondary_record(output: str | os.PathLike[str], exp_id: str, *, only_if: bool = True) -> None:
     """Delete ``exp_id``'s record on generated data beside a real-data run (and its figures), if ``only_if``."""
     stale = record_path(output, exp_id, secondary=True)
     if only_if and stale.exists():
