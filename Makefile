@@ -55,14 +55,14 @@ test-fast: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -m "not slow"
 
 ## Rewrite tests/golden/, the records of the experiments that declare a smoke preset (one per chapter, on generated
-## data, against which tests/test_golden_records.py compares), after a change meant to change their results
+## data, against which tests/experiments/test_golden_records.py compares), after a change meant to change their results
 golden: $(VENV)/.installed-dev
 	rm -rf $(VENV)/golden-run
 	MMCONCEPTS_DATA_ROOT= $(BIN)/mmconcepts reproduce --smoke --workers 2 --output $(VENV)/golden-run
 	rm -f tests/golden/*.json
 	cp $(VENV)/golden-run/*.json tests/golden/
 
-## Install headless Chromium and its driver (Debian packages) for tests/test_report_browser.py when they are
+## Install headless Chromium and its driver (Debian packages) for tests/report/test_browser.py when they are
 ## missing and this user may (root, or passwordless sudo); otherwise do nothing (that test then skips, saying why)
 browser:
 	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then :; \

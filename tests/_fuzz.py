@@ -17,7 +17,7 @@ at the end of the session (``tests/conftest.py``). With ``MMCONCEPTS_FUZZ_COUNT_
 well, the assertion is *not* made, so a census run counts the outcomes of every example
 instead of stopping at the first bad one (how the counts before a fix are taken)::
 
-    MMCONCEPTS_FUZZ_CENSUS=census.json MMCONCEPTS_FUZZ_COUNT_ONLY=1 pytest tests/test_fuzz_*.py
+    MMCONCEPTS_FUZZ_CENSUS=census.json MMCONCEPTS_FUZZ_COUNT_ONLY=1 pytest -m fuzz
 
 Each fuzz test runs ``examples(n)`` examples: ``n`` (a few hundred) in CI, ``10 n`` with
 ``MMCONCEPTS_FUZZ_LONG=1`` (the long run). CI runs are derandomized (the same examples on

@@ -1,6 +1,6 @@
 """The experiments' disk caches: numpy arrays and JSON, never pickle (internal).
 
-:meth:`mmconcepts.experiments.RunContext.memory` returns a :class:`CacheStore`, a folder
+:meth:`mmconcepts.engine.RunContext.memory` returns a :class:`CacheStore`, a folder
 under the cache folder (``ch3-folds``, ``ch5-mfcc``, ...). ``store.cache(f, ignore=[...])``
 returns a :class:`CachedFunction`: called like ``f``, it returns the result kept for the same
 arguments, or calls ``f`` and keeps what it returns.

@@ -1,7 +1,7 @@
 """Running experiments on a Dask cluster (``--scheduler``).
 
 The repetitions, folds and sweep points an experiment submits through
-:meth:`RunContext.parallel <mmconcepts.experiments.RunContext.parallel>` go to the
+:meth:`RunContext.parallel <mmconcepts.engine.RunContext.parallel>` go to the
 workers of a ``dask.distributed`` cluster instead of local processes:
 
 - ``local:N`` starts a ``LocalCluster`` of N single-threaded worker processes on

@@ -1,6 +1,6 @@
 """The result record of one experiment run, as a dataclass that reads and writes its JSON.
 
-:class:`ResultRecord` holds what :func:`~mmconcepts.experiments.run_experiment` writes to
+:class:`ResultRecord` holds what :func:`~mmconcepts.engine.run_experiment` writes to
 ``<output>/<id>.json`` (the schema is in :mod:`mmconcepts.engine.runner`'s docstring and
 the README, "Where things go"): :meth:`ResultRecord.to_json` writes exactly that JSON and
 :meth:`ResultRecord.from_json` reads it back, also from records of schema version 1 or
@@ -138,10 +138,10 @@ class ClaimRecord:
     Parameters
     ----------
     text, rule : str
-        The claim in words and its rule (:class:`~mmconcepts.experiments.Claim`); for a
+        The claim in words and its rule (:class:`~mmconcepts.engine.Claim`); for a
         magnitude claim, the rule is the metric set beside the thesis' number.
     kind : {"thesis", "magnitude", "ours", "check", "unclassified"}, default="unclassified"
-        The claim's kind (:class:`~mmconcepts.experiments.Claim`); ``unclassified`` for claims
+        The claim's kind (:class:`~mmconcepts.engine.Claim`); ``unclassified`` for claims
         of records written before kinds (schema 1 and 2).
     source : str, default=""
         Where the thesis says it (thesis and magnitude claims).

@@ -5,7 +5,7 @@ recording, the legs of another; a composed utterance: several spoken words; a mu
 pair: a sound and a motion). A split is *grouped by source* when no recording behind a test
 example is behind a training example. :func:`describe_split` checks that for every fold of
 a protocol and returns what the record keeps under ``split_groups``
-(:attr:`~mmconcepts.experiments.Result.split_groups`).
+(:attr:`~mmconcepts.engine.Result.split_groups`).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 An experiment reports a metric (``metrics[name]``) and, where it comes from folds, seeds
 or repetitions, the per-unit values behind it (``samples[name]``, see
-:class:`~mmconcepts.experiments.Result`). Each group of samples has a *unit*
+:class:`~mmconcepts.engine.Result`). Each group of samples has a *unit*
 (:class:`SampleUnit`) that says how the units relate to one another:
 
 - ``independent``: independent replications (seeds, repetitions that share no data);

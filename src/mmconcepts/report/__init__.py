@@ -1,7 +1,7 @@
 """The HTML and Markdown report of experiment results.
 
 :func:`write_report` reads every result record (``*.json``) of a results folder written by
-:func:`mmconcepts.experiments.run_experiment` and writes ``report.html`` (one
+:func:`mmconcepts.engine.run_experiment` and writes ``report.html`` (one
 self-contained file; figures are linked as the relative PNGs next to it) and
 ``report.md``. A table of contents (a sidebar that stays in view in the HTML) and a summary
 (per run: whether it ran, on which data, and how many of its claims hold, fail or are

@@ -242,7 +242,7 @@ def delta(x: np.ndarray) -> np.ndarray:
     the division changes the last bits of the delta streams (of about 95 % of the
     standardised values on random frames), which the k-means codebooks of
     :class:`~mmconcepts.sound.hac.HAC` are fitted on, and the experiments' numbers must not
-    move; ``tests/test_sound_features.py`` checks the factor.
+    move; ``tests/sound/test_features.py`` checks the factor.
 
     Parameters
     ----------

@@ -156,7 +156,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
     The input is a list of sequences of different lengths (or a 3-D array of equal-length
     ones), not one 2-D array, so scikit-learn's estimator checks, which feed 2-D arrays,
     are skipped (the ``two_d_array`` input tag is False, ``three_d_array`` True);
-    ``tests/test_contract_sound.py`` runs the ones that apply on sequences. A single 2-D
+    ``tests/sound/test_contract.py`` runs the ones that apply on sequences. A single 2-D
     array is refused: it is one utterance, not a list of them. A fitted HAC saves and
     loads without pickle (:meth:`save`, :meth:`load`).
     """

@@ -43,7 +43,7 @@ def _sequence_input_tags(tags: Any) -> Any:
 
     scikit-learn's estimator checks feed 2-D arrays of numbers; with ``two_d_array`` False
     they skip every check but cloning, with a ``SkipTestWarning`` that names the input tags.
-    The checks that still apply are run on sequences in ``tests/test_contract_sound.py``.
+    The checks that still apply are run on sequences in ``tests/sound/test_contract.py``.
     """
     tags.input_tags.two_d_array = False
     return tags
@@ -114,7 +114,7 @@ class EventVoting(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     -----
     The input is a list of bags (1-D integer arrays of different lengths), not a 2-D
     array, so scikit-learn's estimator checks, which feed 2-D arrays, are skipped (the
-    ``two_d_array`` input tag is False); ``tests/test_contract_sound.py`` runs the ones
+    ``two_d_array`` input tag is False); ``tests/sound/test_contract.py`` runs the ones
     that apply on bags. A fitted model saves and loads without pickle (:meth:`save`,
     :meth:`load`) when its tags are strings, numbers or tuples of them.
     """
@@ -371,7 +371,7 @@ class TreeVotingClassifier(SaveLoadMixin, ClassifierMixin, BaseEstimator):
     -----
     The input is a list of utterances, each an array of windows, whose numbers of windows
     differ, so scikit-learn's estimator checks, which feed one 2-D array, are skipped (the
-    ``two_d_array`` input tag is False); ``tests/test_contract_sound.py`` runs the ones
+    ``two_d_array`` input tag is False); ``tests/sound/test_contract.py`` runs the ones
     that apply on utterances. A fitted model saves and loads without pickle (:meth:`save`,
     :meth:`load`; not with a callable ``metric``).
 

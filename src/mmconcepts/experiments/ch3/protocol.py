@@ -506,7 +506,7 @@ def split_sources(arrays: MotionArrays, splits) -> list[tuple[list[tuple[Any, ..
 
 
 def split_groups(arrays: MotionArrays, splits) -> dict[str, Any]:
-    """What the folds keep apart, for the result's ``split_groups``: :func:`~mmconcepts.experiments.describe_split`
+    """What the folds keep apart, for the result's ``split_groups``: :func:`~mmconcepts.engine.describe_split`
     of :func:`split_sources`, which raises when a recording is behind examples on both sides of a fold."""
     if arrays.parts is None:
         own = {"synthetic": "each generated example is an independent draw of the dancer (its own recording)",

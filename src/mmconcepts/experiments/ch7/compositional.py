@@ -423,7 +423,7 @@ def split_sources(data: dict, tasks: list[dict]) -> list[tuple[list, list]]:
     training sets, the calibration set and the training folds' single-concept examples
     (the calibration references); the test side is fold f's examples (queries,
     candidates and the test references). For
-    :func:`~mmconcepts.experiments.describe_split`.
+    :func:`~mmconcepts.engine.describe_split`.
     """
     src = data["sources"]
     out = []

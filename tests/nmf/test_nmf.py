@@ -1,0 +1,842 @@
+"""Tests of the beta-NMF core (thesis section 2.1)."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from sklearn.decomposition import NMF as SkNMF
+from sklearn.decomposition._nmf import _beta_divergence
+from sklearn.utils.estimator_checks import check_estimator
+
+from mmconcepts.errors import ConvergenceWarning, DataError, ParameterError
+from mmconcepts.nmf import (
+    NMF,
+    beta_divergence,
+    beta_nmf,
+    dictionary_distance,
+    hoyer_sparseness,
+    match_components,
+    mm_exponent,
+    project_hoyer,
+)
+
+BETAS = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5]
+
+
+def _positive(rng, n=40, m=30):
+    return rng.random((n, m)) + 0.05
+
+
+def _lowrank(rng, n=50, m=30, k=4):
+    W = rng.gamma(1.0, 1.0, (n, k))
+    H = rng.gamma(1.0, 1.0, (k, m))
+    return W, H, W @ H
+
+
+# --------------------------------------------------------------------------- losses
+@pytest.mark.parametrize("beta", BETAS + [3.0, -0.5])
+def test_loss_equals_sklearn(rng, beta):
+    X = _positive(rng)
+    W, H = rng.random((40, 5)), rng.random((5, 30))
+    assert beta_divergence(X, W, H, beta) == pytest.approx(_beta_divergence(X, W, H, beta), rel=1e-10)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 1.5, 2.0, 2.5])
+def test_sparse_loss_equals_dense(rng, beta):
+    X = sp.random(60, 40, density=0.1, random_state=3, format="csr") * 5
+    W, H = rng.random((60, 4)), rng.random((4, 40))
+    assert beta_divergence(X, W, H, beta) == pytest.approx(beta_divergence(X.toarray(), W, H, beta), rel=1e-9)
+
+
+def test_loss_named_betas_and_values(rng):
+    X = _positive(rng, 5, 4)
+    W, H = rng.random((5, 2)), rng.random((2, 4))
+    Y = W @ H
+    assert beta_divergence(X, W, H, "frobenius") == pytest.approx(0.5 * np.sum((X - Y) ** 2))
+    assert beta_divergence(X, W, H, "kullback-leibler") == pytest.approx(np.sum(X * np.log(X / Y) - X + Y))
+    assert beta_divergence(X, W, H, "itakura-saito") == pytest.approx(np.sum(X / Y - np.log(X / Y) - 1))
+    assert beta_divergence(X, W, H, 1.0) == pytest.approx(beta_divergence(X, W, H, 1.0 + 1e-7), rel=1e-5)
+
+
+def test_mm_exponent_table_2_2():
+    assert mm_exponent(0.0) == 0.5
+    assert mm_exponent(0.5) == pytest.approx(1 / 1.5)
+    assert mm_exponent(1.0) == mm_exponent(2.0) == 1.0
+    assert mm_exponent(3.0) == 0.5
+
+
+# --------------------------------------------------------------------------- monotonicity
+@pytest.mark.parametrize(
+    "kind, beta",
+    # beta <= 0 is undefined on the zeros of a sparse matrix (refused, tested below)
+    [(kind, beta) for kind in ("dense", "sparse", "masked") for beta in BETAS if kind != "sparse" or beta > 0],
+)
+def test_mu_never_increases_loss(rng, beta, kind):
+    X = _positive(rng)
+    mask = None
+    if kind == "sparse":
+        X = sp.csr_matrix(X * (rng.random(X.shape) < 0.3))
+    elif kind == "masked":
+        mask = rng.random(X.shape) < 0.7
+    res = beta_nmf(X, 5, beta_loss=beta, init="random", random_state=1, max_iter=60, tol=0, loss_every=1, mask=mask)
+    steps = np.diff(res.loss_history)
+    assert steps.max() <= 1e-9 * res.loss_history[0]
+    assert res.loss_history[-1] < 0.9 * res.loss_history[0]
+
+
+def test_heuristic_update_is_an_option(rng):
+    X = _positive(rng)
+    mm = beta_nmf(X, 4, beta_loss=0.5, init="random", random_state=0, max_iter=30, tol=0)
+    heur = beta_nmf(X, 4, beta_loss=0.5, update_rule="heuristic", init="random", random_state=0, max_iter=30, tol=0)
+    assert not np.allclose(mm.W, heur.W)
+    assert heur.loss_history[-1] < heur.loss_history[0]
+    # identical for 1 <= beta <= 2 where gamma = 1
+    a = beta_nmf(X, 4, beta_loss=1.5, init="random", random_state=0, max_iter=10, tol=0)
+    b = beta_nmf(X, 4, beta_loss=1.5, update_rule="heuristic", init="random", random_state=0, max_iter=10, tol=0)
+    np.testing.assert_array_equal(a.W, b.W)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0, 2.5])
+def test_mu_matches_sklearn_iterates(rng, beta):
+    X = _positive(rng, 50, 20)
+    W0, H0 = rng.random((50, 4)), rng.random((4, 20))
+    sk = SkNMF(4, init="custom", solver="mu", beta_loss=beta, max_iter=80, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H0, beta_loss=beta, max_iter=80, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_blocked_kl_update_matches_sklearn_over_several_blocks(rng, order):
+    # 300 features give blocks of 1747 rows: 4000 rows make three blocks, the last partial.
+    X = np.asarray(_positive(rng, 4000, 300), order=order)
+    W0, H0 = rng.random((4000, 3)), rng.random((3, 300))
+    sk = SkNMF(3, init="custom", solver="mu", beta_loss=1.0, max_iter=5, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    res = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=5, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-10)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10)
+
+
+def _blocked_kl_case(rng):
+    # 2000 features give blocks of 262 rows: 2458 rows make ten blocks (the last partial), in
+    # eight stripes of two or one blocks, so stripes sum several blocks and threads several stripes.
+    X = _positive(rng, 2458, 2000)
+    return X, rng.random((2458, 3)), rng.random((3, 2000))
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_blocked_kl_update_in_threads_matches_sklearn(rng, threads):
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    sk = SkNMF(3, init="custom", solver="mu", beta_loss=1.0, max_iter=4, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    with threadpool_limits(limits=threads, user_api="blas"):
+        res = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=4, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-10)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10)
+
+
+def test_blocked_kl_update_does_not_depend_on_the_number_of_threads(rng):
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    out = []
+    for threads in (1, 2, 3):
+        with threadpool_limits(limits=threads, user_api="blas"):
+            out.append(beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=4, tol=0))
+    for res in out[1:]:
+        np.testing.assert_array_equal(res.W, out[0].W)
+        np.testing.assert_array_equal(res.H, out[0].H)
+
+
+def _fit_in_child(args):
+    X, W0, H0 = args
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        return beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0).W
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_blocked_kl_update_runs_in_a_forked_child(rng):
+    # The parent's thread pool does not exist in a forked child: the child must make its own.
+    import multiprocessing as mp
+
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    with threadpool_limits(limits=2, user_api="blas"):
+        want = beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0).W
+    with mp.get_context("fork").Pool(1) as pool:
+        got = pool.apply_async(_fit_in_child, ((X, W0, H0),)).get(timeout=60)
+    np.testing.assert_array_equal(got, want)
+
+
+def _blas_thread_counts():
+    from threadpoolctl import threadpool_info
+
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+def test_blocked_kl_update_from_other_threads_is_reproducible(rng):
+    # Off the main thread the blocks run one after the other and never touch the process-wide
+    # BLAS thread count: fits running at once in two threads equal the same fits run alone.
+    import threading
+
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    W1 = rng.random(W0.shape)
+
+    def fit(W, out, key):
+        out[key] = beta_nmf(X, 3, init="custom", W=W, H=H0, beta_loss=1.0, max_iter=3, tol=0)
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_thread_counts()
+        alone: dict = {}
+        for key, W in (("a", W0), ("b", W1)):
+            t = threading.Thread(target=fit, args=(W, alone, key))
+            t.start()
+            t.join()
+        together: dict = {}
+        threads = [threading.Thread(target=fit, args=(W, together, key)) for key, W in (("a", W0), ("b", W1))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert _blas_thread_counts() == before
+    for key in ("a", "b"):
+        np.testing.assert_array_equal(together[key].W, alone[key].W)
+        np.testing.assert_array_equal(together[key].H, alone[key].H)
+
+
+def test_blocked_kl_update_restores_the_blas_threads(rng):
+    from threadpoolctl import threadpool_limits
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_thread_counts()
+        beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0)
+        assert _blas_thread_counts() == before
+
+
+def _child_blas_threads(_):
+    return _blas_thread_counts()
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_a_child_forked_while_blocks_run_gets_the_blas_threads_back(rng):
+    # A fork while the main thread's blocks hold BLAS at one thread (another thread forks)
+    # must not leave the child with one BLAS thread for good.
+    import multiprocessing as mp
+
+    from threadpoolctl import threadpool_limits
+
+    from mmconcepts.nmf import _problem
+
+    X, W0, H0 = _blocked_kl_case(rng)
+    with threadpool_limits(limits=2, user_api="blas"):
+        beta_nmf(X, 3, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=1, tol=0)  # makes the controller
+        before = _blas_thread_counts()
+        _problem._limiter = _problem._blas.limit(limits=1)  # as inside _stripes_in_threads
+        try:
+            with mp.get_context("fork").Pool(1) as pool:
+                child = pool.apply_async(_child_blas_threads, (None,)).get(timeout=60)
+        finally:
+            _problem._limiter.restore_original_limits()
+            _problem._limiter = None
+    assert child == before
+
+
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+def test_projected_gradient_decreases_loss(rng, beta):
+    W, H, X = _lowrank(rng)
+    res = beta_nmf(X, 4, beta_loss=beta, solver="pg", init="random", random_state=0, max_iter=40, tol=0, loss_every=1)
+    assert np.diff(res.loss_history).max() <= 1e-9 * res.loss_history[0]
+    assert res.loss_history[-1] < 0.05 * res.loss_history[0]
+    assert (res.W >= 0).all() and (res.H >= 0).all()
+
+
+# --------------------------------------------------------------------------- sparse, dtype, masks
+@pytest.mark.parametrize("beta", [0.5, 1.0, 1.5, 2.0, 2.5])
+def test_sparse_fit_equals_dense_fit(rng, beta):
+    X = sp.random(80, 50, density=0.1, random_state=2, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    a = beta_nmf(X, 5, beta_loss=beta, init="random", random_state=0, max_iter=40, tol=0)
+    b = beta_nmf(X.toarray(), 5, beta_loss=beta, init="random", random_state=0, max_iter=40, tol=0)
+    np.testing.assert_allclose(a.W, b.W, rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(a.H, b.H, rtol=1e-7, atol=1e-10)
+
+
+def _numerator_reference(X, weights, L, R, beta, eps):
+    """sum_p w_p x_p max(y_p, eps)**(beta - 2) R[j_p] per row, y = L R^T at the stored entries (numpy)."""
+    rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
+    y = np.einsum("pk,pk->p", L[rows], R[X.indices])
+    if beta < 2.0:
+        y = np.maximum(y, eps)
+    e = X.data * y ** (beta - 2.0) * (weights if weights.size else 1.0)
+    return np.asarray(sp.csr_matrix((e, X.indices, X.indptr), shape=X.shape) @ R), y
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.5, 1.0, 1.5, 2.0, 3.0])
+@pytest.mark.parametrize("weighted", [False, True])
+def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
+    """The sparse kernels walk each group of rows tile by tile of R's rows: every tile size and
+    number of row groups gives numpy's answer, and the same bits (a row's entries are summed in
+    their stored order whatever the tiling), column indices sorted or not."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(23, 700, density=0.08, random_state=5, format="csr")
+    X.data = rng.poisson(2.0, X.nnz) + 1.0
+    L, R = rng.random((23, 6)), rng.random((700, 6))
+    w = rng.random(X.nnz) if weighted else np.empty(0)
+    ref_num, ref_y = _numerator_reference(X, w, L, R, beta, 1e-9)
+    none = _kernels._NO_DEN  # no fused update
+    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, 1, 10**9)
+    np.testing.assert_allclose(whole, ref_num, rtol=1e-12)
+    shuffled = X.copy()  # the same entries, each row's column indices in another order
+    for i in range(X.shape[0]):
+        sl = slice(X.indptr[i], X.indptr[i + 1])
+        order = rng.permutation(sl.stop - sl.start)
+        shuffled.indices[sl], shuffled.data[sl] = X.indices[sl][order], X.data[sl][order]
+    for groups, tile in [(1, 1), (2, 7), (3, 64), (23, 100), (5, 699), (2, 701)]:
+        got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, groups,
+                                     tile)
+        np.testing.assert_array_equal(got, whole)
+        y = _kernels._lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz), groups, tile)
+        np.testing.assert_allclose(y if beta >= 2.0 else np.maximum(y, 1e-9), ref_y, rtol=1e-13)
+        got = _kernels._mu_numerator(shuffled.indptr, shuffled.indices, shuffled.data, np.empty(0), L, R, beta, 1e-9,
+                                     np.empty_like(L), none, groups, tile)
+        np.testing.assert_allclose(got, _numerator_reference(shuffled, np.empty(0), L, R, beta, 1e-9)[0], rtol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_fused_kl_update_equals_numerator_then_numpy_update(rng, dtype):
+    """The sparse I-divergence update divides each finished numerator row in the kernel: L ends
+    as ``L * (N / den)`` computed by numpy, bit for bit, for every tiling."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(19, 500, density=0.1, random_state=7, format="csr", dtype=dtype)
+    X.data = (rng.poisson(2.0, X.nnz) + 1.0).astype(dtype)
+    L, R = rng.random((19, 5)).astype(dtype), rng.random((500, 5)).astype(dtype)
+    den = R.sum(axis=0)
+    eps = dtype(_kernels.EPSILON)
+    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0, dtype), L, R, 1.0, eps, np.empty_like(L),
+                               _kernels._NO_DEN, 1, 10**9)
+    expected = L * (N / den)
+    for groups, tile in [(1, 10**9), (2, 64), (3, 7), (19, 1)]:
+        L2 = L.copy()
+        ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0, dtype), L2, R, 1.0, eps,
+                                       np.empty_like(L), den, groups, tile)
+        np.testing.assert_array_equal(ratio, N / den)
+        np.testing.assert_array_equal(L2 * ratio, expected)
+    L3 = L.copy()
+    assert _kernels.kl_update(X.indptr, X.indices, X.data, L3, R, den, np.empty_like(L)) is L3
+    np.testing.assert_array_equal(L3, expected)
+
+
+@pytest.mark.parametrize("sparse", [True, False])
+def test_kl_transform_with_a_fixed_dictionary_matches_sklearn(rng, sparse):
+    """W's updates against a fixed H (transform) reuse H's sums; the iterates stay scikit-learn's."""
+    from sklearn.decomposition import non_negative_factorization
+
+    X = sp.random(40, 300, density=0.1, random_state=8, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    X = X[:, np.asarray(X.getnnz(axis=0)) > 0]
+    X = X if sparse else X.toarray()
+    H = rng.random((4, X.shape[1])) + 0.1
+    W0 = np.full((40, 4), np.sqrt(X.mean() / 4))  # scikit-learn's start when H is fixed (it ignores a given W)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk, _, _ = non_negative_factorization(X, W=W0.copy(), H=H.copy(), n_components=4, init="custom",
+                                                update_H=False, solver="mu", beta_loss=1.0, max_iter=40, tol=0)
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H, update_H=False, beta_loss=1.0, max_iter=40, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-8, atol=1e-12)
+    np.testing.assert_array_equal(res.H, H)
+
+
+def test_sparse_fit_over_many_tiles_matches_sklearn(rng, monkeypatch):
+    """A fit whose dictionary spans many tiles (tiles shrunk to 64 of 1000 columns) keeps
+    scikit-learn's KL iterates."""
+    from mmconcepts.nmf import _kernels
+
+    monkeypatch.setattr(_kernels, "_TILE_BYTES", 1)
+    assert _kernels._tiling(np.zeros(31), np.zeros((1000, 4))) == (min(30, _kernels.nb.get_num_threads()), 64)
+    X = sp.random(30, 1000, density=0.05, random_state=6, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    X = X[:, np.asarray(X.getnnz(axis=0)) > 0]  # no empty column (they would leave the iterations)
+    W0, H0 = rng.random((30, 4)) + 0.1, rng.random((4, X.shape[1])) + 0.1
+    sk = SkNMF(4, init="custom", solver="mu", beta_loss=1.0, max_iter=30, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X.toarray(), W=W0.copy(), H=H0.copy())
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=30, tol=0)
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize("beta, rule, alpha", [(1.0, "mm", 0.0), (0.5, "mm", 0.0), (2.0, "mm", 0.01),
+                                               (2.5, "heuristic", 0.0), (1.5, "mm", 0.01)])
+def test_empty_columns_left_out_after_the_first_update_match_sklearn(rng, beta, rule, alpha, monkeypatch):
+    """Most columns of a sparse count matrix hold nothing (HAC): after the first update they are
+    left out of the iterations (their H columns are exactly 0) and put back as zeros; the iterates
+    are scikit-learn's on the whole matrix."""
+    from mmconcepts.nmf import _solver
+
+    X = sp.random(40, 400, density=0.01, random_state=4, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    empty = np.asarray(X.getnnz(axis=0)) == 0
+    assert empty.mean() > 0.5
+    W0, H0 = rng.random((40, 4)) + 0.1, rng.random((4, 400)) + 0.1
+    reduced = []
+    real = _solver._EmptyColumns.reduce
+
+    def spy(self, sol, Ht):
+        out = real(self, sol, Ht)
+        reduced.append(out is not None and out[1].shape[0])
+        return out
+
+    monkeypatch.setattr(_solver._EmptyColumns, "reduce", spy)
+    widths = []  # rows of Ht at each update of Ht
+    real_update = _solver.mu_update
+
+    def spy_update(side, L, R, *args):
+        if L.shape[1] == 4 and R.shape[0] == 40:
+            widths.append(L.shape[0])
+        return real_update(side, L, R, *args)
+
+    monkeypatch.setattr(_solver, "mu_update", spy_update)
+    kw = dict(beta_loss=beta, max_iter=60, tol=0, alpha_W=alpha, l1_ratio=0.5)
+    rule_kw = {} if rule == "mm" else {"update_rule": rule}
+    res = beta_nmf(X, 4, init="custom", W=W0, H=H0, **kw, **rule_kw)
+    kept = int((~empty).sum())
+    assert reduced == [kept]  # left out once, after the first iteration
+    assert widths == [400] + [kept] * 59
+    assert (res.H[:, empty] == 0).all()
+    if rule == "mm" and 1.0 <= beta <= 2.0:  # scikit-learn's MU is the MM rule for beta in [1, 2]
+        sk = SkNMF(4, init="custom", solver="mu", beta_loss=beta, max_iter=60, tol=0, alpha_W=alpha, l1_ratio=0.5)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+        np.testing.assert_allclose(res.W, W_sk, rtol=1e-6, atol=1e-8 * W_sk.max())
+        np.testing.assert_allclose(res.H, sk.components_, rtol=1e-6, atol=1e-8 * sk.components_.max())
+    # the same fit over all the columns (the leaving-out disabled) to rounding
+    monkeypatch.setattr(_solver._EmptyColumns, "MIN_SHARE", 2.0)
+    full = beta_nmf(X, 4, init="custom", W=W0, H=H0, **kw, **rule_kw)
+    assert len(reduced) == 1
+    np.testing.assert_allclose(res.W, full.W, rtol=1e-10, atol=1e-12 * full.W.max())
+    np.testing.assert_allclose(res.H, full.H, rtol=1e-10, atol=1e-12 * full.H.max())
+    np.testing.assert_allclose(res.loss_history, full.loss_history, rtol=1e-12)
+    assert res.n_iter == full.n_iter
+
+
+def test_empty_columns_left_out_stop_at_the_same_iteration(rng, monkeypatch):
+    """With the stopping rule on (tol > 0, the objective every iteration), leaving the empty columns out
+    changes neither when the fit stops nor the recorded objectives."""
+    from mmconcepts.nmf import _solver
+
+    X = sp.random(40, 400, density=0.01, random_state=6, format="csr")
+    X.data = rng.poisson(3.0, X.nnz) + 1.0
+    kw = dict(beta_loss=1.0, init="random", random_state=2, max_iter=500, tol=1e-3, loss_every=1)
+    res = beta_nmf(X, 4, **kw)
+    monkeypatch.setattr(_solver._EmptyColumns, "MIN_SHARE", 2.0)
+    full = beta_nmf(X, 4, **kw)
+    assert res.converged and 1 < res.n_iter < 500
+    assert res.n_iter == full.n_iter
+    np.testing.assert_array_equal(res.loss_iterations, full.loss_iterations)
+    np.testing.assert_allclose(res.loss_history, full.loss_history, rtol=1e-12)
+    np.testing.assert_allclose(res.H, full.H, rtol=1e-10, atol=1e-12 * full.H.max())
+
+
+def test_empty_columns_kept_where_they_cannot_be_left_out(rng, monkeypatch):
+    """A mask, a fixed H or Hoyer's constraints: the columns stay (their H need not become 0)."""
+    from mmconcepts.nmf import _solver
+
+    X = sp.random(30, 200, density=0.01, random_state=5, format="csr")
+    X.data += 1.0
+    calls = []
+    monkeypatch.setattr(_solver._EmptyColumns, "reduce", lambda self, sol, Ht: calls.append(1))
+    mask = np.ones(X.shape, bool)
+    beta_nmf(X, 3, beta_loss=1.0, mask=mask, init="random", random_state=0, max_iter=5, tol=0)
+    beta_nmf(X, 3, beta_loss=2.0, sparseness_H=0.5, init="random", random_state=0, max_iter=5, tol=0)
+    beta_nmf(X, 3, beta_loss=1.0, update_H=False, H=rng.random((3, 200)), max_iter=5, tol=0)
+    beta_nmf(X, 3, beta_loss=1.0, init="random", random_state=0, max_iter=1, tol=0)
+    assert calls == []
+    beta_nmf(X, 3, beta_loss=1.0, init="random", random_state=0, max_iter=5, tol=0)
+    assert calls == [1]
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_float32_kept_and_agrees_with_float64(rng, sparse):
+    _, _, X = _lowrank(rng)
+    X32 = X.astype(np.float32)
+    if sparse:
+        X, X32 = sp.csr_matrix(X), sp.csr_matrix(X32)
+    m64 = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=50, tol=0).fit(X)
+    m32 = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=50, tol=0).fit(X32)
+    assert m32.components_.dtype == np.float32
+    assert m32.transform(X32).dtype == np.float32
+    np.testing.assert_allclose(m32.components_, m64.components_, rtol=2e-3, atol=1e-4)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("sparse", [False, True])
+def test_garbage_in_masked_cells_changes_nothing(rng, beta, sparse):
+    X = _positive(rng)
+    mask = rng.random(X.shape) < 0.75
+    garbage = X.copy()
+    garbage[~mask] = rng.choice([1e6, -5.0, np.nan, np.inf, 0.0], size=int((~mask).sum()))
+    clean = X.copy()
+    clean[~mask] = 0.0
+    if sparse:
+        clean = sp.csr_matrix(clean)
+        g2 = garbage.copy()
+        g2[~np.isfinite(g2)] = 7.0  # sparse matrices hold finite junk here
+        garbage = sp.csr_matrix(g2)
+    a = NMF(5, beta_loss=beta, init="random", random_state=0, max_iter=30, tol=0).fit(clean, mask=mask)
+    b = NMF(5, beta_loss=beta, init="random", random_state=0, max_iter=30, tol=0).fit(garbage, mask=mask)
+    np.testing.assert_allclose(a.components_, b.components_, rtol=1e-10)
+    np.testing.assert_allclose(a.transform(clean, mask=mask), b.transform(garbage, mask=mask), rtol=1e-10)
+
+
+def test_mask_recovers_missing_cells(rng):
+    W, H, X = _lowrank(rng, 60, 40, 3)
+    mask = rng.random(X.shape) < 0.8
+    model = NMF(3, beta_loss=1, init="random", random_state=0, max_iter=1500, tol=0)
+    Wf = model.fit_transform(np.where(mask, X, np.nan), mask=mask)
+    Xhat = model.inverse_transform(Wf)
+    err_missing = np.abs(Xhat - X)[~mask].mean() / X[~mask].mean()
+    assert err_missing < 0.05
+
+
+# --------------------------------------------------------------------------- transform on features
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+@pytest.mark.parametrize("features", [slice(0, 20), np.arange(10, 30), "bool"])
+def test_transform_on_feature_subset_recovers_coefficients(rng, beta, features):
+    k, m = 3, 30
+    H = rng.gamma(0.5, 1.0, (k, m))
+    H /= H.sum(axis=0, keepdims=True) * 0.4 + H.sum(axis=1, keepdims=True)  # rows do not sum to one
+    W = rng.gamma(2.0, 1.0, (25, k))
+    X = W @ H
+    if isinstance(features, str):
+        features = np.zeros(m, bool)
+        features[::2] = True
+    model = NMF(k, beta_loss=beta, init="custom", max_iter=1, tol=0, transform_max_iter=3000)
+    model.fit(X, W=W, H=H)
+    model.components_ = H  # the exact dictionary
+    idx = np.arange(m)[features]
+    W_hat = model.transform(X[:, idx], features=features)
+    np.testing.assert_allclose(W_hat, W, rtol=2e-3)
+    np.testing.assert_allclose(model.inverse_transform(W_hat, features=features), X[:, idx], rtol=2e-3)
+
+
+def test_subset_update_without_denominator_is_biased(rng):
+    """The thesis author's update dropped the denominator: biased when atoms do not sum to one."""
+    H = rng.gamma(0.5, 1.0, (3, 30))
+    W = rng.gamma(2.0, 1.0, (10, 3))
+    X = W @ H
+    sub = slice(0, 12)
+    Hs = H[:, sub]
+    Wb = np.full_like(W, 1.0)
+    for _ in range(3000):  # I-divergence update without the denominator Hs.sum(axis=1)
+        Wb *= ((X[:, sub] / (Wb @ Hs)) @ Hs.T) / H.sum(axis=1)
+    model = NMF(3, beta_loss=1, init="custom", max_iter=1, tol=0, transform_max_iter=3000).fit(X, W=W, H=H)
+    model.components_ = H
+    good = model.transform(X[:, sub], features=sub)
+    assert np.abs(good - W).max() / W.max() < 1e-2
+    assert np.abs(Wb - W).max() / W.max() > 0.1
+
+
+def test_features_validation(rng):
+    X = _positive(rng, 10, 6)
+    model = NMF(2, init="random", random_state=0, max_iter=5, tol=0, transform_max_iter=5).fit(X)
+    with pytest.raises(ParameterError, match="out of range"):
+        model.transform(X[:, :2], features=[0, 9])
+    with pytest.raises(ParameterError, match="boolean mask"):
+        model.transform(X[:, :2], features=np.array([True, False]))
+    with pytest.raises(DataError, match="features selects 3"):
+        model.transform(X[:, :2], features=[0, 1, 2])
+    with pytest.raises(DataError, match="X has 5 features, but NMF is expecting 6"):
+        model.transform(X[:, :5])
+    with pytest.raises(ParameterError, match="selects no feature"):
+        model.inverse_transform(np.ones((1, 2)), features=slice(3, 3))
+
+
+# --------------------------------------------------------------------------- online
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+def test_partial_fit_single_batch_equals_fit(rng, beta):
+    X = _positive(rng)
+    kw = dict(beta_loss=beta, init="random", random_state=0, max_iter=30, tol=0, forget_factor=1.0)
+    full = NMF(4, **kw).fit(X)
+    online = NMF(4, **kw).partial_fit(X)
+    np.testing.assert_allclose(online.components_, full.components_, rtol=1e-9)
+
+
+def _separable(rng, n=200, k=4, width=6):
+    H = np.zeros((k, k * width))
+    for i in range(k):  # separable atoms: each has features of its own, so the dictionary is identifiable
+        H[i, i * width:(i + 1) * width] = rng.uniform(0.5, 1.5, width)
+    W = rng.gamma(1.0, 1.0, (n, k))
+    return W, H, W @ H
+
+
+def test_partial_fit_streams_batches(rng):
+    W, H, X = _separable(rng, 400, 3, 10)
+    model = NMF(3, beta_loss=1, init="random", random_state=0, max_iter=20, forget_factor=0.9)
+    for _ in range(3):
+        for batch in np.array_split(X, 8):
+            model.partial_fit(batch)
+    assert model.n_steps_ == 24
+    assert dictionary_distance(model.components_, H) < 0.05
+    with pytest.raises(DataError, match="expecting 30"):
+        model.partial_fit(X[:, :10])
+
+
+# --------------------------------------------------------------------------- constraints and penalties
+def test_hoyer_known_values_and_infeasible_norms():
+    # the projection's invariants are property tests in tests/nmf/test_properties.py
+    assert hoyer_sparseness(np.ones(9)) == pytest.approx(0.0)
+    assert hoyer_sparseness(np.eye(9)[0]) == pytest.approx(1.0)
+    with pytest.raises(ParameterError, match="no vector"):
+        project_hoyer(np.ones(4), 5.0, 1.0)
+
+
+def test_hoyer_constraints_hold_after_fit(rng):
+    _, _, X = _lowrank(rng, 60, 40, 4)
+    res = beta_nmf(X, 4, sparseness_H=0.6, sparseness_W=0.3, init="random", random_state=0, max_iter=40, tol=0,
+                   loss_every=1)
+    np.testing.assert_allclose(hoyer_sparseness(res.H, axis=1), 0.6, atol=1e-6)
+    np.testing.assert_allclose(hoyer_sparseness(res.W, axis=0), 0.3, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(res.H, axis=1), 1.0, rtol=1e-6)
+    assert res.loss_history[-1] < res.loss_history[1]
+
+
+def test_l1_penalty_sparsifies(rng):
+    _, _, X = _lowrank(rng)
+    kw = dict(beta_loss=1, init="random", random_state=0, max_iter=300, tol=0)
+    plain = NMF(6, **kw).fit_transform(X)
+    l1 = NMF(6, alpha_W=0.05, l1_ratio=1.0, **kw).fit_transform(X)  # alpha_H='same': both factors
+    assert np.nanmean(hoyer_sparseness(l1, axis=1)) > np.nanmean(hoyer_sparseness(plain, axis=1)) + 0.2
+    assert (l1 < 1e-3 * l1.max()).mean() > (plain < 1e-3 * plain.max()).mean() + 0.2
+
+
+# --------------------------------------------------------------------------- inits
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
+@pytest.mark.parametrize("init", ["random", "nndsvd", "nndsvda", "nndsvdar"])
+def test_inits(rng, init):
+    _, _, X = _lowrank(rng)
+    model = NMF(4, beta_loss=2, init=init, random_state=0, max_iter=300)
+    model.fit(X)
+    # plain NNDSVD keeps exact zeros, which multiplicative updates cannot leave
+    assert model.reconstruction_err_ / np.linalg.norm(X) < (0.5 if init == "nndsvd" else 0.05)
+    assert model.loss_history_[-1] < model.loss_history_[0]
+    again = NMF(4, beta_loss=2, init=init, random_state=0, max_iter=300).fit(X)
+    np.testing.assert_array_equal(model.components_, again.components_)
+
+
+def test_convergence_warning_and_tol(rng):
+    X = _positive(rng)
+    with pytest.warns(ConvergenceWarning):
+        NMF(5, init="random", random_state=0, max_iter=3, tol=1e-12).fit(X)
+    model = NMF(3, init="random", random_state=0, max_iter=5000, tol=1e-3).fit(X)
+    assert model.n_iter_ < 5000
+    assert model.loss_iterations_[-1] == model.n_iter_
+
+
+class _ScriptedSolver:
+    """A solver whose updates change nothing and whose objective follows a script."""
+
+    def __init__(self, values):
+        self.values = list(values)
+
+    def update(self, side, A, B):
+        return A
+
+    def objective(self, W, Ht):
+        return self.values.pop(0)
+
+
+@pytest.mark.parametrize("script, n_iter, converged", [
+    # finite -> infinite (a subnormal cell whose reconstruction underflows): not a decrease
+    ([100.0, 90.0, np.inf, np.inf, np.inf, np.inf], 5, False),
+    # infinite, then two finite objectives that settle: converged at the second finite one
+    ([100.0, 90.0, np.inf, 50.0, 50.0, 50.0], 4, True),
+    # an overflowing start waits for the first finite error as its reference
+    ([np.inf, 90.0, 90.0, 10.0, 10.0, 10.0], 2, True),
+    ([100.0, 90.0, 80.0, 70.0, 70.0, 70.0], 4, True),
+])
+def test_stopping_rule_never_reads_an_infinite_objective_as_progress(script, n_iter, converged):
+    from mmconcepts.nmf._solver import _iterate
+
+    W, Ht = np.ones((2, 1)), np.ones((3, 1))
+    out = _iterate(_ScriptedSolver(script), W, Ht, True, 5, 1e-3, 1)
+    assert (out[2], out[5]) == (n_iter, converged)
+
+
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")
+def test_kl_fit_with_subnormal_cells_runs_until_it_settles():
+    """Soft-VQ histograms hold cells of about 1e-319; the KL objective can become infinite."""
+    rng = np.random.default_rng(3)
+    X = rng.random((30, 12)) * (rng.random((30, 12)) < 0.5)
+    X[:, -1] = 0.0
+    X[0, -1] = 6e-319  # the only mass of the last column: its dictionary entries underflow
+    model = NMF(3, beta_loss=1, init="random", random_state=0, max_iter=60, tol=1e-4).fit(X)
+    hist = model.loss_history_
+    assert not (np.isinf(hist[-1]) and model.n_iter_ < 60), (model.n_iter_, hist)
+
+
+# --------------------------------------------------------------------------- comparison
+def test_matching_distance_zero_for_scaled_permuted_copy(rng):
+    A = rng.random((6, 20))
+    perm = rng.permutation(6)
+    B = A[perm] * rng.uniform(0.1, 10, (6, 1))
+    for metric in ["cosine", "euclidean", "l1"]:
+        match = match_components(A, B, metric=metric)
+        assert match.distance == pytest.approx(0.0, abs=1e-12)
+        np.testing.assert_array_equal(perm[match.cols], match.rows)
+    assert dictionary_distance(A, rng.random((6, 20))) > 0.05
+
+
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
+def test_recovery_of_identifiable_dictionary(rng):
+    W, H, X = _separable(rng)
+    model = NMF(4, beta_loss=1, init="random", random_state=0, max_iter=2000, tol=1e-7).fit(X)
+    assert dictionary_distance(model.components_, H) < 1e-3
+
+
+# --------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "X, match",
+    [
+        (np.array([[1.0, -1.0], [0.5, 2.0]]), "Negative values"),
+        (np.array([[1.0, np.nan], [0.5, 2.0]]), "NaN"),
+        (np.array([[1.0, np.inf], [0.5, 2.0]]), "NaN or infinite"),
+        (np.zeros((0, 3)), "0 sample"),
+        (np.ones(3), "2-D"),
+    ],
+)
+def test_bad_data(X, match):
+    with pytest.raises(DataError, match=match):
+        NMF(1).fit(X)
+
+
+@pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
+def test_bad_parameters(rng):
+    X = _positive(rng, 6, 5)
+    with pytest.raises(ParameterError, match="n_components"):
+        NMF(0).fit(X)
+    with pytest.raises(ParameterError, match="solver"):
+        NMF(2, solver="als").fit(X)
+    with pytest.raises(ParameterError, match="beta_loss"):
+        NMF(2, beta_loss="hellinger").fit(X)
+    with pytest.raises(ParameterError, match="init"):
+        NMF(2, init="svd").fit(X)
+    with pytest.raises(ParameterError, match="sparseness_H"):
+        NMF(2, sparseness_H=1.5).fit(X)
+    X0 = X.copy()
+    X0[0, 0] = 0
+    with pytest.raises(DataError, match="beta_loss=0 is undefined"):
+        NMF(2, beta_loss=0).fit(X0)
+    mask = np.ones_like(X0, bool)
+    mask[0, 0] = False
+    NMF(2, beta_loss=0, init="random", random_state=0, max_iter=5).fit(X0, mask=mask)  # masked zero is fine
+    with pytest.raises(DataError, match="shape of X"):
+        NMF(2).fit(X, mask=np.ones((2, 2), bool))
+    with pytest.raises(DataError, match="observes no cell"):
+        NMF(2).fit(X, mask=np.zeros_like(X, bool))
+    with pytest.raises(DataError, match="W must have shape"):
+        NMF(2, init="custom").fit(X, W=np.ones((3, 2)), H=np.ones((2, 5)))
+    for err in (DataError, ParameterError):
+        assert issubclass(err, ValueError)
+
+
+# --------------------------------------------------------------------------- scikit-learn contract
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "estimator",
+    [NMF(2, max_iter=1000, tol=1e-6), NMF(2, beta_loss=1, max_iter=1000, tol=1e-6),
+     NMF(2, solver="pg", beta_loss=1, max_iter=500, tol=1e-6)],
+    ids=["mu-frobenius", "mu-kl", "pg-kl"],
+)
+def test_sklearn_estimator_checks(estimator):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = check_estimator(estimator, on_fail=None)
+    failed = [(r["check_name"], str(r["exception"])[:200]) for r in results if r["status"] == "failed"]
+    assert failed == []
+    assert sum(r["status"] == "passed" for r in results) > 40
+
+
+def test_stopping_rule_waits_for_a_finite_objective():
+    """KL against a dictionary column of denormal size overflows the first objective to inf.
+
+    The rule used to divide by that infinite reference (stopping at the second finite check,
+    wherever the fit was) and warn about inf - inf; it now takes the first finite error as the
+    reference, so the fit runs to the tolerance.
+    """
+    import warnings
+
+    rng = np.random.default_rng(0)
+    X = rng.random((30, 12)) + 0.1
+    W0, H0 = rng.random((30, 3)) + 0.1, rng.random((3, 12)) + 0.1
+    H0[:, 0] = 1e-320
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning from inf - inf
+        res = beta_nmf(X, 3, beta_loss=1, W=W0, H=H0, init="custom", max_iter=500, tol=1e-4)
+    assert res.loss_history[0] == np.inf and np.isfinite(res.loss_history[1:]).all()
+    assert res.converged and res.n_iter > 30
+    errs = np.sqrt(2 * res.loss_history[1:])
+    # it stopped where scikit-learn's rule says, measured from the first finite error
+    assert (errs[-2] - errs[-1]) / errs[0] < 1e-4 <= (errs[-3] - errs[-2]) / errs[0]
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+def test_rescale_features_scales_the_dictionary_and_the_pooled_statistics(rng, beta):
+    """A known answer: columns times c, A times c ** (1/gamma + beta - 1), B times c ** (beta - 1) (I-divergence: B
+    untouched, still one broadcast row); other columns and a factor of 1 change nothing."""
+    from mmconcepts.nmf import mm_exponent
+
+    X = rng.random((30, 8)) + 0.1
+    model = NMF(3, beta_loss=beta, max_iter=5, random_state=0)
+    model.partial_fit(X[:15]).partial_fit(X[15:])
+    H0 = model.components_.copy()
+    A0, B0 = (np.array(s, copy=True) for s in model._stats)
+    cols, c = slice(2, 5), 3.0
+    assert model.rescale_features(cols, 1.0) is model and np.array_equal(model.components_, H0)
+    model.rescale_features(cols, c)
+    gamma = mm_exponent(beta)
+    expected_H = H0.astype(np.float64)
+    expected_H[:, cols] *= c
+    np.testing.assert_array_equal(model.components_, expected_H)
+    A, B = model._stats
+    np.testing.assert_allclose(A[cols], A0[cols] * c ** (1 / gamma + beta - 1), rtol=1e-12)
+    np.testing.assert_array_equal(np.delete(A, np.s_[2:5], axis=0), np.delete(A0, np.s_[2:5], axis=0))
+    np.testing.assert_allclose(B[cols], B0[cols] * c ** (beta - 1), rtol=1e-12)
+    if beta == 1.0:
+        assert B.strides[0] == 0  # still one row broadcast over the features
+    model.rescale_features(cols, 1 / c)  # and back
+    np.testing.assert_allclose(model.components_, H0, rtol=1e-12)
+
+
+def test_rescale_features_refuses_a_bad_factor_or_an_unfitted_model(rng):
+    from sklearn.exceptions import NotFittedError
+
+    with pytest.raises(NotFittedError):
+        NMF(2).rescale_features(slice(None), 2.0)
+    model = NMF(2, max_iter=3, random_state=0).fit(rng.random((10, 4)))
+    for bad in (0.0, -1.0, np.inf, np.nan):
+        with pytest.raises(ParameterError, match="positive finite"):
+            model.rescale_features(slice(None), bad)

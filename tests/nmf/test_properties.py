@@ -1,0 +1,101 @@
+"""Property tests (hypothesis) of the NMF core's invariants (issue 13, section 3).
+
+Hoyer's projection (thesis eq. 2.20; Hoyer 2004, Fig. 1) gives a nonnegative vector with
+the target L1 and L2 norms, hence the target sparseness, and is idempotent; the
+multiplicative updates with the MM exponent never increase the beta-divergence
+(Fevotte & Idier 2011), for any beta, with or without a mask.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from mmconcepts.nmf import beta_nmf, hoyer_sparseness, project_hoyer
+from mmconcepts.nmf.sparseness import l1_for_sparseness
+
+pytestmark = pytest.mark.property
+
+_SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+# entries 0 or of magnitude 1e-6 to 50: squares of ~1e-160 underflow, and the L2 norm with them
+_entries = st.one_of(st.just(0.0), st.floats(1e-6, 50.0), st.floats(-50.0, -1e-6))
+vectors = st.integers(2, 40).flatmap(lambda n: arrays(np.float64, n, elements=_entries))
+
+
+@_SETTINGS
+@given(x=vectors, sparseness=st.floats(0.01, 0.95), l2=st.floats(0.1, 10.0))
+def test_hoyer_projection_has_the_target_norms_and_sparseness(x, sparseness, l2):
+    n = x.size
+    l1 = l1_for_sparseness(sparseness, n, l2)
+    p = project_hoyer(x, l1, l2)
+    assert p.shape == (n,)
+    assert (p >= 0).all()
+    np.testing.assert_allclose(p.sum(), l1, rtol=1e-8)
+    np.testing.assert_allclose(np.linalg.norm(p), l2, rtol=1e-8)
+    np.testing.assert_allclose(hoyer_sparseness(p), sparseness, atol=1e-7)
+
+
+@_SETTINGS
+@given(x=vectors, sparseness=st.floats(0.01, 0.95), l2=st.floats(0.1, 10.0))
+def test_hoyer_projection_is_idempotent(x, sparseness, l2):
+    l1 = l1_for_sparseness(sparseness, x.size, l2)
+    p = project_hoyer(x, l1, l2)
+    np.testing.assert_allclose(project_hoyer(p, l1, l2), p, atol=1e-8 * l2)
+
+
+@_SETTINGS
+@given(x=vectors, l2=st.floats(0.1, 10.0))
+def test_hoyer_projection_at_sparseness_zero_is_the_constant_vector(x, l2):
+    """Sparseness 0: the only feasible vector is constant (returned directly: the general
+    step would reach it through the root of a quadratic whose constant term is a rounding
+    error, with sqrt(eps) accuracy)."""
+    p = project_hoyer(x, l1_for_sparseness(0.0, x.size, l2), l2)
+    np.testing.assert_allclose(p, l2 / np.sqrt(x.size), rtol=1e-12)
+
+
+@_SETTINGS
+@given(x=vectors, scale=st.floats(0.01, 100.0), seed=st.integers(0, 2**32 - 1))
+def test_hoyer_sparseness_ignores_scale_and_order(x, scale, seed):
+    if not np.any(x):
+        x = x + 1.0
+    s = hoyer_sparseness(x)
+    assert -1e-12 <= s <= 1 + 1e-12
+    perm = np.random.default_rng(seed).permutation(x.size)
+    np.testing.assert_allclose(hoyer_sparseness(scale * x[perm]), s, atol=1e-12)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    # beta within ~1e-6 of 0 or 1 is left out: the divergence's closed form divides by
+    # beta (beta - 1) and loses every digit there (the updates are fine, the loss values are not)
+    beta=st.one_of(st.sampled_from([0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0]), st.floats(0.01, 0.99), st.floats(1.01, 3.0)),
+    n=st.integers(3, 12),
+    m=st.integers(3, 12),
+    k=st.integers(1, 4),
+    masked=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_multiplicative_updates_never_increase_the_beta_divergence(beta, n, m, k, masked, seed):
+    rng = np.random.default_rng(seed)
+    X = rng.gamma(1.0, 1.0, (n, m)) + 0.01  # positive: beta <= 1 is defined everywhere
+    mask = rng.random((n, m)) < 0.7 if masked else None
+    res = beta_nmf(X, k, beta_loss=beta, init="random", random_state=int(rng.integers(2**31)), max_iter=30,
+                   tol=0, loss_every=1, mask=mask)
+    h = np.asarray(res.loss_history)
+    assert np.isfinite(h).all()
+    assert np.diff(h).max() <= 1e-9 * h[0]
+
+
+@pytest.mark.parametrize("value, l2", [(-46.16003937, 0.1), (-50.0, 0.1015625), (3.0, 1.0), (1e-300, 1.0)])
+def test_hoyer_projection_of_a_constant_vector(value, l2):
+    """Found by hypothesis in CI: a constant vector was projected to the constant (sparseness 0, not the
+    target) or to nothing (ZeroDivisionError), depending on the rounding noise of x - mean(x)."""
+    x = np.full(21, value)
+    l1 = l1_for_sparseness(0.5, 21, l2)
+    p = project_hoyer(x, l1, l2)
+    assert (p >= 0).all() and np.isclose(p.sum(), l1) and np.isclose(np.linalg.norm(p), l2)
+    np.testing.assert_allclose(project_hoyer(p, l1, l2), p, atol=1e-8 * l2)

@@ -1,0 +1,1 @@
+"""Tests of the package as a whole: its layout, its top-level modules, its files."""

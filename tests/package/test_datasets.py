@@ -1,0 +1,413 @@
+"""Data root, named data sets and `data fetch` (mmconcepts.datasets; issue 11 section 1)."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import http.server
+import io
+import logging
+import tarfile
+import threading
+import wave
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import DATA_ROOT
+from mmconcepts import datasets as ds
+from mmconcepts.errors import DataError, ParameterError
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _wav_bytes(n: int = 800, rate: int = 8000, seed: int = 0) -> bytes:
+    buf = io.BytesIO()
+    with wave.open(buf, "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(rate)
+        x = np.random.default_rng(seed).integers(-3000, 3000, n).astype("<i2")
+        w.writeframes(x.tobytes())
+    return buf.getvalue()
+
+
+def _tar_gz(members: dict[str, bytes]) -> bytes:
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w:gz") as tf:
+        for name, data in members.items():
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            tf.addfile(info, io.BytesIO(data))
+    return buf.getvalue()
+
+
+#: A miniature of the FSDD tag archive: free-spoken-digit-dataset-<tag>/recordings/*.wav.
+FSDD_FILES = ["0_jackson_0.wav", "0_theo_1.wav", "7_nicolas_12.wav", "9_george_3.wav", "3_yweweler_49.wav"]
+
+
+def _fsdd_archive() -> bytes:
+    top = "free-spoken-digit-dataset-1.0.9"
+    members = {f"{top}/recordings/{f}": _wav_bytes(seed=i) for i, f in enumerate(FSDD_FILES)}
+    members[f"{top}/README.md"] = b"# Free Spoken Digit Dataset (test miniature)\n"
+    members[f"{top}/metadata.py"] = b"metadata = {}\n"
+    return _tar_gz(members)
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+class _Quiet(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):  # keep test output clean
+        pass
+
+
+@pytest.fixture
+def server(tmp_path, monkeypatch):
+    """A loopback HTTP server (127.0.0.1, free port) serving the folder it returns, and its base URL."""
+    for var in ("HTTP_PROXY", "HTTPS_PROXY", "http_proxy", "https_proxy", "ALL_PROXY", "all_proxy"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("NO_PROXY", "127.0.0.1,localhost")
+    served = tmp_path / "served"
+    served.mkdir()
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Quiet, directory=str(served)))
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield served, f"http://127.0.0.1:{httpd.server_address[1]}"
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+        thread.join(5)
+
+
+@pytest.fixture
+def no_env_root(monkeypatch):
+    monkeypatch.delenv(ds.DATA_ROOT_ENV, raising=False)
+
+
+# --------------------------------------------------------------------------- registry
+
+
+def test_registry_names_and_fields():
+    assert list(ds.DATASETS) == ["fsdd", "msr-action3d", "eth80", "coil20", "choreo1", "choreo2", "acorns",
+                                 "audio", "motion", "images"]
+    assert ds.DATASETS["eth80"].folders == ("eth80", "eth80-96px")
+    for info in ds.DATASETS.values():
+        assert info.modality in ("speech", "motion", "images")
+        assert info.title and info.layout and info.source and info.licence and info.obtain
+        assert info.real == (info.name not in ("audio", "motion", "images"))
+        assert (info.url is None) or (info.sha256 is not None and len(info.sha256) == 64)
+        assert info.citation or not info.real
+    # Only FSDD has a stable public download with a published hash.
+    assert [n for n, i in ds.DATASETS.items() if i.url] == ["fsdd"]
+    with pytest.raises(ParameterError, match="msr"):
+        ds.find_dataset("msr")
+
+
+def test_every_loader_resolves():
+    import importlib
+
+    for info in ds.DATASETS.values():
+        module, _, funcs = info.loader.partition(":")
+        mod = importlib.import_module(module)
+        assert any(callable(getattr(mod, f, None)) for f in funcs.split("|")), info.loader
+
+
+def test_load_reads_a_found_set(tmp_path, no_env_root):
+    _make_msr(tmp_path / "msr-action3d", 2)
+    rec = ds.DATASETS["msr-action3d"].load(ds.find_dataset("msr-action3d", tmp_path))
+    assert len(rec) == 2
+
+
+# --------------------------------------------------------------------------- data root
+
+
+def test_data_root_explicit_wins_over_env(tmp_path, monkeypatch):
+    monkeypatch.setenv(ds.DATA_ROOT_ENV, str(tmp_path / "env"))
+    assert ds.data_root(tmp_path / "explicit") == tmp_path / "explicit"
+    assert ds.data_root(str(tmp_path / "explicit")) == tmp_path / "explicit"
+    assert ds.data_root() == tmp_path / "env"
+
+
+def test_data_root_none_without_env_never_shared(no_env_root, monkeypatch):
+    # Even run from the checkout, whose sibling ../shared/data may exist, nothing is guessed.
+    monkeypatch.chdir(Path(__file__).resolve().parents[2])
+    assert ds.data_root() is None
+    assert ds.find_datasets() == {}
+    assert ds.find_dataset("fsdd") is None
+    assert all(row["found"] is None and row["problem"] is None for row in ds.dataset_status())
+
+
+def test_data_root_expands_user_and_is_absolute(tmp_path, no_env_root, monkeypatch):
+    assert ds.data_root("~/x") == Path.home() / "x"
+    monkeypatch.chdir(tmp_path)
+    assert ds.data_root("rel") == tmp_path / "rel"
+    monkeypatch.setenv(ds.DATA_ROOT_ENV, "rel-env")
+    assert ds.data_root() == tmp_path / "rel-env"
+
+
+# --------------------------------------------------------------------------- finding sets
+
+
+def _make_msr(folder: Path, n: int = 2) -> None:
+    folder.mkdir(parents=True)
+    for i in range(n):
+        (folder / f"a01_s0{i + 1}_e01_skeleton3D.txt").write_text("0 1 2 1\n" * 20)
+
+
+def _make_eth80(folder: Path, names=("cow1-000-000.png", "cow1-022-090.png", "apple2-045-180.png")) -> None:
+    import imageio.v3 as iio
+
+    folder.mkdir(parents=True)
+    for name in names:
+        iio.imwrite(folder / name, np.zeros((4, 4, 3), np.uint8))
+
+
+def test_find_dataset_present_absent(tmp_path, no_env_root):
+    _make_msr(tmp_path / "msr-action3d", 3)
+    assert ds.find_dataset("msr-action3d", tmp_path) == tmp_path / "msr-action3d"
+    assert ds.DATASETS["msr-action3d"].count(tmp_path / "msr-action3d") == 3
+    assert ds.find_dataset("fsdd", tmp_path) is None
+    assert ds.find_dataset("fsdd", tmp_path / "no-such-root") is None
+    assert ds.find_datasets(tmp_path) == {"msr-action3d": tmp_path / "msr-action3d"}
+    assert ds.find_datasets(tmp_path, names=["fsdd"]) == {}
+
+
+def test_find_dataset_uses_env_root(tmp_path, monkeypatch):
+    _make_msr(tmp_path / "msr-action3d")
+    monkeypatch.setenv(ds.DATA_ROOT_ENV, str(tmp_path))
+    assert ds.find_dataset("msr-action3d") == tmp_path / "msr-action3d"
+
+
+def test_wrong_layout_is_ignored_with_a_warning(tmp_path, no_env_root, caplog):
+    bad = tmp_path / "fsdd"
+    bad.mkdir()
+    (bad / "notes.txt").write_text("not a data set")
+    with caplog.at_level(logging.WARNING, logger="mmconcepts.datasets"):
+        assert ds.find_dataset("fsdd", tmp_path) is None
+    assert str(bad) in caplog.text and "labels.csv" in caplog.text
+    # labels.csv present but no FSDD-named WAV: still wrong.
+    (bad / "labels.csv").write_text("file,speaker,labels,transcription\n")
+    assert ds.DATASETS["fsdd"].check(bad) == "no {digit}_{speaker}_{index}.wav file"
+    assert not ds.DATASETS["fsdd"].is_valid(bad)
+
+
+def test_first_sound_folder_wins_and_bad_one_is_named(tmp_path, no_env_root, caplog):
+    (tmp_path / "eth80").mkdir()  # present but empty: wrong layout
+    _make_eth80(tmp_path / "eth80-96px")
+    with caplog.at_level(logging.WARNING, logger="mmconcepts.datasets"):
+        assert ds.find_dataset("eth80", tmp_path) == tmp_path / "eth80-96px"
+    assert str(tmp_path / "eth80") + ":" in caplog.text
+    assert ds.DATASETS["eth80"].count(tmp_path / "eth80-96px") == 3
+    _make_eth80(tmp_path / "eth80" / "cow" / "cow1", names=("cow1-000-000.png",))
+    assert ds.find_dataset("eth80", tmp_path) == tmp_path / "eth80"  # first in folders order
+
+
+def test_checks_and_counts_of_every_layout(tmp_path):
+    import json
+
+    import scipy.io
+
+    coil = tmp_path / "coil20"
+    coil.mkdir()
+    scipy.io.savemat(coil / "COIL20.mat", {"fea": np.zeros((6, 1024)), "gnd": np.arange(6)[:, None] + 1})
+    assert ds.DATASETS["coil20"].check(coil) is None and ds.DATASETS["coil20"].count(coil) == 6
+    (coil / "COIL20.mat").write_bytes(b"garbage")
+    assert "not a readable MATLAB file" in ds.DATASETS["coil20"].check(coil)
+
+    c1 = tmp_path / "choreo1"
+    c1.mkdir()
+    (c1 / "primitive.json").write_text(json.dumps({"records": [{"data-id": i, "labels": [1]} for i in range(4)]}))
+    (c1 / "mixed_full.json").write_text(json.dumps({"records": [{"data-id": 0, "labels": [1, 2]}]}))
+    assert ds.DATASETS["choreo1"].check(c1) is None and ds.DATASETS["choreo1"].count(c1) == 5
+    c2 = tmp_path / "choreo2"
+    c2.mkdir()
+    assert ds.DATASETS["choreo2"].check(c2) == "no choreo2.json"
+    (c2 / "choreo2.json").write_text(json.dumps({"records": [{"data_id": 0, "labels": [3]}] * 7}))
+    assert ds.DATASETS["choreo2"].count(c2) == 7
+
+    ac = tmp_path / "acorns"
+    (ac / "xml" / "Speaker-01").mkdir(parents=True)
+    assert "WAV/" in ds.DATASETS["acorns"].check(ac)
+    (ac / "WAV" / "Speaker-01").mkdir(parents=True)
+    (ac / "WAV" / "Speaker-01" / "u1.wav").write_bytes(_wav_bytes())
+    assert ds.DATASETS["acorns"].check(ac) is None and ds.DATASETS["acorns"].count(ac) == 1
+
+    au = tmp_path / "audio"
+    au.mkdir()
+    (au / "labels.csv").write_text("file,label\nx.wav,a\n")
+    assert "lacks column(s) ['speaker', 'labels']" in ds.DATASETS["audio"].check(au)
+    (au / "labels.csv").write_text("file,speaker,labels,transcription\nx.wav,s,a,\ny.wav,s,b,\n")
+    assert ds.DATASETS["audio"].check(au) is None and ds.DATASETS["audio"].count(au) == 2
+    im = tmp_path / "images"
+    im.mkdir()
+    (im / "labels.csv").write_text("file,label,view\na.png,cup,0\n")
+    assert ds.DATASETS["images"].check(im) is None and ds.DATASETS["images"].count(im) == 1
+    assert ds.DATASETS["images"].check(tmp_path / "nothing").endswith("is not a folder")
+
+
+def test_dataset_status(tmp_path, no_env_root):
+    _make_msr(tmp_path / "msr-action3d", 2)
+    (tmp_path / "coil20").mkdir()
+    (tmp_path / "coil20" / "COIL20.mat").write_bytes(b"not a mat file")
+    rows = {r["name"]: r for r in ds.dataset_status(tmp_path)}
+    assert list(rows) == list(ds.DATASETS)
+    keys = {"name", "title", "found", "n", "problem", "obtain", "licence"}
+    assert all(keys <= set(r) for r in rows.values())
+    assert rows["msr-action3d"]["found"] == tmp_path / "msr-action3d"
+    assert rows["msr-action3d"]["n"] == 2 and rows["msr-action3d"]["problem"] is None
+    assert rows["coil20"]["found"] is None and rows["coil20"]["n"] is None
+    assert str(tmp_path / "coil20") in rows["coil20"]["problem"]
+    assert rows["fsdd"]["found"] is None and rows["fsdd"]["problem"] is None
+    assert rows["fsdd"]["obtain"].startswith("mmconcepts data fetch fsdd")
+    assert rows["fsdd"]["licence"] == "CC BY-SA 4.0"
+
+
+# --------------------------------------------------------------------------- fetch
+
+
+def _leftovers(root: Path) -> list[str]:
+    return sorted(p.name for p in root.iterdir()) if root.exists() else []
+
+
+def test_fetch_fsdd_from_loopback(server, tmp_path, no_env_root):
+    served, base = server
+    data = _fsdd_archive()
+    (served / "v1.0.9.tar.gz").write_bytes(data)
+    root = tmp_path / "root"
+    out = ds.fetch_dataset("fsdd", root, url=f"{base}/v1.0.9.tar.gz", sha256=_sha256(data), progressbar=True)
+    assert out == root / "fsdd"
+    assert _leftovers(root) == ["fsdd"]  # no staging folder or download left
+    assert ds.find_dataset("fsdd", root) == out
+    assert ds.DATASETS["fsdd"].count(out) == len(FSDD_FILES)
+    assert sorted(p.name for p in out.glob("*.wav")) == sorted(FSDD_FILES)
+    lines = (out / "labels.csv").read_text().splitlines()
+    assert lines[0] == "file,speaker,labels,transcription"
+    assert "7_nicolas_12.wav,nicolas,seven,seven" in lines and len(lines) == 1 + len(FSDD_FILES)
+    assert (out / "upstream-README.md").is_file() and "sha256" in (out / "SOURCE.txt").read_text()
+    # The generic audio loader reads the result.
+    from mmconcepts.sound.data import load_generic_audio
+
+    corpus = load_generic_audio(out)
+    assert len(corpus) == len(FSDD_FILES)
+    assert len(ds.DATASETS["fsdd"].load(out)) == len(FSDD_FILES)
+    # Present already: returned untouched, nothing downloaded (the served file is gone).
+    (served / "v1.0.9.tar.gz").unlink()
+    assert ds.fetch_dataset("fsdd", root, url=f"{base}/v1.0.9.tar.gz", sha256=_sha256(data)) == out
+
+
+def test_fetch_uses_env_root_and_creates_it(server, tmp_path, monkeypatch):
+    served, base = server
+    data = _fsdd_archive()
+    (served / "a.tar.gz").write_bytes(data)
+    monkeypatch.setenv(ds.DATA_ROOT_ENV, str(tmp_path / "new" / "root"))
+    out = ds.fetch_dataset("fsdd", url=f"{base}/a.tar.gz", sha256="sha256:" + _sha256(data).upper())
+    assert out == tmp_path / "new" / "root" / "fsdd" and ds.DATASETS["fsdd"].count(out) == 5
+
+
+def test_fetch_corrupt_download_leaves_nothing(server, tmp_path, no_env_root):
+    served, base = server
+    good = _fsdd_archive()
+    bad = bytearray(good)
+    bad[len(bad) // 2] ^= 0xFF
+    (served / "v1.0.9.tar.gz").write_bytes(bytes(bad))
+    root = tmp_path / "root"
+    with pytest.raises(DataError) as err:
+        ds.fetch_dataset("fsdd", root, url=f"{base}/v1.0.9.tar.gz", sha256=_sha256(good))
+    msg = str(err.value)
+    assert f"expected sha256 {_sha256(good)}" in msg and f"got {_sha256(bytes(bad))}" in msg
+    assert "Fix:" in msg
+    assert _leftovers(root) == []
+    assert ds.find_dataset("fsdd", root) is None
+
+
+def test_fetch_archive_without_the_layout_leaves_nothing(server, tmp_path, no_env_root):
+    served, base = server
+    data = _tar_gz({"something/else.txt": b"hello"})
+    (served / "x.tar.gz").write_bytes(data)
+    root = tmp_path / "root"
+    with pytest.raises(DataError, match="no {digit}_{speaker}_{index}.wav"):
+        ds.fetch_dataset("fsdd", root, url=f"{base}/x.tar.gz", sha256=_sha256(data))
+    assert _leftovers(root) == []
+
+
+def test_fetch_refuses_unsafe_archive(server, tmp_path, no_env_root):
+    served, base = server
+    data = _tar_gz({"../evil.wav": b"x", "top/0_a_0.wav": _wav_bytes()})
+    (served / "evil.tar.gz").write_bytes(data)
+    root = tmp_path / "root"
+    with pytest.raises(DataError, match="outside"):
+        ds.fetch_dataset("fsdd", root, url=f"{base}/evil.tar.gz", sha256=_sha256(data))
+    assert _leftovers(root) == [] and not (tmp_path / "evil.wav").exists()
+
+
+def test_fetch_other_set_with_user_url_and_hash(server, tmp_path, no_env_root):
+    import imageio.v3 as iio
+
+    served, base = server
+    members = {}
+    for name in ("cup1-000-000.png", "cup1-022-090.png"):
+        buf = io.BytesIO()
+        iio.imwrite(buf, np.zeros((4, 4, 3), np.uint8), extension=".png")
+        members[f"eth80-cropped-close128/cup/cup1/{name}"] = buf.getvalue()
+    data = _tar_gz(members)
+    (served / "eth80.tgz").write_bytes(data)
+    root = tmp_path / "root"
+    # Without a hash nothing is fetched, and the message says why and what to give.
+    with pytest.raises(DataError, match="--sha256"):
+        ds.fetch_dataset("eth80", root, url=f"{base}/eth80.tgz")
+    assert _leftovers(root) == []
+    out = ds.fetch_dataset("eth80", root, url=f"{base}/eth80.tgz", sha256=_sha256(data))
+    assert out == root / "eth80" and ds.DATASETS["eth80"].count(out) == 2
+
+
+def test_fetch_without_public_download_says_how_to_obtain(tmp_path, no_env_root):
+    for name in ("msr-action3d", "coil20", "acorns"):
+        with pytest.raises(DataError) as err:
+            ds.fetch_dataset(name, tmp_path)
+        assert ds.DATASETS[name].obtain in str(err.value)
+    assert _leftovers(tmp_path) == []
+
+
+def test_fetch_needs_a_data_root_and_refuses_to_overwrite(server, tmp_path, no_env_root):
+    with pytest.raises(DataError, match=ds.DATA_ROOT_ENV):
+        ds.fetch_dataset("fsdd")
+    (tmp_path / "fsdd").mkdir()
+    (tmp_path / "fsdd" / "mine.txt").write_text("user's file")
+    served, base = server
+    data = _fsdd_archive()
+    (served / "a.tar.gz").write_bytes(data)
+    with pytest.raises(DataError, match="move or remove it"):
+        ds.fetch_dataset("fsdd", tmp_path, url=f"{base}/a.tar.gz", sha256=_sha256(data))
+    assert (tmp_path / "fsdd" / "mine.txt").read_text() == "user's file"
+    with pytest.raises(ParameterError, match="64 hexadecimal"):
+        ds.fetch_dataset("fsdd", tmp_path / "other", url=f"{base}/a.tar.gz", sha256="abc")
+
+
+def test_fetch_http_error_is_a_data_error(server, tmp_path, no_env_root):
+    _, base = server
+    with pytest.raises(DataError, match="Cannot download"):
+        ds.fetch_dataset("fsdd", tmp_path / "root", url=f"{base}/missing.tar.gz", sha256="0" * 64)
+    assert _leftovers(tmp_path / "root") == []
+
+
+# --------------------------------------------------------------------------- real data
+
+
+EXPECTED_COUNTS = {"fsdd": 1500, "msr-action3d": 567, "eth80": 1640, "coil20": 1440}
+
+
+def test_real_data_root_sets_and_counts():
+    if DATA_ROOT is None:
+        pytest.skip("no data root (set MMCONCEPTS_DATA_ROOT or put ../shared/data beside the checkout)")
+    found = ds.find_datasets(DATA_ROOT, names=list(EXPECTED_COUNTS))
+    missing = sorted(set(EXPECTED_COUNTS) - set(found))
+    if missing:
+        pytest.skip(f"real data set(s) {missing} absent from the data root {DATA_ROOT}")
+    counts = {n: ds.DATASETS[n].count(p) for n, p in found.items()}
+    assert counts == EXPECTED_COUNTS
+    rows = {r["name"]: r for r in ds.dataset_status(DATA_ROOT)}
+    assert {n: rows[n]["n"] for n in EXPECTED_COUNTS} == EXPECTED_COUNTS
