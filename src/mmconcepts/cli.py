@@ -227,10 +227,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "report", parents=[common], help="write the HTML/Markdown report of a results folder",
-        description="Read the JSON result records of DIR and write DIR/report.html and DIR/report.md.",
+        description="Read the JSON result records of DIR and write DIR/report.html and DIR/report.md. With "
+                    "--redraw, first draw every figure again from what its run kept beside it (no recomputing; "
+                    "records of runs that kept nothing are left as they are).",
     )
     p.add_argument("dir", metavar="DIR", type=_folder, nargs="?", default=DEFAULT_RESULTS_DIR,
                    help="results folder (default: %(default)s)")
+    p.add_argument("--redraw", action="store_true",
+                   help="draw the figures again with the installed code's present(), from the kept figure data")
+    p.add_argument("--only", metavar="ID", nargs="+", default=None, help="with --redraw: only these experiments")
     p.set_defaults(func=_cmd_report)
 
     p = sub.add_parser(
@@ -579,6 +584,15 @@ def _write_report(folder: Path) -> tuple[Path, Path]:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    if args.only and not args.redraw:
+        raise _UsageError("--only selects the experiments to redraw: give --redraw too.")
+    if args.redraw:
+        from .engine import load_experiments, redraw_figures
+
+        load_experiments()
+        drawn = redraw_figures(args.dir, ids=args.only)
+        n = sum(len(v) for v in drawn.values())
+        print(f"redrew {n} figure(s) of {len(drawn)} record(s)")
     html_path, md_path = _write_report(args.dir)
     print(f"report: {html_path}")
     print(f"        {md_path}")

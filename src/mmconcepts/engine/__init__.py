@@ -13,7 +13,7 @@ importable from here:
   :class:`SampleUnit` (what the repetitions behind a metric are), :func:`describe_split`
   (no source recording on both sides of a split), :class:`ExperimentSkipped`;
 - run: :func:`run_experiment`, :func:`reproduce`, :func:`load_record`,
-  :func:`compare_records`.
+  :func:`compare_records`, :func:`redraw_figures` (figures drawn again from what a run kept).
 
 The modules, from the bottom up: ``rule_syntax``/``rules`` (the claim language),
 ``uncertainty`` (units and intervals), ``evidence`` (the tests behind a verdict),
@@ -21,7 +21,8 @@ The modules, from the bottom up: ``rule_syntax``/``rules`` (the claim language),
 ``streams``, ``experiment``, ``config``, ``splits`` (what an experiment declares and uses),
 ``codec``/``cache`` (the no-pickle disk caches), ``workers``/``cluster`` (processes, Dask),
 ``registry``, ``record``/``outputs``/``data`` (records and their files, real data),
-``runner`` (one experiment), ``lanes``/``batch`` (many), ``compare`` (two runs' records).
+``runner`` (one experiment), ``lanes``/``batch`` (many), ``compare`` (two runs' records),
+``redraw`` (figures again, without recomputing).
 See ``docs/architecture.rst`` for the picture and the import rules.
 """
 
@@ -35,6 +36,7 @@ from .data import check_data, parse_data_args
 from .experiment import PRESETS, Experiment
 from .outputs import load_record
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord
+from .redraw import redraw_figures
 from .registry import all_experiments, get, load_experiments, register, unregister
 from .rules import FAIR_AGREEMENT, Rule, above_chance_rule, evaluate_rule, fair_bar, parse_rule
 from .runner import run_experiment
@@ -78,6 +80,7 @@ __all__ = [
     "load_record",
     "parse_data_args",
     "parse_rule",
+    "redraw_figures",
     "register",
     "reproduce",
     "run_experiment",

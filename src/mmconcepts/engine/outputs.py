@@ -75,10 +75,14 @@ from ..errors import ExperimentError
 from .record import SCHEMA_VERSION, ResultRecord
 
 
-__all__ = ["load_record", "record_path", "up_to_date", "save_figures", "close_figures", "remove_stale_figures"]
+__all__ = ["FIGURE_DATA", "load_record", "record_path", "up_to_date", "save_figures", "close_figures", "remove_stale_figures"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
+
+#: The file beside a record's figures that keeps what its experiment's ``present`` draws them from
+#: (:mod:`mmconcepts.engine.redraw`).
+FIGURE_DATA = "figure_data.npz"
 
 def load_record(path: str | os.PathLike[str]) -> ResultRecord | None:
     """Read a result record, or return None if ``path`` does not hold one.
@@ -138,12 +142,15 @@ def close_figures(figures: Mapping[str, Any]) -> None:
 
 
 def remove_stale_figures(fig_dir: Path, keep: Iterable[str]) -> None:
+    """Delete the figures of ``fig_dir`` not named in ``keep`` (and its kept figure data, unless named)."""
     if not fig_dir.is_dir():
         return
     keep = set(keep)
     for png in fig_dir.glob("*.png"):
         if png.name not in keep:
             png.unlink()
+    if FIGURE_DATA not in keep:
+        (fig_dir / FIGURE_DATA).unlink(missing_ok=True)
     try:
         fig_dir.rmdir()  # only succeeds when empty
     except OSError:

@@ -30,8 +30,17 @@ from .context import RunContext
 from .workers import workers_end_with_this_process
 from .cluster import parse_scheduler, scheduler_client
 from .data import VARIANTS, check_data, data_signature, resolve_data
-from .outputs import close_figures, load_record, record_path, remove_stale_figures, save_figures, up_to_date
+from .outputs import (
+    FIGURE_DATA,
+    close_figures,
+    load_record,
+    record_path,
+    remove_stale_figures,
+    save_figures,
+    up_to_date,
+)
 from .record import ClaimRecord, ResultRecord, to_jsonable
+from .redraw import store_figure_data
 from .registry import get
 from .uncertainty import metric_interval
 from .verdicts import decide_claim, pending_claim
@@ -222,6 +231,8 @@ def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord
         result.validate()
         _record_result(record, exp, result)
         record.figures = save_figures(result.figures, target.fig_dir)
+        if exp.present is not None and result.figures:
+            store_figure_data(result, target.fig_dir, exp.id)
     except ExperimentSkipped as exc:
         record.status, record.message = "skipped", str(exc)
         logger.warning("%s: skipped: %s", exp.id, exc)
@@ -382,6 +393,7 @@ def remove_secondary_record(output: str | os.PathLike[str], exp_id: str, *, only
 def write_record(record: ResultRecord, target: RunTarget) -> None:
     """Write ``record`` atomically (its figures are already written) and remove the figures it no longer has."""
     atomic_write(target.json_path, record.to_json().encode("utf-8"))
-    remove_stale_figures(target.fig_dir, (Path(p).name for p in record.figures.values()))
+    kept = [Path(p).name for p in record.figures.values()]
+    remove_stale_figures(target.fig_dir, [*kept, FIGURE_DATA] if record.status == "ok" and kept else kept)
     if record.status == "ok":
         logger.info("%s: done in %.1f s, wrote %s", record.experiment, record.elapsed_s, target.json_path)
