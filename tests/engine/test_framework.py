@@ -697,3 +697,25 @@ def test_every_registered_experiment_computes_and_presents_apart():
         assert exp.compute is not exp.run and exp.compute.__module__.startswith("mmconcepts.experiments."), exp.id
         assert exp.run == exp._compute_and_present, exp.id
         assert (exp.present is None) == (exp.id == "ch6-labels"), exp.id  # Table 6.4 has no figure
+
+
+def test_a_run_context_gives_real_sets_by_their_registry_name(tmp_path):
+    ctx = RunContext(data={"fsdd": str(tmp_path)}, cache_dir=tmp_path)
+    assert ctx.has_dataset("fsdd") and not ctx.has_dataset("eth80")
+    assert ctx.dataset("fsdd") == tmp_path and isinstance(ctx.dataset("fsdd"), Path)
+    with pytest.raises(ExperimentError, match="Did you mean 'fsdd'"):
+        ctx.has_dataset("fssd")  # a misspelt name fails, it does not fall back to generated data
+    with pytest.raises(ExperimentError, match="has no real data set 'eth80'"):
+        ctx.dataset("eth80")
+    with pytest.raises(ExperimentSkipped, match="needs the real data set 'eth80'"):
+        ctx.require_data("eth80")
+    assert ctx.require_data("fsdd") == tmp_path
+
+
+def test_an_experiment_asks_for_the_sets_it_declares(tmp_path):
+    """The runner's context knows the experiment's declared sets: its own names (not in the registry) are accepted
+    beside the registry's, any other name is an error."""
+    ctx = RunContext(data={}, cache_dir=tmp_path, datasets=("toyfile",))
+    assert not ctx.has_dataset("toyfile") and not ctx.has_dataset("fsdd")
+    with pytest.raises(ExperimentError, match="no data set named 'toyfil' among .*toyfile.*Did you mean 'toyfile'"):
+        ctx.has_dataset("toyfil")

@@ -3,6 +3,7 @@ the real data sets, caches, progress), and the helpers of its cached calls."""
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import logging
 import numbers
@@ -17,7 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from .._paths import data_home
-from ..errors import ParameterError
+from ..errors import ExperimentError, ParameterError
 from .spec import ExperimentSkipped
 from .workers import WarningsCarried, progress_enabled, workers_end_with_this_process
 
@@ -40,7 +41,8 @@ class RunContext:
         Processes for :meth:`parallel`; -1 means one per CPU.
     data : mapping of str to Path
         Real data sets given with ``--data NAME=PATH``, restricted to the experiment's
-        ``datasets``. Use :meth:`require_data` to get one or skip.
+        ``datasets``. Ask for one by its registry name: :meth:`has_dataset`, :meth:`dataset`, or
+        :meth:`require_data` to get it or skip.
     cache_dir : Path, optional
         Folder for generated data and caches (default :func:`mmconcepts._paths.data_home`).
     logger : logging.Logger, optional
@@ -50,6 +52,9 @@ class RunContext:
     client : distributed.Client, optional
         A Dask client: :meth:`parallel` then runs its items on that cluster's workers
         (``workers`` is not used). See :mod:`mmconcepts.engine.cluster`.
+    datasets : tuple of str, default=()
+        The names of the real data sets the experiment declares (the runner sets them):
+        :meth:`has_dataset` accepts them beside the registry's.
     """
 
     workers: int = 1
@@ -58,6 +63,7 @@ class RunContext:
     logger: logging.Logger = field(default_factory=lambda: logging.getLogger("mmconcepts.experiments"))
     show_progress: bool = True
     client: Any = None
+    datasets: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if isinstance(self.workers, bool) or not isinstance(self.workers, numbers.Integral):
@@ -207,6 +213,38 @@ class RunContext:
             out[i] = result
         return out
 
+    def has_dataset(self, name: str) -> bool:
+        """Whether this run has the real data set ``name``.
+
+        Raises
+        ------
+        ExperimentError
+            If ``name`` is neither a data set of the registry (:data:`mmconcepts.datasets.DATASETS`)
+            nor one the experiment declares (:attr:`datasets`): a misspelt name fails here instead
+            of falling back to generated data without a word.
+        """
+        from ..datasets import DATASETS
+
+        known = list(dict.fromkeys([*DATASETS, *self.datasets, *self.data]))
+        if name not in known:
+            close = difflib.get_close_matches(str(name), known, n=1)
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            raise ExperimentError(f"no data set named {name!r} among {', '.join(known)}.{hint}")
+        return name in self.data
+
+    def dataset(self, name: str) -> Path:
+        """The folder (or file) of the real data set ``name`` this run has (see :meth:`has_dataset`).
+
+        Raises
+        ------
+        ExperimentError
+            If ``name`` is no data set of the registry or of the experiment, or this run lacks it (ask
+            :meth:`has_dataset` first, or :meth:`require_data` to skip without it).
+        """
+        if not self.has_dataset(name):
+            raise ExperimentError(f"this run has no real data set {name!r}; ask ctx.has_dataset({name!r}) first.")
+        return Path(self.data[name])
+
     def require_data(self, name: str, *, hint: str = "") -> Path:
         """Return the path given for data set ``name``, or skip the experiment.
 
@@ -215,8 +253,8 @@ class RunContext:
         ExperimentSkipped
             If ``--data name=PATH`` was not given.
         """
-        if name in self.data:
-            return self.data[name]
+        if self.has_dataset(name):
+            return self.dataset(name)
         more = f" {hint}" if hint else ""
         raise ExperimentSkipped(
             f"needs the real data set {name!r}: put it under the data root (--data-root DIR or "

@@ -345,7 +345,7 @@ def run_experiment(
         remove_secondary_record(output, exp.id, only_if=target.variant == "synthetic")
     logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
     ctx = RunContext(workers=workers, data=target.data, cache_dir=data_home(), show_progress=progress,
-                     logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"))
+                     logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"), datasets=tuple(exp.datasets))
     t0 = time.perf_counter()
     # every joblib call of the run (RunContext.parallel's and the library's own n_jobs) under one
     # config: loky keeps the same worker processes from one to the next instead of starting new ones

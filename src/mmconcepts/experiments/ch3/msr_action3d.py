@@ -96,10 +96,10 @@ class Config(PresetConfig):
 
 
 def _folder(ctx: RunContext):
-    if ctx.data.get("msr-action3d") is None:
+    if not ctx.has_dataset("msr-action3d"):
         raise ExperimentSkipped("needs the real MSR Action3D skeletons (the folder of aAA_sSS_eEE_skeleton3D.txt "
                                 "files): pass --data-root DIR (holding msr-action3d/) or --data msr-action3d=DIR.")
-    return ctx.data["msr-action3d"]
+    return ctx.dataset("msr-action3d")
 
 
 def compute(config: Config, ctx: RunContext) -> Result:

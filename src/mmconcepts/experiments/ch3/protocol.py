@@ -141,7 +141,7 @@ class MotionArrays:
 def data_kind(ctx: RunContext) -> str:
     """Which data the chapter-3 experiments use: "choreo1", else "msr-action3d", else "synthetic"."""
     for name in ("choreo1", "msr-action3d"):
-        if ctx.data.get(name) is not None:
+        if ctx.has_dataset(name):
             return name
     return "synthetic"
 
@@ -187,7 +187,7 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
         raise ValueError(f"subset must be one of {_SUBSETS}; got {subset!r}")
     kind = data_kind(ctx)
     if kind == "choreo1":
-        folder = Path(ctx.data["choreo1"])
+        folder = Path(ctx.dataset("choreo1"))
         ds = load_choreo1(folder / f"{subset}.json", on_error="skip")
         if n_records is not None:
             ds = ds.subset(range(min(n_records, len(ds))))
@@ -196,11 +196,11 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
                                                    f"from {folder}")
     if kind == "msr-action3d":
         if subset == "primitive":
-            return msr_subset(ctx.data["msr-action3d"], subset, seed=seed, n_records=n_records)
+            return msr_subset(ctx.dataset("msr-action3d"), subset, seed=seed, n_records=n_records)
         if split_seed is None:
             raise ValueError("the MSR mixed sets are built per part of their source recordings: pass split_seed "
                              "(the splits stream)")
-        return msr_subset(ctx.data["msr-action3d"], subset, seed=seed, n_records=n_records, n_parts=MSR_PARTS,
+        return msr_subset(ctx.dataset("msr-action3d"), subset, seed=seed, n_records=n_records, n_parts=MSR_PARTS,
                           split_seed=split_seed)
     from ...motion.synthetic import make_choreo1
 
@@ -413,9 +413,9 @@ def data_source_note(ctx: RunContext, arrays: MotionArrays | list[MotionArrays] 
     items = [] if arrays is None else ([arrays] if isinstance(arrays, MotionArrays) else list(arrays))
     sizes = "; ".join(a.description for a in items)
     if kind == "choreo1":
-        head = f"Data: real Choreo1 recordings from {ctx.data['choreo1']}."
+        head = f"Data: real Choreo1 recordings from {ctx.dataset('choreo1')}."
     elif kind == "msr-action3d":
-        head = (f"Data: real Kinect skeletons of MSR Action3D (Li, Zhang and Liu 2010) from {ctx.data['msr-action3d']}, "
+        head = (f"Data: real Kinect skeletons of MSR Action3D (Li, Zhang and Liu 2010) from {ctx.dataset('msr-action3d')}, "
                 "standing in for Choreo1: mixed 'choreographies' combine the limbs of different real recordings of one "
                 "subject (mmconcepts.experiments.ch3.protocol.msr_subset); the 16- and 47-gesture sets of the thesis are "
                 "its small (18 labels, 2 per example) and large (33 labels, 3 per example) mixed sets. A recording "

@@ -207,18 +207,18 @@ def load_images(ctx: RunContext, n_objects: int, n_views: int):
 
     from ...vision import ImageSet, load_eth80, load_image_folder
 
-    if "images" in ctx.data:
-        return load_image_folder(ctx.data["images"], on_error="skip")
-    if "eth80" in ctx.data:
+    if ctx.has_dataset("images"):
+        return load_image_folder(ctx.dataset("images"), on_error="skip")
+    if ctx.has_dataset("eth80"):
         # choose the objects from the file names, then read only their images
         pat = re.compile(r"^([a-z]+)(\d+)-\d{3}-\d{3}\.png$", re.IGNORECASE)
         found = {(m.group(1).lower() + str(int(m.group(2))), m.group(1).lower())
-                 for p in Path(ctx.data["eth80"]).rglob("*.png") if (m := pat.match(p.name))}
+                 for p in Path(ctx.dataset("eth80")).rglob("*.png") if (m := pat.match(p.name))}
         if not found:
-            raise DataError(f"no ETH-80 image (<category><instance>-<tilt>-<pan>.png) in {ctx.data['eth80']}.")
+            raise DataError(f"no ETH-80 image (<category><instance>-<tilt>-<pan>.png) in {ctx.dataset('eth80')}.")
         labs, cats = zip(*sorted(found))
         objs = eth80_objects(labs, cats, n_objects)
-        ims = load_eth80(ctx.data["eth80"], categories=sorted({c for o, c in found if o in objs}),
+        ims = load_eth80(ctx.dataset("eth80"), categories=sorted({c for o, c in found if o in objs}),
                          instances=sorted({int(o.lstrip("abcdefghijklmnopqrstuvwxyz")) for o in objs}), on_error="skip")
         return ims.subset(np.isin(ims.labels, objs))
     memo = ctx.memory("ch6-objects").cache(_cached_objects)
@@ -246,11 +246,11 @@ def _cached_objects(n_objects: int, n_views: int, code: str) -> tuple[np.ndarray
 
 def image_note(ctx: RunContext, ims=None) -> str:
     size = f" ({len(ims)} views of {len(set(ims.labels))} objects)" if ims is not None else ""
-    if "images" in ctx.data:
-        return f"Images: real photos in the generic layout from {ctx.data['images']}{size}."
-    if "eth80" in ctx.data:
+    if ctx.has_dataset("images"):
+        return f"Images: real photos in the generic layout from {ctx.dataset('images')}{size}."
+    if ctx.has_dataset("eth80"):
         objs = ", ".join(sorted(set(ims.labels))) if ims is not None else "ten objects"
-        return (f"Images: real ETH-80 photos ({ctx.data['eth80']}){size}: {objs} (round robin over the eight "
+        return (f"Images: real ETH-80 photos ({ctx.dataset('eth80')}){size}: {objs} (round robin over the eight "
                 "categories).")
     return f"Images: synthetic object photos (mmconcepts.vision.make_objects){size}."
 

@@ -177,7 +177,7 @@ def build_data(ctx: RunContext, config: Config, st: Streams | None = None) -> di
     speech = _speech(ctx, config)
     keywords, y_rec = speech["keywords"], speech["y"]
     L = len(keywords)
-    real_motion = "msr-action3d" in ctx.data
+    real_motion = ctx.has_dataset("msr-action3d")
     vocab = common.MSR_VOCABULARY if real_motion else common.SYNTHETIC_VOCABULARY
     perm = common.concept_bijection(L, len(vocab.gestures), rng)
     gestures = [int(vocab.gestures[perm[c]]) for c in range(L)]
@@ -202,7 +202,7 @@ def build_data(ctx: RunContext, config: Config, st: Streams | None = None) -> di
     fold = common.example_folds(combos, single, F, frng)
     possible = [c for m in counts if m > 1 for c in common.possible_combinations(slots, m)]
     held_out = common.held_out_combinations(possible, F, frng)
-    motion = _msr_sources(ctx.data["msr-action3d"]) if real_motion else None
+    motion = _msr_sources(ctx.dataset("msr-action3d")) if real_motion else None
     if motion is not None:
         mot_fold = concept_parts(np.searchsorted(np.unique(motion["action"]), motion["action"]), F, frng)
     # compose: each example from its own fold's recordings

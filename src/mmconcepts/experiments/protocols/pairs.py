@@ -67,7 +67,7 @@ KEYWORDS_NOTE = fill_thesis_numbers(
 # ---------------------------------------------------------------------------- random streams
 # ---------------------------------------------------------------------------- data
 def _speech_name(ctx: RunContext) -> str | None:
-    return next((n for n in SPEECH_SETS if n in ctx.data), None)
+    return next((n for n in SPEECH_SETS if ctx.has_dataset(n)), None)
 
 
 def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
@@ -92,12 +92,12 @@ def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
 
 def load_motion(ctx: RunContext, *, n_motion: int) -> dict:
     """Motion records (one gesture each): angle trajectories, gesture ids, record ids."""
-    if "choreo2" in ctx.data:
-        path = Path(ctx.data["choreo2"])
+    if ctx.has_dataset("choreo2"):
+        path = Path(ctx.dataset("choreo2"))
         ds = load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip")
         fn: Callable[[MotionRecording], np.ndarray] = orientation_angles
-    elif "msr-action3d" in ctx.data:
-        ds, fn = load_msr_action3d(ctx.data["msr-action3d"], actions=MSR_ACTIONS, on_error="skip"), joint_angles
+    elif ctx.has_dataset("msr-action3d"):
+        ds, fn = load_msr_action3d(ctx.dataset("msr-action3d"), actions=MSR_ACTIONS, on_error="skip"), joint_angles
     else:
         from ...motion.synthetic import make_choreo2
 
@@ -120,10 +120,10 @@ def speech_note(ctx: RunContext, speech: dict | None = None) -> str:
         size = (f" ({len(speech['y'])} of speaker {speech['speaker']}'s {speech['n_available']} utterances, "
                 f"{len(speech['keywords'])} words)")
     if name == "fsdd":
-        return (f"Sound: real spoken digits of the Free Spoken Digit Dataset (FSDD, {ctx.data['fsdd']}){size}, one "
+        return (f"Sound: real spoken digits of the Free Spoken Digit Dataset (FSDD, {ctx.dataset('fsdd')}){size}, one "
                 "word said alone per recording, 8 kHz resampled to 16 kHz.")
     if name is not None:
-        return f"Sound: real recordings ({name}, {ctx.data[name]}){size}."
+        return f"Sound: real recordings ({name}, {ctx.dataset(name)}){size}."
     return f"Sound: the synthetic Caregiver-like corpus (offline text-to-speech, keyword sentences){size}."
 
 
@@ -131,10 +131,10 @@ def motion_note(ctx: RunContext, motion: dict | None = None) -> str:
     size = ""
     if motion is not None:
         size = f" ({len(motion['angles'])} records of {len(set(motion['gesture'].tolist()))} gestures)"
-    if "choreo2" in ctx.data:
-        return f"Motion: real Choreo2 records from {ctx.data['choreo2']}{size}."
-    if "msr-action3d" in ctx.data:
-        return (f"Motion: real Kinect skeletons of MSR Action3D ({ctx.data['msr-action3d']}), actions "
+    if ctx.has_dataset("choreo2"):
+        return f"Motion: real Choreo2 records from {ctx.dataset('choreo2')}{size}."
+    if ctx.has_dataset("msr-action3d"):
+        return (f"Motion: real Kinect skeletons of MSR Action3D ({ctx.dataset('msr-action3d')}), actions "
                 f"{MSR_ACTIONS}{size}, 16 joint angles of the limb model.")
     return f"Motion: the synthetic Choreo2-like set (mmconcepts.motion.synthetic.make_choreo2){size}."
 

@@ -42,7 +42,7 @@ REAL_SETS = ("acorns", "fsdd", "audio")
 
 def data_source(ctx: RunContext) -> str:
     """Name of the speech set the chapter 5 experiments use: ``acorns``, ``fsdd``, ``audio`` or ``synthetic``."""
-    return next((name for name in REAL_SETS if name in ctx.data), "synthetic")
+    return next((name for name in REAL_SETS if ctx.has_dataset(name)), "synthetic")
 
 
 def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
@@ -52,11 +52,11 @@ def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
 
     source = data_source(ctx)
     if source == "acorns":
-        return load_acorns(ctx.data["acorns"], on_error="skip")
+        return load_acorns(ctx.dataset("acorns"), on_error="skip")
     if source == "fsdd":
-        return load_fsdd(ctx.data["fsdd"], on_error="skip")
+        return load_fsdd(ctx.dataset("fsdd"), on_error="skip")
     if source == "audio":
-        return load_generic_audio(ctx.data["audio"], on_error="skip")
+        return load_generic_audio(ctx.dataset("audio"), on_error="skip")
     from ...sound.synthetic import fetch_caregiver
 
     return fetch_caregiver(
@@ -81,13 +81,13 @@ def data_source_note(ctx: RunContext, corpus=None) -> str:
     """Which speech data the experiment ran on, with its sizes when ``corpus`` (the one used) is given."""
     source, size = data_source(ctx), corpus_sizes(corpus)
     if source == "acorns":
-        return f"Data: ACORNS Caregiver recordings{size} from {ctx.data['acorns']}."
+        return f"Data: ACORNS Caregiver recordings{size} from {ctx.dataset('acorns')}."
     if source == "fsdd":
-        return (f"Data: real voices, the Free Spoken Digit Dataset{size} from {ctx.data['fsdd']} (English digit words "
+        return (f"Data: real voices, the Free Spoken Digit Dataset{size} from {ctx.dataset('fsdd')} (English digit words "
                 "said alone, 8 kHz WAV resampled to 16 kHz, so the mel bands above 4 kHz hold only the -80 dB floor of the "
                 "MFCC; Z. Jackson et al., CC BY-SA 4.0).")
     if source == "audio":
-        return f"Data: recordings in the generic audio layout{size} from {ctx.data['audio']}."
+        return f"Data: recordings in the generic audio layout{size} from {ctx.dataset('audio')}."
     return (
         f"Data: the synthetic Caregiver-like corpus{size} (mmconcepts.sound.synthetic: offline text-to-speech with "
         "piper and eSpeak NG voices, keyword sentences in the style of Table 5.1, speaker-level rate, pitch, "
