@@ -401,23 +401,15 @@ def _open_npz(path: Path):
         raise DataFormatError(f"Cannot read {path}: not a valid NPZ archive ({exc}).") from exc
 
 
-def _atomic_write_bytes(path: Path, writer) -> None:
-    with atomic_path(path) as tmp:
-        writer(str(tmp))
-
-
 def _write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    def w(tmp):
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
-    _atomic_write_bytes(path, w)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)  # type: ignore[arg-type]  # savez takes arrays as keyword arguments
 
 
 def write_json(path: Path, obj: object) -> None:
-    def w(tmp):
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(obj, f, indent=1)
-    _atomic_write_bytes(path, w)
+    """Write ``obj`` as indented JSON to ``path``, atomically (:func:`mmconcepts._io.atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        json.dump(obj, f, indent=1)
 
 
 def _load_records(
@@ -657,7 +649,8 @@ def load_choreo1_text(
 def save_choreo1_text(recording: MotionRecording, path: str | os.PathLike[str]) -> None:
     """Write one recording in the Choreo1 text layout (``%.18e``, one frame per line)."""
     flat = recording.positions.reshape(recording.n_frames, -1)
-    _atomic_write_bytes(Path(path), lambda tmp: np.savetxt(tmp, flat, fmt="%.18e"))
+    with atomic_path(Path(path)) as tmp:
+        np.savetxt(str(tmp), flat, fmt="%.18e")
 
 
 # --------------------------------------------------------------------------- Choreo2

@@ -12,11 +12,11 @@ so a corpus loader can report it or skip the file.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from .._io import atomic_path
 from .._validation import check_scalar
 from ..errors import DataError, DataFormatError, ParameterError
 
@@ -279,16 +279,6 @@ def write_audio(
             f"Samples exceed [-1, 1] (peak {peak:.3f}) and would clip in {subtype}; scale y down or use subtype='FLOAT'."
         )
     data = y if y.ndim == 1 else y.T
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix + ".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        sf.write(tmp, data, int(sr), subtype=subtype, format=fmt)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_path(path, suffix=".tmp" + path.suffix) as tmp:
+        sf.write(str(tmp), data, int(sr), subtype=subtype, format=fmt)
     return path
