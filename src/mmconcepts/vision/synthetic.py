@@ -163,7 +163,7 @@ def _outline(family: str, rng: np.random.Generator) -> np.ndarray:
         c, s = np.cos(t), np.sin(t)
         pts = np.stack([np.sign(c) * np.abs(c) ** (2 / p), b * np.sign(s) * np.abs(s) ** (2 / p)], 1)
     else:  # pragma: no cover - internal
-        raise ValueError(family)
+        raise ParameterError(f"unknown shape family {family!r}")
     return pts / np.abs(pts).max() if family != "polygon" else pts / np.linalg.norm(pts, axis=1).max()
 
 

@@ -46,6 +46,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ...nmf import beta_nmf, match_components
+from ...errors import ParameterError
 from ...engine import Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Table, register
 
 __all__ = ["Config", "compute", "present", "run", "make_data", "streams"]
@@ -97,7 +98,7 @@ def make_data(kind: str, n_samples: int, n_features: int, n_components: int, noi
         H = rng.uniform(0.2, 1.0, (k, m))
         W = rng.dirichlet(np.full(k, 5.0), n_samples)
     else:
-        raise ValueError(f"kind must be 'identifiable' or 'nonidentifiable'; got {kind!r}")
+        raise ParameterError(f"kind must be 'identifiable' or 'nonidentifiable'; got {kind!r}")
     H /= H.sum(axis=1, keepdims=True) / m  # atoms of mean 1
     W *= rng.uniform(5.0, 15.0, (n_samples, 1))
     clean = W @ H

@@ -62,7 +62,7 @@ from typing import Any, overload
 
 import numpy as np
 
-from ...errors import ConvergenceWarning
+from ...errors import ConvergenceWarning, ExperimentError, ParameterError
 from ..._fingerprint import code_fingerprint
 from ...motion import (
     ARM_COLUMNS,
@@ -184,7 +184,7 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
         MSR mixed sets carry ``sources`` and ``parts``.
     """
     if subset not in _SUBSETS:
-        raise ValueError(f"subset must be one of {_SUBSETS}; got {subset!r}")
+        raise ParameterError(f"subset must be one of {_SUBSETS}; got {subset!r}")
     kind = data_kind(ctx)
     if kind == "choreo1":
         folder = Path(ctx.dataset("choreo1"))
@@ -198,7 +198,7 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
         if subset == "primitive":
             return msr_subset(ctx.dataset("msr-action3d"), subset, seed=seed, n_records=n_records)
         if split_seed is None:
-            raise ValueError("the MSR mixed sets are built per part of their source recordings: pass split_seed "
+            raise ParameterError("the MSR mixed sets are built per part of their source recordings: pass split_seed "
                              "(the splits stream)")
         return msr_subset(ctx.dataset("msr-action3d"), subset, seed=seed, n_records=n_records, n_parts=MSR_PARTS,
                           split_seed=split_seed)
@@ -237,7 +237,7 @@ def source_parts(actions: np.ndarray, subjects: np.ndarray, n_parts: int, seed: 
     (n_recordings,) int array, the part of each recording (-1: not used by mixtures)
     """
     if n_parts < 2:
-        raise ValueError(f"n_parts must be >= 2; got {n_parts}")
+        raise ParameterError(f"n_parts must be >= 2; got {n_parts}")
     actions, subjects = np.asarray(actions), np.asarray(subjects)
     rng = np.random.default_rng(seed)
     part = np.full(len(actions), -1, dtype=np.int64)
@@ -287,12 +287,12 @@ def msr_mixture_plan(actions: np.ndarray, subjects: np.ndarray, subset: str, *, 
         The part of each mixture's recordings (None without ``n_parts``).
     """
     if subset not in ("mixed_partial", "mixed_full"):
-        raise ValueError(f"subset must be 'mixed_partial' or 'mixed_full'; got {subset!r}")
+        raise ParameterError(f"subset must be 'mixed_partial' or 'mixed_full'; got {subset!r}")
     actions, subjects = np.asarray(actions), np.asarray(subjects)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
     if n_parts is not None:
         if split_seed is None:
-            raise ValueError("n_parts needs split_seed (the splits stream)")
+            raise ParameterError("n_parts needs split_seed (the splits stream)")
         rec_part = source_parts(actions, subjects, int(n_parts), split_seed)
     else:
         rec_part = np.zeros(len(actions), dtype=np.int64)
@@ -354,7 +354,7 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None, 
     pairings come from ``seed`` (the data stream).
     """
     if subset not in _SUBSETS:
-        raise ValueError(f"subset must be one of {_SUBSETS}; got {subset!r}")
+        raise ParameterError(f"subset must be one of {_SUBSETS}; got {subset!r}")
     folder = Path(folder)
     angles, actions, subjects, skipped = msr_joint_angles(folder)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
@@ -593,7 +593,7 @@ def _learner(name: str, params: dict, seed: int, features: dict | None = None):
         dual = (features or {}).get("method") != "kde"
         return OneVsRestClassifier(make_pipeline(StandardScaler(), LinearSVC(C=1.0, tol=1e-3, max_iter=10000,
                                                                              dual=dual, random_state=seed)))
-    raise ValueError(f"unknown learner {name!r}")
+    raise ParameterError(f"unknown learner {name!r}")
 
 
 def _fold(task: dict) -> dict:
@@ -729,7 +729,7 @@ def pooled(folds: list[dict], name: str, field: str, n: int, L: int) -> np.ndarr
         out[f["test"]] = f[name][field]
         seen[f["test"]] = True
     if not seen.all():
-        raise RuntimeError("some examples were never tested; the splits do not cover the data set")
+        raise ExperimentError("some examples were never tested; the splits do not cover the data set")
     return out
 
 

@@ -46,6 +46,7 @@ from ...tasks import (
     uniform_policy,
     value_iteration,
 )
+from ...errors import ParameterError
 from ...engine import Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Table, describe_split, register
 
 __all__ = ["Config", "compute", "present", "run", "make_tasks", "score_rewards", "world_streams"]
@@ -253,7 +254,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     """The fitted points and their deviations (no figures; ``figure_data``: the first world's points' scores and its
     default point's dictionaries, test rewards and demonstrations, for :func:`present`)."""
     if config.n_worlds < 1:
-        raise ValueError(f"n_worlds must be at least 1; got {config.n_worlds!r}")
+        raise ParameterError(f"n_worlds must be at least 1; got {config.n_worlds!r}")
     N0, m0 = config.n_tasks, config.n_demos
     points = {(m0, N0): True}
     for m in config.demos_curve:

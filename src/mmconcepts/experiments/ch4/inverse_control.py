@@ -53,7 +53,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.optimize import linear_sum_assignment
 
-from ...errors import DataError
+from ...errors import DataError, ParameterError
 from ...tasks import (
     FactorialInverseControl,
     RBFFeatures,
@@ -377,14 +377,14 @@ def compute(config: Config, ctx: RunContext) -> Result:
     repetition's dictionaries and a test task's trajectories under the first setting, for :func:`present`)."""
     for dynamics in config.dynamics:
         if dynamics not in DYNAMICS:
-            raise ValueError(f"dynamics must be among {', '.join(DYNAMICS)}; got {dynamics!r}")
+            raise ParameterError(f"dynamics must be among {', '.join(DYNAMICS)}; got {dynamics!r}")
     if not config.dynamics or not config.sensor_noises or min(config.sensor_noises) < 0:
-        raise ValueError(f"give at least one dynamics and one sensor noise >= 0; got {config.dynamics!r} and "
+        raise ParameterError(f"give at least one dynamics and one sensor noise >= 0; got {config.dynamics!r} and "
                          f"{config.sensor_noises!r}")
     if config.d_solver not in ("cg", "steepest"):
-        raise ValueError(f"d_solver must be 'cg' or 'steepest'; got {config.d_solver!r}")
+        raise ParameterError(f"d_solver must be 'cg' or 'steepest'; got {config.d_solver!r}")
     if config.n_repeats < 1:
-        raise ValueError(f"n_repeats must be at least 1; got {config.n_repeats!r}")
+        raise ParameterError(f"n_repeats must be at least 1; got {config.n_repeats!r}")
     ss = streams(config)
     index = [(rep, dyn) for rep in range(config.n_repeats) for dyn in config.dynamics]
     outs = ctx.parallel(_dynamics_job, [(config, ss[rep], dyn, rep == 0 and dyn == config.dynamics[0])
