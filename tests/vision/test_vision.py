@@ -449,3 +449,21 @@ def test_features_from_cached_locals_equal_direct_features():
     assert k_loc is None and len(c_loc) == len(train)
     with pytest.raises(ParameterError, match="keypoint"):
         _small_features(descriptors=("keypoints",), random_state=0).fit_locals(c_loc, None)
+
+
+def test_stacked_image_features_take_their_place_in_a_pipeline(split):
+    """stack=True: one matrix (the sets side by side, as stack_descriptors), so a Pipeline can go on to an NMF."""
+    from sklearn.pipeline import make_pipeline
+
+    from mmconcepts.nmf import NMF
+
+    train, test = split
+    sets = _small_features(descriptors=("color", "color_pairs"), random_state=0).fit(train)
+    stacked = _small_features(descriptors=("color", "color_pairs"), random_state=0, stack=True).fit(train)
+    expected = stack_descriptors(sets.transform(test), ["color", "color_pairs"])
+    assert (stacked.transform(test) != expected).nnz == 0
+    pipe = make_pipeline(_small_features(descriptors=("color", "color_pairs"), random_state=0, stack=True),
+                         NMF(3, max_iter=20, random_state=0))
+    W = pipe.fit_transform(train)
+    assert W.shape == (len(train), 3) and np.isfinite(W).all()
+    assert pipe.transform(test).shape == (len(test), 3)

@@ -1,6 +1,24 @@
 """Tasks: MDPs, planning, gradient IRL, factorial IRL and factorial inverse feedback control.
 
 Thesis chapter 4 (sections 4.2 and 4.3) and the background of section 2.2.
+
+Learners that do not take arrays
+--------------------------------
+The learners of this package follow scikit-learn's contract (parameters in ``__init__``,
+:func:`~sklearn.base.clone`, ``get_params``/``set_params``, fitted attributes ending in
+``_``, saved and loaded without pickle), but what they learn from is not a matrix of
+examples, so they have no ``transform`` and do not go in a
+:class:`~sklearn.pipeline.Pipeline`:
+
+- :class:`GradIRL`, :class:`MaxEntIRL` and :class:`FactorialIRL` learn from an :class:`MDP`
+  and demonstrations, ``fit(mdp, demonstrations)``: one list of trajectories per task, a
+  trajectory an int array of states and actions (:func:`sample_trajectories` draws them);
+- :class:`FactorialInverseControl` learns from trajectories of a dynamical system,
+  ``fit(trajectories, coefficients=None)``: a list of arrays of shape (n_steps, 2).
+
+Their inputs are checked by :func:`mmconcepts.tasks.mdp.check_trajectories` and
+:func:`mmconcepts.tasks.irl.check_task_demonstrations`, which say what is expected when
+something else is given.
 """
 
 from .factorial import FactorialIRL, component_features, factorial_objective

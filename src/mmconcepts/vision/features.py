@@ -917,6 +917,12 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         Parallel extraction (joblib).
     random_state : int, Generator or None
         Resolved once; seeds the colour codebook, then the keypoint codebook.
+    stack : bool, default=False
+        Return the sets side by side as one CSR matrix (:func:`stack_descriptors`, in the
+        order of ``descriptors``) instead of a dict, so that the estimator takes its place in
+        a scikit-learn :class:`~sklearn.pipeline.Pipeline` (e.g. before
+        :class:`~mmconcepts.nmf.NMF`). :meth:`fit_locals` and :meth:`transform_locals` always
+        return the dict.
 
     Attributes
     ----------
@@ -947,11 +953,12 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         "normalize": [Options("l1", None)],
         "n_jobs": [Interval("int"), None],
         "random_state": ["random_state"],
+        "stack": ["boolean"],
     }
 
     def __init__(self, descriptors: Sequence[str] = THESIS_DESCRIPTORS, *, color: ColorHistograms | None = None,
                  keypoints: KeypointBag | None = None, n_neighbors: int = 4, normalize: str | None = "l1",
-                 n_jobs: int | None = 1, random_state=None) -> None:
+                 n_jobs: int | None = 1, random_state=None, stack: bool = False) -> None:
         self.descriptors = descriptors
         self.color = color
         self.keypoints = keypoints
@@ -959,6 +966,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.normalize = normalize
         self.n_jobs = n_jobs
         self.random_state = random_state
+        self.stack = stack
 
     def _check_params(self) -> list[str]:
         """Validate the parameters; the descriptor-set names, as a list."""
@@ -982,9 +990,13 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.fit_transform(images)
         return self
 
-    def fit_transform(self, images, y=None) -> dict[str, np.ndarray | sp.csr_matrix]:
-        """Learn the codebooks and return the training descriptor sets (extracted once)."""
-        return self.fit_locals(*self.extract_locals(images))
+    def fit_transform(self, images, y=None) -> dict[str, np.ndarray | sp.csr_matrix] | sp.csr_matrix:
+        """Learn the codebooks and return the training descriptor sets (extracted once); see :meth:`transform`."""
+        return self._output(self.fit_locals(*self.extract_locals(images)))
+
+    def _output(self, sets: dict[str, np.ndarray | sp.csr_matrix]
+                ) -> dict[str, np.ndarray | sp.csr_matrix] | sp.csr_matrix:
+        return stack_descriptors(sets, self.descriptors_) if self.stack else sets
 
     def _estimators(self):
         """Unfitted colour and keypoint estimators with this object's normalisation (None if not needed)."""
@@ -1056,7 +1068,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
                               int(self.n_neighbors), self.normalize)
         return out
 
-    def transform(self, images) -> dict[str, np.ndarray | sp.csr_matrix]:
+    def transform(self, images) -> dict[str, np.ndarray | sp.csr_matrix] | sp.csr_matrix:
         """Descriptor sets of images with the codebooks learnt in :meth:`fit`.
 
         Parameters
@@ -1068,19 +1080,20 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         dict of str to ndarray or csr_matrix of shape (n_images, n_features_out_[name])
             In the order of ``descriptors``; ``color`` and ``keypoints`` dense, the
             mid-features CSR. Nonnegative; rows sum to one with ``normalize="l1"``
-            (or are zero when an image has no such feature).
+            (or are zero when an image has no such feature). With ``stack=True``, one
+            csr_matrix of shape (n_images, sum of n_features_out_) instead.
         """
         check_is_fitted(self, "n_features_out_")
         need_c, need_k = self.color_ is not None, self.keypoints_ is not None
         ims = check_images(images, min_size=self.keypoints_._min_size() if need_k else 2)
         c_loc, k_loc = self._extract(ims, need_c, need_k, self.color_, self.keypoints_)
-        return self._compute(c_loc, k_loc)
+        return self._output(self._compute(c_loc, k_loc))
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
         tags.input_tags.two_d_array = False  # a list of images, as the bags of words
         tags.input_tags.three_d_array = True
-        tags.transformer_tags.preserves_dtype = []  # transform returns a dict of matrices
+        tags.transformer_tags.preserves_dtype = []  # transform returns a dict of matrices (one CSR matrix if stack)
         return tags
 
 
