@@ -207,3 +207,12 @@ def test_the_smallest_experiment_of_the_guide_runs(registry, tmp_path):
     assert 0.4 < record.metrics["heads"] < 0.6
     assert [c.verdict for c in record.claims] == ["holds"]
     assert record.intervals["heads"][0] < record.metrics["heads"] < record.intervals["heads"][1]
+
+
+def test_the_guide_counts_the_names_its_smallest_experiment_uses():
+    example = SOURCE.parents[1] / "docs" / "examples" / "smallest_experiment.py"
+    names = [a.name for node in ast.parse(example.read_text(encoding="utf-8")).body
+             if isinstance(node, ast.ImportFrom) and node.module == "mmconcepts.engine" for a in node.names]
+    words = {6: "six", 7: "seven", 8: "eight", 9: "nine", 10: "ten"}
+    guide = (SOURCE.parents[1] / "docs" / "architecture.rst").read_text(encoding="utf-8")
+    assert f"uses {words[len(names)]} names of the engine" in guide, names
