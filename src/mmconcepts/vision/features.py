@@ -1081,7 +1081,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
             In the order of ``descriptors``; ``color`` and ``keypoints`` dense, the
             mid-features CSR. Nonnegative; rows sum to one with ``normalize="l1"``
             (or are zero when an image has no such feature). With ``stack=True``, one
-            csr_matrix of shape (n_images, sum of n_features_out_) instead.
+            csr_matrix of shape (n_images, sum of ``n_features_out_``) instead.
         """
         check_is_fitted(self, "n_features_out_")
         need_c, need_k = self.color_ is not None, self.keypoints_ is not None
