@@ -80,7 +80,7 @@ def test_one_batch_of_all_data_is_fit(beta, sparse):
 
 def test_forgetting_does_not_change_the_first_call():
     X, _ = _pairs()
-    a = MultimodalNMF(4, max_iter=30, random_state=1, forget=0.3).partial_fit(X)
+    a = MultimodalNMF(4, max_iter=30, random_state=1, forget_factor=0.3).partial_fit(X)
     b = MultimodalNMF(4, max_iter=30, random_state=1).fit(X)
     np.testing.assert_allclose(a.components_, b.components_, rtol=1e-9, atol=1e-13)
 
@@ -93,7 +93,7 @@ def test_online_scales_are_the_running_average_l1_norm():
     for m in X:  # no forgetting: the average over every example seen
         assert model.scales_[m] == pytest.approx(np.abs(X[m]).sum(axis=1).mean(), rel=1e-12)
     rho = 0.5
-    model = MultimodalNMF(3, max_iter=5, random_state=0, forget=rho)
+    model = MultimodalNMF(3, max_iter=5, random_state=0, forget_factor=rho)
     _stream(model, X, 30)
     w = np.repeat([rho ** 2, rho, 1.0], 30)  # an example seen t batches ago weighs rho ** t
     for m in X:
@@ -208,7 +208,7 @@ def test_the_state_does_not_grow_with_the_examples_seen():
 
 def test_save_load_mid_stream_continues_the_same_stream(tmp_path):
     X, _ = _pairs(n=90)
-    model = _stream(MultimodalNMF(3, max_iter=10, random_state=0, forget=0.8), _rows(X, slice(0, 60)), 30)
+    model = _stream(MultimodalNMF(3, max_iter=10, random_state=0, forget_factor=0.8), _rows(X, slice(0, 60)), 30)
     loaded = MultimodalNMF.load(model.save(tmp_path / "mid"))
     assert loaded.n_samples_seen_ == model.n_samples_seen_
     nxt = _rows(X, slice(60, 90))
@@ -331,7 +331,7 @@ def test_the_multimodal_stream_keeps_the_broadcast_denominator_and_the_full_upda
     motion = [30.0 * rng.random((b.shape[0], 12)) for b in batches]
 
     def run():
-        model = MultimodalNMF(4, max_iter=15, partial_max_iter=6, forget=0.8, random_state=0)
+        model = MultimodalNMF(4, max_iter=15, partial_max_iter=6, forget_factor=0.8, random_state=0)
         for S, M in zip(batches, motion):
             model.partial_fit({"sound": S, "motion": M})
             assert model.nmf_._stats is None or model.nmf_._stats[1].strides[0] == 0
@@ -356,3 +356,18 @@ def test_a_saved_stream_loads_with_its_broadcast_denominator(tmp_path):
     model.partial_fit(batches[2])
     loaded.partial_fit(batches[2])
     np.testing.assert_array_equal(loaded.components_, model.components_)
+
+
+def test_forget_is_the_deprecated_name_of_forget_factor():
+    """One spelling across NMF and MultimodalNMF: forget_factor; the old name still works, with a FutureWarning,
+    and learns the same."""
+    X, _ = _pairs(n=60)
+    new = MultimodalNMF(3, max_iter=5, random_state=0, forget_factor=0.7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        new.partial_fit(_rows(X, slice(0, 30))).partial_fit(_rows(X, slice(30, 60)))
+    old = MultimodalNMF(3, max_iter=5, random_state=0, forget=0.7)
+    with pytest.warns(FutureWarning, match="forget_factor"):
+        old.partial_fit(_rows(X, slice(0, 30))).partial_fit(_rows(X, slice(30, 60)))
+    np.testing.assert_array_equal(old.components_, new.components_)
+    assert "forget_factor" in MultimodalNMF().get_params() and "forget_factor" in NMF().get_params()

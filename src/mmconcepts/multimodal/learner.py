@@ -25,6 +25,7 @@ and a forgetting factor (Lefevre, Bach & Fevotte 2011), the scales ``s_m`` estim
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
@@ -81,17 +82,20 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         costs a truncated SVD of the stacked matrix, a large part of the fit on HAC vectors
         (``benchmarks/README.md``).
     random_state : int, Generator or None
-    forget : float in (0, 1], default=1.0
+    forget_factor : float in (0, 1], default=1.0
         :meth:`partial_fit` only: the weight ``rho`` of the statistics of earlier batches
         (the dictionary's accumulated numerator and denominator, and the running L1 norm
         behind ``scales_``) when a batch arrives. 1 keeps every example with the same
         weight (no forgetting, the setting for a stationary stream); smaller values let a
         drifting stream forget its past (an example seen ``t`` batches ago weighs
-        ``rho ** t``).
+        ``rho ** t``). The same parameter as :class:`~mmconcepts.nmf.NMF`'s.
     partial_max_iter : int, optional
         :meth:`partial_fit` only: alternating multiplicative updates per call after the
         first (default ``max_iter``). The first call always runs ``max_iter`` iterations,
         the iterations of :meth:`fit`.
+    forget : float in (0, 1], optional
+        Deprecated: the former name of ``forget_factor``, still taken (with a
+        ``FutureWarning``) and to be removed in 0.3.
 
     Attributes
     ----------
@@ -126,8 +130,9 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
            for name in ("beta_loss", "max_iter", "transform_max_iter", "tol", "random_state")},
         "normalize": [Options("l1", None)],
         "init": [Options("random", "nndsvd", "nndsvda", "nndsvdar"), None],  # no 'custom': fit takes no factors
-        "forget": [Interval("real", 0, 1, closed="right")],
+        "forget_factor": [Interval("real", 0, 1, closed="right")],
         "partial_max_iter": [Interval("int", 1), None],
+        "forget": [Interval("real", 0, 1, closed="right"), Options("deprecated")],
     }
     _hints: ClassVar[dict] = {
         "init": "'custom' is not available: MultimodalNMF.fit takes no starting factors.",
@@ -145,8 +150,9 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         normalize: str | None = "l1",
         init: str | None = "random",
         random_state: Any = None,
-        forget: float = 1.0,
+        forget_factor: float = 1.0,
         partial_max_iter: int | None = None,
+        forget: float | str = "deprecated",
     ) -> None:
         self.n_components = n_components
         self.beta_loss = beta_loss
@@ -156,8 +162,17 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.normalize = normalize
         self.init = init
         self.random_state = random_state
-        self.forget = forget
+        self.forget_factor = forget_factor
         self.partial_max_iter = partial_max_iter
+        self.forget = forget
+
+    def _forget_factor(self) -> float:
+        """``forget_factor``, or the deprecated ``forget`` when it is given (with a FutureWarning)."""
+        if isinstance(self.forget, str) and self.forget == "deprecated":
+            return float(self.forget_factor)
+        warnings.warn("MultimodalNMF's 'forget' is now 'forget_factor', as NMF's; 'forget' will be removed in 0.3. "
+                      "Pass forget_factor=... instead.", FutureWarning, stacklevel=3)
+        return float(self.forget)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
@@ -176,7 +191,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
             transform_max_iter=self.transform_max_iter,
             tol=self.tol,
             init=self.init,
-            forget_factor=self.forget,
+            forget_factor=self._forget_factor(),
             random_state=self.random_state,
         )
 
@@ -388,7 +403,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                         f"{self.n_features_[name]}. Give every batch the same features (e.g. the same codebook), or "
                         "start a new learner."
                     )
-        rho = float(self.forget)
+        rho = float(self._forget_factor())
         n_batch = next(iter(mods.values())).shape[0]
         names = list(self.modalities_) if fitted else list(mods)
         n_features = dict(self.n_features_) if fitted else {name: int(Xm.shape[1]) for name, Xm in mods.items()}

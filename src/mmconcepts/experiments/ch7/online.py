@@ -196,7 +196,7 @@ def _fold(task: dict) -> dict:
         order = tr[np.random.default_rng(task["order_seed"]).permutation(len(tr))]
         points = sorted({max(1, int(round(f * len(order)))) for f in cfg["points"]})
         kw = dict(n_components=cfg["k"], max_iter=cfg["n_iter"], random_state=task["learner_seed"])
-        online = MultimodalNMF(**kw, forget=cfg["forget"], partial_max_iter=cfg["partial_max_iter"])
+        online = MultimodalNMF(**kw, forget_factor=cfg["forget"], partial_max_iter=cfg["partial_max_iter"])
         out: dict[str, Any] = {"points": points, "online": [], "batch": []}
         t_online = 0.0
         todo = list(points)
