@@ -152,6 +152,7 @@ def _record(path: Path) -> dict:
     return {k: rec.get(k) for k in _COMPARED}
 
 
+@pytest.mark.slow  # a Dask cluster
 def test_an_experiment_on_the_cluster_gives_the_local_record(client, tmp_path):
     from mmconcepts.experiments.ch2.nmf_recovery import Config
 

@@ -105,6 +105,7 @@ def test_a_driver_that_dies_fails_its_run_only(toy, monkeypatch):
     assert "exit code 3" in records[1].message
 
 
+@pytest.mark.slow  # a driver process
 def test_an_error_outside_the_experiment_is_a_failed_record(toy):
     """An argument the runner refuses in the driver (here an unknown variant) fails that run, not the others."""
     runs = [(get("cluster-a"), "nonsense"), (get("cluster-b"), "auto")]
@@ -148,6 +149,7 @@ def test_interrupting_stops_the_drivers_at_once(toy, monkeypatch):
     assert not list((toy / "out").glob("*.json"))
 
 
+@pytest.mark.slow  # driver processes killed
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs SIGKILL")
 def test_drivers_end_when_reproduce_is_killed(toy, monkeypatch):
     monkeypatch.setenv("CLUSTER_TEST_SLEEP", "120")
@@ -183,6 +185,7 @@ def _alive(pid: int) -> bool:
         return True
 
 
+@pytest.mark.slow  # a driver process and its workers
 def test_a_driver_with_workers_ends_when_asked(toy):
     """A driver whose experiment started loky workers ends by itself when closed (exit code 0, not killed):
     multiprocessing would wait for the idle workers' timeout (300 s)."""

@@ -71,6 +71,7 @@ def test_cached_kernels_are_numba_dispatchers_with_the_lock(jitmod):
     assert _jit.lock_file(mod.outer) != _jit._lock_dir() / _jit.lock_file(mod.inner).name
 
 
+@pytest.mark.slow  # two processes compiling
 def test_a_second_process_waits_for_the_lock_and_loads_the_cache(jitmod):
     """Two processes start at once on an empty cache: exactly one compiles, the other loads its code."""
     mod, src, env = jitmod

@@ -17,7 +17,7 @@ def test_the_readme_has_its_four_library_examples():
     assert "beta_nmf_out_of_core" in BLOCKS[3]
 
 
-@pytest.mark.parametrize("index", [0, 2, 3], ids=["nmf", "multimodal", "dask"])
+@pytest.mark.parametrize("index", [0, 2, pytest.param(3, marks=pytest.mark.slow)], ids=["nmf", "multimodal", "dask"])
 def test_readme_example_runs(index, tmp_path, monkeypatch, capsys):
     # The sound example (index 1) generates a 4 x 250-utterance corpus by text-to-speech first (minutes):
     # its pieces are run by the chapter-5 tests and the gallery's keyword example.

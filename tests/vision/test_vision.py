@@ -422,6 +422,7 @@ def test_nearest_neighbour_recognises_eth80_objects_from_new_views(eth80):
     assert _nn_accuracy(A, train.labels, B, test.labels) >= 0.6  # chance: 0.125
 
 
+@pytest.mark.slow  # worker processes
 def test_parallel_extraction_gives_the_same_features():
     s = make_objects(2, 17, random_state=2)  # 34 images: two joblib chunks
     a = _small_features(descriptors=("color", "keypoint_pairs"), random_state=0, n_jobs=1).fit_transform(s)
