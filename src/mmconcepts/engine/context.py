@@ -223,14 +223,16 @@ class RunContext:
             nor one the experiment declares (:attr:`datasets`): a misspelt name fails here instead
             of falling back to generated data without a word.
         """
+        if name in self.data:
+            return True
         from ..datasets import DATASETS
 
-        known = list(dict.fromkeys([*DATASETS, *self.datasets, *self.data]))
+        known = list(dict.fromkeys([*DATASETS, *self.datasets]))
         if name not in known:
             close = difflib.get_close_matches(str(name), known, n=1)
             hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ExperimentError(f"no data set named {name!r} among {', '.join(known)}.{hint}")
-        return name in self.data
+        return False
 
     def dataset(self, name: str) -> Path:
         """The folder (or file) of the real data set ``name`` this run has (see :meth:`has_dataset`).

@@ -341,8 +341,8 @@ def run_experiment(
         record.status, record.message = "skipped", target.cannot_run
         return record
     output.mkdir(parents=True, exist_ok=True)
-    if not target.secondary:  # a default run on generated data supersedes an older run on generated data
-        remove_secondary_record(output, exp.id, only_if=target.variant == "synthetic")
+    if target.variant == "synthetic" and not target.secondary:  # it supersedes an older run on generated data
+        remove_secondary_record(output, exp.id)
     logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
     ctx = RunContext(workers=workers, data=target.data, cache_dir=data_home(), show_progress=progress,
                      logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"), datasets=tuple(exp.datasets))
@@ -382,10 +382,10 @@ def current_record(target: RunTarget, fresh: ResultRecord, output: Path) -> Resu
     return existing if existing is not None and up_to_date(existing, fresh, output) else None
 
 
-def remove_secondary_record(output: str | os.PathLike[str], exp_id: str, *, only_if: bool = True) -> None:
-    """Delete ``exp_id``'s record on generated data beside a real-data run (and its figures), if ``only_if``."""
+def remove_secondary_record(output: str | os.PathLike[str], exp_id: str) -> None:
+    """Delete ``exp_id``'s record on generated data beside a real-data run (and its figures), if there is one."""
     stale = record_path(output, exp_id, secondary=True)
-    if only_if and stale.exists():
+    if stale.exists():
         stale.unlink()
         remove_stale_figures(stale.with_suffix(""), ())
 

@@ -16,38 +16,7 @@ complete experiment.
 
 from __future__ import annotations
 
-from ..engine import (
-    CLAIM_KINDS,
-    PRESETS,
-    RECORD_KEYS,
-    SCHEMA_VERSION,
-    Claim,
-    ClaimRecord,
-    Experiment,
-    ExperimentSkipped,
-    Result,
-    ResultRecord,
-    Rule,
-    RunContext,
-    SampleUnit,
-    Table,
-    all_experiments,
-    check_data,
-    compare_records,
-    describe_split,
-    evaluate_rule,
-    get,
-    load_experiments,
-    load_record,
-    parse_data_args,
-    parse_rule,
-    register,
-    reproduce,
-    run_experiment,
-    shared_sources,
-    unregister,
-)
+from ..engine import *  # noqa: F401,F403  (the engine's names, importable from here for convenience)
 
-#: Nothing of its own: the engine's names above are importable from here for convenience, and documented once,
-#: under :mod:`mmconcepts.engine`.
+#: Nothing of its own: the engine's names above are documented once, under :mod:`mmconcepts.engine`.
 __all__: list[str] = []
