@@ -18,8 +18,8 @@ class Config(PresetConfig):
 
 
 def compute(config: Config, ctx: RunContext) -> Result:
-    data = np.random.SeedSequence(streams(config.seed).data).spawn(config.n_repeats)  # one stream per repeat
-    heads = [float((np.random.default_rng(s).random(config.n_flips) < 0.5).mean()) for s in data]
+    st = streams(config.seed)  # draw r of the data stream: st.rng("data", r)
+    heads = [float((st.rng("data", r).random(config.n_flips) < 0.5).mean()) for r in range(config.n_repeats)]
     return Result(metrics={"heads": float(np.mean(heads))}, samples={"heads": heads},
                   sample_units={"heads": "repeat"}, units={"repeat": SampleUnit.seeds()})
 

@@ -64,7 +64,7 @@ def _ch3_args(rng):
     Y = np.eye(2)[np.arange(12) % 2]
     return angles, Y, ch3.kfold_splits(12, 3, seed=0), dict(
         features={"data": "joint", "method": "kde", "n_bins": 5, "delay": 1}, learners=("chance", "svm"),
-        params={}, seed=0, single=True)
+        params={}, streams=ch3.streams(0), single=True)
 
 
 def _same_folds(a, b):
@@ -89,7 +89,7 @@ def test_ch3_folds_reused_for_the_same_code_recomputed_for_another(rng, tmp_path
     assert len(calls) == 6 and len(_entries(tmp_path / "ch3-folds")) == 6
     _same_folds(first, other)
     # any parameter is part of the key: a changed learner parameter recomputes
-    ch3.evaluate_folds(ctx, angles, Y, splits, **dict(args, seed=1))
+    ch3.evaluate_folds(ctx, angles, Y, splits, **dict(args, streams=ch3.streams(1)))
     assert len(calls) == 9
 
 

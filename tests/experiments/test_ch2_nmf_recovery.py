@@ -10,7 +10,7 @@ import pytest
 import dataclasses
 
 from mmconcepts.experiments import RunContext, get, run_experiment
-from mmconcepts.experiments.ch2.nmf_recovery import Config, compute, make_data, present, streams
+from mmconcepts.experiments.ch2.nmf_recovery import Config, compute, make_data, present, run_streams
 from mmconcepts.report import write_report
 
 
@@ -32,32 +32,55 @@ def test_generator_is_deterministic():
 TINY = Config(n_samples=40, n_features=12, n_components=3, betas=(1.0,), pg_betas=(), max_iter=30, n_repeats=2)
 
 
-def _states(tree):
-    if isinstance(tree, dict):
-        return {k: _states(v) for k, v in tree.items()}
-    if isinstance(tree, list):
-        return [_states(v) for v in tree]
-    return tree.generate_state(4).tolist()
+def _draws(config):
+    """The state of every draw of a run: data and learner per (kind, repeat), reference per repeat."""
+    st, n = run_streams(config), config.n_repeats
+    state = lambda *key: tuple(st.sequence(*key).generate_state(4).tolist())  # noqa: E731
+    return {"data": [state("data", k, r) for k in range(2) for r in range(n)],
+            "learner": [state("learner", k, r) for k in range(2) for r in range(n)],
+            "reference": [state("reference", r) for r in range(n)]}
 
 
 def test_learner_seed_alone_leaves_the_data_unchanged():
-    a, b = _states(streams(TINY)), _states(streams(dataclasses.replace(TINY, learner_seed=5)))
+    a, b = _draws(TINY), _draws(dataclasses.replace(TINY, learner_seed=5))
     assert a["data"] == b["data"] and a["reference"] == b["reference"]
     assert a["learner"] != b["learner"]
 
 
 def test_data_seed_alone_leaves_the_learner_unchanged():
-    a = _states(streams(dataclasses.replace(TINY, seed=1, learner_seed=5)))
-    b = _states(streams(dataclasses.replace(TINY, seed=2, learner_seed=5)))
+    a = _draws(dataclasses.replace(TINY, seed=1, learner_seed=5))
+    b = _draws(dataclasses.replace(TINY, seed=2, learner_seed=5))
     assert a["learner"] == b["learner"]
     assert a["data"] != b["data"] and a["reference"] != b["reference"]
 
 
 def test_no_stream_is_shared():
-    st = _states(streams(TINY))
-    flat = [tuple(x) for kind in ("identifiable", "nonidentifiable") for part in ("data", "learner")
-            for x in st[part][kind]] + [tuple(x) for x in st["reference"]]
+    st = _draws(TINY)
+    flat = st["data"] + st["learner"] + st["reference"]
     assert len(set(flat)) == len(flat) == 2 * 2 * TINY.n_repeats + TINY.n_repeats
+
+
+def test_the_tasks_carry_the_run_streams_draws(monkeypatch):
+    # compute hands each fit the draws of its kind and repeat (a swapped key would fail here)
+    from mmconcepts.experiments.ch2 import nmf_recovery
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def spy(task):
+        seen.append(task)
+        raise Stop
+
+    monkeypatch.setattr(nmf_recovery, "_one_run", spy)
+    with pytest.raises(Stop):
+        compute(TINY, RunContext(show_progress=False))
+    config, kind, repeat, *_, data_ss, learner_ss = seen[0]
+    st = run_streams(TINY)
+    k = ("identifiable", "nonidentifiable").index(kind)
+    assert data_ss.generate_state(2).tolist() == st.sequence("data", k, repeat).generate_state(2).tolist()
+    assert learner_ss.generate_state(2).tolist() == st.sequence("learner", k, repeat).generate_state(2).tolist()
 
 
 def test_tiny_run_keeps_per_repeat_samples():

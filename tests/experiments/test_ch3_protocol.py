@@ -87,10 +87,10 @@ def test_evaluate_folds_caches_and_pools(rng, tmp_path):
     params = {"n_components": 4, "max_iter": 30, "inner_cv": 2}
     feats = {"data": "joint", "method": "kde", "n_bins": 9, "delay": 1}
     f1 = common.evaluate_folds(ctx, angles, Y, splits, features=feats, learners=("nmf_frobenius",), params=params,
-                               seed=0, single=True)
+                               streams=common.streams(0), single=True)
     assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 4
     f2 = common.evaluate_folds(ctx, angles, Y, splits, features=feats, learners=("nmf_frobenius",), params=params,
-                               seed=0, single=True)
+                               streams=common.streams(0), single=True)
     np.testing.assert_array_equal(f1[0]["nmf_frobenius"]["scores"], f2[0]["nmf_frobenius"]["scores"])
     score = common.pooled_scores(f1, Y, "nmf_frobenius", single=True)["l_single"]
     assert score > 0.75  # two well separated classes
@@ -102,7 +102,7 @@ def test_an_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, mo
     Y = np.eye(2)[np.arange(12) % 2]
     splits = common.kfold_splits(12, 4, seed=0)
     args = dict(features={"data": "joint", "method": "kde", "n_bins": 5, "delay": 1}, learners=("chance",),
-                params={}, seed=0, single=True)
+                params={}, streams=common.streams(0), single=True)
     real_fold, calls = common._fold, []
 
     def stop_at_third(task):
@@ -136,10 +136,10 @@ def test_data_priority_choreo1_then_msr_then_synthetic(tmp_path):
 
 def test_msr_mixtures_join_the_limbs_of_their_sources():
     folder = real_data_path("msr-action3d")
-    prim = common.msr_subset(folder, "primitive", seed=0)
+    prim = common.msr_subset(folder, "primitive", streams=common.streams(0))
     actions = np.array(prim.label_ids)[np.argmax(prim.Y, axis=1)]
-    part = common.msr_subset(folder, "mixed_partial", seed=0)
-    full = common.msr_subset(folder, "mixed_full", seed=0)
+    part = common.msr_subset(folder, "mixed_partial", streams=common.streams(0))
+    full = common.msr_subset(folder, "mixed_full", streams=common.streams(0))
     assert part.Y.shape[1] == 18 and full.Y.shape[1] == 33
     assert np.all(part.Y.sum(axis=1) == 2) and np.all(full.Y.sum(axis=1) == 3)
     legs = [c for c in range(16) if c not in ARM_COLUMNS]
@@ -170,11 +170,12 @@ def test_msr_subsets_use_whatever_subjects_are_given(tmp_path):
         for p in folder.glob(f"a*_{old}_e*_skeleton3D.txt"):
             (tmp_path / p.name.replace(f"_{old}_", f"_{new}_")).symlink_to(p)
     for subset in ("primitive", "mixed_partial", "mixed_full"):
-        a = common.msr_subset(tmp_path, subset, seed=0)
+        a = common.msr_subset(tmp_path, subset, streams=common.streams(0))
         assert a.info["n_subjects"] == 2 and len(a.Y) > 20
-    again = common.msr_subset(tmp_path, "mixed_full", seed=0)
-    other = common.msr_subset(tmp_path, "mixed_full", seed=1)
-    assert again.info["sources"] == common.msr_subset(tmp_path, "mixed_full", seed=0).info["sources"]
+    again = common.msr_subset(tmp_path, "mixed_full", streams=common.streams(0))
+    other = common.msr_subset(tmp_path, "mixed_full", streams=common.streams(1))
+    assert again.info["sources"] == \
+        common.msr_subset(tmp_path, "mixed_full", streams=common.streams(0)).info["sources"]
     assert again.info["sources"] != other.info["sources"]  # the pairing is drawn from the data stream
 
 
@@ -183,7 +184,7 @@ def test_fold_cache_key_follows_the_code_fingerprint(rng, tmp_path, monkeypatch)
     angles = [rng.normal(size=(20, 3)) for _ in range(8)]
     Y = np.eye(2)[np.arange(8) % 2]
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
-    args = dict(features={"data": "angles", "method": "kde", "n_bins": 4}, learners=("chance",), params={}, seed=0,
+    args = dict(features={"data": "angles", "method": "kde", "n_bins": 4}, learners=("chance",), params={}, streams=common.streams(0),
                 single=True)
     common.evaluate_folds(ctx, angles, Y, common.kfold_splits(8, 2, 0), **args)
     assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 2
@@ -198,7 +199,7 @@ def test_msr_corrupt_file_is_skipped_and_named(tmp_path):
     for p in sorted(folder.glob("a*_s0[12]_e01_skeleton3D.txt")):
         (tmp_path / p.name).symlink_to(p)
     (tmp_path / "a01_s01_e03_skeleton3D.txt").write_text("1 2 3\nnot numbers\n")
-    a = common.msr_subset(tmp_path, "primitive", seed=0)
+    a = common.msr_subset(tmp_path, "primitive", streams=common.streams(0))
     assert len(a.Y) == len(list(folder.glob("a*_s0[12]_e01_skeleton3D.txt")))
     assert "a01_s01_e03" in a.description and "a01_s01_e03" in a.info["skipped"]
     ctx = RunContext(cache_dir=tmp_path, data={"msr-action3d": tmp_path})
@@ -252,8 +253,8 @@ def _recordings(draw):
     return np.array(actions, dtype=np.int64), np.array(subjects, dtype=np.int64)
 
 
-def _check_plan(actions, subjects, subset, sources, labels, parts, n_parts):
-    rec_part = common.source_parts(actions, subjects, n_parts, 7)
+def _check_plan(actions, subjects, subset, sources, labels, parts, n_parts, split_seed):
+    rec_part = common.source_parts(actions, subjects, n_parts, split_seed)
     assert len(sources) == len(labels) == len(parts)
     for src, lab, p in zip(sources, labels, parts):
         assert {int(rec_part[r]) for r in src} == {int(p)}  # every recording of a mixture is in the mixture's part
@@ -275,9 +276,9 @@ def test_msr_mixture_folds_never_put_a_recording_on_both_sides(recs, subset, n_p
     """Mixtures built per part of their recordings, split by part (and without the test part's combinations for
     unseen ones): no recording behind a test mixture is behind a training mixture."""
     actions, subjects = recs
-    sources, labels, parts = common.msr_mixture_plan(actions, subjects, subset, seed=seed, n_parts=n_parts,
-                                                     split_seed=7)
-    _check_plan(actions, subjects, subset, sources, labels, parts, n_parts)
+    streams = common.streams(seed)
+    sources, labels, parts = common.msr_mixture_plan(actions, subjects, subset, n_parts=n_parts, streams=streams)
+    _check_plan(actions, subjects, subset, sources, labels, parts, n_parts, streams.seed_for("splits"))
     if len(sources) < 2:
         return
     ids = sorted({l for ls in labels for l in ls})
@@ -378,16 +379,17 @@ def test_fold_unit_is_k_fold_or_the_measured_ratio():
 def test_msr_mixtures_in_parts_share_no_recording_across_parts():
     folder = real_data_path("msr-action3d")
     for subset in ("mixed_partial", "mixed_full"):
-        a = common.msr_subset(folder, subset, seed=0, n_records=150, n_parts=common.MSR_PARTS, split_seed=1)
+        a = common.msr_subset(folder, subset, streams=common.streams(0), n_records=150, n_parts=common.MSR_PARTS)
         assert len(np.unique(a.parts)) == common.MSR_PARTS and len(a.Y) == 150
         for unseen in (False, True):
             splits = common.example_splits(a, 10, seed=0, unseen=unseen)
             assert common.split_groups(a, splits)["shared_sources"] == 0
         # the splits stream deals the recordings: another split seed, other parts and other mixtures
-        b = common.msr_subset(folder, subset, seed=0, n_records=150, n_parts=common.MSR_PARTS, split_seed=2)
+        b = common.msr_subset(folder, subset, streams=common.streams(0).rooted("splits", 2), n_records=150,
+                              n_parts=common.MSR_PARTS)
         assert a.sources != b.sources
     # without parts the mixtures share recordings across any split by example (why they are built per part)
-    c = common.msr_subset(folder, "mixed_partial", seed=0)
+    c = common.msr_subset(folder, "mixed_partial", streams=common.streams(0))
     assert c.parts is None
     legs = [s[-1] for s in c.sources]
     assert len(set(legs)) < len(legs) / 3  # a leg recording joins several mixtures

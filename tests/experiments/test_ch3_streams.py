@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import experiment_module, real_data_path
+from mmconcepts.engine import streams
 from mmconcepts.experiments import RunContext, evaluate_rule
 from mmconcepts.experiments.ch3 import protocol as common
 from mmconcepts.nmf import l_full, l_given_number
@@ -25,17 +26,6 @@ EXPERIMENTS = {
 }
 
 
-def test_streams_are_spawned_independent_and_deterministic():
-    s = common.streams(3)
-    assert s == common.streams(3)
-    assert len(set(s)) == 5  # data, learner, splits, reference, composition: five different seeds
-    kids = np.random.SeedSequence(3).spawn(4)
-    assert s.data == int(kids[0].generate_state(1)[0] % (2**31 - 1))
-    assert s.learner == int(kids[1].generate_state(1)[0] % (2**31 - 1))
-    assert 3 not in s  # the experiment's seed itself reaches no step
-    assert common.streams(4).data != s.data
-
-
 class _Stop(Exception):
     pass
 
@@ -46,7 +36,7 @@ def _capture(monkeypatch, tmp_path, module, streams, data=None, **tiny):
     seen = {}
 
     def spy(ctx, angles, Y, splits, **kw):
-        seen.update(angles=angles, Y=Y, splits=splits, seed=kw["seed"])
+        seen.update(angles=angles, Y=Y, splits=splits, seed=kw["streams"].seed_for("learner", 0))
         raise _Stop
 
     monkeypatch.setattr(common, "streams", lambda seed: streams)
@@ -64,17 +54,17 @@ def _same_data(a, b):
 
 
 def _check_streams(monkeypatch, tmp_path, module, data=None, **tiny):
-    base = common.Streams(data=11, learner=22, splits=33, reference=44)
+    base = common.streams(11)
     a = _capture(monkeypatch, tmp_path, module, base, data, **tiny)
-    b = _capture(monkeypatch, tmp_path, module, base._replace(learner=99), data, **tiny)
-    c = _capture(monkeypatch, tmp_path, module, base._replace(data=77), data, **tiny)
+    b = _capture(monkeypatch, tmp_path, module, base.rooted("learner", 99), data, **tiny)
+    c = _capture(monkeypatch, tmp_path, module, base.rooted("data", 77), data, **tiny)
     # the learner's seed alone changed: same data, same splits, the new learner seed reaches the folds
     assert _same_data(a, b)
     assert all(np.array_equal(x[1], y[1]) for x, y in zip(a["splits"], b["splits"]))
-    assert a["seed"] == 22 and b["seed"] == 99
+    assert a["seed"] == base.seed_for("learner", 0) and b["seed"] == streams(99).seed_for("learner", 0)
     # the data's seed alone changed: other data, the same learner seed
     assert not _same_data(a, c)
-    assert c["seed"] == 22
+    assert c["seed"] == a["seed"]
 
 
 @pytest.mark.parametrize("module", sorted(EXPERIMENTS))
@@ -141,9 +131,9 @@ def test_msr_parts_come_from_the_splits_stream(monkeypatch, tmp_path):
     """The parts of the MSR recordings (the folds) are drawn by the splits stream: a new split seed changes the
     mixtures and their folds, the learner seed changes neither."""
     folder = real_data_path("msr-action3d")
-    base = common.Streams(data=11, learner=22, splits=33, reference=44)
+    base = common.streams(11)
     a = _capture(monkeypatch, tmp_path, "ch3_choreography", base, {"msr-action3d": folder}, **_MIXED)
-    b = _capture(monkeypatch, tmp_path, "ch3_choreography", base._replace(splits=55), {"msr-action3d": folder},
+    b = _capture(monkeypatch, tmp_path, "ch3_choreography", base.rooted("splits", 55), {"msr-action3d": folder},
                  **_MIXED)
     assert not _same_data(a, b)
     assert 1 < len(a["splits"]) <= common.MSR_PARTS  # one fold per (non-empty) part, whatever n_folds

@@ -82,7 +82,8 @@ def test_worlds_are_independent_and_do_not_depend_on_their_number():
     assert not np.array_equal(a[1], b[1])  # other primitives
     more = dataclasses.replace(TINY, n_worlds=4)
     np.testing.assert_array_equal(_world(more, 1)[1], b[1])  # world 1 is world 1 whatever n_worlds
-    states = [s.generate_state(2).tolist() for w in range(3) for s in world_streams(TINY, w)]
+    states = [world_streams(TINY, w).sequence(*key).generate_state(2).tolist() for w in range(3)
+              for key in (("data", 0), ("data", 1), ("data", 2), ("reference",))]
     assert len({tuple(x) for x in states}) == len(states)  # no stream shared within or across worlds
 
 

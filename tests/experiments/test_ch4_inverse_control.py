@@ -13,8 +13,12 @@ from hypothesis import strategies as st
 
 from mmconcepts.experiments import RunContext, get
 from mmconcepts.experiments.ch4.inverse_control import (
+    SENSOR,
     SETTINGS,
+    SUPERVISED,
+    TASKS,
     THESIS,
+    UNSUPERVISED,
     Config,
     _matched_error,
     compute,
@@ -22,8 +26,8 @@ from mmconcepts.experiments.ch4.inverse_control import (
     mixing_error,
     observe,
     run,
+    run_streams,
     setting_label,
-    streams,
 )
 from mmconcepts.engine.verdicts import decide_claim
 from mmconcepts.tasks import FactorialInverseControl, RBFFeatures, control_trajectories, relative_l2_error
@@ -120,8 +124,8 @@ def test_mixing_error_is_zero_exactly_for_an_invertible_mixing(rng):
 
 
 def _data(cfg, rep=0, dynamics="euler"):
-    ss = streams(cfg)[rep]
-    return make_data(cfg, ss["data"], ss["sensor"], RBFFeatures(cfg.grid_size), dynamics)
+    st = run_streams(cfg)[rep]
+    return make_data(cfg, st.sequence("data", TASKS), st.sequence("data", SENSOR), RBFFeatures(cfg.grid_size), dynamics)
 
 
 def _state(seed_seq):
@@ -172,31 +176,25 @@ def test_learner_seed_alone_leaves_the_data_unchanged():
     assert a.keys() == b.keys()
     for key in a:
         np.testing.assert_array_equal(a[key], b[key])
-    assert _state(streams(TINY)[0]["learner"]) != _state(streams(other)[0]["learner"])
+    assert _state(run_streams(TINY)[0].sequence("learner", SUPERVISED)) != \
+        _state(run_streams(other)[0].sequence("learner", SUPERVISED))
 
 
 def test_data_seed_alone_leaves_the_learner_unchanged():
     one, two = dataclasses.replace(TINY, seed=1, learner_seed=7), dataclasses.replace(TINY, seed=2, learner_seed=7)
     assert not np.array_equal(_data(one)["D"], _data(two)["D"])
     assert not np.array_equal(_data(one)["z_tr"], _data(two)["z_tr"])
-    assert _state(streams(one)[0]["learner"]) == _state(streams(two)[0]["learner"])
+    assert _state(run_streams(one)[0].sequence("learner", UNSUPERVISED)) == \
+        _state(run_streams(two)[0].sequence("learner", UNSUPERVISED))
 
 
 def test_no_stream_is_shared_and_repetitions_differ():
     cfg = dataclasses.replace(TINY, n_repeats=2)
-    ss = streams(cfg)
-    states = [_state(s[k]) for s in ss for k in ("data", "sensor", "learner")]
+    ss = run_streams(cfg)
+    states = [_state(s.sequence(*k)) for s in ss
+              for k in (("data", TASKS), ("data", SENSOR), ("learner", SUPERVISED), ("learner", UNSUPERVISED))]
     assert len({tuple(x) for x in states}) == len(states)
     assert not np.array_equal(_data(cfg, 0)["D"], _data(cfg, 1)["D"])
-
-
-def test_learner_children_do_not_depend_on_what_was_spawned_before():
-    from mmconcepts.experiments.ch4.inverse_control import _children
-
-    seq = streams(TINY)[0]["learner"]
-    first = [_state(c) for c in _children(seq, 3)]
-    seq.spawn(5)  # spawn is stateful; a job run after another in the same process must not see other streams
-    assert [_state(c) for c in _children(seq, 3)] == first
 
 
 def test_same_config_same_numbers_with_one_or_two_workers():

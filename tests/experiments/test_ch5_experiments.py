@@ -186,14 +186,6 @@ def test_mfcc_cache_is_keyed_on_the_code_fingerprint(fake_fsdd, tmp_path, monkey
 
 
 # -- independent random streams --------------------------------------------------------------
-def test_streams_are_spawned_independent_and_deterministic():
-    s = common.streams(3)
-    assert s == common.streams(3) and len(set(s)) == 5 and 3 not in s
-    kids = np.random.SeedSequence(3).spawn(4)
-    assert s.learner == int(kids[1].generate_state(1)[0] % (2**31 - 1))
-    assert common.streams(4).data != s.data
-
-
 class _Stop(Exception):
     pass
 
@@ -212,7 +204,7 @@ class _SpyContext(RunContext):
         return [fn(i) for i in items]
 
 
-BASE = common.Streams(data=11, learner=22, splits=33, reference=44)
+BASE = common.streams(11)
 
 
 def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams, **tiny):
@@ -228,8 +220,8 @@ def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams, **tiny):
 def test_ch5_nmf_keywords_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
     tiny = {"n_folds": 3, "n_composed_per_fold": 6}
     grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_nmf_keywords", "folds", s, **tiny)  # noqa: E731
-    a, learner, data, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(data=77)), \
-        grab(BASE._replace(splits=55))
+    a, learner, data, splits = grab(BASE), grab(BASE.rooted("learner", 99)), grab(BASE.rooted("composition", 77)), \
+        grab(BASE.rooted("splits", 55))
 
     def folds(t):
         return [(x["train"].tolist(), x["test"].tolist()) for x in t]
@@ -240,7 +232,7 @@ def test_ch5_nmf_keywords_streams_are_independent(monkeypatch, tmp_path, fake_fs
     # the learner's seed alone: same folds, same composed utterances, other learner seeds
     assert folds(learner) == folds(a) and composed(learner) == composed(a)
     assert [x["seed"] for x in learner] != [x["seed"] for x in a]
-    # the composition's seed alone: other utterances, same folds and learners
+    # the composition stream alone: other utterances, same folds and learners
     assert composed(data) != composed(a) and folds(data) == folds(a)
     assert [x["seed"] for x in data] == [x["seed"] for x in a]
     # the splits' seed alone: other folds, same learners
@@ -252,7 +244,7 @@ def test_ch5_nmf_keywords_streams_are_independent(monkeypatch, tmp_path, fake_fs
 def test_ch5_incremental_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
     tiny = {"n_train": 20, "n_test": 10, "session": 10, "multi_session": 20, "n_repeats": 2}
     grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_incremental", "learners", s, **tiny)  # noqa: E731
-    a, learner, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(splits=55))
+    a, learner, splits = grab(BASE), grab(BASE.rooted("learner", 99)), grab(BASE.rooted("splits", 55))
 
     def split(t):
         return [(x["train"].tolist(), x["test"].tolist()) for x in t]
@@ -267,7 +259,7 @@ def test_ch5_incremental_streams_are_independent(monkeypatch, tmp_path, fake_fsd
 def test_ch5_tree_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
     tiny = {"n_train_utterances": 8, "n_queries": 20}
     grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_tree", "trees", s, **tiny)  # noqa: E731
-    a, learner, splits = grab(BASE), grab(BASE._replace(learner=99)), grab(BASE._replace(splits=55))
+    a, learner, splits = grab(BASE), grab(BASE.rooted("learner", 99)), grab(BASE.rooted("splits", 55))
 
     def plan(t):
         return [(np.concatenate(x["windows"]).tolist(), x["queries"].tolist()) for x in t]

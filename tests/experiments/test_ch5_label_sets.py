@@ -224,12 +224,13 @@ def test_streams_are_independent(fake_fsdd, tmp_path):
         return [str(p) for p in d.corpus.paths], d.Y, d.fold
 
     base = data(s)
-    other_learner = data(s._replace(learner=s.learner + 1, reference=s.reference + 1))
+    other_learner = data(s.rooted("learner", 1234).rooted("reference", 4321))
     assert base[0] == other_learner[0]
     np.testing.assert_array_equal(base[1], other_learner[1])
     np.testing.assert_array_equal(base[2], other_learner[2])
-    other_data = data(s._replace(data=s.data + 1))
+    other_data = data(s.rooted("composition", 1234))  # real recordings: the composition stream composes them
     assert base[0] != other_data[0] or not np.array_equal(base[1], other_data[1])
+    np.testing.assert_array_equal(base[2], other_data[2])  # the same folds
 
 
 def test_composed_label_sets_keep_each_fold_s_recordings(fake_fsdd, tmp_path):

@@ -79,7 +79,7 @@ def test_composing_fold_by_fold_never_puts_a_recording_on_both_sides(data, n_com
     paths = [f"rec{j}.wav" for j in range(len(y))]
     with mock.patch.object(common, "composed_corpus", _fake_compose), \
             mock.patch.object(common, "utterance_sources", lambda c: c.sources):
-        parts = common.compose_by_fold(None, _Recordings(paths), fold, n_composed=n_composed, seed=seed,
+        parts = common.compose_by_fold(None, _Recordings(paths), fold, n_composed=n_composed, streams=common.streams(seed),
                                        n_words=(lo, lo + extra))
     assert len(parts) == k
     for i, part in enumerate(parts):  # fold i's utterances are made of fold i's recordings only
@@ -147,7 +147,7 @@ def test_corpus_parts_are_disjoint_and_cover_the_corpus(n, parts, seed):
 def test_tree_queries_never_come_from_a_tree_utterance(lengths, n_train, n_queries, n_repeats, seed):
     windows = [np.zeros((m, 2, 1)) + i for i, m in enumerate(lengths)]  # window values name their utterance
     cfg = ch5_tree.Config(n_repeats=n_repeats, n_train_utterances=n_train, n_queries=n_queries)
-    plans = ch5_tree._plan(windows, cfg, common.Streams(data=1, learner=2, splits=seed, reference=3))
+    plans = ch5_tree._plan(windows, cfg, common.streams(1).rooted("splits", seed))
     assert len(plans) == n_repeats
     seen = set()
     for p in plans:
@@ -171,7 +171,7 @@ def test_composed_utterances_name_their_source_recordings(tmp_path, rng):
     corpus = common.load_corpus(ctx, n_per_speaker=1)
     y = common.keyword_targets(corpus)
     fold = common.recording_folds(y, 2, seed=3)
-    parts = common.compose_by_fold(ctx, corpus, fold, n_composed=4, seed=5, n_words=(2, 3))
+    parts = common.compose_by_fold(ctx, corpus, fold, n_composed=4, streams=common.streams(5), n_words=(2, 3))
     own = common.utterance_sources(corpus)
     assert all(len(s) == 1 for s in own)
     for i, part in enumerate(parts):

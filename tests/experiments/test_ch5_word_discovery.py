@@ -111,7 +111,7 @@ def test_learner_seed_changes_the_atoms_not_the_data(fake_fsdd, tmp_path):
     s = common.streams(0)
     kw = dict(n_folds=None, n_per_speaker=1, n_composed=8, n_words=(1, 3))
     a = common.label_set_corpus(ctx, seeds=s, **kw)
-    b = common.label_set_corpus(ctx, seeds=s._replace(learner=s.learner + 1, reference=s.reference + 1), **kw)
+    b = common.label_set_corpus(ctx, seeds=s.rooted("learner", 1234).rooted("reference", 4321), **kw)
     assert [str(p) for p in a.corpus.paths] == [str(p) for p in b.corpus.paths]
     np.testing.assert_array_equal(a.Y, b.Y)
     assert np.all(a.fold == -1)

@@ -111,7 +111,7 @@ def test_ch6_motion_sound_symbolic_labels_concepts_small(tiny_speech_corpus, tmp
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     cfg = dataclasses.replace(Config.quick(), n_motion=60, n_folds=3, k=12, n_iter=30, concept_k=8)
-    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=60, seed=0)
+    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=60, streams=common.streams(0))
     # pairing by concept: each utterance's motion has the gesture its keyword maps to
     assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 50
     assert sorted(data["mapping"].values()) == sorted(set(data["mapping"].values()))  # a bijection
@@ -175,7 +175,7 @@ def _fake_evaluation(monkeypatch, n_folds=5):
     monkeypatch.setattr(common, "data_source_note", lambda ctx, *a: "fake data")
 
     def evaluate(ctx, config, **kw):
-        data = common.load_pairs(ctx, n_per_speaker=100, n_motion=60, n_folds=n_folds, seeds=common.streams(0))
+        data = common.load_pairs(ctx, n_per_speaker=100, n_motion=60, n_folds=n_folds, streams=common.streams(0))
         keys = _matching_keys() + _matching_keys("shuffled.") + _matching_keys("symbolic.") + list(LABEL_KEYS)
         folds = []
         for _ in range(data["n_folds"]):
@@ -550,7 +550,7 @@ def test_sliding_fold_rates_by_hand(rng):
     y_test = rng.integers(0, 4, 30)
     D = rng.random((30, 4))
     folds = [np.arange(0, 10), np.arange(10, 30), np.array([], dtype=int)]
-    rates = _fold_rates(D, y_test, y_ref, folds, seed=5)
+    rates = _fold_rates(D, y_test, y_ref, folds, seeds=[5, 6, 7])
     hand = [np.mean(D[f].argmin(1) == y_test[f]) for f in folds[:2]]
     assert rates[:2] == pytest.approx(hand) and np.isnan(rates[2])
     assert rates[0] != rates[1]  # the case is not degenerate
@@ -570,23 +570,14 @@ def test_sliding_test_folds_are_balanced_and_stratified(rng):
 
 
 def test_sliding_repetition_streams():
-    from mmconcepts.engine.streams import child_seeds, streams
+    from mmconcepts.engine.streams import STREAMS, streams
     from mmconcepts.experiments.ch6.sliding import repetition_streams
 
     st = streams(3)
-    assert repetition_streams(st, 0, 1) == st  # one repetition: the run's own streams
-    reps = [repetition_streams(st, r, 3) for r in range(3)]
-    assert len({x for rep in reps for x in rep}) == 15  # fifteen different seeds
-    assert [rep.learner for rep in reps] == child_seeds(st.learner, 3)  # children of each stream
-
-
-def test_streams_are_independent_and_reproducible():
-    from mmconcepts.engine.streams import child_seeds, streams
-
-    a, b = streams(0), streams(1)
-    assert a == streams(0) and len(set(a)) == len(a)  # five different seeds from one
-    assert all(x != y for x, y in zip(a, b))
-    assert child_seeds(a.learner, 3)[:2] == child_seeds(a.learner, 2)
+    reps = [repetition_streams(st, r) for r in range(3)]
+    assert reps == [st.sub(r) for r in range(3)]  # each repetition its own part, whatever n_repeats
+    seeds = {rep.seed_for(name) for rep in [st, *reps] for name in STREAMS}
+    assert len(seeds) == 20  # twenty different seeds: no repetition reuses the run's or another's draws
 
 
 def test_pairing_stays_within_concept_and_part(rng):
@@ -646,7 +637,7 @@ def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
     ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
     st = common.streams(0)
     kw = dict(n_per_speaker=50, n_motion=0, n_folds=3)
-    data = common.load_pairs(ctx, seeds=st, **kw)
+    data = common.load_pairs(ctx, streams=st, **kw)
     assert len(data["y"]) == 50 and np.bincount(data["y"]).tolist() == [5] * 10  # 5 recordings per digit
     assert sorted(data["keywords"])[:3] == ["eight", "five", "four"]
     assert sorted(data["mapping"].values()) == sorted(common.MSR_ACTIONS)  # a bijection onto the ten actions
@@ -657,20 +648,20 @@ def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
         assert len(set(data["fold"][data["motion_idx"] == rec].tolist())) == 1
     cfg = dataclasses.replace(Config.quick(), n_folds=3)
     # a new learner seed leaves the data (bijection, pairing, folds) unchanged ...
-    other_learner = common.load_pairs(ctx, seeds=st._replace(learner=st.learner + 1), **kw)
+    other_learner = common.load_pairs(ctx, streams=st.rooted("learner", 1234), **kw)
     for key in ("y", "fold", "motion_idx"):
         np.testing.assert_array_equal(other_learner[key], data[key])
     assert other_learner["mapping"] == data["mapping"]
-    t0, t1 = common.fold_tasks(data, cfg, st), common.fold_tasks(data, cfg, st._replace(learner=st.learner + 1))
+    t0, t1 = common.fold_tasks(data, cfg, st), common.fold_tasks(data, cfg, st.rooted("learner", 1234))
     assert [t["learner_seed"] for t in t0] != [t["learner_seed"] for t in t1]
     assert [t["reference_seed"] for t in t0] == [t["reference_seed"] for t in t1]
     # ... and new data leave the learner's initialisation unchanged
-    other_data = common.load_pairs(ctx, seeds=st._replace(data=st.data + 1), **kw)
+    other_data = common.load_pairs(ctx, streams=st.rooted("data", 1234), **kw)
     assert other_data["mapping"] != data["mapping"]
     np.testing.assert_array_equal(other_data["fold"], data["fold"])  # same fold stream
-    t2 = common.fold_tasks(other_data, cfg, st._replace(data=st.data + 1))
+    t2 = common.fold_tasks(other_data, cfg, st.rooted("data", 1234))
     assert [t["learner_seed"] for t in t2] == [t["learner_seed"] for t in t0]
-    other_folds = common.load_pairs(ctx, seeds=st._replace(splits=st.splits + 1), **kw)
+    other_folds = common.load_pairs(ctx, streams=st.rooted("splits", 1234), **kw)
     assert other_folds["mapping"] == data["mapping"] and not np.array_equal(other_folds["fold"], data["fold"])
 
 
@@ -720,22 +711,22 @@ def test_learner_seed_alone_leaves_the_data_unchanged_and_vice_versa(monkeypatch
     st = common.streams(7)
 
     def draw(seeds):
-        data = common.load_pairs(ctx, n_per_speaker=48, n_motion=30, n_folds=3, seeds=seeds)
+        data = common.load_pairs(ctx, n_per_speaker=48, n_motion=30, n_folds=3, streams=seeds)
         return data, common.fold_tasks(data, cfg, seeds)
 
     base, t_base = draw(st)
     assert (motion["gesture"][base["motion_idx"]] == np.array([base["mapping"][k] for k in "abcd"])[y]).all()
-    new_learner, t_learner = draw(st._replace(learner=st.learner + 1))
+    new_learner, t_learner = draw(st.rooted("learner", 1234))
     for key in ("fold", "motion_idx"):
         np.testing.assert_array_equal(new_learner[key], base[key])
     assert new_learner["mapping"] == base["mapping"]
     assert [t["learner_seed"] for t in t_learner] != [t["learner_seed"] for t in t_base]
-    new_data, t_data = draw(st._replace(data=st.data + 1))
+    new_data, t_data = draw(st.rooted("data", 1234))
     assert new_data["mapping"] != base["mapping"] or not np.array_equal(new_data["motion_idx"], base["motion_idx"])
     np.testing.assert_array_equal(new_data["fold"], base["fold"])
     assert [t["learner_seed"] for t in t_data] == [t["learner_seed"] for t in t_base]
     assert [t["reference_seed"] for t in t_data] == [t["reference_seed"] for t in t_base]
-    new_folds, _ = draw(st._replace(splits=st.splits + 1))
+    new_folds, _ = draw(st.rooted("splits", 1234))
     assert new_folds["mapping"] == base["mapping"] and not np.array_equal(new_folds["fold"], base["fold"])
 
 

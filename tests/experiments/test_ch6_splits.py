@@ -97,7 +97,7 @@ def test_load_pairs_folds_are_grouped_by_recording(data, extra_gestures, n_folds
         keywords, motion = _fake_loaders(mp, y, gestures, n_concepts)
         ctx = RunContext(data={}, cache_dir=tmp_path_factory.mktemp("c"), show_progress=False)
         pairs = common.load_pairs(ctx, n_per_speaker=len(y), n_motion=len(gestures), n_folds=n_folds,
-                                  seeds=common.streams(seed))
+                                  streams=common.streams(seed))
     record_gesture = gestures[pairs["motion_idx"]]
     assert all(record_gesture[i] == pairs["mapping"][keywords[c]] for i, c in enumerate(y))  # the concept's gesture
     split = common.fold_split_groups(pairs)
@@ -180,7 +180,7 @@ def test_sliding_repetitions_are_grouped_by_recording(data, n_views, seed, n_rep
     speech, ims = _sliding_inputs(y, n_views, np.random.default_rng(seed))
     config = dataclasses.replace(Config.quick(), n_repeats=n_repeats, n_test_folds=2)
     st_ = common.streams(seed)
-    reps = [_prepare(config, speech, ims, [None] * len(ims.labels), repetition_streams(st_, r, n_repeats))
+    reps = [_prepare(config, speech, ims, [None] * len(ims.labels), repetition_streams(st_, r))
             for r in range(n_repeats)]
     split = describe_split("test", [rep["sources"] for rep in reps])
     assert split["shared_sources"] == 0

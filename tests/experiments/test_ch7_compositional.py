@@ -18,7 +18,7 @@ from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.experiments import RunContext, SampleUnit
 from mmconcepts.experiments.ch7 import protocol as common
 from mmconcepts.experiments.ch7 import compositional as ch7
-from mmconcepts.engine.streams import Streams
+from mmconcepts.engine.streams import streams
 from mmconcepts.engine.splits import describe_split, shared_sources
 
 WORDS = ("eight", "five", "four", "nine", "one", "seven", "six", "three", "two", "zero")
@@ -202,7 +202,7 @@ def test_given_number_chance_known_values():
 # --------------------------------------------------------------------------- data of the experiment
 def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus, tmp_path):
     ctx = _ctx(tone_corpus, tmp_path)
-    st = Streams(1, 2, 3, 4, 5)
+    st = streams(1)
     data = ch7.build_data(ctx, TINY, st)
     n = TINY.n_compositional + TINY.n_single
     assert len(data["angles"]) == len(data["sound_plan"]) == len(data["combos"]) == n
@@ -234,23 +234,23 @@ def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus
 
 def test_streams_are_independent(tone_corpus, tmp_path):
     ctx = _ctx(tone_corpus, tmp_path)
-    a = ch7.build_data(ctx, TINY, Streams(1, 2, 3, 4, 5))
-    b = ch7.build_data(ctx, TINY, Streams(1, 99, 3, 77, 55))  # learner, reference, composition changed
+    a = ch7.build_data(ctx, TINY, streams(1))
+    b = ch7.build_data(ctx, TINY, streams(1).rooted("learner", 99).rooted("reference", 77).rooted("composition", 55))  # not data
     assert a["combos"] == b["combos"] and a["sound_plan"] == b["sound_plan"] and (a["fold"] == b["fold"]).all()
     assert all(np.array_equal(x, y) for x, y in zip(a["angles"], b["angles"]))
-    c = ch7.build_data(ctx, TINY, Streams(8, 2, 3, 4, 5))  # the data stream changed
+    c = ch7.build_data(ctx, TINY, streams(1).rooted("data", 8))  # the data stream changed
     assert c["combos"] != a["combos"]
-    ta = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, Streams(1, 2, 3, 4, 5))
-    tc = ch7.fold_tasks(c, [None] * len(c["combos"]), TINY, Streams(8, 2, 3, 4, 5))
+    ta = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, streams(1))
+    tc = ch7.fold_tasks(c, [None] * len(c["combos"]), TINY, streams(1).rooted("data", 8))
     assert [t["learner_seed"] for t in ta] == [t["learner_seed"] for t in tc]
-    tb = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, Streams(1, 99, 3, 4, 5))
+    tb = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, streams(1).rooted("learner", 99))
     assert [t["learner_seed"] for t in tb] != [t["learner_seed"] for t in ta]
     assert [t["calibration"].tolist() for t in tb] == [t["calibration"].tolist() for t in ta]
 
 
 def test_fold_tasks_hold_out_combinations_and_match_training_sizes(tone_corpus, tmp_path):
-    data = ch7.build_data(_ctx(tone_corpus, tmp_path), TINY, Streams(1, 2, 3, 4, 5))
-    for f, t in enumerate(ch7.fold_tasks(data, [None] * len(data["combos"]), TINY, Streams(1, 2, 3, 4, 5))):
+    data = ch7.build_data(_ctx(tone_corpus, tmp_path), TINY, streams(1))
+    for f, t in enumerate(ch7.fold_tasks(data, [None] * len(data["combos"]), TINY, streams(1))):
         assert not {tuple(data["combos"][i]) for i in t["train_comp"]} & data["held_out"][f]
         assert (data["fold"][t["train_comp"]] != f).all() and (data["fold"][t["test"]] == f).all()
         assert len(t["train_single"]) == min(len(t["train_comp"]), int(((data["kind"] == "single")
@@ -328,7 +328,7 @@ def test_real_data_builders(tmp_path):
         assert sum(x.startswith("motion:") for x in sources) >= 2  # at least one gesture's limbs and an idle donor
         for x in sources:
             assert owner.setdefault(x, int(f)) == int(f)
-    tasks = ch7.fold_tasks(data, mf, cfg, Streams(1, 2, 3, 4, 5))
+    tasks = ch7.fold_tasks(data, mf, cfg, streams(1))
     assert describe_split("recordings", ch7.split_sources(data, tasks))["shared_sources"] == 0
     # an utterance of 3 words lasts about 3 words and 2 pauses: longer on average than twice a single word
     frames = {n: np.mean([len(mf[i]) for i, c in enumerate(data["combos"]) if len(c) == n]) for n in (1, 3)}
@@ -424,7 +424,7 @@ def test_property_no_recording_on_both_sides_of_a_fold(problem):
             "Y": common.label_matrix(combos, L), "held_out": common.held_out_combinations(possible, n_folds, frng),
             "angles": [None] * len(combos), "sources": sources}
     cfg = dataclasses.replace(TINY, n_folds=n_folds, n_calibration=10)
-    tasks = ch7.fold_tasks(data, [None] * len(combos), cfg, Streams(1, 2, 3, 4, 5))
+    tasks = ch7.fold_tasks(data, [None] * len(combos), cfg, streams(1))
     folds = ch7.split_sources(data, tasks)
     assert len(folds) == n_folds
     for f, (train, test) in enumerate(folds):

@@ -42,7 +42,7 @@ from .rules import FAIR_AGREEMENT, Rule, above_chance_rule, evaluate_rule, fair_
 from .runner import run_experiment
 from .spec import CLAIM_KINDS, Claim, ExperimentSkipped, Result, Table, fill_thesis_numbers
 from .splits import concept_parts, describe_split, shared_sources
-from .streams import Streams, child_seeds, streams
+from .streams import STREAMS, Streams, streams
 from .uncertainty import SampleUnit
 
 __all__ = [
@@ -61,6 +61,7 @@ __all__ = [
     "Rule",
     "RunContext",
     "SampleUnit",
+    "STREAMS",
     "Streams",
     "Table",
     "above_chance_rule",
@@ -68,7 +69,6 @@ __all__ = [
     "array_digest",
     "cached_call",
     "check_data",
-    "child_seeds",
     "compare_records",
     "concept_parts",
     "describe_split",

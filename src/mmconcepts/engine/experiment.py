@@ -26,7 +26,7 @@ A complete experiment module (``src/mmconcepts/experiments/ch2/example.py``)::
     import numpy as np
     from matplotlib.figure import Figure
 
-    from mmconcepts.experiments import Claim, Experiment, Result, RunContext, Table, register
+    from mmconcepts.experiments import Claim, Experiment, Result, RunContext, Table, register, streams
     from mmconcepts.engine.config import PresetConfig
 
 
@@ -43,8 +43,8 @@ A complete experiment module (``src/mmconcepts/experiments/ch2/example.py``)::
 
 
     def compute(config: Config, ctx: RunContext) -> Result:
-        seeds = np.random.SeedSequence(config.seed).generate_state(config.n_trials)
-        scores = ctx.parallel(_trial, list(seeds), desc="trials")
+        seeds = streams(config.seed).seeds_for("data", config.n_trials)  # one per trial
+        scores = ctx.parallel(_trial, seeds, desc="trials")
         return Result(
             metrics={"score": float(np.mean(scores))},
             samples={"score": scores},

@@ -39,7 +39,6 @@ and how it is checked here:
 from __future__ import annotations
 
 import time
-from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,9 +46,9 @@ from matplotlib.figure import Figure
 
 from ...nmf import beta_nmf, match_components
 from ...errors import ParameterError
-from ...engine import Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Table, register
+from ...engine import Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Streams, Table, register, streams
 
-__all__ = ["Config", "compute", "present", "run", "make_data", "streams"]
+__all__ = ["Config", "compute", "present", "run", "make_data", "run_streams"]
 
 KINDS = ("identifiable", "nonidentifiable")
 
@@ -59,7 +58,7 @@ class Config(PresetConfig):
     """Sizes, betas and solvers of the recovery experiment.
 
     ``learner_seed`` (default: spawned from ``seed``) changes the solvers' initialisation
-    alone, leaving the data unchanged (see :func:`streams`).
+    alone, leaving the data unchanged (see :func:`run_streams`).
     """
 
     n_samples: int = 600
@@ -107,22 +106,16 @@ def make_data(kind: str, n_samples: int, n_features: int, n_components: int, noi
     return X, H
 
 
-def streams(config: Config) -> dict[str, Any]:
-    """Independent random streams: ``data[kind][repeat]`` (dictionary, coefficients, noise),
-    ``learner[kind][repeat]`` (the solvers' initialisation, shared by all methods of a repeat so
-    that they are compared from the same start) and ``reference[repeat]`` (the random
-    dictionary that gives the chance level).
+def run_streams(config: Config) -> Streams:
+    """The run's random streams: ``data`` (kind index, repeat) draws the dictionary, coefficients
+    and noise; ``learner`` (kind index, repeat) the solvers' initialisation, shared by all methods
+    of a repeat so that they are compared from the same start; ``reference`` (repeat) the random
+    dictionary that gives the chance level.
 
-    The learner streams come from ``config.learner_seed`` when it is set, else from a child of
-    ``config.seed`` that never draws data.
+    The learner stream is drawn from ``config.learner_seed`` when it is set
+    (:meth:`~mmconcepts.engine.Streams.rooted`), else from ``config.seed``; it never draws data.
     """
-    data_root, learner_root, ref_root = np.random.SeedSequence(config.seed).spawn(3)
-    if config.learner_seed is not None:
-        learner_root = np.random.SeedSequence(config.learner_seed)
-    n = config.n_repeats
-    data = dict(zip(KINDS, (d.spawn(n) for d in data_root.spawn(len(KINDS)))))
-    learner = dict(zip(KINDS, (d.spawn(n) for d in learner_root.spawn(len(KINDS)))))
-    return {"data": data, "learner": learner, "reference": ref_root.spawn(n)}
+    return streams(config.seed, learner_seed=config.learner_seed)
 
 
 def _methods(config: Config) -> list[tuple[str, float, str, str]]:
@@ -171,13 +164,13 @@ def _one_run(task):
 def compute(config: Config, ctx: RunContext) -> Result:
     """The fits, distances and property check (no figures; ``figure_data["loss_curves"]``: the
     first identifiable repeat's normalised loss histories, for :func:`present`)."""
-    ss = streams(config)
+    st = run_streams(config)
     tasks = []
-    for kind in KINDS:
+    for k, kind in enumerate(KINDS):
         for repeat in range(config.n_repeats):
             for name, beta, solver, rule in _methods(config):
-                tasks.append((config, kind, repeat, name, beta, solver, rule, ss["data"][kind][repeat],
-                              ss["learner"][kind][repeat]))
+                tasks.append((config, kind, repeat, name, beta, solver, rule, st.sequence("data", k, repeat),
+                              st.sequence("learner", k, repeat)))
     runs = ctx.parallel(_one_run, tasks, desc="NMF fits")
 
     metrics: dict[str, float] = {}
@@ -220,8 +213,8 @@ def compute(config: Config, ctx: RunContext) -> Result:
     rand = []
     for rep in range(config.n_repeats):  # chance level: a random dictionary against each repeat's true one
         _, H_true = make_data("identifiable", config.n_samples, config.n_features, config.n_components, config.noise,
-                              np.random.default_rng(ss["data"]["identifiable"][rep]))
-        rand.append(match_components(np.random.default_rng(ss["reference"][rep]).random(H_true.shape), H_true).distance)
+                              st.rng("data", KINDS.index("identifiable"), rep))
+        rand.append(match_components(st.rng("reference", rep).random(H_true.shape), H_true).distance)
     metrics["random_dictionary.distance"] = float(np.median(rand))
     samples["random_dictionary.distance"] = rand
 
@@ -280,7 +273,7 @@ def _notes(config: Config, worst: str, n_mm: int) -> list[str]:
         f"Quick preset: five independent repetitions of {Config.QUICK['n_samples']} samples x "
         f"{Config.QUICK['n_features']} features and {Config.QUICK['max_iter']} iterations of every solver; the "
         "thesis fixes no size for this experiment.",
-        "Random streams: numpy SeedSequence children of the seed draw the data, the solvers' initialisation "
+        "Random streams (mmconcepts.engine.Streams): the seed's data, learner and reference streams draw the data, the solvers' initialisation "
         "(nndsvda's randomized SVD; one stream per repetition, shared by all methods) and the random reference "
         "dictionary independently.",
     ]

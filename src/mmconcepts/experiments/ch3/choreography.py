@@ -57,10 +57,9 @@ Choices (the thesis' where it says):
 - Baselines: ``svm`` is the thesis' plain linear SVM (one per label, C = 1, on the raw
   histograms); ``svm_std`` standardises each feature first (ours); ``chance`` predicts the
   most frequent training label set.
-- Random streams: ``SeedSequence(seed).spawn(5)`` gives the data (synthetic recordings,
-  MSR limb pairings), learner (codebooks, NMF initialisation, SVM), splits (folds, parts of
-  the MSR recordings) and reference streams
-  (:func:`~mmconcepts.experiments.ch3.protocol.streams`).
+- Random streams: the seed's :class:`~mmconcepts.engine.Streams` give the data (synthetic
+  recordings, MSR limb pairings), learner (codebooks, NMF initialisation, SVM; one draw per
+  fold), splits (folds, parts of the MSR recordings) and reference streams.
 - ``l_given_number >= l_full`` holds for any scores (a label set found exactly by the
   threshold is also the top-n of the activations), so it is no claim.
 - Spread: every score has its per-fold values as samples (leave-one-out: per example),
@@ -144,7 +143,7 @@ def mixed_arrays(config, ctx: RunContext, n_labels: str) -> common.MotionArrays:
     built per part of their recordings, dealt by the splits stream)."""
     st = common.streams(config.seed)
     n_rec = config.n_records_partial if n_labels == "16" else config.n_records_full
-    return common.subset_arrays(ctx, SUBSETS[n_labels], seed=st.data, n_records=n_rec, split_seed=st.splits)
+    return common.subset_arrays(ctx, SUBSETS[n_labels], streams=st, n_records=n_rec)
 
 
 def evaluate_mixed(config, ctx: RunContext, n_labels: str, *, learners=LEARNERS, unseen: bool = False,
@@ -154,9 +153,9 @@ def evaluate_mixed(config, ctx: RunContext, n_labels: str, *, learners=LEARNERS,
     ``features`` replaces ``config.features()`` (the alternative histograms)."""
     st = common.streams(config.seed)
     arrays = mixed_arrays(config, ctx, n_labels)
-    splits = common.example_splits(arrays, config.n_folds, st.splits, unseen=unseen)
+    splits = common.example_splits(arrays, config.n_folds, st.seed_for("splits"), unseen=unseen)
     folds = common.evaluate_folds(ctx, arrays.angles, arrays.Y, splits, features=features or config.features(),
-                                  learners=learners, params=config.params(), seed=st.learner,
+                                  learners=learners, params=config.params(), streams=st,
                                   desc=f"{n_labels} labels")
     return Mixed(arrays.Y, folds, arrays, splits)
 

@@ -111,7 +111,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     }
     S = common.pooled(folds, "nmf_frobenius", "scores", *Y.shape)
     P = common.pooled(folds, "nmf_frobenius", "pred", *Y.shape)
-    units = common.score_units(folds, common.streams(config.seed).splits)
+    units = common.score_units(folds, common.streams(config.seed).seed_for("splits"))
     samples: dict[str, list[float]] = {}
     metrics["nmf_frobenius.l_full"] = float(l_full(Y, P))
     samples["nmf_frobenius.l_full"] = [float(l_full(Y[u], P[u])) for u in units]

@@ -30,8 +30,8 @@ Features of the mixed set: joint angle-velocity histograms by soft vector quanti
 16 centroids per degree of freedom, delay 2 frames, and, as the second setting of the
 NMF-vs-SVM claims, KDE histograms with the same bins and delay (metrics ``kde.*``); fitted
 on the training folds only. MU iterations: 100 quick, 200 full (not given by the thesis).
-Random streams: ``SeedSequence(seed).spawn(5)`` (data pairing, learners, splits and parts,
-reference).
+Random streams: the seed's :class:`~mmconcepts.engine.Streams` (data pairing, learners, splits
+and parts, reference).
 
 Claims, all ours (the thesis' statements of Tables 3.2 and 3.3 are tested on the same data by
 ``ch3-choreography`` and ``ch3-unseen``): the orders of the thesis' 16-gesture rows (the
@@ -107,7 +107,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     folder = _folder(ctx)
     t0 = time.perf_counter()
     st = common.streams(config.seed)
-    single = common.msr_subset(folder, "primitive", seed=st.data, n_records=config.n_records)
+    single = common.msr_subset(folder, "primitive", streams=st, n_records=config.n_records)
     Y1 = single.Y
     y = np.argmax(Y1, axis=1)
     metrics: dict[str, float] = {"single.n_examples": float(len(y))}
@@ -116,11 +116,11 @@ def compute(config: Config, ctx: RunContext) -> Result:
     units = {}
     groups = {}
     params = {"n_components": config.n_components, "max_iter": config.max_iter, "inner_cv": config.inner_cv}
-    splits = common.example_splits(single, config.n_folds_single, st.splits, y=y)
+    splits = common.example_splits(single, config.n_folds_single, st.seed_for("splits"), y=y)
     units["single"] = common.fold_unit(splits, "the single actions")
     groups["single actions"] = common.split_groups(single, splits)
     res = common.evaluate_folds(ctx, single.angles, Y1, splits, features=list(SINGLE_REPS.values()),
-                                learners=("nmf_frobenius",), params=params, seed=st.learner, single=True,
+                                learners=("nmf_frobenius",), params=params, streams=st, single=True,
                                 desc="MSR single")
     for name, folds in zip(SINGLE_REPS, res):
         metrics[f"single.{name}.l_single"] = common.pooled_scores(folds, Y1, "nmf_frobenius", single=True)["l_single"]
@@ -128,20 +128,20 @@ def compute(config: Config, ctx: RunContext) -> Result:
         sample_units[f"single.{name}.l_single"] = "single"
     metrics["single.chance.l_single"] = float(np.bincount(y).max() / len(y))
 
-    mixed = common.msr_subset(folder, "mixed_partial", seed=st.data, n_records=config.n_records,
-                              n_parts=config.n_folds_mixed, split_seed=st.splits)
+    mixed = common.msr_subset(folder, "mixed_partial", streams=st, n_records=config.n_records,
+                              n_parts=config.n_folds_mixed)
     Y2 = mixed.Y
     metrics["mixed.n_examples"] = float(len(Y2))
     metrics["mixed.n_combinations"] = float(len(np.unique(common.combination_ids(Y2))))
     rows = []
     train_sizes = {}
     for proto in PROTOCOLS:
-        spl = common.example_splits(mixed, config.n_folds_mixed, st.splits, unseen=proto == "unseen")
+        spl = common.example_splits(mixed, config.n_folds_mixed, st.seed_for("splits"), unseen=proto == "unseen")
         units[proto] = common.fold_unit(spl, "the mixtures" + (" (unseen combinations)" if proto == "unseen" else ""))
         groups["mixtures" if proto == "mixed" else "mixtures, unseen combinations"] = common.split_groups(mixed, spl)
         train_sizes[proto] = (min(len(tr) for tr, _ in spl), max(len(tr) for tr, _ in spl))
         both = common.evaluate_folds(ctx, mixed.angles, Y2, spl, features=[MIXED_FEATURES, MIXED_ALT_FEATURES],
-                                     learners=MIXED_LEARNERS, params=params, seed=st.learner, desc=f"MSR {proto}")
+                                     learners=MIXED_LEARNERS, params=params, streams=st, desc=f"MSR {proto}")
         for pre, folds in zip(("", "kde."), both):
             for name in MIXED_LEARNERS:
                 key = f"{proto}.{pre}{name}"

@@ -11,8 +11,8 @@ Thesis section 3.3. What the experiments have in common:
   The experiments only see arrays, so the protocol and the metric names are the same on
   every data set.
 - :func:`streams`: the independent random streams of an experiment (data, learner
-  initialisation, splits, reference draws) spawned from its seed: the seed that drew the
-  data never reaches a learner.
+  initialisation, splits, reference draws) drawn from its seed (:class:`~mmconcepts.engine.Streams`):
+  the seed that drew the data never reaches a learner.
 - Splits, grouped by source recording (no recording behind a test example feeds a training
   example): :func:`example_splits` gives a protocol's (train, test) folds for a data set,
   :func:`split_groups` checks and describes them for the record. Examples that are each
@@ -160,22 +160,19 @@ def motion_arrays(ds) -> tuple[list[np.ndarray], np.ndarray, list[int]]:
 MSR_PARTS = 10
 
 
-def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | None = None,
-                  split_seed: int | None = None) -> MotionArrays:
+def subset_arrays(ctx: RunContext, subset: str, *, streams: Streams, n_records: int | None = None) -> MotionArrays:
     """The Choreo1 subset ``subset`` from the run's data (choreo1 > msr-action3d > synthetic).
 
     Parameters
     ----------
     subset : {"primitive", "mixed_partial", "mixed_full"}
-    seed : int
-        The *data* stream (``streams(config.seed).data``): draws the synthetic recordings,
-        or the pairing of limbs of the real MSR recordings.
+    streams : Streams
+        The run's streams: the *data* stream draws the synthetic recordings, or the pairing
+        of limbs of the real MSR recordings; the *splits* stream deals the recordings of the
+        MSR mixed sets into :data:`MSR_PARTS` parts, within which the mixtures are built.
     n_records : int, optional
         Keep fewer records (small runs): the first ones of real Choreo1 files, a random
         draw (data stream) of the MSR sets, the first generated ones of the synthetic set.
-    split_seed : int, optional
-        The *splits* stream: deals the recordings of the MSR mixed sets into
-        :data:`MSR_PARTS` parts, within which the mixtures are built (required for them).
 
     Returns
     -------
@@ -196,15 +193,11 @@ def subset_arrays(ctx: RunContext, subset: str, *, seed: int, n_records: int | N
                                                    f"from {folder}")
     if kind == "msr-action3d":
         if subset == "primitive":
-            return msr_subset(ctx.dataset("msr-action3d"), subset, seed=seed, n_records=n_records)
-        if split_seed is None:
-            raise ParameterError("the MSR mixed sets are built per part of their source recordings: pass split_seed "
-                             "(the splits stream)")
-        return msr_subset(ctx.dataset("msr-action3d"), subset, seed=seed, n_records=n_records, n_parts=MSR_PARTS,
-                          split_seed=split_seed)
+            return msr_subset(ctx.dataset("msr-action3d"), subset, streams=streams, n_records=n_records)
+        return msr_subset(ctx.dataset("msr-action3d"), subset, streams=streams, n_records=n_records, n_parts=MSR_PARTS)
     from ...motion.synthetic import make_choreo1
 
-    ds = make_choreo1(subset, data_home=ctx.cache_dir, random_state=seed, n_records=n_records)
+    ds = make_choreo1(subset, data_home=ctx.cache_dir, random_state=streams.seed_for("data"), n_records=n_records)
     angles, Y, ids = motion_arrays(ds)
     return MotionArrays(angles, Y, ids, kind, f"synthetic Choreo1 {subset} ({len(Y)} records, {len(ids)} gestures)")
 
@@ -257,24 +250,22 @@ def source_parts(actions: np.ndarray, subjects: np.ndarray, n_parts: int, seed: 
     return part
 
 
-def msr_mixture_plan(actions: np.ndarray, subjects: np.ndarray, subset: str, *, seed: int, n_parts: int | None = None,
-                     split_seed: int | None = None
-                     ) -> tuple[list[tuple[int, ...]], list[tuple[int, ...]], np.ndarray | None]:
+def msr_mixture_plan(actions: np.ndarray, subjects: np.ndarray, subset: str, *, streams: Streams,
+                     n_parts: int | None = None) -> tuple[list[tuple[int, ...]], list[tuple[int, ...]], np.ndarray | None]:
     """Which recordings each MSR limb mixture is made of, its label set and its part.
 
     Parameters
     ----------
     actions, subjects : (n_recordings,) int arrays (the primitive set's order)
     subset : {"mixed_partial", "mixed_full"} (see :func:`msr_subset`)
-    seed : int
-        The *data* stream: which leg (and left-arm) recording joins each arm recording.
+    streams : Streams
+        The run's streams: the *data* stream draws which leg (and left-arm) recording joins
+        each arm recording; the *splits* stream deals the recordings into parts.
     n_parts : int, optional
         Deal the recordings into this many parts first (:func:`source_parts`) and build each
         mixture from recordings of its own part only, so that splits by part never put a
         recording on both sides. None: every recording of the subject can join (one pool,
         the mixtures share recordings; split them by part only).
-    split_seed : int, optional
-        The *splits* stream, required with ``n_parts``.
 
     Returns
     -------
@@ -289,11 +280,9 @@ def msr_mixture_plan(actions: np.ndarray, subjects: np.ndarray, subset: str, *, 
     if subset not in ("mixed_partial", "mixed_full"):
         raise ParameterError(f"subset must be 'mixed_partial' or 'mixed_full'; got {subset!r}")
     actions, subjects = np.asarray(actions), np.asarray(subjects)
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
+    rng = streams.rng("data", _SUBSETS.index(subset))
     if n_parts is not None:
-        if split_seed is None:
-            raise ParameterError("n_parts needs split_seed (the splits stream)")
-        rec_part = source_parts(actions, subjects, int(n_parts), split_seed)
+        rec_part = source_parts(actions, subjects, int(n_parts), streams.seed_for("splits"))
     else:
         rec_part = np.zeros(len(actions), dtype=np.int64)
     by_pool: dict[tuple[int, int], list[int]] = {}
@@ -325,8 +314,8 @@ def msr_mixture_plan(actions: np.ndarray, subjects: np.ndarray, subset: str, *, 
     return sources, labels, (np.array(parts, dtype=np.int64) if n_parts is not None else None)
 
 
-def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None, n_parts: int | None = None,
-               split_seed: int | None = None) -> MotionArrays:
+def msr_subset(folder, subset: str, *, streams: Streams, n_records: int | None = None,
+               n_parts: int | None = None) -> MotionArrays:
     """A Choreo1-like subset made of real MSR Action3D skeletons (Li, Zhang and Liu 2010).
 
     - ``primitive``: every usable sequence, labelled by its action (20 labels), the analogue
@@ -351,13 +340,13 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None, 
     (:func:`msr_mixture_plan`): the parts are folds that keep every recording on one side.
 
     Whatever subjects the folder holds are used (no subject is named here); the random
-    pairings come from ``seed`` (the data stream).
+    pairings come from the data stream of ``streams``, the parts from its splits stream.
     """
     if subset not in _SUBSETS:
         raise ParameterError(f"subset must be one of {_SUBSETS}; got {subset!r}")
     folder = Path(folder)
     angles, actions, subjects, skipped = msr_joint_angles(folder)
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset)]))
+    rng = streams.rng("data", _SUBSETS.index(subset))
     parts: np.ndarray | None = None
     labels: list[tuple[int, ...]]
     sources: list[tuple[int, ...]]
@@ -366,10 +355,9 @@ def msr_subset(folder, subset: str, *, seed: int, n_records: int | None = None, 
         labels = [(int(a),) for a in actions]
         sources = [(i,) for i in range(len(angles))]
     else:
-        sources, labels, parts = msr_mixture_plan(actions, subjects, subset, seed=seed, n_parts=n_parts,
-                                                  split_seed=split_seed)
-        # the draw of n_records below: a stream of its own, apart from the pairing's
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SUBSETS.index(subset), 1]))
+        sources, labels, parts = msr_mixture_plan(actions, subjects, subset, streams=streams, n_parts=n_parts)
+        # the draw of n_records below: a draw of its own, apart from the pairing's
+        rng = streams.rng("data", _SUBSETS.index(subset), 1)
         out = []
         for src in sources:
             T = min(len(angles[r]) for r in src)
@@ -662,19 +650,19 @@ def _cached_fold(task: dict, key: tuple, code: str) -> dict:
 
 @overload
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *, features: dict,
-                   learners: tuple[str, ...], params: dict, seed: int, single: bool = False,
+                   learners: tuple[str, ...], params: dict, streams: Streams, single: bool = False,
                    desc: str = "folds") -> list[dict]: ...
 
 
 @overload
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *,
-                   features: list[dict] | tuple[dict, ...], learners: tuple[str, ...], params: dict, seed: int,
-                   single: bool = False, desc: str = "folds") -> list[list[dict]]: ...
+                   features: list[dict] | tuple[dict, ...], learners: tuple[str, ...], params: dict,
+                   streams: Streams, single: bool = False, desc: str = "folds") -> list[list[dict]]: ...
 
 
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *,
                    features: dict | list[dict] | tuple[dict, ...], learners: tuple[str, ...], params: dict,
-                   seed: int, single: bool = False, desc: str = "folds") -> list[dict] | list[list[dict]]:
+                   streams: Streams, single: bool = False, desc: str = "folds") -> list[dict] | list[list[dict]]:
     """Evaluate every split (in parallel over ``ctx.workers``), reusing cached folds.
 
     Parameters
@@ -686,9 +674,9 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
         (then one list of fold results per entry is returned, all folds run in one parallel batch)
     learners : names among 'nmf_frobenius', 'nmf_kl', 'svm', 'svm_std', 'chance'
     params : ``n_components``, ``max_iter``, ``inner_cv`` of the NMF learners
-    seed : int
-        The *learner* stream (``streams(config.seed).learner``): each fold's histogram
-        codebooks and learners are seeded from it and the fold index.
+    streams : Streams
+        The run's streams: each fold's histogram codebooks and learners are seeded by its
+        *learner* stream and the fold index (``streams.seed_for("learner", i)``).
     single : single-label data (1-D fit, l_single)
 
     Returns
@@ -706,7 +694,7 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
         # Every histogram parameter, defaults included, so a changed default is a new key.
         hist_params = sorted(MotionHistograms(**feats).get_params().items())
         for i, (tr, te) in enumerate(splits):
-            fold_seed = int(np.random.SeedSequence([seed, i]).generate_state(1)[0] % (2**31 - 1))
+            fold_seed = streams.seed_for("learner", i)
             task = {"angles": angles, "Y": Y, "train": np.asarray(tr), "test": np.asarray(te), "features": feats,
                     "learners": tuple(learners), "params": params, "seed": fold_seed, "single": single}
             key = (fp, hist_params, tuple(learners), sorted(params.items()), single, task["train"], task["test"],
@@ -783,7 +771,7 @@ def score_units(folds: list[dict], seed: int, *, n_blocks: int = N_BLOCKS) -> li
     ----------
     folds : fold results of :func:`evaluate_folds` (their ``test`` indices)
     seed : int
-        The splits stream (``streams(config.seed).splits``).
+        The splits stream (``streams(config.seed).seed_for("splits")``).
     n_blocks : int, default=:data:`N_BLOCKS`
 
     Returns

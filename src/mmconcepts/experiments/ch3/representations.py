@@ -104,14 +104,14 @@ def compute(config: Config, ctx: RunContext) -> Result:
     """l_single of every histogram setting (no figures: :func:`present` draws them from the metrics)."""
     t0 = time.perf_counter()
     st = common.streams(config.seed)
-    arrays = common.subset_arrays(ctx, "primitive", seed=st.data, n_records=config.n_records)
+    arrays = common.subset_arrays(ctx, "primitive", streams=st, n_records=config.n_records)
     # velocities with delay d need d + 1 frames: records too short for the longest delay are left out
     # (none of the synthetic ones; on MSR Action3D, 15 fps, a few sequences of 9-20 frames)
     long_enough = [i for i, a in enumerate(arrays.angles) if len(a) > max(config.delays + (config.bins_delay,))]
     n_short = len(arrays.angles) - len(long_enough)
     angles, Y = [arrays.angles[i] for i in long_enough], arrays.Y[long_enough]
     y = np.argmax(Y, axis=1)
-    splits = common.kfold_splits(len(y), config.n_folds, st.splits, y=y)
+    splits = common.kfold_splits(len(y), config.n_folds, st.seed_for("splits"), y=y)
     settings: list[tuple[str, dict]] = []
     for name, kw in METHODS.items():
         for b in config.bins:
@@ -122,7 +122,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
             settings.append((f"{data}.delay_{d}", {"data": data, "method": "kde", "n_bins": config.kde_bins, "delay": d}))
     params = {"n_components": config.n_components, "max_iter": config.max_iter, "inner_cv": 2}
     all_folds = common.evaluate_folds(ctx, angles, Y, splits, features=[f for _, f in settings],
-                                      learners=("nmf_frobenius",), params=params, seed=st.learner, single=True,
+                                      learners=("nmf_frobenius",), params=params, streams=st, single=True,
                                       desc="representations")
     metrics: dict[str, float] = {}
     samples: dict[str, list[float]] = {}

@@ -160,7 +160,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     threshold, and the number of units, for :func:`present`)."""
     Y, folds, arrays, splits = evaluate_mixed(config, ctx, "16", learners=LEARNERS)
     n = len(Y)
-    units = common.score_units(folds, common.streams(config.seed).splits)
+    units = common.score_units(folds, common.streams(config.seed).seed_for("splits"))
     metrics: dict[str, float] = {}
     samples: dict[str, list[float]] = {}
     out = {}

@@ -47,7 +47,8 @@ from ...tasks import (
     value_iteration,
 )
 from ...errors import ParameterError
-from ...engine import Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Table, describe_split, register
+from ...engine import (Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Streams, Table, describe_split,
+                      register, streams)
 
 __all__ = ["Config", "compute", "present", "run", "make_tasks", "score_rewards", "world_streams"]
 
@@ -112,22 +113,28 @@ def score_rewards(mdp, learnt: np.ndarray, true: np.ndarray) -> dict[str, np.nda
     return {"deviation": opt - V, "normalised": (opt - V) / (opt - rnd)}
 
 
-def world_streams(config: Config, world: int = 0) -> list[np.random.SeedSequence]:
-    """The independent streams of one world: primitives, training tasks, test tasks, example draw.
+#: The data stream's draws per world: the primitive rewards, the training tasks, the test tasks.
+PRIMITIVES, TRAIN_TASKS, TEST_TASKS = 0, 1, 2
 
-    World ``w`` is the ``w``-th child of ``SeedSequence(config.seed)``, the same whatever ``n_worlds``.
+
+def world_streams(config: Config, world: int = 0) -> Streams:
+    """The streams of world ``world`` (:meth:`~mmconcepts.engine.Streams.sub`), the same whatever ``n_worlds``.
+
+    Its data stream draws the primitive rewards (key :data:`PRIMITIVES`), the training tasks and
+    their demonstrations (:data:`TRAIN_TASKS`) and the test tasks (:data:`TEST_TASKS`); its
+    reference stream the example tasks of ``flat_examples``.
     """
-    return np.random.SeedSequence(config.seed, spawn_key=(world,)).spawn(4)
+    return streams(config.seed).sub(world)
 
 
 def _world(config: Config, world: int = 0):
     mdp = grid_world(config.grid_size, success_prob=config.success_prob, discount=config.discount)
-    s_dict, s_train, s_test, s_ex = world_streams(config, world)
-    D_true = np.random.default_rng(s_dict).standard_normal((config.n_primitives, mdp.n_states * mdp.n_actions))
+    st = world_streams(config, world)
+    D_true = st.rng("data", PRIMITIVES).standard_normal((config.n_primitives, mdp.n_states * mdp.n_actions))
     train = make_tasks(config, config.n_tasks, max(max(config.demos_curve), config.n_demos),
-                       np.random.default_rng(s_train), D_true, mdp)
-    test = make_tasks(config, config.n_test_tasks, 1, np.random.default_rng(s_test), D_true, mdp)
-    return mdp, D_true, train, test, np.random.default_rng(s_ex)
+                       st.rng("data", TRAIN_TASKS), D_true, mdp)
+    test = make_tasks(config, config.n_test_tasks, 1, st.rng("data", TEST_TASKS), D_true, mdp)
+    return mdp, D_true, train, test, st.rng("reference")
 
 
 def _pca(theta: np.ndarray, k: int) -> np.ndarray:
@@ -399,8 +406,8 @@ def _notes(config: Config, default: dict, results: dict, N_few: int, m_few: int)
         "Splits: training and test tasks are separate draws (their own mixtures and demonstrations); no test task "
         "feeds a training fit. flat_examples uses the learnt rewards of 15 training tasks as features for the test "
         "tasks (the thesis' 'features from ex.'), which is transfer, not a leak.",
-        "Random streams: per world, SeedSequence(seed) children draw the primitive rewards, the training tasks and "
-        "their demonstrations, the test tasks and the 15 example tasks of flat_examples independently. The learners "
+        "Random streams (mmconcepts.engine.Streams): per world, the seed's data stream draws the primitive rewards, the training tasks and "
+        "their demonstrations and the test tasks, its reference stream the 15 example tasks of flat_examples, independently. The learners "
         "draw nothing (PCA initialisation, deterministic gradient steps), so no seed reaches them.",
         "Seconds per fitted point (first world): " + ", ".join(f"(m={r['m']}, N={r['N']}): {r['seconds']:.1f}"
                                                              for r in results.values()),

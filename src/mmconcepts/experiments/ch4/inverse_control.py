@@ -32,9 +32,9 @@ dictionary, tasks and start points the same under both dynamics, so the settings
 compared on the same draws. The imitators' trajectories are compared with the noise-free
 demonstrator's.
 
-Random streams. Each repetition spawns independent ``numpy.random.SeedSequence`` children for
-the data (true dictionary, mixtures, start points), the sensor noise and the learners'
-initial dictionaries (:func:`streams`): the seed that drew the data never reaches a learner.
+Random streams. Each repetition has its own streams (:func:`run_streams`): the data stream draws
+the true dictionary, mixtures and start points, and apart the sensor noise; the learner stream the
+learners' initial dictionaries. The seed that drew the data never reaches a learner.
 
 Learners. The supervised learner minimises eq. (4.5) in D by conjugate gradient
 (``d_solver='cg'``, run to convergence); the thesis says "gradient descent" without a step
@@ -46,7 +46,6 @@ one (:func:`mixing_error`).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,9 +60,10 @@ from ...tasks import (
     control_trajectories,
     relative_l2_error,
 )
-from ...engine import Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Table, describe_split, register
+from ...engine import (Claim, Experiment, PresetConfig, Result, RunContext, SampleUnit, Streams, Table, describe_split,
+                      register, streams)
 
-__all__ = ["Config", "compute", "present", "run", "streams", "make_data", "observe", "mixing_error", "setting_label",
+__all__ = ["Config", "compute", "present", "run", "run_streams", "make_data", "observe", "mixing_error", "setting_label",
            "SETTINGS", "THESIS"]
 
 LEARNERS = ("flat", "supervised", "unsupervised")
@@ -144,25 +144,23 @@ def _mix(rng, n, k):
     return A
 
 
-def streams(config: Config) -> list[dict[str, np.random.SeedSequence]]:
-    """Independent random streams per repetition: ``data`` (dictionary, mixtures, start points),
-    ``sensor`` (observation noise) and ``learner`` (initial dictionaries).
+#: The data stream's two draws per repetition: the tasks (dictionary, mixtures, start points), the sensor noise.
+TASKS, SENSOR = 0, 1
+#: The learner stream's two draws per repetition: the supervised and the unsupervised learner's initialisation.
+SUPERVISED, UNSUPERVISED = 0, 1
 
-    The learner streams come from ``config.learner_seed`` when it is set, else from ``config.seed``
-    (a child that never drew data), so that the seed that drew the data never reaches a learner.
+
+def run_streams(config: Config) -> list[Streams]:
+    """The random streams of each repetition (:meth:`~mmconcepts.engine.Streams.sub`): ``data``
+    draws the tasks (key :data:`TASKS`: dictionary, mixtures, start points) and the sensor noise
+    (key :data:`SENSOR`); ``learner`` the initial dictionaries (keys :data:`SUPERVISED`,
+    :data:`UNSUPERVISED`).
+
+    The learner stream is drawn from ``config.learner_seed`` when it is set, else from
+    ``config.seed``; it never draws data.
     """
-    reps = np.random.SeedSequence(config.seed).spawn(config.n_repeats)
-    out = [dict(zip(("data", "sensor", "learner"), r.spawn(3))) for r in reps]
-    if config.learner_seed is not None:
-        for d, ls in zip(out, np.random.SeedSequence(config.learner_seed).spawn(config.n_repeats)):
-            d["learner"] = ls
-    return out
-
-
-def _children(seq: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
-    """The first ``n`` children of ``seq``, the same whatever was spawned from it before (``spawn`` is stateful)."""
-    return [np.random.SeedSequence(seq.entropy, spawn_key=tuple(seq.spawn_key) + (i,), pool_size=seq.pool_size)
-            for i in range(n)]
+    st = streams(config.seed, learner_seed=config.learner_seed)
+    return [st.sub(rep) for rep in range(config.n_repeats)]
 
 
 def make_data(config: Config, data_ss: np.random.SeedSequence, sensor_ss: np.random.SeedSequence,
@@ -312,11 +310,11 @@ def _summary(prefix: str, values: dict) -> dict[str, float]:
 
 def _dynamics_job(job) -> dict:
     """One repetition under one dynamics: its data, then every sensor noise's learners and errors."""
-    config, ss, dynamics, with_figure = job
+    config, st, dynamics, with_figure = job
     feats = RBFFeatures(config.grid_size)
     kw = _traj_kw(config, dynamics)
-    data = make_data(config, ss["data"], ss["sensor"], feats, dynamics)
-    sup_ss, uns_ss = _children(ss["learner"], 2)
+    data = make_data(config, st.sequence("data", TASKS), st.sequence("data", SENSOR), feats, dynamics)
+    sup_ss, uns_ss = st.sequence("learner", SUPERVISED), st.sequence("learner", UNSUPERVISED)
     metrics: dict[str, float] = {}
     figure = None
     # the control: an imitator that knows the average training task exactly but ignores the demonstration
@@ -385,7 +383,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         raise ParameterError(f"d_solver must be 'cg' or 'steepest'; got {config.d_solver!r}")
     if config.n_repeats < 1:
         raise ParameterError(f"n_repeats must be at least 1; got {config.n_repeats!r}")
-    ss = streams(config)
+    ss = run_streams(config)
     index = [(rep, dyn) for rep in range(config.n_repeats) for dyn in config.dynamics]
     outs = ctx.parallel(_dynamics_job, [(config, ss[rep], dyn, rep == 0 and dyn == config.dynamics[0])
                                         for rep, dyn in index], desc="fits")
@@ -520,7 +518,7 @@ def _notes(config: Config, metrics: dict[str, float], failed: dict[str, int]) ->
         "the unsupervised and flat learners' training-task errors over the first test-task-many training tasks, "
         "and the diagnostics (noise-free and steepest-descent fits) in the full "
         "preset only. The thesis fixes none of these; the repetitions, not the tasks, are the verdicts' units.",
-        "Random streams: per repetition, numpy SeedSequence(seed) children draw the data (dictionary, mixtures, "
+        "Random streams (mmconcepts.engine.Streams): per repetition, the seed's data and learner streams draw the data (dictionary, mixtures, "
         "start points), the sensor noise and the learners' initial dictionaries independently; the learners start "
         "from the same initial dictionaries under every setting.",
     ]

@@ -189,11 +189,10 @@ def compute(config: Config, ctx: RunContext) -> Result:
     voting = common.voting_params(config.window_ms, metric=config.metric, backtrack=config.backtrack)
     st = common.streams(config.seed)
     splits = speaker_splits(y_all, spk_all, n_train=config.n_train, n_test=config.n_test,
-                            n_repeats=config.n_repeats, seed=st.splits)
-    learner_seeds = np.random.SeedSequence(st.learner).spawn(config.n_repeats)
+                            n_repeats=config.n_repeats, seed=st.seed_for("splits"))
     tasks = []
     for r, rep in enumerate(splits):
-        seeds = [int(s % (2**31 - 1)) for s in learner_seeds[r].generate_state(len(speakers) + 1)]
+        seeds = st.seeds_for("learner", len(speakers) + 1, r)  # one per speaker's learner, one for all speakers
         for j, s in enumerate(speakers):
             tr, te = rep[s]
             tasks.append(_task(s, tr, te, y_all, spk_all, windows, [s], config.session, voting, seeds[j]))

@@ -37,7 +37,7 @@ recording). This experiment goes beyond the thesis, which runs no learner on lab
 speech: its claims are ours.
 
 Random streams (:func:`~mmconcepts.engine.streams.streams`): folds from ``splits``,
-compositions and the draw of generated sentences from ``data``, codebooks, dictionaries,
+compositions from ``composition``, the draw of generated sentences from ``data``, codebooks, dictionaries,
 trees and inner threshold cross-validation from ``learner``, the chance learner's
 tie-break from ``reference``.
 """
@@ -253,7 +253,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
               "keywords": keywords, "hac_seqs": hac_seqs, "win_seqs": win_seqs, "voting": voting,
               "config": {"n_components": config.n_components, "max_iter": config.max_iter,
                          "threshold_cv": config.threshold_cv, "hac_fit_frames": config.hac_fit_frames},
-              "seed": common.sub_seed(st.learner, i), "chance_seed": common.sub_seed(st.reference, i)}
+              "seed": st.seed_for("learner", i), "chance_seed": st.seed_for("reference", i)}
              for i in range(n_folds)]
     folds = ctx.parallel(_fold, tasks, desc="folds")
     split = describe_split(

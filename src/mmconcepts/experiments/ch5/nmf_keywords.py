@@ -38,7 +38,7 @@ in stratified folds (speaker-dependent, as the thesis' speaker 1), and a test fo
 composed utterances made of that fold's recordings only.
 
 Random streams (:func:`~mmconcepts.experiments.ch5.protocol.streams`): the folds use the
-``splits`` stream, the compositions the ``data`` stream, codebooks, dictionaries, inner
+``splits`` stream, the compositions the ``composition`` stream, codebooks, dictionaries, inner
 threshold cross-validation and trees the ``learner`` stream.
 """
 
@@ -173,7 +173,7 @@ def _fold(task: dict) -> dict:
 
 def _plan(config: Config, y: np.ndarray, s: common.Streams) -> list[tuple[np.ndarray, np.ndarray]]:
     """Stratified folds of the speaker's recordings, from the ``splits`` stream: (train, test) indices per fold."""
-    fold = common.recording_folds(y, config.n_folds, s.splits)
+    fold = common.recording_folds(y, config.n_folds, s.seed_for("splits"))
     return [(np.flatnonzero(fold != i), np.flatnonzero(fold == i)) for i in range(int(fold.max()) + 1)]
 
 
@@ -197,7 +197,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     rec_fold = np.full(len(y), -1)
     for i, (_, te) in enumerate(splits):
         rec_fold[te] = i
-    parts = common.compose_by_fold(ctx, sub, rec_fold, n_composed=config.n_composed_per_fold, seed=st.data,
+    parts = common.compose_by_fold(ctx, sub, rec_fold, n_composed=config.n_composed_per_fold, streams=st,
                                    n_words=(config.min_words, config.max_words),
                                    pause_s=(config.min_pause_s, config.max_pause_s))
     fold_of = np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)])
@@ -223,7 +223,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
               "keywords": keywords, "c_hac_seqs": c_hac, "c_win_seqs": c_win,
               "config": {"n_components": config.n_components, "max_iter": config.max_iter,
                          "threshold_cv": config.threshold_cv, "hac_fit_frames": config.hac_fit_frames},
-              "voting": voting, "seed": common.sub_seed(st.learner, i)} for i, (tr, te) in enumerate(splits)]
+              "voting": voting, "seed": st.seed_for("learner", i)} for i, (tr, te) in enumerate(splits)]
     folds = ctx.parallel(_fold, tasks, desc="folds")
 
     pred = {name: np.empty(len(y), dtype=object) for name in ("nmf", "voting")}

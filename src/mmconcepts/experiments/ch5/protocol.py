@@ -4,8 +4,8 @@ The speech corpus itself (real or generated, and its cached MFCCs) is
 :mod:`mmconcepts.experiments.protocols.speech`, shared with chapters 6 and 7; its names are
 importable from here too.
 
-- :func:`streams` spawns the independent random streams of an experiment (data
-  composition, learner initialisation, splits, reference draws) from its seed.
+- :func:`streams` gives the independent random streams of an experiment (data, composition,
+  learner initialisation, splits, reference draws) from its seed (:class:`~mmconcepts.engine.Streams`).
 - :func:`composed_corpus` builds (once, cached) utterances of several words by
   concatenating recordings of one speaker (:func:`mmconcepts.sound.data.compose_utterances`);
   :func:`recording_folds` splits recordings into stratified folds and
@@ -53,11 +53,6 @@ __all__ = ["CORPUS_SEED", "Streams", "streams", "load_corpus", "data_source", "d
            "keyword_targets", "speaker_ids", "keyword_sets", "check_label_sets", "check_words_per_utterance",
            "label_set_corpus", "LabelSetData"]
 
-
-
-def sub_seed(seed: int, *key: int) -> int:
-    """An independent int seed for item ``key`` of a stream (a fold, a speaker)."""
-    return int(np.random.SeedSequence([int(seed), *map(int, key)]).generate_state(1)[0] % (2**31 - 1))
 
 
 
@@ -133,14 +128,14 @@ def recording_folds(y, n_folds: int, seed: int) -> np.ndarray:
     return fold
 
 
-def compose_by_fold(ctx: RunContext, corpus, fold: np.ndarray, *, n_composed: int, seed: int, n_words=(2, 4),
+def compose_by_fold(ctx: RunContext, corpus, fold: np.ndarray, *, n_composed: int, streams: Streams, n_words=(2, 4),
                     pause_s=(0.1, 0.3)) -> list:
     """Utterances composed fold by fold: fold ``i``'s from the recordings whose ``fold`` is ``i`` only.
 
     So a composed utterance of one fold holds no recording of another fold, and the
     utterances of a test fold share no recording with the training utterances (the other
     folds') nor with the training recordings. Fold ``i`` is composed with seed
-    ``sub_seed(seed, i)`` (the ``data`` stream).
+    ``streams.seed_for("composition", i)``.
 
     Returns
     -------
@@ -149,7 +144,7 @@ def compose_by_fold(ctx: RunContext, corpus, fold: np.ndarray, *, n_composed: in
     """
     fold = np.asarray(fold)
     return [composed_corpus(ctx, corpus.subset(np.flatnonzero(fold == i)), n_utterances=n_composed,
-                            seed=sub_seed(seed, i), n_words=tuple(n_words), pause_s=tuple(pause_s))
+                            seed=streams.seed_for("composition", i), n_words=tuple(n_words), pause_s=tuple(pause_s))
             for i in range(int(fold.max()) + 1)]
 
 
@@ -331,16 +326,16 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
     What the data root holds decides (nothing is named here):
 
     - a real corpus whose utterances say one keyword each (FSDD: one digit per file): the
-      speaker's recordings are split into ``n_folds`` stratified folds (``seeds.splits``)
+      speaker's recordings are split into ``n_folds`` stratified folds (the splits stream)
       and ``n_composed`` utterances of ``n_words`` recordings in a row (pauses
       ``pause_s``) are composed from each fold's recordings (:func:`composed_corpus`,
-      ``seeds.data``), so a test fold's utterances hold only that fold's recordings;
+      the composition stream), so a test fold's utterances hold only that fold's recordings;
       ``n_folds=None``: ``n_composed`` utterances composed from all of them, no folds;
     - a real corpus with several keywords per utterance: its utterances as recorded,
       split into folds stratified by the number of keywords;
     - no real speech: the generated corpus' speaker (one keyword per sentence, cached and
       shared with the other chapter 5 experiments), ``n_single`` of its sentences drawn by
-      ``seeds.data``, and ``n_double`` sentences of two keywords said by the same voice
+      the data stream, and ``n_double`` sentences of two keywords said by the same voice
       (:func:`~mmconcepts.sound.synthetic.fetch_caregiver` with
       ``keywords_per_utterance=2``, generated once and cached), folds stratified by the
       number of keywords.
@@ -376,7 +371,7 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
             raise DataError(f"{len(Y)} utterances of speaker {speaker} cannot be split into {n_folds} folds (got {k} "
                             "possible); expected at least 2 utterances of each number of keywords. Fix: fewer folds "
                             "or more data.")
-        for i, (_, te) in enumerate(StratifiedKFold(k, shuffle=True, random_state=seeds.splits).split(size, size)):
+        for i, (_, te) in enumerate(StratifiedKFold(k, shuffle=True, random_state=seeds.seed_for("splits")).split(size, size)):
             fold[te] = i
         return fold
 
@@ -392,8 +387,8 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
                 raise DataError(f"speaker {speaker} has {int(counts.min())} recording(s) of some keyword; expected at "
                                 f"least 2 per keyword for {n_folds}-fold composition. Fix: fewer folds or more "
                                 "recordings.")
-            rec_fold = recording_folds(y, n_folds, seeds.splits)
-        parts = compose_by_fold(ctx, sub, rec_fold, n_composed=n_composed, seed=seeds.data, n_words=(lo, hi),
+            rec_fold = recording_folds(y, n_folds, seeds.seed_for("splits"))
+        parts = compose_by_fold(ctx, sub, rec_fold, n_composed=n_composed, streams=seeds, n_words=(lo, hi),
                                 pause_s=tuple(pause_s))
         fold = (np.full(sum(len(p) for p in parts), -1) if n_folds is None
                 else np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]))
@@ -418,7 +413,7 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
     if n_single < 0 or n_double < 0 or n_single + n_double == 0:
         raise ParameterError(f"n_single and n_double must be >= 0 and not both 0; got {n_single}, {n_double}. Fix: "
                              "e.g. n_single=150, n_double=150.")
-    rng = np.random.default_rng(seeds.data)
+    rng = seeds.rng("data")
     if n_single > len(sub):
         raise DataError(f"n_single={n_single} one-keyword sentences asked for, but the generated speaker {speaker} "
                         f"has {len(sub)}. Fix: n_single <= {len(sub)} or a larger n_per_speaker.")

@@ -20,7 +20,7 @@ never comes from an utterance the tree was built from (``split_groups``).
 
 Random streams (:func:`~mmconcepts.experiments.ch5.protocol.streams`): the parts, the split
 of each part into tree and query utterances and the draw of the query windows use the
-``splits`` stream; each repetition's r_max sample and k-means use a child of the
+``splits`` stream; each repetition's r_max sample and k-means its own draw of the
 ``learner`` stream.
 """
 
@@ -115,7 +115,7 @@ def corpus_parts(n_utterances: int, n_parts: int, rng: np.random.Generator) -> l
 
 def _plan(windows: list[np.ndarray], config: Config, s: common.Streams) -> list[dict]:
     """Each repetition's tree utterances, query windows and the utterance of each query (``splits`` stream)."""
-    rng = np.random.default_rng(s.splits)
+    rng = s.rng("splits")
     plans = []
     for part in corpus_parts(len(windows), config.n_repeats, rng):
         n_train = min(config.n_train_utterances, len(part) - max(1, len(part) // 5))
@@ -214,7 +214,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     s = common.streams(config.seed)
     plans = _plan(windows, config, s)
     tasks = [{"windows": [windows[i] for i in p["train"]], "queries": p["queries"], "metric": config.metric,
-              "seed": common.sub_seed(s.learner, r)} for r, p in enumerate(plans)]
+              "seed": s.seed_for("learner", r)} for r, p in enumerate(plans)]
     reps = ctx.parallel(_repetition, tasks, desc="trees")
 
     names = list(reps[0])

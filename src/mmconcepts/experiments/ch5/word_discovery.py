@@ -176,10 +176,6 @@ def _repetition(task: dict) -> tuple[dict, dict]:
     return res, values
 
 
-def _seeds(seed: int, n: int) -> list[int]:
-    return [int(s.generate_state(1)[0] % (2**31 - 1)) for s in np.random.SeedSequence(seed).spawn(n)]
-
-
 def compute(config: Config, ctx: RunContext) -> Result:
     """Alignment of atoms with words, one repetition per disjoint part of the data (``figure_data``: the first
     one's matrix)."""
@@ -202,8 +198,9 @@ def compute(config: Config, ctx: RunContext) -> Result:
     k = config.n_components or len(keywords)
     n_parts = int(data.fold.max()) + 1
     mfcc = common.corpus_mfcc(ctx, data.corpus, MFCCConfig(n_mfcc=config.hac_mfcc))
-    hac_seeds, nmf_seeds = _seeds(st.learner, n_parts), _seeds(common.sub_seed(st.learner, 1), n_parts)
-    controls = _seeds(st.reference, n_parts)
+    # the learner stream's draws: (0, part) the HAC codebooks, (1, part) the NMF initialisation
+    hac_seeds, nmf_seeds = st.seeds_for("learner", n_parts, 0), st.seeds_for("learner", n_parts, 1)
+    controls = st.seeds_for("reference", n_parts)
     parts = [np.flatnonzero(data.fold == r) for r in range(n_parts)]
     tasks = [{"mfcc": [mfcc[i] for i in part], "Y": Y[part], "k": k, "max_iter": config.max_iter,
               "n_bins": config.n_bins, "hac_seed": hac_seeds[r], "hac_fit_frames": config.hac_fit_frames,

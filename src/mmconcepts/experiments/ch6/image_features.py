@@ -40,7 +40,6 @@ from ...engine import (
     SampleUnit,
     Table,
     above_chance_rule,
-    child_seeds,
     concept_parts,
     register,
 )
@@ -85,13 +84,13 @@ def _data_note(ctx: RunContext, speech: dict | None = None, ims=None) -> str:
 def _repeat(task: dict) -> dict:
     from ...vision import THESIS_DESCRIPTORS, ImageFeatures, stack_descriptors
 
-    y, seed, ref_seed = task["y"], task["learner_seed"], task["reference_seed"]
+    y, ref_seed = task["y"], task["reference_seed"]
     tr, te, ref = task["train"], task["test"], task["ref"]
     c_loc, k_loc, mfcc = task["c_loc"], task["k_loc"], task["mfcc"]
     out = {}
     with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        learner = child_seeds(seed, 3)
+        learner = task["learner_seeds"]  # the HAC codebook, the image codebooks, the NMF
         hac = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([mfcc[i] for i in tr])
         S = hac.transform(mfcc)
         S = S[:, common.seen_columns(S[tr])]  # internal-space comparisons only: unseen features change nothing
@@ -131,29 +130,27 @@ def split_repetition(y: np.ndarray, image_concept: np.ndarray, frng: np.random.G
 def compute(config: Config, ctx: RunContext) -> Result:
     """Success rates by descriptor set over the repetitions (no figure: :func:`present` draws the metrics)."""
     st = common.streams(config.seed)
-    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
+    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, streams=st)
     keywords, y, mfcc = speech["keywords"], speech["y"], speech["mfcc"]
     ims = load_images(ctx, len(keywords), config.n_views)
     objects = sorted(set(ims.labels))
     if len(objects) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(objects)} objects: cannot map concepts one to one.")
-    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
+    drng, frng = st.rng("data"), st.rng("splits")
     object_of = drng.permutation(objects)[: len(keywords)].tolist()
     mapping = dict(zip(keywords, object_of))
     image_concept = common.image_concepts(ims.labels, object_of)
     c_loc, k_loc = common.image_locals(ctx, ims)
     view_ids = common.image_ids(ims)
-    learner, reference = child_seeds(st.learner, config.n_repeats), child_seeds(st.reference,
-                                                                                             config.n_repeats)
     tasks, grouping = [], []
     for r in range(config.n_repeats):
         part_y, image_of = split_repetition(y, image_concept, frng, drng)
         grouping.append((common.example_sources(sound=speech["ids"], image=[view_ids[i] for i in image_of]), part_y))
         tasks.append({"train": np.flatnonzero(part_y == 0), "test": np.flatnonzero(part_y == 1),
                       "ref": np.flatnonzero(part_y == 2), "y": y, "mfcc": mfcc, "c_loc": c_loc, "k_loc": k_loc,
-                      "image_of": image_of, "k": config.k, "n_iter": config.n_iter, "learner_seed": learner[r],
-                      "hac_fit_frames": config.hac_fit_frames,
-                      "reference_seed": reference[r]})
+                      "image_of": image_of, "k": config.k, "n_iter": config.n_iter,
+                      "learner_seeds": st.seeds_for("learner", 3, r), "hac_fit_frames": config.hac_fit_frames,
+                      "reference_seed": st.seed_for("reference", r)})
     split_groups = {"repetitions": common.part_split_groups(
         "sound recordings and object views (each example: one utterance and one view of its concept's object)",
         grouping)}

@@ -42,7 +42,6 @@ from ...engine import (
     RunContext,
     SampleUnit,
     Table,
-    child_seeds,
     concept_parts,
     register,
 )
@@ -105,7 +104,7 @@ def _repeat(task: dict) -> dict:
     out: dict[str, float] = {}
     with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        learner = child_seeds(task["learner_seed"], 3)
+        learner = task["learner_seeds"]  # the HAC codebook, the histogram and image codebooks, the NMF
         S = HAC(random_state=learner[0], max_fit_frames=task["hac_fit_frames"]).fit([task["mfcc"][i] for i in tr]).transform(task["mfcc"])
         angles = [task["angles"][i] for i in task["motion_of"]]
         M = MotionHistograms(data="joint", method="vq", n_bins=task["motion_bins"], delay=3,
@@ -170,7 +169,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     """Success rates of every setup over the repetitions (no figures; ``figure_data["repetitions"]``: each
     repetition's rates, for :func:`present`'s box plots)."""
     st = common.streams(config.seed)
-    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
+    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, streams=st)
     motion = common.load_motion(ctx, n_motion=config.n_motion)
     y, keywords = speech["y"], speech["keywords"]
     n_concepts = len(keywords)
@@ -179,9 +178,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     if len(objects) < n_concepts:
         raise DataError(f"{n_concepts} concepts but only {len(objects)} objects.")
     c_loc, _ = common.image_locals(ctx, ims)
-    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
-    learner = child_seeds(st.learner, config.n_repeats)
-    reference = child_seeds(st.reference, config.n_repeats)
+    drng, frng = st.rng("data"), st.rng("splits")
     tasks, grouping = [], []
     view_ids = common.image_ids(ims)
     for r in range(config.n_repeats):
@@ -192,7 +189,8 @@ def compute(config: Config, ctx: RunContext) -> Result:
                       "ref": np.flatnonzero(part_y == 2), "y": y, "mfcc": speech["mfcc"], "angles": motion["angles"],
                       "motion_of": motion_of, "c_loc": c_loc, "image_of": image_of, "k": config.k,
                       "k_sweep": tuple(config.k_sweep), "n_iter": config.n_iter, "motion_bins": config.motion_bins,
-                      "hac_fit_frames": config.hac_fit_frames, "learner_seed": learner[r], "reference_seed": reference[r]})
+                      "hac_fit_frames": config.hac_fit_frames, "learner_seeds": st.seeds_for("learner", 3, r),
+                      "reference_seed": st.seed_for("reference", r)})
     split_groups = {"repetitions": common.part_split_groups(
         "sound recordings, motion records and object views (each example: one of each)", grouping)}
     reps = ctx.parallel(_repeat, tasks, desc="repetitions")

@@ -39,10 +39,11 @@ views are photos of the concept's one object (the thesis' design: one object per
 every split shows the same object on both sides); a view is one recording, never on both
 sides.
 
-Random streams: :func:`streams` spawns independent seeds from the
-configuration's seed for the data (bijections, pairing, stream order), the folds (splits),
-the learners (HAC and histogram codebooks, NMF initialisation), the reference draws of the
-matching protocol, and the composition of the test utterances of the sliding windows.
+Random streams: :func:`streams` gives the independent streams of the configuration's seed
+(:class:`~mmconcepts.engine.Streams`) for the data (bijections, pairing, stream order), the
+folds (splits), the learners (HAC and histogram codebooks, NMF initialisation), the reference
+draws of the matching protocol and the controls, and the composition of the test utterances
+of the sliding windows.
 
 :func:`evaluate` runs every fold of Tables 6.2-6.4 and Fig. 6.10 through ``ctx.parallel`` and
 caches each fold's result on disk as the fold ends (key: the data, the setting, the fold and
@@ -93,7 +94,6 @@ from ...engine import (
     Streams,
     array_digest,
     cached_call,
-    child_seeds,
     streams,
 )
 
@@ -428,23 +428,29 @@ def _fold(task: dict) -> dict:
     return out
 
 
-def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
-    """One task per fold; learner, reference and control seeds from their own streams.
+#: The reference stream's draws per fold (``st.seed_for("reference", draw, fold)``): the reference
+#: examples, the shuffled pairs of the control, the concept permutation of Fig. 6.10's control.
+REFERENCE, CONTROL, CONCEPTS = 0, 1, 2
 
-    The shuffled pairs of the control are a draw of the data stream; the concept permutation
-    of Fig. 6.10's control is a child of the fold's reference seed (independent of the
-    reference draws made with that seed). A config without ``concept_k`` or ``mi_bins``
+
+def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
+    """One task per fold: its learner seed (``st.seed_for("learner", fold)``) and its reference draws.
+
+    The reference stream draws the reference examples (:data:`REFERENCE`), the shuffled pairs
+    of the control (:data:`CONTROL`) and the concept permutation of Fig. 6.10's control
+    (:data:`CONCEPTS`), each fold its own. A config without ``concept_k`` or ``mi_bins``
     gets the thesis' k = 15 and 10 bins.
     """
     n = data["n_folds"]
     features = {"data": "joint", "method": "vq", "n_bins": config.motion_bins, "delay": 3}
-    learner, reference, control = child_seeds(st.learner, n), child_seeds(st.reference, n), child_seeds(st.data, n)
+    learner = st.seeds_for("learner", n)
+    reference, control = st.seeds_for("reference", n, REFERENCE), st.seeds_for("reference", n, CONTROL)
     concept_k, mi_bins = int(getattr(config, "concept_k", 15)), int(getattr(config, "mi_bins", 10))
     return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
              "mfcc": data["mfcc"], "angles": data["angles"], "motion_features": features, "k": config.k,
              "n_iter": config.n_iter, "learner_seed": learner[f], "reference_seed": reference[f],
              "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames, "concept_k": concept_k,
-             "mi_bins": mi_bins, "concept_seed": child_seeds(reference[f], 1)[0]} for f in range(n)]
+             "mi_bins": mi_bins, "concept_seed": st.seed_for("reference", CONCEPTS, f)} for f in range(n)]
 
 
 def _fold_keys(data: dict, tasks: list[dict]) -> list[tuple]:
@@ -471,11 +477,11 @@ def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | N
     Each fold's result is cached on disk as the fold ends (the disk cache of :meth:`RunContext.memory <mmconcepts.engine.context.RunContext.memory>` under
     ``ctx.cache_dir/ch6-folds``), so experiments sharing the folds compute them once and an
     interrupted run resumes from the folds it finished. ``seeds`` replaces the streams
-    spawned from ``config.seed`` (to vary one alone).
+    of ``config.seed`` (to vary one alone: :meth:`~mmconcepts.engine.Streams.rooted`).
     """
     st = seeds if seeds is not None else streams(config.seed)
     data = load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion, n_folds=config.n_folds,
-                      seeds=st)
+                      streams=st)
     tasks = fold_tasks(data, config, st)
     memo = ctx.memory("ch6-folds").cache(_cached_fold, ignore=["task"])
     code = code_fingerprint()

@@ -64,7 +64,6 @@ from ...engine import (
     RunContext,
     SampleUnit,
     Table,
-    child_seeds,
     concept_parts,
     describe_split,
     register,
@@ -164,9 +163,10 @@ def stratified_folds(concept: np.ndarray, n_folds: int, rng: np.random.Generator
     return [np.flatnonzero(fold == f) for f in range(n_folds)]
 
 
-def _fold_rates(D: np.ndarray, y_test: np.ndarray, y_ref: np.ndarray, folds: list[np.ndarray], seed: int) -> list[float]:
-    """Matching success rate of each fold of test rows (references drawn from all of ``y_ref``)."""
-    seeds = child_seeds(seed, len(folds))
+def _fold_rates(D: np.ndarray, y_test: np.ndarray, y_ref: np.ndarray, folds: list[np.ndarray],
+                seeds: list[int]) -> list[float]:
+    """Matching success rate of each fold of test rows (references drawn from all of ``y_ref``, fold ``f`` by
+    ``seeds[f]``)."""
     return [matching_success_rate(D[rows], y_test[rows], y_ref, random_state=s) if rows.size else float("nan")
             for rows, s in zip(folds, seeds)]
 
@@ -186,8 +186,8 @@ def _fit_and_match(task: dict, S, img: np.ndarray, seed: int) -> tuple[dict, Mul
     h_sound = model.transform({"sound": task["S_test"][:, cols]})
     h_image = model.transform({"image": task["I_ref"]})
     D = pairwise_divergence(h_sound, h_image, "cosine")
-    return ({"s2i": _fold_rates(D, task["y_test"], task["y_ref"], task["folds_test"], task["reference_seed"]),
-             "i2s": _fold_rates(D.T, task["y_ref"], task["y_test"], task["folds_image"], task["reference_seed"])},
+    return ({"s2i": _fold_rates(D, task["y_test"], task["y_ref"], task["folds_test"], task["reference_seeds"]),
+             "i2s": _fold_rates(D.T, task["y_ref"], task["y_test"], task["folds_image"], task["reference_seeds"])},
             model, h_image, cols)
 
 
@@ -293,11 +293,9 @@ def _nanmean(x) -> float:
     return float(np.nanmean(x)) if np.isfinite(x).any() else float("nan")
 
 
-def repetition_streams(st: common.Streams, r: int, n_repeats: int) -> common.Streams:
-    """The streams of repetition ``r``: the run's own with one repetition, else child ``r`` of each."""
-    if n_repeats == 1:
-        return st
-    return common.Streams(*(child_seeds(s, n_repeats)[r] for s in st))
+def repetition_streams(st: common.Streams, r: int) -> common.Streams:
+    """The streams of repetition ``r`` (:meth:`~mmconcepts.engine.Streams.sub`): its own, whatever ``n_repeats``."""
+    return st.sub(r)
 
 
 def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams) -> dict:
@@ -310,7 +308,7 @@ def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams)
     hop = MFCCConfig(n_mfcc=22).hop_ms / 1000
     spans = speech["spans"]
     objects = sorted(set(ims.labels))
-    drng, frng = np.random.default_rng(st.data), np.random.default_rng(st.splits)
+    drng, frng = st.rng("data"), st.rng("splits")
     obj = drng.permutation(objects)[: len(keywords)].tolist()
     image_concept = common.image_concepts(ims.labels, obj)
     part_y = concept_parts(y, (0.6, 0.2, 0.2), frng)
@@ -343,7 +341,7 @@ def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams)
     composed = not np.isfinite(spans[te]).all(axis=1).any()
     if composed:  # isolated words (FSDD): a target recording flanked by 1-3 other test recordings
         seqs, y_probe, spans_probe, parts = compose_test_utterances(
-            mfcc, y, te, np.random.default_rng(st.composition), hop)
+            mfcc, y, te, st.rng("composition"), hop)
         texts = [" ".join(keywords[y[j]].upper() if k == pos else keywords[y[j]] for k, j in enumerate(p))
                  for p, pos in parts]
         probe_parts = [list(p) for p, _ in parts]
@@ -355,8 +353,9 @@ def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams)
     task = {"mfcc": mfcc, "y": y, "tr": tr, "te": te, "order": order, "hop": hop, "starts": starts,
             "durations": durations, "shift": config.shift, "frame_rate": config.frame_rate, "frame_img": frame_img,
             "whole_img": whole_img, "img_train": np.concatenate(img_train), "ref_imgs": ref_imgs, "c_loc": c_loc,
-            "k": config.k, "n_iter": config.n_iter, "learner": child_seeds(st.learner, 3),
-            "hac_fit_frames": config.hac_fit_frames, "reference_seed": st.reference, "y_test": y[te],
+            "k": config.k, "n_iter": config.n_iter, "learner": st.seeds_for("learner", 3),
+            "hac_fit_frames": config.hac_fit_frames, "reference_seeds": st.seeds_for("reference", len(folds_test)),
+            "y_test": y[te],
             "y_ref": y_ref_img, "folds_test": folds_test, "folds_image": folds_image,
             "widths": tuple(config.widths), "probe_at": tuple(j == fixed_at for j in range(len(config.widths))),
             "probe_input": (seqs, y_probe, spans_probe), "probe_shift": config.probe_shift}
@@ -399,14 +398,14 @@ def compute(config: Config, ctx: RunContext) -> Result:
         raise ParameterError(f"n_repeats must be >= 1 and n_test_folds >= 2; got {config.n_repeats}, "
                              f"{config.n_test_folds}.")
     fixed_at = int(np.argmin(np.abs(np.asarray(widths) - config.fixed_width)))
-    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, seed=st.data)
+    speech = common.load_speech(ctx, n_per_speaker=config.n_per_speaker, streams=st)
     keywords = speech["keywords"]
     ims = common.load_images(ctx, len(keywords), config.n_views)
     if len(set(ims.labels)) < len(keywords):
         raise DataError(f"{len(keywords)} keywords but only {len(set(ims.labels))} objects.")
     c_loc, _ = common.image_locals(ctx, ims)
     R = config.n_repeats
-    reps = [_prepare(config, speech, ims, c_loc, repetition_streams(st, r, R)) for r in range(R)]
+    reps = [_prepare(config, speech, ims, c_loc, repetition_streams(st, r)) for r in range(R)]
     split_groups = {"repetitions": describe_split(
         "sound recordings and object views (training: each utterance of the stream with the views shown while it "
         "plays, and the whole-utterance pairs; held out: test utterances, the probe's composed utterances, "

@@ -64,7 +64,6 @@ from ...engine import (
     Table,
     array_digest,
     cached_call,
-    child_seeds,
     concept_parts,
     describe_split,
     register,
@@ -172,8 +171,8 @@ def build_data(ctx: RunContext, config: Config, st: Streams | None = None) -> di
     """
     _check_config(config)
     st = st if st is not None else streams(config.seed)
-    rng = np.random.default_rng(st.data)
-    frng = np.random.default_rng(st.splits)
+    rng = st.rng("data")
+    frng = st.rng("splits")
     speech = _speech(ctx, config)
     keywords, y_rec = speech["keywords"], speech["y"]
     L = len(keywords)
@@ -384,35 +383,39 @@ def _fold(task: dict) -> dict:
     return out
 
 
+#: The reference stream's draws per fold (``st.seed_for("reference", draw, fold)``): the calibration set,
+#: the reference draws of the tests, the shuffled pairs of the control.
+CALIBRATION, REFERENCE, CONTROL = 0, 1, 2
+
+
 def fold_tasks(data: dict, mfccs: list, config: Config, st: Streams) -> list[dict]:
-    """One task per fold; learner, reference and control seeds from their own streams.
+    """One task per fold, each with its own draws of the learner, composition and reference streams.
 
     Fold f trains the compositional learner on the other folds' compositional examples
     whose combination is not held out by fold f, the single-concept learner on as many of
     the other folds' single-concept examples (a random subset, composition stream), and
     tests on fold f's examples; the calibration set of the l_full threshold is drawn among
-    the other folds' examples (both kinds; reference stream).
+    the other folds' examples (both kinds; reference stream, :data:`CALIBRATION`).
     """
     F = config.n_folds
-    learner, reference, control = child_seeds(st.learner, F), child_seeds(st.reference, F), child_seeds(
-        st.composition, F)
     kind, fold, combos = data["kind"], data["fold"], data["combos"]
     tasks = []
     for f in range(F):
-        crng = np.random.default_rng(control[f])
+        crng = st.rng("composition", f)
         held = data["held_out"][f]
         comp = np.flatnonzero((kind == "compositional") & (fold != f))
         tr_c = np.array([i for i in comp if tuple(combos[i]) not in held], dtype=np.int64)
         singles = crng.permutation(np.flatnonzero((kind == "single") & (fold != f)))
         tr_s = np.sort(singles[: len(tr_c)])
         others = np.flatnonzero(fold != f)
-        cal = np.sort(np.random.default_rng(reference[f]).permutation(others)[: config.n_calibration])
+        cal = np.sort(st.rng("reference", CALIBRATION, f).permutation(others)[: config.n_calibration])
         tasks.append({"Y": data["Y"], "combos": data["combos"], "mfcc": mfccs, "angles": data["angles"],
                       "train_comp": tr_c, "train_single": tr_s, "train_single_extra": np.sort(singles[len(tr_c):]),
                       "test": np.flatnonzero(fold == f), "calibration": cal, "k": config.k, "n_iter": config.n_iter,
                       "motion_bins": config.motion_bins, "n_candidates": config.n_candidates,
-                      "n_draws": config.n_draws, "learner_seed": learner[f], "reference_seed": reference[f],
-                      "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames})
+                      "n_draws": config.n_draws, "learner_seed": st.seed_for("learner", f),
+                      "reference_seed": st.seed_for("reference", REFERENCE, f),
+                      "control_seed": st.seed_for("reference", CONTROL, f), "hac_fit_frames": config.hac_fit_frames})
     return tasks
 
 

@@ -62,7 +62,6 @@ from ...engine import (
     SampleUnit,
     Streams,
     Table,
-    child_seeds,
     register,
     streams,
 )
@@ -222,19 +221,23 @@ def _fold(task: dict) -> dict:
     return out
 
 
+#: Each fold's draws (``st.seed_for(stream, draw, fold)``): the codebooks and the NMF initialisations (learner
+#: stream), the stream's order (splits), the reference draws and the shuffled-concept control (reference).
+FEATURES, NMF_INIT = 0, 1
+ORDER = 0
+REFERENCE, CONTROL = 0, 1
+
+
 def _tasks(data: dict, config: Config, st: Streams) -> list[dict]:
     n = data["n_folds"]
-    # children of each stream, one per fold: codebooks and NMF initialisations (learner), the stream's order
-    # (splits), the reference draws and the shuffled-concept control (reference)
-    learner = child_seeds(st.learner, 2 * n)
-    order, reference = child_seeds(st.splits, n), child_seeds(st.reference, 2 * n)
     cfg = {"k": config.k, "n_iter": config.n_iter, "batch_size": config.batch_size, "forget": config.forget,
            "partial_max_iter": config.partial_max_iter, "points": tuple(config.points), "n_bins": config.n_bins,
            "motion_bins": config.motion_bins, "hac_fit_frames": config.hac_fit_frames}
     return [{"train": np.flatnonzero(data["fold"] != f), "test": np.flatnonzero(data["fold"] == f), "y": data["y"],
-             "mfcc": data["mfcc"], "angles": data["angles"], "config": cfg, "feature_seed": learner[2 * f],
-             "learner_seed": learner[2 * f + 1], "order_seed": order[f], "reference_seed": reference[2 * f],
-             "control_seed": reference[2 * f + 1]} for f in range(n)]
+             "mfcc": data["mfcc"], "angles": data["angles"], "config": cfg,
+             "feature_seed": st.seed_for("learner", FEATURES, f), "learner_seed": st.seed_for("learner", NMF_INIT, f),
+             "order_seed": st.seed_for("splits", ORDER, f), "reference_seed": st.seed_for("reference", REFERENCE, f),
+             "control_seed": st.seed_for("reference", CONTROL, f)} for f in range(n)]
 
 
 #: Per-point values of each learner: the metric name part and the field of the fold result.
@@ -247,7 +250,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
     """Success, specialisation, time and memory along the stream, per fold (figures: :func:`present`)."""
     st = streams(config.seed)
     data = common.load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion,
-                             n_folds=config.n_folds, seeds=st)
+                             n_folds=config.n_folds, streams=st)
     folds = ctx.parallel(_fold, _tasks(data, config, st), desc="folds (stream and refits)")
     n_points = min(len(f["points"]) for f in folds)
     metrics: dict[str, float] = {"chance": 1.0 / len(data["keywords"])}

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...engine import RunContext, Streams, concept_parts, describe_split, fill_thesis_numbers, streams
+from ...engine import RunContext, Streams, concept_parts, describe_split, fill_thesis_numbers
 from ...errors import DataError
 from ...motion import MotionRecording, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
 from ...sound.features import MFCCConfig
@@ -64,23 +64,28 @@ KEYWORDS_NOTE = fill_thesis_numbers(
     "utterances.", {"chance": THESIS_CHANCE})
 
 
-# ---------------------------------------------------------------------------- random streams
 # ---------------------------------------------------------------------------- data
 def _speech_name(ctx: RunContext) -> str | None:
     return next((n for n in SPEECH_SETS if ctx.has_dataset(n)), None)
 
 
-def load_speech(ctx: RunContext, *, n_per_speaker: int, seed: int) -> dict:
+#: The data stream's draw that subsamples a real speaker's utterances (:func:`load_speech`).
+SPEECH_SUBSAMPLE = 1
+#: The splits stream's draws in :func:`load_pairs`: the utterances' folds, the motion records' folds.
+SOUND_FOLDS, MOTION_FOLDS = 0, 1
+
+
+def load_speech(ctx: RunContext, *, n_per_speaker: int, streams: Streams) -> dict:
     """Utterances of the first speaker: MFCC sequences, concepts, keyword spans, recording ids (their files).
 
     A real speaker with more than ``n_per_speaker`` utterances is subsampled to that many,
-    stratified by keyword (``seed``: the data stream); the generated corpus has exactly
+    stratified by keyword (draw :data:`SPEECH_SUBSAMPLE` of the data stream); the generated corpus has exactly
     ``n_per_speaker`` per speaker.
     """
     sub, first, keywords, y = first_speaker(ctx, n_per_speaker=n_per_speaker)
     n_all = len(y)
     if _speech_name(ctx) is not None and len(y) > n_per_speaker:
-        rng = np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(1)[0])  # apart from the pairing's draws
+        rng = streams.rng("data", SPEECH_SUBSAMPLE)  # apart from the pairing's draws
         per = max(1, n_per_speaker // len(keywords))
         keep = np.sort(np.concatenate([rng.permutation(np.flatnonzero(y == c))[:per] for c in range(len(keywords))]))
         sub, y = sub.subset(keep), y[keep]
@@ -211,11 +216,10 @@ def gesture_mapping(keywords, gestures: np.ndarray, rng: np.random.Generator) ->
     return mapping, np.array([concept_of_gesture.get(int(g), -1) for g in gestures])
 
 
-def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int = 0, n_folds: int = 1,
-               seeds: Streams | None = None) -> dict:
+def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, streams: Streams, n_folds: int = 1) -> dict:
     """Paired examples: MFCC sequences, joint-angle trajectories, concepts, folds and sources.
 
-    The data stream of ``seed`` (or ``seeds``) draws the bijection and the pairing, its fold
+    The data stream of ``streams`` draws the bijection and the pairing, its splits
     stream the folds (``n_folds`` = 1: a single part, every example used together). The
     utterances and the motion records are split into folds separately, by concept, and
     paired within their fold, so no recording is behind examples of two folds; ``sources``
@@ -223,23 +227,21 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int 
     """
     from sklearn.model_selection import StratifiedKFold
 
-    st = seeds if seeds is not None else streams(seed)
-    rng = np.random.default_rng(st.data)
-    speech = load_speech(ctx, n_per_speaker=n_per_speaker, seed=st.data)
+    rng = streams.rng("data")
+    speech = load_speech(ctx, n_per_speaker=n_per_speaker, streams=streams)
     motion = load_motion(ctx, n_motion=n_motion)
     y, keywords = speech["y"], speech["keywords"]
     mapping, item_concept = gesture_mapping(keywords, motion["gesture"], rng)
-    frng = np.random.default_rng(st.splits)
     if n_folds > 1:
         n_folds = min(n_folds, int(np.bincount(y).min()), int(np.bincount(item_concept[item_concept >= 0]).min()))
         if n_folds < 2:
             raise DataError("a concept has a single utterance or motion record: a cross-validation needs at least "
                             "two of each concept.")
         fold_y = np.empty(len(y), dtype=np.int64)
-        skf = StratifiedKFold(n_folds, shuffle=True, random_state=int(frng.integers(2**31 - 1)))
+        skf = StratifiedKFold(n_folds, shuffle=True, random_state=streams.seed_for("splits", SOUND_FOLDS))
         for f, (_, te) in enumerate(skf.split(np.zeros(len(y)), y)):
             fold_y[te] = f
-        fold_m = concept_parts(item_concept, n_folds, frng)
+        fold_m = concept_parts(item_concept, n_folds, streams.rng("splits", MOTION_FOLDS))
     else:
         fold_y, fold_m = np.zeros(len(y), dtype=np.int64), np.where(item_concept >= 0, 0, -1)
     motion_idx = pair_within_parts(y, fold_y, item_concept, fold_m, rng, "motion record")
@@ -248,5 +250,5 @@ def load_pairs(ctx: RunContext, *, n_per_speaker: int, n_motion: int, seed: int 
     return {"mfcc": speech["mfcc"], "angles": [motion["angles"][i] for i in motion_idx], "y": y,
             "keywords": keywords, "mapping": mapping, "speaker": speech["speaker"], "fold": fold_y,
             "n_folds": int(fold_y.max()) + 1, "motion_idx": motion_idx, "motion_ids": motion["ids"],
-            "n_motion_records": len(motion["angles"]), "speech": speech, "motion": motion, "streams": st,
+            "n_motion_records": len(motion["angles"]), "speech": speech, "motion": motion, "streams": streams,
             "sources": sources}
