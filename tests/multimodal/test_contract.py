@@ -364,6 +364,68 @@ def test_multimodal_nmf_is_a_scikit_learn_estimator():
     np.testing.assert_array_equal(clone(fitted).fit_transform(X), fitted.fit_transform(X))  # seeded
 
 
+#: The parameters MultimodalNMF shares with NMF, under NMF's names.
+MULTIMODAL_SHARED = {"n_components", "beta_loss", "max_iter", "transform_max_iter", "tol", "init", "random_state",
+                     "forget_factor"}
+#: A value of each shared parameter that is neither MultimodalNMF's nor NMF's default (all distinct).
+_SHARED_VALUES = dict(n_components=3, beta_loss=1.5, max_iter=6, transform_max_iter=4, tol=1e-3, init="nndsvda",
+                      random_state=5, forget_factor=0.6)
+
+
+def test_multimodal_nmf_shares_nmfs_parameters_under_nmfs_names():
+    """One spelling: these are the parameters in common with NMF; of the others, only the
+    deprecated ``forget`` is an NMF parameter under another spelling (a prefix of forget_factor)."""
+    ours, nmfs = set(MultimodalNMF().get_params()), set(NMF().get_params())
+    assert ours & nmfs == MULTIMODAL_SHARED == set(_SHARED_VALUES)
+
+    def key(name):
+        return name.replace("_", "").lower()
+
+    near = {a for a in ours - nmfs for b in nmfs if key(a) == key(b) or b.startswith(a) or a.startswith(b)}
+    assert near == {"forget"}
+
+
+def test_multimodal_nmf_takes_the_shared_constraints_from_nmfs_table():
+    """The same constraint objects as NMF's, except three narrower ones, each refusing a value NMF takes."""
+    from mmconcepts._validation import validate_params
+
+    own = {name for name in MULTIMODAL_SHARED
+           if MultimodalNMF._parameter_constraints[name] is not NMF._parameter_constraints[name]}
+    assert own == {"n_components", "init", "forget_factor"}
+    for name, value in (("n_components", None), ("init", "custom"), ("forget_factor", 0.0)):
+        validate_params(NMF().set_params(**{name: value}), NMF._parameter_constraints)
+        with pytest.raises(ParameterError, match=rf"^MultimodalNMF: {name} must be "):
+            validate_params(MultimodalNMF().set_params(**{name: value}), MultimodalNMF._parameter_constraints)
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_every_shared_parameter_of_multimodal_nmf_reaches_its_nmf():
+    """fit: each shared parameter, at a value that is neither default, is nmf_'s, and NMF's
+    other parameters keep NMF's defaults; the deprecated forget arrives as forget_factor."""
+    assert all(v != MultimodalNMF().get_params()[k] and v != NMF().get_params()[k] for k, v in _SHARED_VALUES.items())
+    X = _modalities()
+    model = MultimodalNMF(**_SHARED_VALUES).fit(X)
+    assert model.nmf_.get_params() == {**NMF().get_params(), **_SHARED_VALUES}
+    old = {**_SHARED_VALUES, "forget_factor": 1.0, "forget": 0.6}
+    with pytest.warns(FutureWarning, match="forget_factor"):
+        assert MultimodalNMF(**old).fit(X).nmf_.get_params() == model.nmf_.get_params()
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_each_partial_fit_gives_the_nmf_the_learners_current_parameters():
+    """partial_fit runs the inner NMF with the learner's parameters at the time of the call
+    (max_iter: partial_max_iter after the first call, given back afterwards)."""
+    X = _modalities(n=40)
+    first, second = ({k: v[rows] for k, v in X.items()} for rows in (slice(0, 20), slice(20, 40)))
+    model = MultimodalNMF(**_SHARED_VALUES, partial_max_iter=2).partial_fit(first)
+    assert model.nmf_.get_params() == {**NMF().get_params(), **_SHARED_VALUES}
+    assert model.nmf_.n_iter_ == 6
+    changed = dict(transform_max_iter=3, tol=2e-3, init="nndsvd", random_state=8, forget_factor=0.9)
+    model.set_params(**changed, partial_max_iter=5).partial_fit(second)
+    assert model.nmf_.n_iter_ == 5
+    assert model.nmf_.get_params() == {**NMF().get_params(), **_SHARED_VALUES, **changed}
+
+
 def test_multimodal_nmf_not_fitted_and_failed_fits_leave_no_state():
     X = _modalities()
     model = MultimodalNMF(3)

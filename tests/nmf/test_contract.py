@@ -116,6 +116,84 @@ def test_partial_fit_checks_the_same_table():
         NMF(2, forget_factor=-0.5).partial_fit(np.ones((4, 3)))
 
 
+# ------------------------------------------------------------------------ the inner NMF
+
+#: The parameters LabelNMF shares with NMF, under NMF's names.
+LABEL_NMF_SHARED = {"n_components", "beta_loss", "max_iter", "tol", "init", "solver", "update_rule",
+                    "transform_max_iter", "random_state"}
+
+
+class _Owner:
+    """An estimator-like object with the given parameters (NMF's and others)."""
+
+    def __init__(self, **params):
+        self.params = params
+
+    def get_params(self, deep=True):
+        return dict(self.params)
+
+
+def test_from_params_takes_the_owners_nmf_parameters_and_leaves_the_others_at_nmfs_defaults():
+    owner = _Owner(n_components=4, beta_loss=0.5, sparseness_H=0.3, loss_every=3, label_weight=2.0, cv=7)
+    nmf = NMF.from_params(owner)
+    want = {**NMF().get_params(), "n_components": 4, "beta_loss": 0.5, "sparseness_H": 0.3, "loss_every": 3}
+    assert type(nmf) is NMF and nmf.get_params() == want
+    assert not hasattr(nmf, "components_")
+
+
+def test_from_params_overrides_win_and_must_be_nmf_parameters():
+    nmf = NMF.from_params(LabelNMF(5, max_iter=9, random_state=1), random_state=77, alpha_W=0.1)
+    assert (nmf.n_components, nmf.max_iter, nmf.random_state, nmf.alpha_W) == (5, 9, 77, 0.1)
+    with pytest.raises(ParameterError, match=r"^NMF\.from_params takes NMF parameters as overrides \(alpha_H, "
+                                             r".*\); got 'cv', 'threshold'\. Set the owner's other parameters"):
+        NMF.from_params(LabelNMF(), threshold=0.2, cv=3)
+    with pytest.raises(ParameterError, match=r"^NMF\.from_params expects an estimator with get_params\(deep=False\) "
+                                             r"as owner; got dict\. For a dict of parameters, use "
+                                             r"NMF\(\*\*params\)\.$"):
+        NMF.from_params({"n_components": 3})
+
+
+def test_label_nmf_shares_nmfs_parameters_under_nmfs_names():
+    """One spelling: the parameters LabelNMF has in common with NMF are these, and none of its
+    other parameters is an NMF parameter under another spelling (case, underscores, a prefix)."""
+    ours, nmfs = set(LabelNMF().get_params()), set(NMF().get_params())
+    assert ours & nmfs == LABEL_NMF_SHARED
+
+    def key(name):
+        return name.replace("_", "").lower()
+
+    near = {a for a in ours - nmfs for b in nmfs if key(a) == key(b) or b.startswith(a) or a.startswith(b)}
+    assert near == set()
+
+
+def test_label_nmf_takes_the_shared_constraints_from_nmfs_table():
+    """The same constraint objects as NMF's, except n_components, where NMF's None is not offered."""
+    own = {name for name in LABEL_NMF_SHARED
+           if LabelNMF._parameter_constraints[name] is not NMF._parameter_constraints[name]}
+    assert own == {"n_components"}
+    X, Y, _ = _data()
+    NMF(None, max_iter=2).fit(X)
+    with pytest.raises(ParameterError, match="^LabelNMF: n_components must be an int >= 1; got None"):
+        LabelNMF(None).fit(X, Y)
+
+
+def test_every_shared_parameter_of_label_nmf_reaches_its_nmf():
+    """Each shared parameter, set to a value that is neither LabelNMF's nor NMF's default, is
+    the fitted nmf_'s (random_state: the seed fit draws from it); NMF's other parameters keep
+    NMF's defaults. Distinct values: a parameter passed under another's name shows."""
+    values = dict(n_components=3, beta_loss=1.5, max_iter=7, tol=1e-3, init="nndsvda", solver="pg",
+                  update_rule="heuristic", transform_max_iter=4, random_state=12)
+    assert set(values) == LABEL_NMF_SHARED
+    label_defaults, nmf_defaults = LabelNMF().get_params(), NMF().get_params()
+    assert all(v != label_defaults[k] and v != nmf_defaults[k] for k, v in values.items())
+    X, Y, _ = _data()
+    model = LabelNMF(threshold=0.5, **values).fit(X, Y)
+    got = model.nmf_.get_params()
+    seed = int(np.random.default_rng(12).integers(0, 2**31 - 1, size=2)[0])
+    assert got == {**nmf_defaults, **values, "random_state": seed}
+    assert model.nmf_.n_iter_ <= 7 and model.nmf_.components_.shape == (3, X.shape[1] + Y.shape[1])
+
+
 # ------------------------------------------------------------------------ save / load
 
 

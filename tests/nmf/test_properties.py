@@ -3,7 +3,8 @@
 Hoyer's projection (thesis eq. 2.20; Hoyer 2004, Fig. 1) gives a nonnegative vector with
 the target L1 and L2 norms, hence the target sparseness, and is idempotent; the
 multiplicative updates with the MM exponent never increase the beta-divergence
-(Fevotte & Idier 2011), for any beta, with or without a mask.
+(Fevotte & Idier 2011), for any beta, with or without a mask. ``NMF.from_params`` gives NMF's
+defaults, overridden by the owner's NMF parameters, overridden by the explicit overrides.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mmconcepts.nmf import beta_nmf, hoyer_sparseness, project_hoyer
+from mmconcepts.nmf import NMF, LabelNMF, beta_nmf, hoyer_sparseness, project_hoyer
 from mmconcepts.nmf.sparseness import l1_for_sparseness
 
 pytestmark = pytest.mark.property
@@ -99,3 +100,48 @@ def test_hoyer_projection_of_a_constant_vector(value, l2):
     p = project_hoyer(x, l1, l2)
     assert (p >= 0).all() and np.isclose(p.sum(), l1) and np.isclose(np.linalg.norm(p), l2)
     np.testing.assert_allclose(project_hoyer(p, l1, l2), p, atol=1e-8 * l2)
+
+
+# ----------------------------------------------------------------------------- NMF.from_params
+
+_NMF_NAMES = sorted(NMF().get_params())
+_values = st.one_of(st.none(), st.integers(-5, 500), st.sampled_from(["mu", "kullback-leibler", "nndsvda", "same"]),
+                    st.floats(0.0, 3.0))
+
+
+class _Owner:
+    def __init__(self, params):
+        self.params = params
+
+    def get_params(self, deep=True):
+        return dict(self.params)
+
+
+@_SETTINGS
+@given(shared=st.dictionaries(st.sampled_from(_NMF_NAMES), _values),
+       others=st.dictionaries(st.text("abcxyz_", min_size=1, max_size=8).filter(lambda n: n not in _NMF_NAMES),
+                              _values),
+       overrides=st.dictionaries(st.sampled_from(_NMF_NAMES), _values, max_size=4))
+def test_from_params_is_nmfs_defaults_then_the_owners_nmf_parameters_then_the_overrides(shared, others, overrides):
+    nmf = NMF.from_params(_Owner({**others, **shared}), **overrides)
+    assert nmf.get_params() == {**NMF().get_params(), **shared, **overrides}
+
+
+@_SETTINGS
+@given(data=st.data())
+def test_every_label_nmf_parameter_value_reaches_the_nmf_it_builds(data):
+    """Valid values of each parameter LabelNMF shares with NMF, set on a LabelNMF, are the built NMF's."""
+    choices = {
+        "n_components": st.integers(1, 300), "beta_loss": st.one_of(st.floats(0.01, 3.0), st.sampled_from(
+            ["frobenius", "kullback-leibler", "itakura-saito"])), "max_iter": st.integers(0, 1000),
+        "tol": st.floats(0.0, 1.0), "init": st.sampled_from([None, "random", "nndsvd", "nndsvda", "nndsvdar"]),
+        "solver": st.sampled_from(["mu", "pg"]), "update_rule": st.sampled_from(["mm", "heuristic"]),
+        "transform_max_iter": st.one_of(st.none(), st.integers(0, 1000)), "random_state": st.integers(0, 2**31 - 1),
+    }
+    values = {name: data.draw(strategy, label=name) for name, strategy in choices.items()}
+    assert set(values) == set(LabelNMF().get_params()) & set(_NMF_NAMES)
+    owner = LabelNMF(label_weight=3.0, threshold=0.2, cv=4, n_jobs=2).set_params(**values)
+    got = NMF.from_params(owner).get_params()
+    assert {name: got[name] for name in values} == values
+    assert {k: v for k, v in got.items() if k not in values} == {k: v for k, v in NMF().get_params().items()
+                                                                    if k not in values}

@@ -108,7 +108,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
     components_ : ndarray of shape (n_components, sum of n_features)
         The multimodal dictionary H (the same array as ``nmf_.components_``).
     nmf_ : NMF
-        The underlying factorization (it also carries :meth:`partial_fit`'s statistics).
+        The underlying factorization (it also carries :meth:`partial_fit`'s statistics), with
+        this learner's NMF parameters (:meth:`NMF.from_params <mmconcepts.nmf.NMF.from_params>`;
+        ``forget`` taken as ``forget_factor``); each :meth:`partial_fit` call gives it the
+        learner's current ones.
     n_samples_seen_ : float
         Examples seen, weighted by the forgetting factor (``sum_t rho ** (T - t) n_t`` over
         the batches; the number of examples after :meth:`fit`): the weight of the running
@@ -130,7 +133,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
            for name in ("beta_loss", "max_iter", "transform_max_iter", "tol", "random_state")},
         "normalize": [Options("l1", None)],
         "init": [Options("random", "nndsvd", "nndsvda", "nndsvdar"), None],  # no 'custom': fit takes no factors
-        "forget_factor": [Interval("real", 0, 1, closed="right")],
+        "forget_factor": [Interval("real", 0, 1, closed="right")],  # NMF's [0, 1] without 0
         "partial_max_iter": [Interval("int", 1), None],
         "forget": [Interval("real", 0, 1, closed="right"), Options("deprecated")],
     }
@@ -184,16 +187,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ helpers
     def _nmf(self) -> NMF:
-        return NMF(
-            self.n_components,
-            beta_loss=self.beta_loss,
-            max_iter=self.max_iter,
-            transform_max_iter=self.transform_max_iter,
-            tol=self.tol,
-            init=self.init,
-            forget_factor=self._forget_factor(),
-            random_state=self.random_state,
-        )
+        """The inner NMF: this learner's NMF parameters, ``forget`` resolved to ``forget_factor``."""
+        return NMF.from_params(self, forget_factor=self._forget_factor())
 
     @staticmethod
     def _check_modalities(X: Any) -> dict[str, Any]:
@@ -322,7 +317,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         incremental"). Each call:
 
         1. updates the running average L1 norm of each modality with the batch,
-           ``s_m = (rho S_m + sum_i |x_im|_1) / (rho N + n_batch)`` (``rho`` = ``forget``,
+           ``s_m = (rho S_m + sum_i |x_im|_1) / (rho N + n_batch)`` (``rho`` = ``forget_factor``,
            ``S_m = s_m N`` the weighted L1 mass and ``N`` = ``n_samples_seen_`` so far);
         2. floors the dictionary's entries at ``eps * mean(H_m)`` (float32's eps), so that a
            feature absent from the batches so far (a zero column, which multiplicative
@@ -421,13 +416,14 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 raise DataError(f"modality {name!r} is all zeros on the first batch; it cannot be normalised. "
                                 "Start the stream with a batch in which every modality has a nonzero value.")
             scales[name] = float(s)
-        nmf = self.nmf_ if fitted else self._nmf()
+        # This call's NMF parameters: the learner's, with the resolved forgetting factor and this call's iterations.
+        iterations = self.max_iter if not fitted or self.partial_max_iter is None else self.partial_max_iter
+        step = NMF.from_params(self, forget_factor=rho, max_iter=iterations)
+        nmf = self.nmf_ if fitted else step
         if fitted:
-            self._rescale(nmf, names, n_features, old_scales, scales)
+            self._rescale(nmf, names, n_features, old_scales, scales)  # in the units of the statistics kept so far
+            nmf.set_params(**step.get_params(deep=False))
         stacked, _ = self._stack(mods, names, n_features, scales)
-        first = not fitted
-        nmf.set_params(forget_factor=rho, transform_max_iter=self.transform_max_iter,
-                       max_iter=self.max_iter if first or self.partial_max_iter is None else self.partial_max_iter)
         try:
             nmf.partial_fit(stacked)
         finally:  # transform uses max_iter when transform_max_iter is None: give it back fit's value

@@ -20,7 +20,8 @@ beta_nmf
     Hoyer sparseness (eq. 2.20), L1/L2 penalties, masks, dense or sparse X.
 NMF
     The scikit-learn estimator over it, with ``transform(X, features=..., mask=...)``,
-    ``inverse_transform(W, features=...)`` and ``partial_fit``.
+    ``inverse_transform(W, features=...)`` and ``partial_fit``; ``NMF.from_params(owner)``
+    builds one from the NMF parameters of an estimator that takes them under NMF's names.
 beta_divergence
     D_beta(X | WH) (eq. 2.2-2.3), never densifying a sparse X.
 match_components, dictionary_distance

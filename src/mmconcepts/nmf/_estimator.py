@@ -268,6 +268,63 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         self.loss_every = loss_every
         self.random_state = random_state
 
+    @classmethod
+    def from_params(cls, owner: Any, /, **overrides: Any) -> NMF:
+        """An unfitted NMF with the NMF parameters of another estimator, and ``overrides``.
+
+        Estimators built on an NMF (:class:`~mmconcepts.nmf.LabelNMF`,
+        :class:`~mmconcepts.multimodal.MultimodalNMF`) take NMF's parameters under NMF's
+        names. This reads ``owner.get_params(deep=False)``, keeps the entries whose name is
+        a parameter of this class (``n_components``, ``beta_loss``, ``max_iter``, ...),
+        replaces them by ``overrides`` where given, and leaves the parameters ``owner``
+        does not have at this class's defaults. The owner's other parameters (a label
+        weight, a threshold, ...) are not NMF's and are left out.
+
+        Parameters
+        ----------
+        owner : estimator
+            Any object with scikit-learn's ``get_params(deep=False)``.
+        **overrides
+            NMF parameters to set to another value than the owner's (e.g. one seed per
+            fit as ``random_state``); each name must be a parameter of this class.
+
+        Returns
+        -------
+        NMF
+            Unfitted; its parameters are checked by :meth:`fit`, as any NMF's.
+
+        Raises
+        ------
+        ParameterError
+            ``owner`` has no ``get_params``; an override is not a parameter of this class.
+
+        Examples
+        --------
+        >>> from mmconcepts.nmf import NMF, LabelNMF
+        >>> owner = LabelNMF(8, beta_loss="kullback-leibler", max_iter=50, threshold=0.3)
+        >>> nmf = NMF.from_params(owner, random_state=0)
+        >>> nmf.n_components, nmf.beta_loss, nmf.max_iter, nmf.random_state
+        (8, 'kullback-leibler', 50, 0)
+        >>> nmf.alpha_W   # not a LabelNMF parameter: NMF's default
+        0.0
+        """
+        get_params = getattr(owner, "get_params", None)
+        if not callable(get_params):
+            raise ParameterError(
+                f"{cls.__name__}.from_params expects an estimator with get_params(deep=False) as owner; got "
+                f"{type(owner).__name__}. For a dict of parameters, use {cls.__name__}(**params)."
+            )
+        names = cls._get_param_names()
+        unknown = sorted(set(overrides) - set(names))
+        if unknown:
+            raise ParameterError(
+                f"{cls.__name__}.from_params takes {cls.__name__} parameters as overrides ({', '.join(names)}); got "
+                f"{', '.join(map(repr, unknown))}. Set the owner's other parameters on the owner itself."
+            )
+        params = {name: value for name, value in get_params(deep=False).items() if name in names}
+        params.update(overrides)
+        return cls(**params)
+
     # ------------------------------------------------------------------ scikit-learn
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

@@ -53,7 +53,6 @@ from .._validation import (
 )
 from ..errors import DataError, ParameterError
 from ._estimator import NMF
-from ._updates import BETA_NMF_CONSTRAINTS
 from .scores import l_full_curve
 
 __all__ = ["DEFAULT_THRESHOLD_GRID", "LabelNMF", "make_svm_baseline"]
@@ -165,7 +164,9 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
     ----------
     nmf_ : NMF
         The factorization of the stacked training matrix; ``nmf_.components_`` is
-        ``(n_components, n_features_in_ + n_labels_)``.
+        ``(n_components, n_features_in_ + n_labels_)``. Built by
+        :meth:`NMF.from_params <mmconcepts.nmf.NMF.from_params>`: this estimator's NMF
+        parameters, with a seed drawn from ``random_state``.
     label_weight_ : float
         The weight lambda used.
     threshold_ : float
@@ -216,14 +217,13 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
     """
 
     _parameter_constraints: dict = {
-        "n_components": [Interval("int", 1)],
-        **{name: BETA_NMF_CONSTRAINTS[name] for name in (
-            "beta_loss", "max_iter", "tol", "init", "solver", "update_rule", "random_state")},
+        "n_components": [Interval("int", 1)],  # NMF's None (min(n_samples, n_features)) is not offered
+        **{name: NMF._parameter_constraints[name] for name in (
+            "beta_loss", "max_iter", "tol", "init", "solver", "update_rule", "transform_max_iter", "random_state")},
         "label_weight": [Interval("real", 0, None, closed="neither"), Options("l1")],
         "threshold": [Interval("real"), Options("cv")],
         "threshold_grid": ["array-like", None],
         "cv": [Interval("int", 2), HasMethods("split")],
-        "transform_max_iter": [Interval("int", 0), None],
         "n_jobs": [Interval("int"), None],
     }
     _persisted_private = ("_single_label",)
@@ -290,19 +290,6 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
                 f"beta_loss must be > 0 for LabelNMF: the label part holds zeros; got {self.beta_loss!r}. "
                 "Use 'frobenius' (2) or 'kullback-leibler' (1)."
             )
-
-    def _nmf(self, seed: int) -> NMF:
-        return NMF(
-            self.n_components,
-            beta_loss=self.beta_loss,
-            solver=self.solver,
-            update_rule=self.update_rule,
-            init=self.init,
-            max_iter=self.max_iter,
-            tol=self.tol,
-            transform_max_iter=self.transform_max_iter,
-            random_state=seed,
-        )
 
     def _grid(self) -> np.ndarray:
         if self.threshold_grid is None:
@@ -405,7 +392,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
             V = np.hstack([X, (weight * Y).astype(X.dtype)])
         self.label_weight_ = weight
         self.n_features_in_ = X.shape[1]
-        self.nmf_ = self._nmf(seed).fit(V)
+        self.nmf_ = NMF.from_params(self, random_state=seed).fit(V)
         self.n_iter_ = self.nmf_.n_iter_
 
     def _splitter(self, n: int, split_seed: int):
