@@ -426,24 +426,22 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .errors import MMConceptsError
-    from .engine import check_data, get, load_experiments, run_experiment
+    from .engine import DataPlan, get, load_experiments, run_experiment
     from .engine.outputs import record_path
-    from .engine.data import resolve_data
 
     data = _data(args)
     load_experiments()  # an experiment module that does not import is not a usage error
     try:
         exp = get(args.id)
         exp.make_config(args.preset, seed=args.seed)
-        check_data(data, [exp])
+        plan = DataPlan.build([exp], data, args.data_root)  # --data and --data-root checked, resolved once
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
     record = run_experiment(
-        exp, preset=args.preset, seed=args.seed, output=args.output, data=data, data_root=args.data_root,
-        variant=args.variant, workers=args.workers, scheduler=args.scheduler, force=args.force, progress=not args.quiet,
-        raise_errors=False,
+        exp, preset=args.preset, seed=args.seed, output=args.output, data_plan=plan, variant=args.variant,
+        workers=args.workers, scheduler=args.scheduler, force=args.force, progress=not args.quiet, raise_errors=False,
     )
-    secondary = record.get("variant") == "synthetic" and bool(resolve_data(exp, data, args.data_root))
+    secondary = plan.entry(exp).secondary(record.variant)
     _print_record(record, record_path(args.output, exp.id, secondary=secondary))
     if record["status"] == "failed" and args.verbose and record.get("traceback"):
         print(record["traceback"], file=sys.stderr, end="")
@@ -452,18 +450,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from .errors import MMConceptsError
-    from .engine import all_experiments, check_data, get, load_experiments, reproduce
+    from .engine import DataPlan, all_experiments, get, load_experiments, reproduce
 
     data = _data(args)
     load_experiments()
     try:
         for exp_id in args.only or ():
             get(exp_id)
-        check_data(data, all_experiments())
+        plan = DataPlan.build(all_experiments(), data, args.data_root)  # --data and --data-root checked, resolved once
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
     records = reproduce(
-        preset=args.preset, output=args.output, data=data, data_root=args.data_root, synthetic=args.synthetic,
+        preset=args.preset, output=args.output, data_plan=plan, synthetic=args.synthetic,
         workers=args.workers, scheduler=args.scheduler, concurrent=args.concurrent, force=args.force, ids=args.only,
         progress=not args.quiet,
     )

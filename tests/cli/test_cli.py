@@ -91,6 +91,35 @@ def test_run_with_data(toy, in_tmp, capsys):
     assert "skipped: needs the real data set 'toyfile'" in capsys.readouterr().out
 
 
+def test_run_and_reproduce_resolve_the_data_root_once_and_refuse_a_mistyped_one(toy, in_tmp, capsys, monkeypatch):
+    import mmconcepts.engine.data as data_module
+    from mmconcepts.experiments import Result
+
+    fsdd = in_tmp / "data" / "fsdd"
+    fsdd.mkdir(parents=True)
+    (fsdd / "labels.csv").write_text("file,speaker,labels,transcription\n0_alice_0.wav,alice,zero,zero\n")
+    (fsdd / "0_alice_0.wav").write_bytes(b"RIFF")
+    register(toy.make_experiment("toy-fsdd", lambda config, ctx: Result(metrics={"n": float(len(ctx.data))}),
+                                 datasets=("fsdd",)))
+    calls = []
+    resolve_root = data_module.resolve_root
+    monkeypatch.setattr(data_module, "resolve_root", lambda *args: calls.append(args) or resolve_root(*args))
+    assert main(["run", "toy-fsdd", "--data-root", "data", "--variant", "synthetic"]) == 0
+    assert "result: results/toy-fsdd.synthetic.json" in capsys.readouterr().out  # the plan's entry has real data
+    assert len(calls) == 1
+    calls.clear()
+    assert main(["reproduce", "--only", "toy-fsdd", "--data-root", "data", "-o", "both"]) == 0
+    assert len(calls) == 1
+    assert json.loads((in_tmp / "both" / "toy-fsdd.json").read_text())["data"] == {"fsdd": str(fsdd.resolve())}
+    assert (in_tmp / "both" / "toy-fsdd.synthetic.json").exists()
+    capsys.readouterr()
+    for command in (["run", "toy-fsdd"], ["reproduce", "--only", "toy-fsdd"]):
+        assert main([*command, "--data-root", "dta", "-o", "typo"]) == 2
+        err = capsys.readouterr().err
+        assert "the data root" in err and "does not exist" in err and "Did you mean" in err and "data'?" in err
+        assert "Traceback" not in err and not (in_tmp / "typo").exists()
+
+
 def test_failed_experiment_exits_1(toy, in_tmp, capsys):
     register(toy.FAIL)
     assert main(["run", "toy-fail"]) == 1

@@ -21,6 +21,7 @@ import pytest
 
 import mmconcepts.engine.batch as batch
 from mmconcepts.experiments import reproduce
+from mmconcepts.engine.data import DataPlan
 from mmconcepts.engine.registry import get
 
 TESTS_DIR = Path(__file__).parents[1]
@@ -43,7 +44,9 @@ def toy(monkeypatch, tmp_path, registry):
 
 
 def _common(output: Path, **kw) -> dict:
-    return dict(preset="quick", output=output, data={}, data_root=None, workers=1, scheduler=None, force=True,
+    """What reproduce gives each run (run_experiment's arguments), its data plan made over the two experiments."""
+    plan = DataPlan.build([get("cluster-a"), get("cluster-b")])
+    return dict(preset="quick", output=output, data_plan=plan, workers=1, scheduler=None, force=True,
                 progress=False, raise_errors=False) | kw
 
 

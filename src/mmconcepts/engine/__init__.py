@@ -12,7 +12,8 @@ importable from here:
   (independent random streams from the seed), :class:`Result`, :class:`Table`,
   :class:`SampleUnit` (what the repetitions behind a metric are), :func:`describe_split`
   (no source recording on both sides of a split), :class:`ExperimentSkipped`;
-- run: :func:`run_experiment`, :func:`reproduce`, :func:`load_record`,
+- run: :func:`run_experiment`, :func:`reproduce`, :class:`DataPlan` (which real sets each
+  experiment of a run uses, resolved once per run), :func:`load_record`,
   :func:`compare_records`, :func:`redraw_figures` (figures drawn again from what a run kept).
 
 The modules, from the bottom up: ``rule_syntax``/``rules`` (the claim language),
@@ -20,7 +21,7 @@ The modules, from the bottom up: ``rule_syntax``/``rules`` (the claim language),
 ``verdicts`` (a claim decided once, when its record is made), ``spec``, ``context``,
 ``streams``, ``experiment``, ``config``, ``splits`` (what an experiment declares and uses),
 ``codec``/``cache`` (the no-pickle disk caches), ``workers``/``cluster`` (processes, Dask),
-``registry``, ``record``/``outputs``/``data`` (records and their files, real data),
+``registry``, ``record``/``outputs``/``data`` (records and their files, the data plan),
 ``runner`` (one experiment), ``lanes``/``batch`` (many), ``compare`` (two runs' records),
 ``redraw`` (figures again, without recomputing).
 See ``docs/architecture.rst`` for the picture and the import rules.
@@ -32,7 +33,7 @@ from .batch import reproduce
 from .compare import compare_records
 from .config import PresetConfig
 from .context import RunContext, array_digest, cached_call
-from .data import check_data, parse_data_args
+from .data import DataPlan, check_data, parse_data_args
 from .experiment import PRESETS, Experiment
 from .outputs import load_record
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord
@@ -53,6 +54,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "Claim",
     "ClaimRecord",
+    "DataPlan",
     "Experiment",
     "ExperimentSkipped",
     "PresetConfig",

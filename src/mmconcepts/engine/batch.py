@@ -15,7 +15,7 @@ from .._paths import DEFAULT_RESULTS_DIR
 from ..errors import ExperimentError, ParameterError
 from .experiment import PRESETS, SMOKE, Experiment
 from .cluster import parse_scheduler, scheduler_client
-from .data import check_data, resolve_data
+from .data import DataPlan, make_data_plan
 from .outputs import record_path
 from .runner import clear_results, config_and_preset, new_record, plan_target, remove_secondary_record, run_experiment
 from .record import ResultRecord
@@ -35,6 +35,7 @@ def reproduce(
     output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
     data: Mapping[str, str | os.PathLike[str]] | None = None,
     data_root: str | os.PathLike[str] | None = None,
+    data_plan: DataPlan | None = None,
     synthetic: bool = True,
     workers: int = 1,
     scheduler: Any = None,
@@ -63,7 +64,13 @@ def reproduce(
         Real data sets by name; each name must be known (declared by some registered
         experiment or in :data:`mmconcepts.datasets.DATASETS`) and each path must exist.
     data_root : str or path-like, optional
-        Folder holding the real sets by name (default ``$MMCONCEPTS_DATA_ROOT``).
+        Folder holding the real sets by name (default ``$MMCONCEPTS_DATA_ROOT``); one given
+        must be an existing folder.
+    data_plan : DataPlan, optional
+        The plan made from ``data`` and ``data_root`` beforehand (not with them), covering the
+        experiments to run. Without it, the plan is made here, once: the data root is resolved
+        and looked at once for all the experiments, and each run gets its experiment's entry
+        (:class:`~mmconcepts.engine.data.DataPlan`).
     synthetic : bool, default=True
         Also run the experiments that have real data on generated data.
     workers : int, default=1
@@ -100,20 +107,19 @@ def reproduce(
     if isinstance(scheduler, str):
         parse_scheduler(scheduler)
     check_output_dir(output)
-    checked = check_data(data, all_experiments())
+    plan = make_data_plan(experiments, data, data_root, data_plan)
     runs: list[tuple[Experiment, str]] = []
     for exp in experiments:
-        has_real = bool(resolve_data(exp, checked, data_root))
-        runs.append((exp, "auto"))
-        if has_real and synthetic and exp.synthetic:
+        runs.append((exp, "auto"))  # its default variant: on the real sets found, else on generated data
+        if synthetic and "synthetic" in plan.entry(exp).variants[1:]:
             runs.append((exp, "synthetic"))
         else:  # a secondary record this run does not refresh would be shown as current
             if record_path(output, exp.id, secondary=True).exists():
                 logger.info("%s: removing its record on generated data (not part of this run)", exp.id)
                 remove_secondary_record(output, exp.id)
     with scheduler_client(scheduler) as client:
-        common: dict[str, Any] = dict(preset=preset, output=output, data=checked, data_root=data_root, workers=workers,
-                                      scheduler=client, force=force, progress=progress, raise_errors=False)
+        common: dict[str, Any] = dict(preset=preset, output=output, data_plan=plan, workers=workers, scheduler=client,
+                                      force=force, progress=progress, raise_errors=False)
         if concurrent == 1 or len(runs) <= 1:
             records = [run_experiment(exp, variant=variant, **common) for exp, variant in runs]
         else:
@@ -127,7 +133,7 @@ def run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
                       common: Mapping[str, Any]) -> list[ResultRecord]:
     """Run ``runs`` (experiment, variant) up to ``concurrent`` at a time, on as many driver processes.
 
-    Each driver runs one experiment after another (:mod:`._drivers`), with the arguments
+    Each driver runs one experiment after another (:mod:`.lanes`), with the arguments
     ``mmconcepts run --quiet`` would get: the same records as one at a time in this process.
     """
     import threading
@@ -140,8 +146,7 @@ def run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
     client = common["scheduler"]
     kwargs = dict(
         preset=common["preset"], output=str(Path(common["output"]).resolve()),
-        data={name: str(Path(path).resolve()) for name, path in (common["data"] or {}).items()},
-        data_root=None if common["data_root"] is None else str(Path(common["data_root"]).resolve()),
+        data_plan=common["data_plan"],  # the same plan for every driver (its paths are absolute)
         workers=common["workers"], scheduler=None if client is None else str(client.scheduler.address),
         force=common["force"], progress=False, raise_errors=False,
     )
@@ -153,7 +158,7 @@ def run_concurrently(runs: list[tuple[Experiment, str]], concurrent: int,
         exp, variant = runs[i]
         if record is None:
             config, preset = config_and_preset(exp, common["preset"], None, None)
-            target = plan_target(exp, variant, common["data"], common["data_root"], Path(common["output"]))
+            target = plan_target(exp, variant, common["data_plan"].entry(exp), Path(common["output"]))
             record = new_record(exp, preset, config, target)
             record.status, record.message = "failed", why
             clear_results(record)

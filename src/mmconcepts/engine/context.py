@@ -40,8 +40,10 @@ class RunContext:
     workers : int, default=1
         Processes for :meth:`parallel`; -1 means one per CPU.
     data : mapping of str to Path
-        Real data sets given with ``--data NAME=PATH``, restricted to the experiment's
-        ``datasets``. Ask for one by its registry name: :meth:`has_dataset`, :meth:`dataset`, or
+        The real data sets of the run: its experiment's entry of the data plan
+        (:class:`~mmconcepts.engine.data.DataPlan`: sets found under the data root or given with
+        ``--data NAME=PATH``, among the experiment's ``datasets``; none on generated data). Ask
+        for one by its registry name: :meth:`has_dataset`, :meth:`dataset`, or
         :meth:`require_data` to get it or skip.
     cache_dir : Path, optional
         Folder for generated data and caches (default :func:`mmconcepts._paths.data_home`).
@@ -253,7 +255,8 @@ class RunContext:
         Raises
         ------
         ExperimentSkipped
-            If ``--data name=PATH`` was not given.
+            If this run has no real set ``name`` (none found under the data root, nor given with
+            ``--data name=PATH``).
         """
         if self.has_dataset(name):
             return self.dataset(name)

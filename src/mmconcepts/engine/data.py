@@ -1,20 +1,32 @@
-"""Which real data sets a run uses: ``--data NAME=PATH`` arguments checked, a data root resolved per
-experiment, and a set's signature (part of a record's up-to-date key)."""
+"""Which real data sets a run uses: the data plan (:class:`DataPlan`), made once per run from the data root
+and the ``--data NAME=PATH`` arguments; the ``--data`` arguments checked; a set's signature (part of a
+record's up-to-date key).
+
+A run (:func:`~mmconcepts.engine.reproduce`, or :func:`~mmconcepts.engine.run_experiment` alone) resolves
+the data root once (:func:`resolve_root`: the argument, else ``$MMCONCEPTS_DATA_ROOT``), looks under it once
+for the sets its experiments declare (:func:`mmconcepts.datasets.find_datasets`: each set's layout is checked
+by its registry entry, :data:`mmconcepts.datasets.DATASETS`), and keeps the answer as a :class:`DataPlan`:
+for each experiment, a :class:`PlanEntry` with the real sets it runs on and its variants. Each run of an
+experiment takes its entry; its record's ``variant`` and ``data`` are that entry's.
+"""
 
 from __future__ import annotations
 
+import difflib
 import logging
 import os
 import re
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ExperimentError
+from ..errors import ExperimentError, ParameterError
 from .experiment import Experiment
 from .registry import all_experiments
 
 
-__all__ = ["VARIANTS", "parse_data_args", "check_data", "resolve_data", "data_signature"]
+__all__ = ["VARIANTS", "DataPlan", "PlanEntry", "make_data_plan", "resolve_root", "parse_data_args", "check_data",
+           "data_signature"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
@@ -90,37 +102,202 @@ def check_data(
     return {name: path.resolve() for name, path in resolved.items()}
 
 
-def resolve_data(
-    exp: Experiment,
-    data: Mapping[str, str | os.PathLike[str]] | None = None,
-    data_root: str | os.PathLike[str] | None = None,
-) -> dict[str, Path]:
-    """The real data sets ``exp`` runs on: those of its ``datasets`` found under the data
-    root, overridden by the ones given explicitly (``--data NAME=PATH``).
+def resolve_root(data_root: str | os.PathLike[str] | None = None) -> Path | None:
+    """The data root of a run: ``data_root`` if given, else ``$MMCONCEPTS_DATA_ROOT``, else None.
+
+    Called once per run, by :meth:`DataPlan.build`.
 
     Parameters
     ----------
-    exp : Experiment
-    data : mapping of str to path, optional
-        Explicit sets; names the experiment does not declare are ignored.
-    data_root : path, optional
-        The data root (default: ``$MMCONCEPTS_DATA_ROOT``; none if unset). See
-        :func:`mmconcepts.datasets.data_root`.
+    data_root : str or path-like, optional
+        The folder given (``--data-root DIR``); see :func:`mmconcepts.datasets.data_root`.
 
     Returns
     -------
-    dict of str to Path
-        ``{name: absolute folder}`` for the sets found, in the order of ``exp.datasets``.
+    Path or None
+        The absolute data root; None when none is given. A root from the environment that
+        is not a folder is returned as it is, with a warning (no real set is found in it).
+
+    Raises
+    ------
+    ExperimentError
+        If ``data_root`` is given and is not an existing folder (a mistyped path would
+        otherwise run every experiment on generated data); the message names a folder
+        beside it with a close name, if there is one.
     """
-    from ..datasets import DATASETS, find_datasets
+    from ..datasets import DATA_ROOT_ENV
     from ..datasets import data_root as _data_root
 
     root = _data_root(data_root)
-    known = [name for name in exp.datasets if name in DATASETS]
-    found = find_datasets(root, names=known) if root is not None and known else {}
-    given = {str(k): Path(v).expanduser().resolve() for k, v in (data or {}).items() if str(k) in exp.datasets}
-    merged = {**{k: Path(v).resolve() for k, v in found.items()}, **given}
-    return {name: merged[name] for name in exp.datasets if name in merged}
+    if root is None or root.is_dir():
+        return root
+    if data_root is None or str(data_root) == "":
+        logger.warning("$%s=%s is not a folder: no real data set is used.", DATA_ROOT_ENV, root)
+        return root
+    what = "is not a folder" if root.exists() else "does not exist"
+    try:
+        siblings = [p.name for p in root.parent.iterdir() if p.is_dir()]
+    except OSError:
+        siblings = []
+    close = difflib.get_close_matches(root.name, siblings, n=1)
+    hint = f" Did you mean {str(root.parent / close[0])!r}?" if close else ""
+    raise ExperimentError(f"--data-root {str(data_root)!r}: the data root {str(root)!r} {what}; give the folder "
+                          f"holding the real sets by name (see `mmconcepts data list`).{hint}")
+
+
+@dataclass(frozen=True)
+class PlanEntry:
+    """Which data one experiment runs on in a run: its entry of the :class:`DataPlan`.
+
+    Parameters
+    ----------
+    experiment : str
+        The experiment's id.
+    sets : dict of str to Path
+        The real sets found for it (``{name: absolute path}``, in the order it declares them):
+        those under the data root, overridden by ``--data NAME=PATH``. Empty: it runs on
+        generated data.
+    variants : tuple of str
+        The variants it runs on, its default run first: ``("real", "synthetic")`` when a set
+        was found and it also runs on generated data, ``("real",)`` when it runs on real data
+        only, ``("synthetic",)`` when no set was found (an experiment that runs on real data
+        only is then recorded as skipped).
+    """
+
+    experiment: str
+    sets: dict[str, Path]
+    variants: tuple[str, ...]
+
+    def chosen(self, variant: str) -> str:
+        """The variant a run asked for ``variant`` (``"auto"``: the default one, ``variants[0]``) goes on."""
+        return self.variants[0] if variant == "auto" else variant
+
+    def data(self, variant: str) -> dict[str, Path]:
+        """The real sets a run on ``variant`` gets (all of :attr:`sets` on ``"real"``, none on ``"synthetic"``)."""
+        return dict(self.sets) if variant == "real" else {}
+
+    def secondary(self, variant: str) -> bool:
+        """Whether a run on ``variant`` is the run on generated data of an experiment that has real data."""
+        return variant == "synthetic" and bool(self.sets)
+
+
+@dataclass(frozen=True)
+class DataPlan:
+    """Which real data sets each experiment of a run uses, resolved once for the whole run.
+
+    Made by :meth:`build`; :func:`~mmconcepts.engine.reproduce` makes one and gives it to each
+    of its runs (also on driver processes: it pickles), :func:`~mmconcepts.engine.run_experiment`
+    called alone makes its own.
+
+    Parameters
+    ----------
+    root : Path or None
+        The data root (:func:`resolve_root`); None when none was given.
+    given : dict of str to Path
+        The sets given by path (``--data NAME=PATH``), checked (:func:`check_data`).
+    entries : dict of str to PlanEntry
+        Each experiment's entry, by id.
+    """
+
+    root: Path | None
+    given: dict[str, Path]
+    entries: dict[str, PlanEntry]
+
+    @classmethod
+    def build(cls, experiments: Sequence[Experiment], data: Mapping[str, str | os.PathLike[str]] | None = None,
+              data_root: str | os.PathLike[str] | None = None) -> DataPlan:
+        """Resolve the data root and ``data`` once into the plan of ``experiments``.
+
+        The root is looked at once for every set the experiments declare (each set's layout
+        checked by its entry of :data:`mmconcepts.datasets.DATASETS`); a set given in ``data``
+        replaces the root's.
+
+        Parameters
+        ----------
+        experiments : sequence of Experiment
+        data : mapping of str to path, optional
+            Real sets by name (``--data NAME=PATH``); checked by :func:`check_data`.
+        data_root : str or path-like, optional
+            The data root (default ``$MMCONCEPTS_DATA_ROOT``, else none): :func:`resolve_root`.
+
+        Raises
+        ------
+        ExperimentError
+            On a ``data`` name no experiment declares or a path that does not exist, or a
+            ``data_root`` that is not an existing folder.
+        """
+        from ..datasets import DATASETS, find_datasets
+
+        given = check_data(data, experiments)
+        root = resolve_root(data_root)
+        names = list(dict.fromkeys(n for exp in experiments for n in exp.datasets if n in DATASETS))
+        found = find_datasets(root, names=names) if root is not None and root.is_dir() and names else {}
+        located = {**{n: Path(p).resolve() for n, p in found.items()}, **given}
+        entries = {}
+        for exp in experiments:
+            sets = {n: located[n] for n in exp.datasets if n in located}
+            variants = ("synthetic",) if not sets else ("real", "synthetic") if exp.synthetic else ("real",)
+            entries[exp.id] = PlanEntry(exp.id, sets, variants)
+        plan = cls(root, given, entries)
+        logger.debug("data plan: root %s; %s", root, "; ".join(
+            f"{e.experiment}: {'+'.join(e.variants)} {sorted(e.sets)}" for e in entries.values()))
+        return plan
+
+    def entry(self, exp: Experiment | str) -> PlanEntry:
+        """The entry of ``exp`` (an experiment or its id).
+
+        Raises
+        ------
+        ExperimentError
+            If the plan was made without that experiment.
+        """
+        exp_id = exp.id if isinstance(exp, Experiment) else str(exp)
+        try:
+            return self.entries[exp_id]
+        except KeyError:
+            raise ExperimentError(f"the data plan has no entry for {exp_id!r} (it covers "
+                                  f"{', '.join(self.entries) or 'no experiment'}); make it with "
+                                  "DataPlan.build(experiments, ...) over the experiments it runs.") from None
+
+
+def make_data_plan(experiments: Sequence[Experiment], data: Mapping[str, str | os.PathLike[str]] | None = None,
+                   data_root: str | os.PathLike[str] | None = None, data_plan: DataPlan | None = None) -> DataPlan:
+    """The data plan of a run: ``data_plan`` when given (checked to cover ``experiments``), else one made from
+    ``data`` and ``data_root`` (:meth:`DataPlan.build`).
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        The experiments of the run.
+    data : mapping of str to path, optional
+        Real sets by name (``--data NAME=PATH``).
+    data_root : str or path-like, optional
+        The data root (default ``$MMCONCEPTS_DATA_ROOT``).
+    data_plan : DataPlan, optional
+        A plan made beforehand from ``data`` and ``data_root`` (then neither is given).
+
+    Returns
+    -------
+    DataPlan
+
+    Raises
+    ------
+    ParameterError
+        If ``data_plan`` is not a :class:`DataPlan`, or is given with ``data`` or ``data_root``
+        (it was made from them: give one or the other).
+    ExperimentError
+        As :meth:`DataPlan.build`; or if ``data_plan`` has no entry for one of ``experiments``.
+    """
+    if data_plan is None:
+        return DataPlan.build(experiments, data, data_root)
+    if not isinstance(data_plan, DataPlan):
+        raise ParameterError(f"data_plan must be a DataPlan (DataPlan.build(experiments, data, data_root)); "
+                             f"got {type(data_plan).__name__}.")
+    if data or (data_root is not None and str(data_root) != ""):
+        raise ParameterError("give data and data_root, or a data_plan made from them, not both.")
+    for exp in experiments:
+        data_plan.entry(exp)
+    return data_plan
 
 
 def data_signature(path: str | os.PathLike[str]) -> str:

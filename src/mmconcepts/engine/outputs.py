@@ -14,7 +14,8 @@ A result record is a JSON object with a stable schema (``schema_version`` 3)::
                     ("custom": a config given to run_experiment that is no preset)
     variant         "real" | "synthetic"     which data it ran on: the real sets found
                                              (data root or --data) or generated stand-ins
-    data            name -> absolute path of each real set used (empty when synthetic)
+    data            name -> absolute path of each real set used: the sets of the run's entry of
+                    the data plan (:class:`~mmconcepts.engine.data.DataPlan`); empty when synthetic
     data_signature  name -> "<n> files, <bytes> bytes, newest <mtime>" of each set (part of
                     the up-to-date key: changed recordings recompute the result)
     version         mmconcepts.__version__

@@ -29,7 +29,7 @@ from .spec import ExperimentSkipped, Result, Table
 from .context import RunContext
 from .workers import workers_end_with_this_process
 from .cluster import parse_scheduler, scheduler_client
-from .data import VARIANTS, check_data, data_signature, resolve_data
+from .data import VARIANTS, DataPlan, PlanEntry, data_signature, make_data_plan
 from .outputs import (
     FIGURE_DATA,
     close_figures,
@@ -56,15 +56,6 @@ logger = logging.getLogger("mmconcepts.experiments")
 
 #: The ``preset`` of a record whose config was given to :func:`run_experiment` and is no preset.
 CUSTOM_PRESET = "custom"
-
-
-
-
-
-
-
-
-
 
 
 def _resolve(exp_or_id: Experiment | str) -> Experiment:
@@ -120,12 +111,11 @@ class RunTarget:
         return self.json_path.with_suffix("")
 
 
-def plan_target(exp: Experiment, variant: str, data: Mapping[str, str | os.PathLike[str]] | None,
-            data_root: str | os.PathLike[str] | None, output: Path) -> RunTarget:
-    real_sets = resolve_data(exp, data, data_root)
-    chosen = ("real" if real_sets else "synthetic") if variant == "auto" else variant
-    exp_data = real_sets if chosen == "real" else {}
-    secondary = chosen == "synthetic" and bool(real_sets)
+def plan_target(exp: Experiment, variant: str, entry: PlanEntry, output: Path) -> RunTarget:
+    """Where a run of ``exp`` asked for ``variant`` goes: its data from ``entry``, its entry of the data plan."""
+    chosen = entry.chosen(variant)
+    exp_data = entry.data(chosen)
+    secondary = entry.secondary(chosen)
     cannot_run = None
     if chosen == "real" and not exp_data:
         cannot_run = (f"no real data set of {', '.join(exp.datasets) or '(none declared)'} was found: "
@@ -258,6 +248,7 @@ def run_experiment(
     output: str | os.PathLike[str] = DEFAULT_RESULTS_DIR,
     data: Mapping[str, str | os.PathLike[str]] | None = None,
     data_root: str | os.PathLike[str] | None = None,
+    data_plan: DataPlan | None = None,
     variant: str = "auto",
     workers: int = 1,
     scheduler: Any = None,
@@ -292,7 +283,11 @@ def run_experiment(
         experiment, or the data-set registry, knows them.
     data_root : str or path-like, optional
         Folder holding the real sets by name (default ``$MMCONCEPTS_DATA_ROOT``, else
-        none); see :mod:`mmconcepts.datasets`.
+        none); see :mod:`mmconcepts.datasets`. One given must be an existing folder.
+    data_plan : DataPlan, optional
+        Which real sets each experiment of a larger run gets, resolved once for it
+        (:func:`reproduce` makes one); not with ``data`` or ``data_root``. Without it, the
+        plan is made here from them (:class:`~mmconcepts.engine.data.DataPlan`).
     variant : {"auto", "real", "synthetic"}, default="auto"
         ``"real"`` runs on the real sets found (skipped when there are none),
         ``"synthetic"`` on generated data, ``"auto"`` on the real sets when any is
@@ -324,13 +319,15 @@ def run_experiment(
     Raises
     ------
     ExperimentError
-        On an unknown id, a bad preset, config, variant or data argument (a
-        :class:`ParameterError` for a config of another class, or a preset and a config
-        both given; for an output folder that is a file or cannot be written, checked before
-        any work), or (with ``raise_errors``) the experiment's own error.
+        On an unknown id, a bad preset, config, variant or data argument (a ``data_root``
+        given that is no folder; a :class:`ParameterError` for a config of another class, a
+        preset and a config both given, or a data plan with ``data`` or ``data_root``; for an
+        output folder that is a file or cannot be written, checked before any work), or (with
+        ``raise_errors``) the experiment's own error.
     """
     exp = _resolve(exp_or_id)
-    config, preset, target, output = plan_run(exp, preset, config, seed, output, data, data_root, variant, scheduler)
+    config, preset, target, output = plan_run(exp, preset, config, seed, output, variant, scheduler, data=data,
+                                              data_root=data_root, data_plan=data_plan)
     record = new_record(exp, preset, config, target)
     if not force and (existing := current_record(target, record, output)) is not None:
         logger.info("%s (%s data): skipped: up to date (%s)", exp.id, target.variant, target.json_path)
@@ -360,18 +357,20 @@ def run_experiment(
 
 
 def plan_run(exp: Experiment, preset: str | None, config: Any, seed: int | None, output: str | os.PathLike[str],
-             data: Mapping[str, str | os.PathLike[str]] | None, data_root: str | os.PathLike[str] | None,
-             variant: str, scheduler: Any) -> tuple[Any, str, RunTarget, Path]:
+             variant: str, scheduler: Any, *, data: Mapping[str, str | os.PathLike[str]] | None = None,
+             data_root: str | os.PathLike[str] | None = None,
+             data_plan: DataPlan | None = None) -> tuple[Any, str, RunTarget, Path]:
     """Check :func:`run_experiment`'s arguments before any work; return the config, its preset name, the target
-    (which data, which record file) and the output folder."""
+    (which data, by the experiment's entry of the data plan: ``data_plan``, else one made here from ``data`` and
+    ``data_root``; which record file) and the output folder."""
     if variant not in ("auto", *VARIANTS):
         raise ParameterError(f"variant must be 'auto', 'real' or 'synthetic'; got {variant!r}.")
     config, preset_name = config_and_preset(exp, preset, config, seed)
     if isinstance(scheduler, str):
         parse_scheduler(scheduler)  # a malformed address fails before any work
-    check_data(data, [exp])
+    plan = make_data_plan([exp], data, data_root, data_plan)
     out = check_output_dir(output)  # before any work: a file or an unwritable folder fails now
-    return config, preset_name, plan_target(exp, variant, data, data_root, out), out
+    return config, preset_name, plan_target(exp, variant, plan.entry(exp), out), out
 
 
 def current_record(target: RunTarget, fresh: ResultRecord, output: Path) -> ResultRecord | None:
