@@ -95,7 +95,7 @@ def _data_root_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--data-root", metavar="DIR", type=_folder, default=None,
         help="folder holding the real data sets by name (default: $MMCONCEPTS_DATA_ROOT; "
-             "without either, experiments run on generated data)",
+             "without either, experiments run on generated data; a DIR that is not a folder is an error)",
     )
 
 
