@@ -59,23 +59,38 @@ DATA_ROOT_ENV = "MMCONCEPTS_DATA_ROOT"
 PathLike = str | os.PathLike[str]
 
 _AUDIO_EXT = {".wav", ".flac"}
-_FSDD_NAME = re.compile(r"^(\d)_([A-Za-z]+)_(\d+)\.wav$")
-_MSR_NAME = re.compile(r"^a(\d\d)_s(\d\d)_e(\d\d)_skeleton3D\.txt$")
-_ETH80_NAME = re.compile(r"^([a-z]+)(\d+)-(\d{3})-(\d{3})\.png$", re.IGNORECASE)
-_DIGIT_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
 _CHOREO1_SUBSETS = ("primitive", "mixed_partial", "mixed_full")
 
 
 # --------------------------------------------------------------------------- layout checks
 # Each check returns None when the folder looks right, else one sentence saying what is wrong.
-# Each counter returns the number of recordings (files or records) found; both are cheap.
+# Each counter returns the number of recordings (files or records) found; both are cheap. A set's file
+# names are recognised by its loader's own parser (parse_fsdd_name, parse_msr_name, parse_eth80_name).
 
 
-def _iter_files(path: Path, pattern: re.Pattern[str], *, recursive: bool = True) -> Iterable[Path]:
+def _iter_files(path: Path, parse: Callable[[str], object], *, recursive: bool = True) -> Iterable[Path]:
     it = path.rglob("*") if recursive else path.iterdir()
     for p in it:
-        if pattern.match(p.name) and p.is_file():
+        if parse(p.name) is not None and p.is_file():
             yield p
+
+
+def _fsdd_name(name: str) -> object:
+    from .sound.data import parse_fsdd_name
+
+    return parse_fsdd_name(name)
+
+
+def _msr_name(name: str) -> object:
+    from .motion.data import parse_msr_name
+
+    return parse_msr_name(name)
+
+
+def _eth80_name(name: str) -> object:
+    from .vision.data import parse_eth80_name
+
+    return parse_eth80_name(name)
 
 
 def _csv_header(path: Path) -> list[str] | None:
@@ -108,36 +123,36 @@ def _check_labels_csv(path: Path, columns: tuple[str, ...], layout: str) -> str 
 def _check_fsdd(path: Path) -> str | None:
     problem = _check_labels_csv(path, ("file", "speaker", "labels"), "generic audio")
     if problem:
-        if not (path / "labels.csv").exists() and next(iter(_iter_files(path, _FSDD_NAME)), None) is not None:
+        if not (path / "labels.csv").exists() and next(iter(_iter_files(path, _fsdd_name)), None) is not None:
             problem += "; it holds FSDD WAVs: move them aside and run `mmconcepts data fetch fsdd`, or write labels.csv"
         return problem
-    if next(iter(_iter_files(path, _FSDD_NAME)), None) is None:
+    if next(iter(_iter_files(path, _fsdd_name)), None) is None:
         return "no {digit}_{speaker}_{index}.wav file"
     return None
 
 
 def _count_fsdd(path: Path) -> int:
-    return sum(1 for _ in _iter_files(path, _FSDD_NAME))
+    return sum(1 for _ in _iter_files(path, _fsdd_name))
 
 
 def _check_msr(path: Path) -> str | None:
-    if next(iter(_iter_files(path, _MSR_NAME, recursive=False)), None) is None:
+    if next(iter(_iter_files(path, _msr_name, recursive=False)), None) is None:
         return "no aAA_sSS_eEE_skeleton3D.txt file at its top level"
     return None
 
 
 def _count_msr(path: Path) -> int:
-    return sum(1 for _ in _iter_files(path, _MSR_NAME, recursive=False))
+    return sum(1 for _ in _iter_files(path, _msr_name, recursive=False))
 
 
 def _check_eth80(path: Path) -> str | None:
-    if next(iter(_iter_files(path, _ETH80_NAME)), None) is None:
+    if next(iter(_iter_files(path, _eth80_name)), None) is None:
         return "no <category><instance>-<tilt>-<pan>.png image (in it or its sub-folders)"
     return None
 
 
 def _count_eth80(path: Path) -> int:
-    return sum(1 for _ in _iter_files(path, _ETH80_NAME))
+    return sum(1 for _ in _iter_files(path, _eth80_name))
 
 
 def _coil20_shape(path: Path) -> tuple[int, int] | str:
@@ -704,7 +719,9 @@ def _single_top(folder: Path) -> Path:
 
 def _arrange_fsdd(unpacked: Path, out: Path) -> None:
     """FSDD archive -> WAVs at the top level + labels.csv (generic audio layout)."""
-    wavs = sorted(_iter_files(unpacked, _FSDD_NAME), key=lambda p: p.name)
+    from .sound.data import FSDD_WORDS, parse_fsdd_name
+
+    wavs = sorted(_iter_files(unpacked, _fsdd_name), key=lambda p: p.name)
     if not wavs:
         raise DataError(f"the archive holds no {{digit}}_{{speaker}}_{{index}}.wav file (unpacked in {unpacked}).")
     out.mkdir()
@@ -714,10 +731,10 @@ def _arrange_fsdd(unpacked: Path, out: Path) -> None:
         if p.name in seen:
             raise DataError(f"the archive holds two files named {p.name}.")
         seen.add(p.name)
-        match = _FSDD_NAME.match(p.name)
-        assert match is not None  # _iter_files yields only names that match
-        digit, speaker, _ = match.groups()
-        word = _DIGIT_WORDS[int(digit)]
+        parsed = parse_fsdd_name(p.name)
+        assert parsed is not None  # _iter_files yields only names that parse
+        digit, speaker, _ = parsed
+        word = FSDD_WORDS[digit]
         shutil.move(str(p), out / p.name)
         rows.append((p.name, speaker, word, word))
     with open(out / "labels.csv", "w", newline="", encoding="utf-8") as fh:

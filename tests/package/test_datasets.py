@@ -411,3 +411,48 @@ def test_real_data_root_sets_and_counts():
     assert counts == EXPECTED_COUNTS
     rows = {r["name"]: r for r in ds.dataset_status(DATA_ROOT)}
     assert {n: rows[n]["n"] for n in EXPECTED_COUNTS} == EXPECTED_COUNTS
+
+
+# --------------------------------------------------------------------------- one definition of each set's file names
+def test_the_registry_recognises_a_set_by_its_loader_s_own_file_names(tmp_path, no_env_root):
+    """What the registry counts as a recording is what the loader reads: speaker names with digits (FSDD),
+    a prefix before MSR's name, upper-case ETH-80 names; names the loader refuses the registry refuses."""
+    from mmconcepts.motion.data import load_msr_action3d
+    from mmconcepts.sound.data import FSDD_WORDS, load_fsdd
+    from mmconcepts.vision.data import load_eth80
+
+    fsdd = tmp_path / "fsdd"
+    fsdd.mkdir()
+    names = ["3_spk2_0.wav", "4_spk2_1.wav", "5_o_brien_0.wav"]
+    for name in names:
+        (fsdd / name).write_bytes(_wav_bytes())
+    (fsdd / "notes_3.wav.txt").write_text("not a recording")
+    (fsdd / "labels.csv").write_text("file,speaker,labels\n" + "".join(
+        f"{n},{n.split('_', 1)[1].rsplit('_', 1)[0]},{FSDD_WORDS[int(n[0])]}\n"
+        for n in names))
+    info = ds.DATASETS["fsdd"]
+    assert info.check(fsdd) is None and info.count(fsdd) == len(names)
+    assert len(load_fsdd(fsdd)) == info.count(fsdd)
+
+    msr = tmp_path / "msr"
+    _make_msr(msr)
+    first = sorted(msr.glob("*.txt"))[0]
+    first.rename(msr / ("x" + first.name))  # the loader finds the name anywhere in the file's name
+    info = ds.DATASETS["msr-action3d"]
+    assert info.check(msr) is None
+    assert info.count(msr) == len(load_msr_action3d(msr, on_error="skip").recordings) + \
+        len(load_msr_action3d(msr, on_error="skip").skipped)
+
+    eth = tmp_path / "eth"
+    _make_eth80(eth, names=("COW1-000-000.png", "cow1-022-090.png", "cow1-22-090.png"))
+    info = ds.DATASETS["eth80"]
+    assert info.count(eth) == 2 == len(load_eth80(eth, on_error="skip").labels)
+
+
+def test_the_registry_holds_no_copy_of_the_loaders_file_name_patterns():
+    import ast
+
+    tree = ast.parse(Path(ds.__file__).read_text())
+    patterns = [n.args[0].value for n in ast.walk(tree) if isinstance(n, ast.Call)
+                and getattr(n.func, "attr", "") == "compile" and n.args and isinstance(n.args[0], ast.Constant)]
+    assert not [p for p in patterns if any(k in p for k in ("skeleton3D", r"\.wav", r"\.png"))]

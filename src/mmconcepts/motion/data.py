@@ -60,6 +60,7 @@ __all__ = [
     "load_choreo2",
     "load_motion_folder",
     "load_msr_action3d",
+    "parse_msr_name",
     "normalize_marker_name",
     "save_choreo1",
     "save_choreo1_text",
@@ -728,6 +729,24 @@ def save_choreo2(dataset: MotionDataset | Sequence[MotionRecording], folder: str
 _MSR_RE = re.compile(r"a(\d\d)_s(\d\d)_e(\d\d)_skeleton3D\.txt$")
 
 
+def parse_msr_name(name: str) -> tuple[int, int, int] | None:
+    """``(action, subject, episode)`` of an MSR Action3D skeleton file ``aAA_sSS_eEE_skeleton3D.txt``, else None.
+
+    The one definition of an MSR Action3D recording's name: :func:`load_msr_action3d` reads
+    the files it matches, and the data-set registry (:mod:`mmconcepts.datasets`) recognises
+    MSR Action3D folders by it.
+
+    Examples
+    --------
+    >>> parse_msr_name("a03_s07_e02_skeleton3D.txt")
+    (3, 7, 2)
+    >>> parse_msr_name("a03_s07_e02_sdepth.bin") is None
+    True
+    """
+    m = _MSR_RE.search(name)
+    return None if m is None else (int(m.group(1)), int(m.group(2)), int(m.group(3)))
+
+
 def _fill_lost_frames(P: np.ndarray, lost: np.ndarray, mode: str) -> np.ndarray:
     """Drop leading/trailing lost frames; interpolate (or drop) interior ones."""
     good = np.flatnonzero(~lost)
@@ -790,13 +809,13 @@ def load_msr_action3d(
     subs = None if subjects is None else {int(s) for s in subjects}
     recs: list[MotionRecording] = []
     skipped: list[SkippedRecord] = []
-    files = sorted(p for p in folder.iterdir() if _MSR_RE.search(p.name))
+    files = sorted(p for p in folder.iterdir() if parse_msr_name(p.name) is not None)
     if not files:
         raise DataFormatError(f"{folder} holds no aAA_sSS_eEE_skeleton3D.txt file.")
     for p in files:
-        match = _MSR_RE.search(p.name)
-        assert match is not None  # the files were selected by this pattern
-        a, s, _e = (int(x) for x in match.groups())
+        parsed = parse_msr_name(p.name)
+        assert parsed is not None  # the files were selected by this name
+        a, s, _e = parsed
         if (acts is not None and a not in acts) or (subs is not None and s not in subs):
             continue
         rid = p.name.split("_skeleton3D")[0]

@@ -75,6 +75,7 @@ __all__ = [
     "composed_sources",
     "load_acorns",
     "load_fsdd",
+    "parse_fsdd_name",
     "load_generic_audio",
     "normalize_word",
     "save_generic_audio",
@@ -488,17 +489,28 @@ def _write_csv(path: Path, header: list[str], rows: list[list[str]]) -> None:
 #: The word said in the recordings of each digit of the Free Spoken Digit Dataset.
 FSDD_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
 
-_FSDD_NAME = re.compile(r"^(\d)_(.+)_(\d+)$")
+_FSDD_NAME = re.compile(r"^(\d)_(.+)_(\d+)\.wav$", re.IGNORECASE)
 
 
-def _fsdd_name(path: Path) -> tuple[int, str, int] | None:
-    """``(digit, speaker, index)`` from ``{digit}_{speaker}_{index}.wav``, None if the name differs."""
-    m = _FSDD_NAME.match(path.stem)
+def parse_fsdd_name(name: str) -> tuple[int, str, int] | None:
+    """``(digit, speaker, index)`` of an FSDD file name ``{digit}_{speaker}_{index}.wav``, else None.
+
+    The one definition of an FSDD recording's name: the loader orders by it, and the data-set
+    registry (:mod:`mmconcepts.datasets`) recognises and arranges FSDD folders by it.
+
+    Examples
+    --------
+    >>> parse_fsdd_name("7_jackson_12.wav")
+    (7, 'jackson', 12)
+    >>> parse_fsdd_name("notes.txt") is None
+    True
+    """
+    m = _FSDD_NAME.match(name)
     return None if m is None else (int(m.group(1)), m.group(2), int(m.group(3)))
 
 
 def _fsdd_order(u: Utterance) -> tuple:
-    parsed = _fsdd_name(u.path)
+    parsed = parse_fsdd_name(u.path.name)
     return (u.speaker, 0, parsed[0], parsed[2], "") if parsed else (u.speaker, 1, 0, 0, u.path.name)
 
 
@@ -602,7 +614,7 @@ def load_fsdd(
         utts, skipped = [], []
         for path in files:
             try:
-                parsed = _fsdd_name(path)
+                parsed = parse_fsdd_name(path.name)
                 if parsed is None:
                     raise DataFormatError(
                         f"{path}: not an FSDD file name; expected {{digit}}_{{speaker}}_{{index}}.wav "
@@ -634,7 +646,7 @@ def load_fsdd(
 
 def _with_fsdd_meta(u: Utterance) -> Utterance:
     """``u`` with ``meta`` holding ``digit`` and ``index`` parsed from its FSDD file name (if it has one)."""
-    parsed = _fsdd_name(u.path)
+    parsed = parse_fsdd_name(u.path.name)
     if parsed is None:
         return u
     return Utterance(u.path, u.speaker, u.labels, u.transcription or " ".join(u.labels), u.word_timings,

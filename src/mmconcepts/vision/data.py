@@ -60,6 +60,7 @@ __all__ = [
     "check_images",
     "load_coil20",
     "load_eth80",
+    "parse_eth80_name",
     "load_image",
     "load_image_folder",
 ]
@@ -71,6 +72,25 @@ LABELS_FILE = "labels.csv"
 ETH80_CATEGORIES: tuple[str, ...] = ("apple", "car", "cow", "cup", "dog", "horse", "pear", "tomato")
 
 _ETH80_NAME = re.compile(r"^([a-z]+)(\d+)-(\d{3})-(\d{3})\.png$", re.IGNORECASE)
+
+
+def parse_eth80_name(name: str) -> tuple[str, int, str, str] | None:
+    """``(category, instance, tilt, pan)`` of an ETH-80 image ``<category><instance>-<tilt>-<pan>.png``, else None.
+
+    The category is lower-cased, the instance an int, tilt and pan their three digits as
+    written. The one definition of an ETH-80 image's name: :func:`load_eth80` reads the files
+    it matches, and the data-set registry (:mod:`mmconcepts.datasets`) recognises ETH-80
+    folders by it.
+
+    Examples
+    --------
+    >>> parse_eth80_name("cup3-045-180.png")
+    ('cup', 3, '045', '180')
+    >>> parse_eth80_name("cup3.png") is None
+    True
+    """
+    m = _ETH80_NAME.match(name)
+    return None if m is None else (m.group(1).lower(), int(m.group(2)), m.group(3), m.group(4))
 
 
 class SkippedFile(NamedTuple):
@@ -467,9 +487,9 @@ def load_eth80(
         instances = [int(i) for i in instances]
     found = []
     for p in root.rglob("*"):
-        m = _ETH80_NAME.match(p.name)
-        if m and p.is_file():
-            cat, inst, tilt, pan = m.group(1).lower(), int(m.group(2)), m.group(3), m.group(4)
+        parsed = parse_eth80_name(p.name)
+        if parsed and p.is_file():
+            cat, inst, tilt, pan = parsed
             found.append((cat, inst, int(tilt), int(pan), tilt, pan, p))
     if not found:
         raise DataFormatError(f"No ETH-80 image (<category><instance>-<tilt>-<pan>.png) found in {root}.")

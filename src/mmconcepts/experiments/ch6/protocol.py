@@ -203,17 +203,15 @@ def load_images(ctx: RunContext, n_objects: int, n_views: int):
 
     The synthetic objects are rendered once per code version and kept on disk (``ch6-objects``).
     """
-    import re
-
     from ...vision import ImageSet, load_eth80, load_image_folder
+    from ...vision.data import parse_eth80_name
 
     if ctx.has_dataset("images"):
         return load_image_folder(ctx.dataset("images"), on_error="skip")
     if ctx.has_dataset("eth80"):
         # choose the objects from the file names, then read only their images
-        pat = re.compile(r"^([a-z]+)(\d+)-\d{3}-\d{3}\.png$", re.IGNORECASE)
-        found = {(m.group(1).lower() + str(int(m.group(2))), m.group(1).lower())
-                 for p in Path(ctx.dataset("eth80")).rglob("*.png") if (m := pat.match(p.name))}
+        found = {(f"{parsed[0]}{parsed[1]}", parsed[0])
+                 for p in Path(ctx.dataset("eth80")).rglob("*.png") if (parsed := parse_eth80_name(p.name))}
         if not found:
             raise DataError(f"no ETH-80 image (<category><instance>-<tilt>-<pan>.png) in {ctx.dataset('eth80')}.")
         labs, cats = zip(*sorted(found))
