@@ -1,4 +1,5 @@
-"""Small file helpers shared by the data modules (internal)."""
+"""Small file helpers shared by the package (internal): the one atomic writer (:func:`atomic_path` for a file,
+:func:`atomic_dir` for a folder), folder locks, CSV tables."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import contextlib
 import csv
 import logging
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -13,7 +15,8 @@ from pathlib import Path
 
 from .errors import DataFormatError, ParameterError
 
-__all__ = ["check_output_dir", "atomic_path", "atomic_write", "folder_lock", "read_csv_rows", "replace_dir"]
+__all__ = ["check_output_dir", "atomic_dir", "atomic_path", "atomic_write", "folder_lock", "leftover_dirs",
+           "read_csv_rows", "replace_dir"]
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
@@ -48,6 +51,53 @@ def replace_dir(tmp: Path, root: Path) -> None:
         shutil.rmtree(trash, ignore_errors=True)
     else:
         os.replace(tmp, root)
+
+
+#: How the temporary folders of :func:`atomic_dir` end.
+BUILDING = ".building"
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary empty folder beside ``path`` to fill; it replaces ``path`` when the block ends well.
+
+    The folder counterpart of :func:`atomic_path`: the folder ``.<name>.<random>.building``
+    is made beside ``path`` and, when the block ends without an exception, moved to ``path``
+    by :func:`replace_dir` (an old ``path`` is renamed aside first, then removed), so
+    ``path`` is never a half-written mix. A failure (any exception, ``KeyboardInterrupt``
+    included) removes the temporary folder and leaves any old ``path`` as it was. A process
+    killed meanwhile leaves the temporary folder behind; :func:`leftover_dirs` finds it. The
+    folder gets the usual permissions (``0o777`` less the umask).
+
+    Examples
+    --------
+    >>> with atomic_dir(folder / "corpus") as tmp:   # doctest: +SKIP
+    ...     (tmp / "labels.csv").write_text(table)
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=BUILDING, dir=path.parent))
+    try:
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700
+        yield tmp
+        replace_dir(tmp, path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)  # nothing left after a rename
+
+
+def leftover_dirs(path: str | os.PathLike[str]) -> list[Path]:
+    """The temporary folders :func:`atomic_dir` made for ``path`` and never moved into place.
+
+    Only those of ``path`` itself (not of a sibling whose name starts the same). A caller
+    that holds the lock under which ``path`` is built knows they belong to dead processes.
+    """
+    path = Path(path)
+    pattern = re.compile(rf"\.{re.escape(path.name)}\.[a-z0-9_]{{8}}{re.escape(BUILDING)}")
+    try:
+        with os.scandir(path.parent) as it:
+            return sorted(Path(e.path) for e in it if pattern.fullmatch(e.name) and e.is_dir(follow_symlinks=False))
+    except OSError:  # no parent folder yet
+        return []
 
 
 def _umask() -> int:

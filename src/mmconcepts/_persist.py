@@ -1,24 +1,22 @@
 """Saving and loading fitted models without pickle (internal).
 
-A saved model is one ``.npz`` file (:func:`numpy.savez`): its arrays, and a JSON header in
-the entry ``header`` that holds the format name (``mmconcepts.<ClassName>``), the format
-version, the mmconcepts version that wrote it, the constructor parameters and the fitted
-state. Arrays in the state are references to other entries of the file; nested fitted
-estimators (an ``NMF`` inside a ``MultimodalNMF``) are saved the same way, recursively.
-Loading never unpickles (``allow_pickle=False``) and only rebuilds classes of mmconcepts.
+A saved model is one ``.npz`` archive written by the package's codec
+(:func:`mmconcepts._codec.write_npz`): the arrays of the model, and a JSON header holding the
+format name (``mmconcepts.<ClassName>``), the format version, the mmconcepts version that
+wrote it, and the constructor parameters and the fitted state as structures of
+:func:`mmconcepts._codec.encode`. Nested fitted estimators (an ``NMF`` inside a
+``MultimodalNMF``) are saved the same way, recursively. Loading never unpickles
+(``allow_pickle=False``) and only rebuilds classes of mmconcepts.
 
 Estimators get ``save``/``load`` from :class:`SaveLoadMixin`. By default the state is every
 fitted attribute (a name ending in ``_``) plus the private names listed in
-``_persisted_private``; a class whose state is not made of arrays, numbers, strings, lists,
-tuples and dicts of them overrides :meth:`SaveLoadMixin._get_state` and
-:meth:`SaveLoadMixin._set_state`.
+``_persisted_private``; a class whose state is not made of what the codec stores (arrays,
+numbers, strings, lists, tuples, dicts of them, estimators) overrides
+:meth:`SaveLoadMixin._get_state` and :meth:`SaveLoadMixin._set_state`.
 """
 
 from __future__ import annotations
 
-import importlib
-import json
-import numbers
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -26,119 +24,13 @@ import numpy as np
 from sklearn.exceptions import NotFittedError
 
 from . import __version__
-from ._io import atomic_path
-from .errors import DataFormatError, ParameterError, VersionMismatchError
+from ._codec import Stateful, decode, encode, read_npz, write_npz
+from .errors import DataFormatError, VersionMismatchError
 
-__all__ = ["SaveLoadMixin", "encode", "decode"]
-
-_MARK = "__mmconcepts__"  # key of the dicts that stand for an array, a tuple, an estimator, ...
+__all__ = ["SaveLoadMixin"]
 
 
-def encode(value: Any, key: str, arrays: dict[str, np.ndarray]) -> Any:
-    """A JSON-able image of ``value``; its arrays go to ``arrays`` under names derived from ``key``.
-
-    Raises
-    ------
-    ParameterError
-        If ``value`` (or something inside it) cannot be saved without pickle.
-    """
-    if value is None or isinstance(value, (bool, str)):
-        return value
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, (numbers.Integral, np.integer)):
-        return int(value)
-    if isinstance(value, (numbers.Real, np.floating)):
-        v = float(value)
-        return v if np.isfinite(v) else {_MARK: "float", "value": repr(v)}
-    if isinstance(value, np.ndarray):
-        arr = value
-        if arr.dtype == object:
-            if all(isinstance(x, str) for x in arr.ravel()):
-                # in the JSON header: numpy's fixed-width strings would drop trailing NUL characters
-                return {_MARK: "str-object-array", "shape": list(arr.shape), "items": [str(x) for x in arr.ravel()]}
-            raise ParameterError(f"{key}: an object array that is not all strings cannot be saved without pickle.")
-        name = f"a{len(arrays)}"
-        arrays[name] = arr
-        return {_MARK: "array", "entry": name}
-    if isinstance(value, tuple):
-        return {_MARK: "tuple", "items": [encode(v, f"{key}[{i}]", arrays) for i, v in enumerate(value)]}
-    if isinstance(value, list):
-        return [encode(v, f"{key}[{i}]", arrays) for i, v in enumerate(value)]
-    if isinstance(value, dict):
-        if all(isinstance(k, str) for k in value) and _MARK not in value:
-            return {k: encode(v, f"{key}.{k}", arrays) for k, v in value.items()}
-        return {_MARK: "dict", "items": [[encode(k, f"{key}<key>", arrays), encode(v, f"{key}[{k!r}]", arrays)]
-                                         for k, v in value.items()]}
-    if isinstance(value, SaveLoadMixin):
-        cls = type(value)
-        return {_MARK: "estimator", "class": f"{cls.__module__}.{cls.__qualname__}",
-                "params": encode(_saveable_params(value), f"{key}.params", arrays),
-                "state": encode(value._get_state(), f"{key}.state", arrays)}
-    if isinstance(value, (np.random.Generator, np.random.RandomState)):
-        return None  # a generator's state is not a parameter a user keeps; it is saved as None
-    raise ParameterError(
-        f"{key}: a {type(value).__name__} cannot be saved without pickle; expected arrays, numbers, strings, "
-        "lists, tuples, dicts of them or mmconcepts estimators."
-    )
-
-
-def decode(value: Any, arrays: Any) -> Any:
-    """Inverse of :func:`encode`; ``arrays`` maps entry names to arrays (an open npz file)."""
-    if isinstance(value, list):
-        return [decode(v, arrays) for v in value]
-    if not isinstance(value, dict):
-        return value
-    kind = value.get(_MARK)
-    if kind is None:
-        return {k: decode(v, arrays) for k, v in value.items()}
-    if kind == "array":
-        return np.asarray(arrays[value["entry"]])
-    if kind == "str-object-array" and "entry" in value:  # written before the strings moved to the header
-        return np.asarray(arrays[value["entry"]]).astype(object)
-    if kind == "str-object-array":
-        out = np.empty(len(value["items"]), dtype=object)
-        out[:] = value["items"]
-        return out.reshape(value["shape"])
-    if kind == "float":
-        return float(value["value"])
-    if kind == "tuple":
-        return tuple(decode(v, arrays) for v in value["items"])
-    if kind == "dict":
-        return {_hashable(decode(k, arrays)): decode(v, arrays) for k, v in value["items"]}
-    if kind == "estimator":
-        cls = _resolve_class(value["class"])
-        obj = cls(**decode(value["params"], arrays))
-        obj._set_state(decode(value["state"], arrays))
-        return obj
-    raise DataFormatError(f"unknown entry kind {kind!r} in a saved model.")
-
-
-def _hashable(k: Any) -> Any:
-    return tuple(_hashable(x) for x in k) if isinstance(k, (list, tuple)) else k
-
-
-def _resolve_class(path: str) -> type:
-    module, _, name = path.rpartition(".")
-    if not (module == "mmconcepts" or module.startswith("mmconcepts.")):
-        raise DataFormatError(f"a saved model names the class {path!r}; only mmconcepts classes are loaded.")
-    try:
-        obj: Any = importlib.import_module(module)
-        for part in name.split("."):
-            obj = getattr(obj, part)
-    except (ImportError, AttributeError) as e:
-        raise DataFormatError(f"a saved model names the class {path!r}, which this mmconcepts lacks ({e}).") from None
-    if not (isinstance(obj, type) and issubclass(obj, SaveLoadMixin)):
-        raise DataFormatError(f"a saved model names {path!r}, which is not a model that can be loaded.")
-    return obj
-
-
-def _saveable_params(est: Any) -> dict:
-    params = est.get_params(deep=False)
-    return {k: (None if isinstance(v, (np.random.Generator, np.random.RandomState)) else v) for k, v in params.items()}
-
-
-class SaveLoadMixin:
+class SaveLoadMixin(Stateful):
     """``save(path)`` and ``load(path)`` for a fitted estimator, as one ``.npz`` with a JSON header.
 
     Class attributes
@@ -153,6 +45,12 @@ class SaveLoadMixin:
     _persisted_private: ClassVar[tuple[str, ...]] = ()
 
     # -- state ------------------------------------------------------------------------------
+    def _saved_params(self) -> dict[str, Any]:
+        """The constructor parameters to save (a random generator is saved as None)."""
+        params = self.get_params(deep=False)  # type: ignore[attr-defined]  # every subclass is an estimator
+        return {k: (None if isinstance(v, (np.random.Generator, np.random.RandomState)) else v)
+                for k, v in params.items()}
+
     def _is_fitted_for_save(self) -> bool:
         return any(k.endswith("_") and not k.startswith("__") for k in vars(self))
 
@@ -191,23 +89,21 @@ class SaveLoadMixin:
             "format": f"mmconcepts.{cls.__name__}",
             "format_version": cls._save_format_version,
             "mmconcepts_version": __version__,
-            "params": encode(_saveable_params(self), "params", arrays),
-            "state": encode(self._get_state(), "state", arrays),
+            "params": encode(self._saved_params(), arrays, where="params"),
+            "state": encode(self._get_state(), arrays, where="state"),
         }
-        with atomic_path(path, suffix=".tmp.npz") as tmp:
-            np.savez(tmp, header=np.array(json.dumps(header)), allow_pickle=False, **arrays)
+        write_npz(path, header, arrays)
         return path
 
     @classmethod
     def _read_header(cls, path: Path) -> tuple[dict, Any]:
         try:
-            z = np.load(path, allow_pickle=False)
-            header = json.loads(str(z["header"]))
-        except Exception as e:  # noqa: BLE001 - empty, truncated, bytes flipped: numpy's parsers raise OSError,
-            # ValueError, KeyError, EOFError, BadZipFile, zlib.error, tokenize.TokenError, SyntaxError...
-            raise DataFormatError(f"{path}: not a saved mmconcepts {cls.__name__} ({e}).") from None
-        if not isinstance(header, dict) or header.get("format") != f"mmconcepts.{cls.__name__}":
-            fmt = header.get("format") if isinstance(header, dict) else None
+            header, z = read_npz(path)
+        except (OSError, DataFormatError) as e:  # absent, empty, truncated, bytes flipped, not an archive
+            message = str(e).removeprefix(f"{path}: ")
+            raise DataFormatError(f"{path}: not a saved mmconcepts {cls.__name__} ({message}).") from None
+        if header.get("format") != f"mmconcepts.{cls.__name__}":
+            fmt = header.get("format")
             z.close()
             raise DataFormatError(
                 f"{path}: not a saved {cls.__name__} (its format is {fmt!r}); load it with the class that saved it.")

@@ -3,8 +3,9 @@
 The folder (:func:`mmconcepts._paths.data_home`: ``$MMCONCEPTS_DATA``, else
 ``$XDG_CACHE_HOME/mmconcepts``, else ``~/.cache/mmconcepts``) holds generated data sets (the
 synthetic caregiver corpus, the synthetic dancers) and the experiments' caches (fold
-results, MFCC, image features), one top-level folder each. Everything in it can be
-recomputed; clearing it only costs time.
+results, MFCC, image features), one top-level folder each, all made by
+:mod:`mmconcepts._store`, and the lock files of what is being made, in ``.locks`` (not an
+entry). Everything in it can be recomputed; clearing it only costs time.
 """
 
 from __future__ import annotations
@@ -17,12 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ._paths import data_home
+from ._store import LOCKS
 from .errors import ParameterError
 
-__all__ = ["CacheEntry", "cache_entries", "clear_cache", "parse_age"]
-
-#: The folder of the cache root that holds the lock files of data sets being generated (not listed).
-LOCKS = ".locks"
+__all__ = ["CacheEntry", "LOCKS", "cache_entries", "clear_cache", "parse_age"]
 
 _AGE = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([smhdw])")
 _UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400, "w": 7 * 86400}
@@ -90,7 +89,7 @@ def cache_entries(path: str | os.PathLike[str] | None = None) -> list[CacheEntry
         return []
     out = []
     for item in sorted(home.iterdir()):
-        if item.name == LOCKS:  # the empty lock files of generated data sets, not data
+        if item.name == LOCKS:  # the empty lock files of what is being made, not data
             continue
         sizes = [(p.stat().st_size, p.stat().st_mtime) for p in _files(item)]
         out.append(CacheEntry(item.name, len(sizes), sum(s for s, _ in sizes), max((m for _, m in sizes), default=None)))

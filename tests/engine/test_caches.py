@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import pathlib
-import pickle
 import struct
 import tempfile
 import types
@@ -25,9 +24,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from _planted import Plant, planted_pickle
+from mmconcepts import _codec, _store
+from mmconcepts._codec import HEADER, MARK
+from mmconcepts._store import ENTRY_FORMAT
 from mmconcepts.experiments import RunContext
-from mmconcepts.engine import codec
-from mmconcepts.engine.codec import FORMAT
 from mmconcepts.engine.context import cached_call
 from mmconcepts.experiments.ch3 import protocol as ch3
 from mmconcepts.experiments.ch5 import protocol as ch5
@@ -259,18 +260,12 @@ def test_run_context_memory_lives_under_the_cache_dir(tmp_path):
     cached = memory.cache(_add)
     assert cached(1, 2) == 3 and cached(1, 2) == 3 and cached_call(cached, 1, 2) == 3
     assert len(_entries(tmp_path / "ch3-folds")) == 1
-    assert all(p.is_relative_to(tmp_path / "ch3-folds") for p in tmp_path.rglob("*"))
+    # the entries under the store's folder, their locks under the cache folder's one lock folder
+    assert all(p.is_relative_to(tmp_path / "ch3-folds") or p.is_relative_to(tmp_path / ".locks")
+               for p in tmp_path.rglob("*"))
+    (lock,) = (tmp_path / ".locks").rglob("*.lock")
+    assert lock.relative_to(tmp_path / ".locks").parts[0] == "ch3-folds"
     assert not list(tmp_path.rglob("*.pkl"))
-
-
-class _Plant:
-    """A pickle whose loading touches ``marker`` (what a planted file could do: run any code)."""
-
-    def __init__(self, marker):
-        self.marker = marker
-
-    def __reduce__(self):
-        return (pathlib.Path.touch, (pathlib.Path(self.marker),))
 
 
 _computed = []
@@ -283,10 +278,7 @@ def _planted_target(x, note):
 
 def test_a_planted_pickle_is_never_loaded(tmp_path):
     marker = tmp_path / "marker"
-    planted = pickle.dumps(_Plant(marker))
-    pickle.loads(planted)  # the plant works: loading it runs code
-    assert marker.exists()
-    marker.unlink()
+    planted = planted_pickle(marker)
     store = RunContext(cache_dir=tmp_path / "cache", show_progress=False).memory("ch3-folds")
     cached = store.cache(_planted_target, ignore=["note"])
     entry = cached.path(cached.key(3, "a"))
@@ -303,29 +295,30 @@ def test_a_planted_pickle_is_never_loaded(tmp_path):
     again = cached_call(cached, 3, "b")  # note is not hashed: the (rewritten) entry is read back
     assert _computed == [3] and again["note"] == "a" and not marker.exists()
     # an npz archive in our format whose array member is a pickled object
-    structure = json.dumps({"format": FORMAT, "key": cached.key(4, "a"),
-                            "value": {"dict": [["x", {"array": "a0"}], ["note", "a"]]}}).encode()
+    header = json.dumps({"format": ENTRY_FORMAT, "key": cached.key(4, "a"),
+                         "value": {"x": {MARK: "array", "entry": "a0"}, "note": "a"}})
     planted_npz = cached.path(cached.key(4, "a"))
     with open(planted_npz, "wb") as fh:
-        np.savez(fh, __structure__=np.frombuffer(structure, np.uint8),
-                 a0=np.array([_Plant(marker)], dtype=object))
+        np.savez(fh, **{HEADER: np.array(header)}, a0=np.array([Plant(marker)], dtype=object))
     value = cached_call(cached, 4, "a")
     assert not marker.exists() and _computed == [3, 4]
     np.testing.assert_array_equal(value["x"], np.arange(4))
-    # an entry naming a class outside the package as a named tuple is not built either
-    structure = json.dumps({"format": FORMAT, "key": cached.key(5, "a"),
-                            "value": {"namedtuple": "pathlib:Path.touch", "fields": [], "items": []}}).encode()
-    with open(cached.path(cached.key(5, "a")), "wb") as fh:
-        np.savez(fh, __structure__=np.frombuffer(structure, np.uint8))
-    assert cached_call(cached, 5, "a")["x"].shape == (5,) and _computed == [3, 4, 5]
+    # an entry naming a class outside the package as a named tuple or an estimator is not built either
+    for x, node in ((5, {MARK: "namedtuple", "class": "pathlib:Path.touch", "fields": [], "items": []}),
+                    (6, {MARK: "estimator", "class": "pathlib.Path", "params": {}, "state": {}})):
+        header = json.dumps({"format": ENTRY_FORMAT, "key": cached.key(x, "a"), "value": node})
+        with open(cached.path(cached.key(x, "a")), "wb") as fh:
+            np.savez(fh, **{HEADER: np.array(header)})
+        assert cached_call(cached, x, "a")["x"].shape == (x,) and _computed[-1] == x
+    assert _computed == [3, 4, 5, 6] and not marker.exists()
 
 
 def test_an_unsupported_result_is_a_clear_error(tmp_path):
     from mmconcepts.errors import ExperimentError
 
     cached = RunContext(cache_dir=tmp_path, show_progress=False).memory("x").cache(_identity_value)
-    for bad, what in (({1, 2}, "set"), ({1: 2}, "keys must be strings"), (np.array([None]), "Python objects"),
-                      ([object()], "object"), (b"raw", "bytes")):
+    for bad, what in (({1, 2}, "a set"), (np.array([None]), "Python objects"), ([object()], "an object"),
+                      (b"raw", "a bytes"), ({"k": [np.random.default_rng(0)]}, r"result\.k\[0\]: a numpy\.random")):
         with pytest.raises(ExperimentError, match=what):
             cached(bad)
     assert not _entries(tmp_path)
@@ -339,7 +332,9 @@ def _identity_value(x):
 def _same(a, b, where="value"):
     """``a`` and ``b`` are the same: types, dtypes, shapes and bits (NaN payloads and -0.0 included)."""
     assert type(a) is type(b), (where, type(a), type(b))
-    if isinstance(a, np.ndarray):
+    if isinstance(a, np.ndarray) and a.dtype == object:  # strings: compared as such (tobytes gives addresses)
+        assert b.dtype == object and a.shape == b.shape and a.ravel().tolist() == b.ravel().tolist(), where
+    elif isinstance(a, np.ndarray):
         assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), where
     elif isinstance(a, np.generic):
         assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), where
@@ -363,11 +358,14 @@ _ARRAYS = hnp.arrays(_DTYPES, hnp.array_shapes(min_dims=0, max_dims=3, min_side=
 _FLOATS = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from([-0.0, float("nan"), -float("nan"),
                                                                               struct.unpack("<d", b"\x01\0\0\0\0\0\xf8\x7f")[0]])
 _LEAVES = (st.none() | st.booleans() | st.integers() | _FLOATS | st.text(max_size=8) | _ARRAYS
-           | _ARRAYS.filter(lambda a: a.ndim == 0).map(lambda a: a[()]))
+           | _ARRAYS.filter(lambda a: a.ndim == 0).map(lambda a: a[()])
+           | st.lists(st.text(max_size=3), max_size=4).map(lambda xs: np.array(xs, dtype=object)))
 _TREES = st.recursive(
     _LEAVES,
     lambda kids: (st.lists(kids, max_size=4) | st.lists(kids, max_size=4).map(tuple)
-                  | st.dictionaries(st.text(max_size=6), kids, max_size=4)),
+                  | st.dictionaries(st.text(max_size=6) | st.just(MARK), kids, max_size=4)
+                  | st.dictionaries(st.integers() | st.tuples(st.integers(), st.text(max_size=2)) | st.none(), kids,
+                                    max_size=4)),
     max_leaves=25,
 )
 
@@ -401,10 +399,11 @@ def test_round_trip_is_exact(value):
     """What is read back from an entry is what was computed: types (tuples stay tuples), dtypes, shapes, bits."""
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(tmp) / "e.npz"
-        codec.write_entry(path, value, "k")
-        _same(value, codec.read_entry(path, "k"))
-        structure, arrays = codec.encode(value)
-        _same(value, codec.decode(json.loads(json.dumps(structure)), arrays))
+        _store.write_entry(path, value, "k")
+        _same(value, _store.read_entry(path, "k"))
+        arrays = {}
+        structure = _codec.encode(value, arrays)
+        _same(value, _codec.decode(json.loads(json.dumps(structure, allow_nan=False)), arrays))
 
 
 def test_a_hit_returns_what_the_miss_returned(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 
 import numpy as np
@@ -102,15 +103,24 @@ def test_label_sets_structure():
 
 def test_cache_not_regenerated(tmp_path):
     ds = make_choreo1("mixed_partial", data_home=tmp_path, random_state=0, n_records=4)
-    npz = next((tmp_path / "choreo1-synthetic" / "seed0").glob("*.npz"))
+    folder = tmp_path / "choreo1-synthetic" / "seed0" / "mixed_partial-n4"
+    npz = folder / "mixed_partial.npz"
     stamp = npz.stat().st_mtime_ns
     ds2 = make_choreo1("mixed_partial", data_home=tmp_path, random_state=0, n_records=4)
     assert npz.stat().st_mtime_ns == stamp
     np.testing.assert_array_equal(ds[3].positions, ds2[3].positions)
-    # an incomplete cache (marker file missing) is rebuilt
-    next((tmp_path / "choreo1-synthetic" / "seed0").glob("*.complete.json")).unlink()
+    # an incomplete cache (its manifest missing) is rebuilt
+    (folder / "manifest.json").unlink()
     ds3 = make_choreo1("mixed_partial", data_home=tmp_path, random_state=0, n_records=4)
+    assert npz.stat().st_mtime_ns != stamp
     np.testing.assert_array_equal(ds[3].positions, ds3[3].positions)
+    # another version of the generator is rebuilt too
+    manifest = json.loads((folder / "manifest.json").read_text())
+    (folder / "manifest.json").write_text(json.dumps({**manifest, "code": "mmconcepts.motion.synthetic/v0"}))
+    stamp = npz.stat().st_mtime_ns
+    make_choreo1("mixed_partial", data_home=tmp_path, random_state=0, n_records=4)
+    assert npz.stat().st_mtime_ns != stamp
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".locks", "choreo1-synthetic"]
     with pytest.raises(ParameterError):
         make_choreo1("mixed_partial", data_home=tmp_path, random_state=np.random.default_rng(0))
 

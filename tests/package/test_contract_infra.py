@@ -11,7 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from mmconcepts._persist import SaveLoadMixin, decode, encode
+from mmconcepts._codec import decode, encode
+from mmconcepts._persist import SaveLoadMixin
 from mmconcepts._validation import InstanceOf, Interval, Options, describe_constraints, validate_params
 from mmconcepts.errors import DataFormatError, ParameterError, VersionMismatchError
 
@@ -114,15 +115,15 @@ def _same(a, b) -> bool:
 @given(_values)
 def test_encode_then_decode_gives_back_the_value_through_json(value):
     arrays: dict = {}
-    header = json.loads(json.dumps(encode(value, "v", arrays), allow_nan=False))
+    header = json.loads(json.dumps(encode(value, arrays, where="v"), allow_nan=False))
     assert _same(value, decode(header, arrays))
 
 
 def test_encode_refuses_what_needs_pickle():
     with pytest.raises(ParameterError, match="cannot be saved without pickle"):
-        encode(np.array([object(), 1], dtype=object), "x", {})
+        encode(np.array([object(), 1], dtype=object), {}, where="x")
     with pytest.raises(ParameterError, match="a set cannot be saved without pickle"):
-        encode({1, 2}, "x", {})
+        encode({1, 2}, {}, where="x")
 
 
 class _Toy(SaveLoadMixin):

@@ -39,3 +39,19 @@ def test_the_suffix_lets_a_writer_choose_its_format(tmp_path):
         assert tmp.name.endswith(".tmp.npz") and tmp.parent == tmp_path
         np.savez(tmp, a=np.arange(3))  # numpy would append .npz to any other name
     assert list(np.load(tmp_path / "a.npz")["a"]) == [0, 1, 2]
+
+
+def test_atomic_dir_replaces_a_folder_whole_with_the_usual_permissions(tmp_path):
+    from mmconcepts._io import atomic_dir
+
+    target = tmp_path / "set"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    with atomic_dir(target) as tmp:
+        assert tmp.parent == tmp_path and not any(tmp.iterdir())
+        (tmp / "new.txt").write_text("new")
+        assert (target / "old.txt").is_file()  # the old folder is whole until the block ends
+    assert [p.name for p in target.iterdir()] == ["new.txt"] and [p.name for p in tmp_path.iterdir()] == ["set"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert target.stat().st_mode & 0o777 == 0o777 & ~umask  # not mkdtemp's 0700

@@ -212,13 +212,13 @@ def test_corpus_is_deterministic_for_a_seed(tiny, tmp_path):
 @needs_piper
 def test_fetch_caregiver_uses_its_cache(tmp_path, monkeypatch):
     calls = []
-    real = synthetic.make_caregiver_corpus
+    real = synthetic._write_corpus
 
     def counting(*args, **kwargs):
-        calls.append(kwargs)
+        calls.append(args)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(synthetic, "make_caregiver_corpus", counting)
+    monkeypatch.setattr(synthetic, "_write_corpus", counting)
     a = fetch_caregiver(tmp_path, n_utterances_per_speaker=2, n_speakers=1, random_state=1)
     b = fetch_caregiver(tmp_path, n_utterances_per_speaker=2, n_speakers=1, random_state=1)
     assert len(calls) == 1 and len(a) == len(b) == 2
@@ -250,14 +250,14 @@ def test_concurrent_processes_generate_the_corpus_once(tmp_path, monkeypatch):
 
     log = tmp_path / "log"
     log.mkdir()
-    real = synthetic.make_caregiver_corpus
+    real = synthetic._write_corpus
 
     def logged(*args, **kwargs):  # inherited by the forked workers
         (log / f"{os.getpid()}-{time.monotonic_ns()}").touch()
         time.sleep(0.5)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(synthetic, "make_caregiver_corpus", logged)
+    monkeypatch.setattr(synthetic, "_write_corpus", logged)
     ctx = multiprocessing.get_context("fork")
     monkeypatch.setitem(globals(), "_BARRIER", ctx.Barrier(2))  # inherited by the forked workers
     with ProcessPoolExecutor(2, mp_context=ctx) as pool:

@@ -5,21 +5,20 @@ under the cache folder (``ch3-folds``, ``ch5-mfcc``, ...). ``store.cache(f, igno
 returns a :class:`CachedFunction`: called like ``f``, it returns the result kept for the same
 arguments, or calls ``f`` and keeps what it returns.
 
-An entry is one file, ``<store>/<module>.<function>/<key>.npz``, written atomically (a
-temporary file beside it, then :func:`os.replace`) by the process that computed it: a
-``numpy.savez`` archive of the result's arrays plus one member holding the result's
-structure as JSON (nested dicts with string keys, lists, tuples, named tuples of the
-package, arrays, numpy scalars, Python numbers, strings, None). It is read with
-``numpy.load(..., allow_pickle=False)`` and :func:`json.loads` only, so reading the cache
-never runs code, whatever a file planted in the cache folder holds. A missing entry is
-computed under an exclusive lock of its own (a file in ``<store>/<module>.<function>/.locks``),
-so that processes sharing the cache folder (``reproduce --concurrent``, cluster workers)
-compute it once: the others wait, then read it. Anything that is not an
-entry in this format (a torn file, an older cache's ``output.pkl``, a pickle planted under
-an entry's name) is ignored and the value recomputed.
+The store is a thin layer over the package's cache facility (:mod:`mmconcepts._store`):
 
-The key is a hash (:func:`joblib.hash`, which pickles to hash and never unpickles) of the
-function's module, qualified name and source, and of the arguments not in ``ignore``.
+- an entry is one file, ``<store>/<module>.<function>/<key>.npz``, written atomically by the
+  process that computed it (:func:`mmconcepts._store.write_entry`: the package's no-pickle
+  codec, the one saved models use) and read without ever unpickling, so that reading the
+  cache never runs code, whatever a file planted in the cache folder holds; anything that
+  is not an entry of this format (a torn file, an older cache's entry or ``output.pkl``, a
+  pickle planted under an entry's name) is ignored and the value computed again;
+- the key is :func:`mmconcepts._store.cache_key` of the function's module, qualified name
+  and source and of the arguments not in ``ignore``, under the code fingerprint;
+- a missing entry is computed under its own exclusive lock
+  (:func:`mmconcepts._store.store_lock`: ``<cache folder>/.locks/<store>/<module>.<function>/<key>.lock``,
+  the cache folder being the store's parent), so that processes sharing the cache folder
+  (``reproduce --concurrent``, cluster workers) compute it once: the others wait, then read it.
 """
 
 from __future__ import annotations
@@ -35,19 +34,14 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
-
-from .._io import folder_lock
-from ..errors import ExperimentError
-
-from .codec import MISSING, CorruptEntry, FORMAT, read_entry, write_entry
+from .._codec import CorruptFile
+from .._store import MISSING, cache_key, read_entry, remove_stale_temporaries, store_lock, write_entry
+from ..errors import ExperimentError, ParameterError
 
 __all__ = ["CacheStore", "CachedFunction"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 _R = TypeVar("_R")
-
-
-# --------------------------------------------------------------------------- the cache
 
 
 def _source_digest(func: Callable[..., Any]) -> str:
@@ -57,21 +51,6 @@ def _source_digest(func: Callable[..., Any]) -> str:
         code = getattr(func, "__code__", None)
         source = repr((code.co_code, code.co_consts)) if code is not None else repr(func)
     return hashlib.sha1(source.encode("utf-8", "surrogatepass")).hexdigest()
-
-
-def _remove_stale_temporaries(folder: Path, age: float = 3600.0) -> None:
-    """Delete the temporary files of entries whose writer was killed (older than ``age`` seconds)."""
-    import time
-
-    try:
-        with os.scandir(folder) as it:
-            for entry in it:
-                if entry.name.startswith(".") and entry.name.endswith(".tmp.npz") and entry.is_file():
-                    with contextlib.suppress(OSError):
-                        if time.time() - entry.stat().st_mtime > age:
-                            os.unlink(entry.path)
-    except OSError:  # no folder yet
-        pass
 
 
 class CachedFunction(Generic[_R]):
@@ -98,16 +77,14 @@ class CachedFunction(Generic[_R]):
         self.location = Path(location) / re.sub(r"[^A-Za-z0-9_.-]", "_", name)
         self._name = name
         self._source = _source_digest(func)
-        _remove_stale_temporaries(self.location)
+        remove_stale_temporaries(self.location)
 
     def key(self, *args: Any, **kwargs: Any) -> str:
         """The entry's key of a call with these arguments (a hex digest)."""
-        import joblib
-
         bound = inspect.signature(self.func).bind(*args, **kwargs)
         bound.apply_defaults()
         hashed = [(n, v) for n, v in bound.arguments.items() if n not in self.ignore]
-        return str(joblib.hash([FORMAT, self._name, self._source, hashed]))
+        return cache_key(self._name, self._source, hashed)
 
     def path(self, key: str) -> Path:
         """The entry file of ``key``."""
@@ -123,7 +100,7 @@ class CachedFunction(Generic[_R]):
         path = self.path(key)
         try:
             return read_entry(path, key)
-        except CorruptEntry as exc:
+        except CorruptFile as exc:
             logger.warning("cache entry %s cannot be used (%s): computing it again", path, exc)
             return MISSING
 
@@ -156,10 +133,10 @@ class CachedFunction(Generic[_R]):
             return self._compute(key, args, kwargs)
 
     def _lock(self, key: str) -> contextlib.ExitStack:
-        """An exclusive lock on ``key``'s entry (a file under ``<store>/.locks``), or no lock if it cannot be made."""
+        """An exclusive lock on ``key``'s entry (see the module docstring), or no lock if it cannot be made."""
         stack = contextlib.ExitStack()
         try:
-            stack.enter_context(folder_lock(self.location / ".locks", f"{key}.lock"))
+            stack.enter_context(store_lock(self.location.parent.parent, self.path(key)))
         except OSError:  # a cache that cannot be written: nothing to share, go on unlocked
             pass
         return stack
@@ -169,6 +146,8 @@ class CachedFunction(Generic[_R]):
         path = self.path(key)
         try:
             write_entry(path, value, key)
+        except ParameterError as exc:
+            raise ExperimentError(f"{self._name}() returned a result the cache cannot keep: {exc}") from None
         except OSError as exc:  # a cache that cannot be written (read-only, full, a folder in the way): go on
             logger.warning("cache entry %s not written (%s): it will be computed again next time", path, exc)
         return value

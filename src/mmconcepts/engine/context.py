@@ -164,13 +164,13 @@ class RunContext:
         ``ctx.memory(name).cache(f, ignore=[...])`` is ``f`` with its results kept on disk:
         an entry is reused only for the same arguments (hashed; leave out with ``ignore=``
         the ones the others stand for, such as this context or data summarised by a
-        digest) and the same source of ``f``. Only ``f``'s own source is watched, so a
-        cached function also takes :func:`~mmconcepts._fingerprint.code_fingerprint` as an
-        argument: a change anywhere in the package then recomputes. Each entry is one
-        ``.npz`` file (the result's arrays, and its structure as JSON) written atomically
-        and read with ``allow_pickle=False``: ``f`` may return None, bools, ints, floats,
-        strings, numpy arrays and scalars, and lists, tuples, the package's named tuples
-        and str-keyed dicts of these (anything else raises
+        digest), the same source of ``f`` and the same
+        :func:`~mmconcepts._fingerprint.code_fingerprint` (the key scheme of
+        :mod:`mmconcepts._store`): a change anywhere in the package recomputes. Each entry
+        is one ``.npz`` file of the package's no-pickle codec (:mod:`mmconcepts._codec`)
+        written atomically and read with ``allow_pickle=False``: ``f`` may return None,
+        bools, ints, floats, strings, numpy arrays and scalars, and lists, tuples, dicts,
+        the package's named tuples and fitted estimators of these (anything else raises
         :class:`~mmconcepts.errors.ExperimentError`). An entry that cannot be read (torn,
         or not in this format, such as a planted pickle) is computed again, never
         loaded. Call the cached function through :func:`cached_call`.

@@ -3,7 +3,7 @@
 A run whose experiment draws its figures in ``present(result, config)`` keeps what
 ``present`` reads (the result's metrics, samples, units, tables, notes, extras and
 ``figure_data``) beside its figures, in ``<id>/figure_data.npz`` (the no-pickle format of
-:mod:`mmconcepts.engine.codec`). :func:`redraw_figures` reads it back with the record's
+:mod:`mmconcepts._codec`). :func:`redraw_figures` reads it back with the record's
 config and calls ``present`` again (``mmconcepts report --redraw``): a figure restyled in
 the code is redrawn in seconds, the numbers untouched. The verdicts are the record's; they
 are never decided again here.
@@ -19,8 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from .._io import atomic_write
-from ..errors import ExperimentError
-from .codec import MISSING, CorruptEntry, read_entry, write_entry
+from .._codec import CorruptFile
+from .._store import MISSING, read_entry, write_entry
+from ..errors import ExperimentError, ParameterError
 from .experiment import Experiment
 from .outputs import FIGURE_DATA, close_figures, load_record, remove_stale_figures, save_figures
 from .record import ResultRecord
@@ -52,7 +53,7 @@ def store_figure_data(result: Result, fig_dir: Path, exp_id: str) -> bool:
     }
     try:
         write_entry(fig_dir / FIGURE_DATA, value, exp_id)
-    except ExperimentError as exc:
+    except ParameterError as exc:
         logger.info("%s: its figures cannot be redrawn without running it (%s)", exp_id, exc)
         (fig_dir / FIGURE_DATA).unlink(missing_ok=True)
         return False
@@ -125,7 +126,7 @@ def redraw_figures(output: str | os.PathLike[str], ids: Sequence[str] | None = N
         fig_dir = path.with_suffix("")
         try:
             kept = read_entry(fig_dir / FIGURE_DATA, record.experiment)
-        except CorruptEntry as exc:
+        except CorruptFile as exc:
             raise ExperimentError(f"{fig_dir / FIGURE_DATA} is damaged ({exc}); run {record.experiment} again.") from exc
         if kept is MISSING:
             continue

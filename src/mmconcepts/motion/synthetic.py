@@ -63,7 +63,6 @@ result.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -72,8 +71,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .._io import folder_lock
 from .._paths import data_home as _data_home
+from .._store import generated_folder, versioned
 from .._validation import check_random_state
 from ..errors import ParameterError
 from .data import (
@@ -85,7 +84,6 @@ from .data import (
     CHOREO2_TO_CHOREO1,
     MotionDataset,
     MotionRecording,
-    write_json,
     load_choreo1,
     load_choreo2,
     save_choreo1,
@@ -743,26 +741,27 @@ def write_choreo2(folder: str | os.PathLike[str], *, random_state: int = 0, n_re
                         dtype=np.float32)
 
 
-def _complete(folder: Path, stem: str, info: dict) -> bool:
-    marker = folder / f"{stem}.complete.json"
-    if not (marker.exists() and (folder / f"{stem}.json").exists() and (folder / f"{stem}.npz").exists()):
-        return False
-    try:
-        return json.loads(marker.read_text()) == info
-    except (OSError, ValueError):
-        return False
+def _generate(home: Path, root: Path, manifest: dict, build: Callable[[Path], object], force: bool) -> Path:
+    """``root`` made once by ``build`` (:func:`mmconcepts._store.generated_folder`), keyed on the version."""
+    return generated_folder(root, manifest, build, code=versioned("mmconcepts.motion.synthetic", GENERATOR_VERSION),
+                            home=home, force=force)
 
 
 def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None, random_state: int = 0,
                  n_records: int | None = None, force: bool = False) -> MotionDataset:
     """The synthetic Choreo1 subset, generated once into a cache folder and loaded from it.
 
+    Made by the package's cache facility (:func:`mmconcepts._store.generated_folder`): nothing
+    is regenerated when the folder holds a complete set of the same parameters and
+    :data:`GENERATOR_VERSION`, and processes sharing ``data_home`` generate it once.
+
     Parameters
     ----------
     subset : {"primitive", "mixed_partial", "mixed_full"}
     data_home : path-like, optional
         Cache root (default :func:`mmconcepts._paths.data_home`); files go to
-        ``<data_home>/choreo1-synthetic/seed<random_state>/``.
+        ``<data_home>/choreo1-synthetic/seed<random_state>/<subset>[-n<n_records>]/``
+        (``<subset>.json`` and ``<subset>.npz``, the Choreo1 layout).
     random_state : int
         Seed; the same seed gives the same files.
     n_records : int, optional
@@ -773,38 +772,27 @@ def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None
     seed = _check_seed(random_state)
     if subset not in ("primitive", "mixed_partial", "mixed_full"):
         raise ParameterError(f"subset must be 'primitive', 'mixed_partial' or 'mixed_full'; got {subset!r}.")
-    folder = _data_home(data_home) / "choreo1-synthetic" / f"seed{seed}"
+    home = _data_home(data_home)
     n = SUBSET_SIZES[subset] if n_records is None else int(n_records)
     stem = subset if n_records is None else f"{subset}-n{n}"
-    info = {"generator_version": GENERATOR_VERSION, "seed": seed, "subset": subset, "n_records": n}
-    if force or not _complete(folder, stem, info):
-        # one process generates, the others (concurrent experiments) wait and then load its copy
-        with folder_lock(folder, f".{stem}.lock"):
-            if force or not _complete(folder, stem, info):
-                tmp = folder / f".{stem}.building"
-                write_choreo1(tmp, subset, random_state=seed, n_records=n_records)
-                os.replace(tmp / f"{subset}.npz", folder / f"{stem}.npz")
-                meta = json.loads((tmp / f"{subset}.json").read_text())
-                meta["data-file"] = f"{stem}.npz"
-                write_json(folder / f"{stem}.json", meta)
-                (tmp / f"{subset}.json").unlink()
-                tmp.rmdir()
-                write_json(folder / f"{stem}.complete.json", info)
-    ds = load_choreo1(folder / f"{stem}.json", frame_rate=FRAME_RATE)
+    root = home / "choreo1-synthetic" / f"seed{seed}" / stem
+    _generate(home, root, {"seed": seed, "subset": subset, "n_records": n},
+              lambda tmp: write_choreo1(tmp, subset, random_state=seed, n_records=n_records), force)
+    ds = load_choreo1(root / f"{subset}.json", frame_rate=FRAME_RATE)
     ds.name = subset
     return ds
 
 
 def make_choreo2(*, data_home: str | os.PathLike[str] | None = None, random_state: int = 0,
                  n_records: int | None = None, force: bool = False) -> MotionDataset:
-    """The synthetic Choreo2-like set (1100 records, Table B.3), cached as :func:`make_choreo1`."""
+    """The synthetic Choreo2-like set (1100 records, Table B.3), cached as :func:`make_choreo1`.
+
+    Files go to ``<data_home>/choreo2-synthetic/seed<random_state>/{full,n<n_records>}/``.
+    """
     seed = _check_seed(random_state)
+    home = _data_home(data_home)
     n = SUBSET_SIZES["choreo2"] if n_records is None else int(n_records)
-    folder = _data_home(data_home) / "choreo2-synthetic" / f"seed{seed}" / (f"n{n}" if n_records is not None else "full")
-    info = {"generator_version": GENERATOR_VERSION, "seed": seed, "subset": "choreo2", "n_records": n}
-    if force or not _complete(folder, "choreo2", info):
-        with folder_lock(folder, ".choreo2.lock"):
-            if force or not _complete(folder, "choreo2", info):
-                write_choreo2(folder, random_state=seed, n_records=n_records)
-                write_json(folder / "choreo2.complete.json", info)
-    return load_choreo2(folder / "choreo2.json", frame_rate=FRAME_RATE)
+    root = home / "choreo2-synthetic" / f"seed{seed}" / (f"n{n}" if n_records is not None else "full")
+    _generate(home, root, {"seed": seed, "subset": "choreo2", "n_records": n},
+              lambda tmp: write_choreo2(tmp, random_state=seed, n_records=n_records), force)
+    return load_choreo2(root / "choreo2.json", frame_rate=FRAME_RATE)

@@ -48,7 +48,6 @@ import csv
 import logging
 import os
 import re
-import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Iterator, Sequence
@@ -657,7 +656,6 @@ def _with_fsdd_meta(u: Utterance) -> Utterance:
 
 #: Version of the composed-utterance format; a cache of another version is rebuilt.
 COMPOSE_VERSION = 1
-_COMPOSE_MANIFEST = "composed.json"
 
 
 def _seed_identity(random_state) -> tuple[np.random.SeedSequence, dict]:
@@ -708,6 +706,7 @@ def compose_utterances(
     sr: int = DEFAULT_SR,
     random_state: int | np.random.SeedSequence,
     name: str | None = None,
+    data_home: str | os.PathLike[str] | None = None,
 ) -> SpeechCorpus:
     """Longer utterances made by concatenating recordings of one speaker with short pauses.
 
@@ -726,10 +725,12 @@ def compose_utterances(
     several keywords, the setting of thesis section 5.4 ("simple sentences containing one
     or several keywords").
 
-    ``root`` is a cache: when it holds a composition made with the same sources (paths,
-    sizes, modification times, labels), parameters, seed and code version, it is loaded
+    ``root`` is a cache (:func:`mmconcepts._store.generated_folder`): when it holds a
+    composition made with the same sources (paths, sizes, modification times, labels),
+    parameters and seed by the same code (the package's code fingerprint), it is loaded
     instead of rebuilt. The composition is built in a temporary sibling folder and
-    renamed, so an interrupted build leaves nothing half-written behind.
+    renamed, so an interrupted build leaves nothing half-written behind, and processes
+    sharing the folder build it once.
 
     Parameters
     ----------
@@ -749,6 +750,9 @@ def compose_utterances(
         Seeds every draw; the same seed gives the same files.
     name : str, optional
         Corpus name (default ``"<corpus.name>-composed"``).
+    data_home : path-like, optional
+        The cache folder ``root`` is in, whose ``.locks`` folder holds the lock of the build
+        (default: the parent of ``root``).
 
     Returns
     -------
@@ -769,12 +773,8 @@ def compose_utterances(
     full-scale recording by a hair); the clipped samples are the only difference between
     the file and the concatenation of the resampled sources, besides 16-bit rounding.
     """
-    import json
-    import shutil
-
-    from .._fingerprint import code_fingerprint
+    from .._store import generated_folder
     from .._validation import check_positive_int
-    from .audio import write_audio
 
     n_utt = check_positive_int(n_utterances, "n_utterances")
     lo_w, hi_w = _check_range(n_words, "n_words", integer=True, low=1)
@@ -789,14 +789,24 @@ def compose_utterances(
         if len(u.labels) != 1:
             raise DataError(f"{u.path}: compose_utterances needs exactly one label per source recording; got {u.labels}.")
     root = Path(root)
-    want = {"format": COMPOSE_VERSION, "code": code_fingerprint(), "sources": _sources_digest(corpus),
-            "n_utterances": n_utt, "n_words": [lo_w, hi_w], "pause_s": [lo_p, hi_p], "sr": int(sr),
-            "seed": seed_id}
-    corpus_name = name if name is not None else f"{corpus.name or 'corpus'}-composed"
-    if _composition_matches(root, want):
-        return load_generic_audio(root, name=corpus_name)
+    manifest = {"format": COMPOSE_VERSION, "sources": _sources_digest(corpus), "n_utterances": n_utt,
+                "n_words": [lo_w, hi_w], "pause_s": [lo_p, hi_p], "sr": int(sr), "seed": seed_id}
 
-    rng = np.random.default_rng(ss)
+    def build(folder: Path) -> None:
+        _write_composition(folder, utts, n_utt, (lo_w, hi_w), (lo_p, hi_p), int(sr), np.random.default_rng(ss))
+
+    generated_folder(root, manifest, build, home=data_home)
+    return load_generic_audio(root, name=name if name is not None else f"{corpus.name or 'corpus'}-composed")
+
+
+def _write_composition(folder: Path, utts: list[Utterance], n_utt: int, n_words: tuple[int, int],
+                       pause_s: tuple[float, float], sr: int, rng: np.random.Generator) -> None:
+    """Draw and write the composition of :func:`compose_utterances` into the empty ``folder``."""
+    import json
+
+    from .audio import write_audio
+
+    (lo_w, hi_w), (lo_p, hi_p) = n_words, pause_s
     speakers = sorted({u.speaker for u in utts})
     by_label: dict[str, dict[str, list[int]]] = {s: {} for s in speakers}
     for i, u in enumerate(utts):
@@ -811,51 +821,35 @@ def compose_utterances(
         pauses = [int(round(rng.uniform(lo_p, hi_p) * sr)) for _ in range(n - 1)]
         plan.append((spk, srcs, pauses))
 
-    root.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", suffix=".tmp", dir=root.parent))
-    try:
-        audio: dict[int, np.ndarray] = {}
-        label_rows, timing_rows = [], []
-        for j, (spk, srcs, pauses) in enumerate(plan):
-            pieces, offset = [], 0
-            words: list[WordTiming] = []
-            for k, i in enumerate(srcs):
-                if i not in audio:
-                    audio[i] = load_audio(utts[i].path, sr=int(sr), min_duration=0.0)
-                y = audio[i]
-                u = utts[i]
-                t0 = offset / sr
-                if u.word_timings:
-                    words += [WordTiming(w.word, t0 + w.start, t0 + w.end) for w in u.word_timings]
-                else:
-                    words.append(WordTiming(u.transcription.strip() or u.labels[0], t0, (offset + len(y)) / sr))
-                pieces.append(y)
-                offset += len(y)
-                if k < len(pauses):
-                    pieces.append(np.zeros(pauses[k], dtype=np.float32))
-                    offset += pauses[k]
-            rel = f"{j:05d}_{spk}.wav"
-            write_audio(tmp / rel, np.clip(np.concatenate(pieces), -1.0, 1.0), int(sr))
-            label_rows.append([rel, spk, ";".join(utts[i].labels[0] for i in srcs),
-                               " ".join(utts[i].transcription.strip() or utts[i].labels[0] for i in srcs)])
-            timing_rows += [[rel, w.word, format(w.start, ".9g"), format(w.end, ".9g")] for w in words]
-        _write_csv(tmp / LABELS_FILE, ["file", "speaker", "labels", "transcription"], label_rows)
-        _write_csv(tmp / TIMINGS_FILE, ["file", "word", "start", "end"], timing_rows)
-        sources = [[str(utts[i].path) for i in srcs] for _, srcs, _ in plan]
-        (tmp / "sources.json").write_text(json.dumps(sources))
-        (tmp / _COMPOSE_MANIFEST).write_text(json.dumps(want, sort_keys=True))
-        if root.exists():
-            shutil.rmtree(root)
-        try:
-            os.rename(tmp, root)
-        except OSError:  # another process finished the same composition first
-            if not _composition_matches(root, want):
-                raise
-            shutil.rmtree(tmp, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return load_generic_audio(root, name=corpus_name)
+    audio: dict[int, np.ndarray] = {}
+    label_rows, timing_rows = [], []
+    for j, (spk, srcs, pauses) in enumerate(plan):
+        pieces, offset = [], 0
+        words: list[WordTiming] = []
+        for k, i in enumerate(srcs):
+            if i not in audio:
+                audio[i] = load_audio(utts[i].path, sr=sr, min_duration=0.0)
+            y = audio[i]
+            u = utts[i]
+            t0 = offset / sr
+            if u.word_timings:
+                words += [WordTiming(w.word, t0 + w.start, t0 + w.end) for w in u.word_timings]
+            else:
+                words.append(WordTiming(u.transcription.strip() or u.labels[0], t0, (offset + len(y)) / sr))
+            pieces.append(y)
+            offset += len(y)
+            if k < len(pauses):
+                pieces.append(np.zeros(pauses[k], dtype=np.float32))
+                offset += pauses[k]
+        rel = f"{j:05d}_{spk}.wav"
+        write_audio(folder / rel, np.clip(np.concatenate(pieces), -1.0, 1.0), sr)
+        label_rows.append([rel, spk, ";".join(utts[i].labels[0] for i in srcs),
+                           " ".join(utts[i].transcription.strip() or utts[i].labels[0] for i in srcs)])
+        timing_rows += [[rel, w.word, format(w.start, ".9g"), format(w.end, ".9g")] for w in words]
+    _write_csv(folder / LABELS_FILE, ["file", "speaker", "labels", "transcription"], label_rows)
+    _write_csv(folder / TIMINGS_FILE, ["file", "word", "start", "end"], timing_rows)
+    sources = [[str(utts[i].path) for i in srcs] for _, srcs, _ in plan]
+    (folder / "sources.json").write_text(json.dumps(sources))
 
 
 def composed_sources(corpus: SpeechCorpus) -> list[list[str]]:
@@ -867,16 +861,6 @@ def composed_sources(corpus: SpeechCorpus) -> list[list[str]]:
     table = json.loads((Path(corpus.root) / "sources.json").read_text())
     index = {f"{j:05d}": s for j, s in enumerate(table)}
     return [index[Path(u.path).stem.split("_", 1)[0]] for u in corpus]
-
-
-def _composition_matches(root: Path, want: dict) -> bool:
-    import json
-
-    try:
-        have = json.loads((root / _COMPOSE_MANIFEST).read_text())
-    except (OSError, ValueError):
-        return False
-    return have == json.loads(json.dumps(want, sort_keys=True)) and (root / LABELS_FILE).is_file()
 
 
 # --------------------------------------------------------------------------- ACORNS

@@ -92,8 +92,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -102,10 +100,10 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from .._io import folder_lock, replace_dir
+from .._io import atomic_dir
 from .._paths import data_home as _data_home
+from .._store import generated_folder, versioned
 from .._validation import check_positive_int, check_random_state
-from ..cache import LOCKS
 from ..errors import ParameterError
 from .audio import resample, write_audio
 from .data import (
@@ -604,8 +602,9 @@ def make_caregiver_corpus(
 ) -> SpeechCorpus:
     """Generate a Caregiver-like corpus into ``root`` (generic audio layout) and load it.
 
-    The folder is built beside ``root`` (``.<name>.building-*``) and renamed into place
-    when complete, so ``root`` never holds a partial corpus. It receives
+    The folder is built beside ``root`` (``.<name>.<random>.building``,
+    :func:`mmconcepts._io.atomic_dir`) and renamed into place when complete, so ``root``
+    never holds a partial corpus. It receives
     ``wav/<speaker>/<speaker>_<i>.wav`` (16 kHz, 16-bit), ``labels.csv``,
     ``word_timings.csv``, ``speakers.json`` (the profiles) and ``corpus.json``
     (generator version, seed, sizes, package versions, determinism and timing
@@ -640,17 +639,30 @@ def make_caregiver_corpus(
     MissingEngineError
         If a speaker's engine is not installed (``pip install mmconcepts[speech]``).
     """
-    from joblib import Parallel, delayed
-
     seed = _check_seed(random_state)
     n = check_positive_int(n_utterances_per_speaker, "n_utterances_per_speaker")
-    n_spk = check_positive_int(n_speakers, "n_speakers")
-    if n_spk > len(SPEAKERS):
-        raise ParameterError(f"n_speakers must be <= {len(SPEAKERS)} (the profiles of SPEAKERS); got {n_spk}.")
+    n_spk = _check_n_speakers(n_speakers)
     kws = _check_keywords(keywords)
     root = Path(root)
     if root.exists() and not overwrite and (not root.is_dir() or any(root.iterdir())):
         raise ParameterError(f"{root} already exists; remove it or pass overwrite=True.")
+    with atomic_dir(root) as tmp:
+        _write_corpus(tmp, n, n_spk, kws, keywords_per_utterance, seed, n_jobs, verbose)
+    return load_generic_audio(root, name="caregiver-synth")
+
+
+def _check_n_speakers(n_speakers: int) -> int:
+    n_spk = check_positive_int(n_speakers, "n_speakers")
+    if n_spk > len(SPEAKERS):
+        raise ParameterError(f"n_speakers must be <= {len(SPEAKERS)} (the profiles of SPEAKERS); got {n_spk}.")
+    return n_spk
+
+
+def _write_corpus(folder: Path, n: int, n_spk: int, kws: tuple[str, ...], keywords_per_utterance: int, seed: int,
+                  n_jobs: int | None, verbose: int) -> None:
+    """Write the corpus of :func:`make_caregiver_corpus` into the empty ``folder`` (arguments checked)."""
+    from joblib import Parallel, delayed
+
     profiles = SPEAKERS[:n_spk]
     for p in {p.engine: p for p in profiles}.values():
         p.make_engine()  # fails early with MissingEngineError if not installed
@@ -663,46 +675,33 @@ def make_caregiver_corpus(
         for c in range(0, n, _CHUNK):
             tasks.append((c, s, prof, items[c: c + _CHUNK]))
     tasks.sort(key=lambda t: (t[0], t[1]))  # interleave speakers: slow and fast engines spread over workers
-    root.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.building-", dir=root.parent))
-    try:
-        results = Parallel(n_jobs=n_jobs, verbose=verbose)(
-            delayed(_render_chunk)(str(tmp), prof, s, seed, items) for _, s, prof, items in tasks
-        )
-        by_key = {}
-        for (c, s, _, _), res in zip(tasks, results):
-            by_key[(s, c)] = res
-        rows = [r for key in sorted(by_key) for r in by_key[key]]
-        _write_tables(tmp, rows)
-        engines = {p.engine: p.make_engine() for p in profiles}
-        (tmp / "speakers.json").write_text(json.dumps([asdict(p) for p in profiles], indent=1))
-        info = {
-            "generator": "mmconcepts.sound.synthetic.make_caregiver_corpus",
-            "generator_version": GENERATOR_VERSION,
-            "seed": seed,
-            "n_speakers": n_spk,
-            "n_utterances_per_speaker": n,
-            "keywords": list(kws),
-            "keywords_per_utterance": int(keywords_per_utterance),
-            "sample_rate": SAMPLE_RATE,
-            "deterministic": all(e.deterministic for e in engines.values()),
-            "engines": {k: {"deterministic": e.deterministic, "word_timings": e.provides_timings}
-                        for k, e in engines.items()},
-            "utterances_with_timings": sum(r[4] is not None for r in rows),
-            "seconds": round(time.perf_counter() - t0, 1),
-            "versions": _versions(),
-        }
-        (tmp / "corpus.json").write_text(json.dumps(info, indent=1))
-        replace_dir(tmp, root)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return load_generic_audio(root, name="caregiver-synth")
-
-
-def _cache_info(n: int, n_spk: int, kpu: int, seed: int) -> dict:
-    return {"generator_version": GENERATOR_VERSION, "seed": seed, "n_speakers": n_spk,
-            "n_utterances_per_speaker": n, "keywords_per_utterance": kpu}
+    results = Parallel(n_jobs=n_jobs, verbose=verbose)(
+        delayed(_render_chunk)(str(folder), prof, s, seed, items) for _, s, prof, items in tasks
+    )
+    by_key = {}
+    for (c, s, _, _), res in zip(tasks, results):
+        by_key[(s, c)] = res
+    rows = [r for key in sorted(by_key) for r in by_key[key]]
+    _write_tables(folder, rows)
+    engines = {p.engine: p.make_engine() for p in profiles}
+    (folder / "speakers.json").write_text(json.dumps([asdict(p) for p in profiles], indent=1))
+    info = {
+        "generator": "mmconcepts.sound.synthetic.make_caregiver_corpus",
+        "generator_version": GENERATOR_VERSION,
+        "seed": seed,
+        "n_speakers": n_spk,
+        "n_utterances_per_speaker": n,
+        "keywords": list(kws),
+        "keywords_per_utterance": int(keywords_per_utterance),
+        "sample_rate": SAMPLE_RATE,
+        "deterministic": all(e.deterministic for e in engines.values()),
+        "engines": {k: {"deterministic": e.deterministic, "word_timings": e.provides_timings}
+                    for k, e in engines.items()},
+        "utterances_with_timings": sum(r[4] is not None for r in rows),
+        "seconds": round(time.perf_counter() - t0, 1),
+        "versions": _versions(),
+    }
+    (folder / "corpus.json").write_text(json.dumps(info, indent=1))
 
 
 def fetch_caregiver(
@@ -720,9 +719,11 @@ def fetch_caregiver(
 
     Files go to ``<data_home>/caregiver-synth-v<GENERATOR_VERSION>-s<n_speakers>-
     n<n_utterances_per_speaker>[-k<keywords_per_utterance>]-seed<random_state>/``
-    (``data_home`` defaults to :func:`mmconcepts._paths.data_home`). Nothing is
-    regenerated when that folder holds a complete corpus of the same generator version
-    and parameters.
+    (``data_home`` defaults to :func:`mmconcepts._paths.data_home`), made by the package's
+    cache facility (:func:`mmconcepts._store.generated_folder`): nothing is regenerated when
+    that folder holds a complete corpus of the same parameters and :data:`GENERATOR_VERSION`
+    (the corpus is pinned by its version, not by the package's code fingerprint: see
+    :mod:`mmconcepts._store`), and processes sharing ``data_home`` generate it once.
 
     Parameters
     ----------
@@ -743,26 +744,14 @@ def fetch_caregiver(
     """
     seed = _check_seed(random_state)
     n = check_positive_int(n_utterances_per_speaker, "n_utterances_per_speaker")
-    n_spk = check_positive_int(n_speakers, "n_speakers")
+    n_spk = _check_n_speakers(n_speakers)
     kpu = check_positive_int(keywords_per_utterance, "keywords_per_utterance")
+    kws = _check_keywords(CAREGIVER_KEYWORDS)
     suffix = "" if kpu == 1 else f"-k{kpu}"
-    folder = _data_home(data_home) / f"caregiver-synth-v{GENERATOR_VERSION}-s{n_spk}-n{n}{suffix}-seed{seed}"
-    if not force and _complete(folder, _cache_info(n, n_spk, kpu, seed)):
-        return load_generic_audio(folder, name="caregiver-synth")
-    # one process generates, the others (concurrent experiments) wait and then load its copy
-    with folder_lock(folder.parent / LOCKS, f"{folder.name}.lock"):
-        if not force and _complete(folder, _cache_info(n, n_spk, kpu, seed)):
-            return load_generic_audio(folder, name="caregiver-synth")
-        return make_caregiver_corpus(folder, n_utterances_per_speaker=n, n_speakers=n_spk,
-                                     keywords_per_utterance=kpu, random_state=seed, n_jobs=n_jobs,
-                                     overwrite=True, verbose=verbose)
-
-
-def _complete(folder: Path, want: dict) -> bool:
-    try:
-        info = json.loads((folder / "corpus.json").read_text())
-    except (OSError, ValueError):
-        return False
-    if any(info.get(k) != v for k, v in want.items()):
-        return False
-    return (folder / LABELS_FILE).is_file()
+    home = _data_home(data_home)
+    folder = home / f"caregiver-synth-v{GENERATOR_VERSION}-s{n_spk}-n{n}{suffix}-seed{seed}"
+    manifest = {"seed": seed, "n_speakers": n_spk, "n_utterances_per_speaker": n, "keywords_per_utterance": kpu}
+    generated_folder(folder, manifest,
+                     lambda tmp: _write_corpus(tmp, n, n_spk, kws, kpu, seed, n_jobs, verbose),
+                     code=versioned("mmconcepts.sound.synthetic", GENERATOR_VERSION), home=home, force=force)
+    return load_generic_audio(folder, name="caregiver-synth")

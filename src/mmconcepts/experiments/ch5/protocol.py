@@ -27,14 +27,13 @@ importable from here too.
 
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..._store import cache_key, versioned
 from ...errors import DataError, ParameterError
 from ...engine import RunContext, Streams, streams
 from ..protocols.speech import (
@@ -77,19 +76,20 @@ KEYWORDS_READING = (
 def composed_corpus(ctx: RunContext, corpus, *, n_utterances: int, seed: int, n_words=(2, 4), pause_s=(0.1, 0.3)):
     """Utterances of ``n_words`` recordings of one speaker in a row, built once under ``ctx.cache_dir``.
 
-    The folder is named from the sources and the parameters, so two protocols never
-    overwrite each other's compositions; :func:`~mmconcepts.sound.data.compose_utterances`
-    checks the rest (sources, code fingerprint) and rebuilds when they differ.
+    The folder, ``ch5-composed/<corpus name>-<key>``, is named by the package's key scheme
+    (:func:`mmconcepts._store.cache_key` of the sources' paths and the parameters, under the
+    composition format), so two protocols never overwrite each other's compositions;
+    :func:`~mmconcepts.sound.data.compose_utterances` checks the rest (the sources' sizes and
+    times, the code fingerprint) and rebuilds in place when they differ.
     """
-    from ...sound.data import compose_utterances
+    from ...sound.data import COMPOSE_VERSION, compose_utterances
 
-    h = hashlib.sha1()
-    for f in corpus.paths:
-        h.update(f"{Path(f).resolve()}\n".encode())
-    h.update(json.dumps([n_utterances, seed, list(n_words), list(pause_s)]).encode())
-    root = Path(ctx.cache_dir) / "ch5-composed" / f"{corpus.name or 'corpus'}-{h.hexdigest()[:16]}"
+    paths = [str(Path(f).resolve()) for f in corpus.paths]
+    key = cache_key(paths, [n_utterances, seed, list(n_words), list(pause_s)],
+                    code=versioned("mmconcepts.sound.data.compose_utterances", COMPOSE_VERSION))
+    root = Path(ctx.cache_dir) / "ch5-composed" / f"{corpus.name or 'corpus'}-{key[:16]}"
     return compose_utterances(corpus, root, n_utterances=n_utterances, n_words=tuple(n_words),
-                              pause_s=tuple(pause_s), random_state=seed)
+                              pause_s=tuple(pause_s), random_state=seed, data_home=ctx.cache_dir)
 
 
 def recording_folds(y, n_folds: int, seed: int) -> np.ndarray:
