@@ -54,11 +54,16 @@ test: $(VENV)/.installed-dev browser
 test-fast: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -m "not slow"
 
-## Rewrite tests/golden/, the records of the experiments that declare a smoke preset (one per chapter, on generated
-## data, against which tests/experiments/test_golden_records.py compares), after a change meant to change their results
+# The golden set: the experiments whose smoke records are kept in tests/golden/ (every experiment declares a smoke
+# preset, for its own tests; only these records are kept)
+GOLDEN_IDS ?= $(sort $(basename $(notdir $(wildcard tests/golden/*.json))))
+
+## Rewrite tests/golden/, the smoke records of the golden set (at least one experiment per chapter, on generated data,
+## against which tests/experiments/test_golden_records.py compares), after a change meant to change their results;
+## GOLDEN_IDS="ID ..." makes those experiments the golden set
 golden: $(VENV)/.installed-dev
 	rm -rf $(VENV)/golden-run
-	MMCONCEPTS_DATA_ROOT= $(BIN)/mmconcepts reproduce --smoke --workers 2 --output $(VENV)/golden-run
+	MMCONCEPTS_DATA_ROOT= $(BIN)/mmconcepts reproduce --smoke --only $(GOLDEN_IDS) --workers 2 --output $(VENV)/golden-run
 	rm -f tests/golden/*.json
 	cp $(VENV)/golden-run/*.json tests/golden/
 

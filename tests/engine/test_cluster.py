@@ -140,8 +140,6 @@ def test_empty_items(client):
 
 
 # ------------------------------------------------------------------ whole experiments: same records
-_TINY = dict(n_samples=40, n_features=12, n_components=3, betas=(1.0, 2.0), pg_betas=(), max_iter=30, n_repeats=2)
-
 #: What must be the same (tables are left out: some hold wall-clock seconds).
 _COMPARED = ("status", "experiment", "preset", "config", "seed", "variant", "metrics", "intervals", "samples",
              "sample_units", "claims", "figures", "notes")
@@ -154,12 +152,9 @@ def _record(path: Path) -> dict:
 
 @pytest.mark.slow  # a Dask cluster
 def test_an_experiment_on_the_cluster_gives_the_local_record(client, tmp_path):
-    from mmconcepts.experiments.ch2.nmf_recovery import Config
-
-    config = Config(**_TINY)
-    local = run_experiment("ch2-nmf-recovery", config=config, output=tmp_path / "local", progress=False)
+    local = run_experiment("ch2-nmf-recovery", preset="smoke", output=tmp_path / "local", progress=False)
     before = _task_events(client)
-    remote = run_experiment("ch2-nmf-recovery", config=config, output=tmp_path / "cluster", scheduler=client,
+    remote = run_experiment("ch2-nmf-recovery", preset="smoke", output=tmp_path / "cluster", scheduler=client,
                             progress=False)
     assert local.status == remote.status == "ok"
     a, b = _record(tmp_path / "local" / "ch2-nmf-recovery.json"), _record(tmp_path / "cluster" / "ch2-nmf-recovery.json")

@@ -69,16 +69,24 @@ def test_a_preset_naming_no_field_or_no_preset_is_an_error():
 
 
 def test_the_smoke_preset_is_the_quick_one_changed_by_smoke():
-    from mmconcepts.engine import all_experiments, get
+    from mmconcepts.engine import Experiment, all_experiments
 
-    exps = [e for e in all_experiments() if e.has_smoke]
-    assert exps
+    exps = all_experiments()
+    assert exps and [e.id for e in exps if not e.has_smoke] == []  # one declared smoke preset per experiment
     for exp in exps:
         cls = exp.config_cls
         assert dataclasses.asdict(cls.smoke()) == {**dataclasses.asdict(cls()), **cls.QUICK, **cls.SMOKE}, exp.id
         assert cls.smoke() != cls.quick(), exp.id
         assert exp.make_config("smoke", seed=4).seed == 4
-    plain = get("ch3-unseen")
+
+    @dataclasses.dataclass(frozen=True)
+    class Plain(PresetConfig):  # no SMOKE: no smoke preset
+        n: int = 3
+        seed: int = 0
+
+        QUICK = {"n": 1}
+
+    plain = Experiment(id="plain", title="Plain", thesis_ref="none", config_cls=Plain, run=lambda config, ctx: None)
     assert not plain.has_smoke
     with pytest.raises(ParameterError, match="no smoke preset"):
         plain.make_config("smoke")

@@ -1,7 +1,8 @@
-"""Each chapter-3 experiment runs through run_experiment on a tiny config (slow); claims, units and splits."""
+"""Each chapter-3 experiment runs through run_experiment on its smoke preset (slow); claims, units and splits."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import re
 
@@ -12,21 +13,25 @@ from conftest import experiment_module, real_data_path
 from mmconcepts.experiments.ch3 import protocol as common
 from mmconcepts.experiments import run_experiment
 
-TINY = {"n_folds": 5, "n_components": 20, "max_iter": 40, "inner_cv": 2, "n_records_partial": 60, "n_records_full": 90,
-        "sensitivity": False}
 _CH3 = ("ch3-choreography", "ch3-unseen", "ch3-threshold", "ch3-combinations", "ch3-representations",
         "ch3-msr-action3d")
 _SOURCE = re.compile(r"\((?:line \d+|lines \d+(?:-\d+|, \d+))\)\Z")
 
 
-def _run(monkeypatch, tmp_path, module, exp_id, data=None, record=False, **tiny):
-    mod = experiment_module(module)
+def _smoke(module, **changes):
+    """The experiment's smoke preset, with ``changes`` (a deviation the calling test needs)."""
+    return dataclasses.replace(experiment_module(module).Config.smoke(), **changes)
+
+
+def _run(monkeypatch, tmp_path, module, exp_id, data=None, record=False, **changes):
+    """Run ``exp_id`` through run_experiment on its smoke preset (the preset itself when no ``changes``)."""
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
-    out = run_experiment(exp_id, config=mod.Config(**tiny), output=tmp_path / "out", workers=2, progress=False,
-                         data=data)
+    kw = dict(config=_smoke(module, **changes)) if changes else dict(preset="smoke")
+    out = run_experiment(exp_id, **kw, output=tmp_path / "out", workers=2, progress=False, data=data)
     assert out.status == "ok", out.message
-    assert out.preset == "custom" and out.config == {**out.config, **{k: list(v) if isinstance(v, tuple) else v
-                                                                       for k, v in tiny.items()}}
+    assert out.preset == ("custom" if changes else "smoke")
+    assert out.config == {k: list(v) if isinstance(v, tuple) else v
+                          for k, v in dataclasses.asdict(_smoke(module, **changes)).items()}
     return out if record else out.metrics
 
 
@@ -54,18 +59,19 @@ def _claim_metrics(exp_id):
 
 
 @pytest.mark.slow
-def test_choreography_tiny(monkeypatch, tmp_path):
-    record = _run(monkeypatch, tmp_path, "ch3_choreography", "ch3-choreography", record=True,
-                  **dict(TINY, sensitivity=True))
+def test_choreography_smoke(monkeypatch, tmp_path):
+    # deviation from the smoke preset: the claims' KDE and standardised-SVM settings are computed with sensitivity
+    config = _smoke("ch3_choreography", sensitivity=True)
+    record = _run(monkeypatch, tmp_path, "ch3_choreography", "ch3-choreography", record=True, sensitivity=True)
     m, s = record["metrics"], record["samples"]
     _check_record(record, {"16 labels", "47 labels"})
     for name in _claim_metrics("ch3-choreography"):
-        assert len(s[name]) == TINY["n_folds"], name  # chance.l_full included: it is fitted per fold
+        assert len(s[name]) == config.n_folds, name  # chance.l_full included: it is fitted per fold
     # the two label sets are different data: never paired fold by fold, though their samples have one length
     units = record["sample_units"]
     assert units["16.nmf_frobenius.l_full"] == units["16.svm.l_full"] == units["16.kde.svm_std.l_full"] \
         != units["47.nmf_frobenius.l_full"]
-    assert record["units"][units["16.svm.l_full"]]["test_train_ratio"] == pytest.approx(1 / (TINY["n_folds"] - 1))
+    assert record["units"][units["16.svm.l_full"]]["test_train_ratio"] == pytest.approx(1 / (config.n_folds - 1))
     # every setting of the settings claims is evaluated (the KDE histograms and both SVMs are computed)
     for claim in record["claims"]:
         for setting in claim.get("settings") or []:
@@ -73,7 +79,6 @@ def test_choreography_tiny(monkeypatch, tmp_path):
     from mmconcepts.experiments import RunContext
     from mmconcepts.experiments.ch3 import choreography as mod
 
-    config = mod.Config(**dict(TINY, sensitivity=True))
     for nl in ("16", "47"):
         folds = mod.evaluate_mixed(config, RunContext(cache_dir=tmp_path / "cache", show_progress=False), nl).folds
         for name in ("nmf_frobenius", "nmf_kl"):  # the threshold each training fold chose, fold by fold
@@ -90,10 +95,8 @@ def test_choreography_tiny(monkeypatch, tmp_path):
 
 
 @pytest.mark.slow
-def test_unseen_tiny(monkeypatch, tmp_path):
-    # 47 labels need more examples than TINY: with 90 records most test gestures are unseen in training
-    record = _run(monkeypatch, tmp_path, "ch3_unseen", "ch3-unseen", record=True,
-                  **dict(TINY, n_records_full=200, n_components=50, max_iter=80))
+def test_unseen_smoke(monkeypatch, tmp_path):
+    record = _run(monkeypatch, tmp_path, "ch3_unseen", "ch3-unseen", record=True)
     m, s = record["metrics"], record["samples"]
     _check_record(record, {"16 labels", "47 labels"})
     for nl in ("16", "47"):
@@ -106,7 +109,9 @@ def test_unseen_tiny(monkeypatch, tmp_path):
 
 
 @pytest.mark.slow
-def test_representations_tiny(monkeypatch, tmp_path):
+def test_representations_small(monkeypatch, tmp_path):
+    # deviation from the smoke preset (12 records, 3 folds: it only runs): 200 records and 5 folds, for rates above
+    # chance, and bins and delays on both sides of Table 3.2's (delay 3), as the assertions name them
     record = _run(monkeypatch, tmp_path, "ch3_representations", "ch3-representations", record=True, bins=(4, 9),
                   delays=(1, 5), n_folds=5, n_components=30, max_iter=40, n_records=200)
     m, s = record["metrics"], record["samples"]
@@ -132,20 +137,21 @@ def test_representations_tiny(monkeypatch, tmp_path):
 
 
 @pytest.mark.slow
-def test_threshold_and_combinations_tiny(monkeypatch, tmp_path):
+def test_threshold_and_combinations_smoke(monkeypatch, tmp_path):
     from mmconcepts.experiments import RunContext
     from mmconcepts.experiments.ch3 import threshold as thr_mod
     from mmconcepts.experiments.ch3.choreography import LEARNERS, SENSITIVITY_LEARNERS, evaluate_mixed
     from mmconcepts.nmf import l_full, l_given_number
 
-    record = _run(monkeypatch, tmp_path, "ch3_threshold", "ch3-threshold", record=True, **dict(TINY, sensitivity=True))
+    # deviation from the smoke preset: the KDE settings of the claims are computed with sensitivity
+    record = _run(monkeypatch, tmp_path, "ch3_threshold", "ch3-threshold", record=True, sensitivity=True)
     m, s = record["metrics"], record["samples"]
     assert 0.05 <= m["nmf_frobenius.cv_threshold"] <= 0.95
     _check_record(record, {"16 labels"})
+    config = dataclasses.replace(thr_mod.Config.smoke(), sensitivity=True)
     for name in _claim_metrics("ch3-threshold"):
-        assert len(s[name]) == TINY["n_folds"], name  # one sample per fold, the same folds for all: paired
+        assert len(s[name]) == config.n_folds, name  # one sample per fold, the same folds for all: paired
     # the per-fold values, computed by hand from the same (cached) folds with nmf.l_full on thresholded scores
-    config = thr_mod.Config(**dict(TINY, sensitivity=True))
     ctx = RunContext(cache_dir=tmp_path / "cache", show_progress=False)
     Y, folds = evaluate_mixed(config, ctx, "16", learners=LEARNERS)[:2]
     kde = evaluate_mixed(config, ctx, "16", learners=SENSITIVITY_LEARNERS, features=config.alternative_features()).folds
@@ -163,7 +169,7 @@ def test_threshold_and_combinations_tiny(monkeypatch, tmp_path):
             assert s[f"{prefix}.cv_threshold"][k] == pytest.approx(f[name]["threshold"])
     assert m["nmf_frobenius.best.l_full"] >= m["nmf_frobenius.central.mean_l_full"]  # the oracle: descriptive
 
-    record = _run(monkeypatch, tmp_path, "ch3_combinations", "ch3-combinations", record=True, **TINY)
+    record = _run(monkeypatch, tmp_path, "ch3_combinations", "ch3-combinations", record=True)
     m, s = record["metrics"], record["samples"]
     assert 0.0 < m["fraction_seen_once"] <= 1.0
     assert m["n_combinations"] <= m["n_examples"]
@@ -172,7 +178,7 @@ def test_threshold_and_combinations_tiny(monkeypatch, tmp_path):
     groups = common.combination_ids(Y)
     once = np.bincount(groups)[groups] == 1
     for tag, sel in (("once", once), ("several", ~once)):
-        assert len(s[f"{tag}.nmf_frobenius.l_full"]) == TINY["n_folds"]
+        assert len(s[f"{tag}.nmf_frobenius.l_full"]) == config.n_folds
         for k, f in enumerate(folds):
             te = f["test"][sel[f["test"]]]
             inside = sel[f["test"]]
@@ -186,11 +192,10 @@ def test_threshold_and_combinations_tiny(monkeypatch, tmp_path):
 
 
 @pytest.mark.slow
-def test_msr_action3d_tiny(monkeypatch, tmp_path):
+def test_msr_action3d_smoke(monkeypatch, tmp_path):
     folder = real_data_path("msr-action3d")
     record = _run(monkeypatch, tmp_path, "ch3_msr_action3d", "ch3-msr-action3d", data={"msr-action3d": folder},
-                  record=True, n_folds_single=5, n_folds_mixed=5, n_components=30, max_iter=40, inner_cv=2,
-                  n_records=200)
+                  record=True)
     m = record["metrics"]
     _check_record(record, {"single actions", "mixtures", "mixtures, unseen combinations"})
     for rep in ("angles_kde", "joint_kde", "joint_vq_hard", "joint_vq_soft"):
@@ -205,12 +210,12 @@ def test_msr_action3d_tiny(monkeypatch, tmp_path):
 
 
 @pytest.mark.slow
-def test_choreography_tiny_on_msr_has_the_synthetic_metric_names(monkeypatch, tmp_path):
+def test_choreography_smoke_on_msr_has_the_synthetic_metric_names(monkeypatch, tmp_path):
     """The real variant (MSR limb mixtures, folds by part of the recordings) reports the synthetic metric names."""
     folder = real_data_path("msr-action3d")
     real = _run(monkeypatch, tmp_path / "real", "ch3_choreography", "ch3-choreography", record=True,
-                data={"msr-action3d": folder}, **TINY)
-    synthetic = _run(monkeypatch, tmp_path / "synthetic", "ch3_choreography", "ch3-choreography", **TINY)
+                data={"msr-action3d": folder})
+    synthetic = _run(monkeypatch, tmp_path / "synthetic", "ch3_choreography", "ch3-choreography")
     assert set(real["metrics"]) == set(synthetic)
     _check_record(real, {"16 labels", "47 labels"})
     m = real["metrics"]
@@ -395,8 +400,8 @@ def test_threshold_leave_one_out_gives_ten_blocks(tmp_path):
     from mmconcepts.engine import registry
     from mmconcepts.engine.evidence import claim_verdict
 
-    config = mod.Config(n_folds=None, n_components=10, max_iter=20, inner_cv=2, n_records_partial=16,
-                        sensitivity=True)
+    # deviation from the smoke preset: leave-one-out (the full preset's protocol) over 16 records, with the KDE settings
+    config = dataclasses.replace(mod.Config.smoke(), n_folds=None, n_records_partial=16, sensitivity=True)
     result = mod.compute(config, RunContext(cache_dir=tmp_path, workers=2, show_progress=False))
     assert result.metrics["n_units"] == common.N_BLOCKS == 10
     assert set(result.samples) == set(result.metrics) - {"n_units"} - {

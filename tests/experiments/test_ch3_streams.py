@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -15,22 +13,15 @@ from mmconcepts.experiments import RunContext, evaluate_rule
 from mmconcepts.experiments.ch3 import protocol as common
 from mmconcepts.nmf import l_full, l_given_number
 
-# experiment module -> tiny config overrides (the data only has to be drawn, nothing is fitted)
-_MIXED = {"n_records_partial": 12, "n_records_full": 12, "n_folds": 3}
-EXPERIMENTS = {
-    "ch3_choreography": _MIXED,
-    "ch3_unseen": _MIXED,
-    "ch3_threshold": _MIXED,
-    "ch3_combinations": _MIXED,
-    "ch3_representations": {"n_records": 12, "n_folds": 3},
-}
+# the experiment modules run on their smoke presets (the data only has to be drawn, nothing is fitted)
+EXPERIMENTS = ("ch3_choreography", "ch3_unseen", "ch3_threshold", "ch3_combinations", "ch3_representations")
 
 
 class _Stop(Exception):
     pass
 
 
-def _capture(monkeypatch, tmp_path, module, streams, data=None, **tiny):
+def _capture(monkeypatch, tmp_path, module, streams, data=None):
     """Run an experiment up to its first evaluate_folds call with the given streams; return what it got."""
     mod = experiment_module(module)
     seen = {}
@@ -41,7 +32,7 @@ def _capture(monkeypatch, tmp_path, module, streams, data=None, **tiny):
 
     monkeypatch.setattr(common, "streams", lambda seed: streams)
     monkeypatch.setattr(common, "evaluate_folds", spy)
-    config = dataclasses.replace(mod.Config.quick(), **tiny)
+    config = mod.Config.smoke()
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False, data=data or {})
     with pytest.raises(_Stop):
         mod.compute(config, ctx)
@@ -53,11 +44,11 @@ def _same_data(a, b):
         and np.array_equal(a["Y"], b["Y"])
 
 
-def _check_streams(monkeypatch, tmp_path, module, data=None, **tiny):
+def _check_streams(monkeypatch, tmp_path, module, data=None):
     base = common.streams(11)
-    a = _capture(monkeypatch, tmp_path, module, base, data, **tiny)
-    b = _capture(monkeypatch, tmp_path, module, base.rooted("learner", 99), data, **tiny)
-    c = _capture(monkeypatch, tmp_path, module, base.rooted("data", 77), data, **tiny)
+    a = _capture(monkeypatch, tmp_path, module, base, data)
+    b = _capture(monkeypatch, tmp_path, module, base.rooted("learner", 99), data)
+    c = _capture(monkeypatch, tmp_path, module, base.rooted("data", 77), data)
     # the learner's seed alone changed: same data, same splits, the new learner seed reaches the folds
     assert _same_data(a, b)
     assert all(np.array_equal(x[1], y[1]) for x, y in zip(a["splits"], b["splits"]))
@@ -69,15 +60,14 @@ def _check_streams(monkeypatch, tmp_path, module, data=None, **tiny):
 
 @pytest.mark.parametrize("module", sorted(EXPERIMENTS))
 def test_learner_seed_alone_leaves_data_unchanged_synthetic(monkeypatch, tmp_path, module):
-    _check_streams(monkeypatch, tmp_path, module, **EXPERIMENTS[module])
+    _check_streams(monkeypatch, tmp_path, module)
 
 
 @pytest.mark.parametrize("module", sorted(EXPERIMENTS) + ["ch3_msr_action3d"])
 def test_learner_seed_alone_leaves_data_unchanged_msr(monkeypatch, tmp_path, module):
     folder = real_data_path("msr-action3d")
     # the MSR single-action set holds every sequence: with n_records only a random draw depends on the data stream
-    tiny = EXPERIMENTS.get(module, {"n_records": 30, "n_folds_single": 3})
-    _check_streams(monkeypatch, tmp_path, module, data={"msr-action3d": folder}, **tiny)
+    _check_streams(monkeypatch, tmp_path, module, data={"msr-action3d": folder})
 
 
 # --------------------------------------------------------------------------- claims that can fail
@@ -132,8 +122,7 @@ def test_msr_parts_come_from_the_splits_stream(monkeypatch, tmp_path):
     mixtures and their folds, the learner seed changes neither."""
     folder = real_data_path("msr-action3d")
     base = common.streams(11)
-    a = _capture(monkeypatch, tmp_path, "ch3_choreography", base, {"msr-action3d": folder}, **_MIXED)
-    b = _capture(monkeypatch, tmp_path, "ch3_choreography", base.rooted("splits", 55), {"msr-action3d": folder},
-                 **_MIXED)
+    a = _capture(monkeypatch, tmp_path, "ch3_choreography", base, {"msr-action3d": folder})
+    b = _capture(monkeypatch, tmp_path, "ch3_choreography", base.rooted("splits", 55), {"msr-action3d": folder})
     assert not _same_data(a, b)
     assert 1 < len(a["splits"]) <= common.MSR_PARTS  # one fold per (non-empty) part, whatever n_folds

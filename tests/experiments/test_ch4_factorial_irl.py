@@ -1,4 +1,4 @@
-"""The ch4-factorial-irl experiment on a small world (the quick preset is timed separately)."""
+"""The ch4-factorial-irl experiment on its smoke preset's small world (the quick preset is timed separately)."""
 
 from __future__ import annotations
 
@@ -17,10 +17,9 @@ from mmconcepts.engine.rules import parse_rule
 from mmconcepts.engine.verdicts import decide_claim
 from mmconcepts.tasks import FactorialIRL, GradIRL, grid_world
 
-SMALL = Config(grid_size=4, n_tasks=6, n_test_tasks=3, demos_curve=(2,), tasks_curve=(6,), n_worlds=1)
-#: A world small enough to fit every learner in a few seconds, with points below the default on both curves.
-TINY = Config(grid_size=4, n_primitives=3, n_tasks=8, n_test_tasks=4, flat_max_iter=10, factorial_max_iter=3,
-              inner_steps=2, demos_curve=(2, 10), tasks_curve=(4, 8), n_worlds=1, maxent=False)
+#: The smoke preset: a world small enough to fit every learner in a few seconds, with points below the default on
+#: both curves.
+SMOKE = Config.smoke()
 _SOURCE = re.compile(r"\((?:line \d+|lines \d+(?:-\d+|, \d+))\)\Z")
 
 
@@ -35,21 +34,21 @@ def _same_tasks(a, b):
 
 def test_data_streams_are_independent():
     # the test tasks, the training tasks and the examples draw from separate streams: resizing one leaves the others
-    base = _world(SMALL)
-    more_test = _world(dataclasses.replace(SMALL, n_test_tasks=5))
+    base = _world(SMOKE)
+    more_test = _world(dataclasses.replace(SMOKE, n_test_tasks=SMOKE.n_test_tasks + 2))
     np.testing.assert_array_equal(base[1], more_test[1])
     _same_tasks(base[2], more_test[2])
-    more_train = _world(dataclasses.replace(SMALL, n_tasks=8))
+    more_train = _world(dataclasses.replace(SMOKE, n_tasks=SMOKE.n_tasks + 2))
     _same_tasks(base[3], more_train[3])
     assert base[4].integers(2**62) == more_train[4].integers(2**62)  # the example draw does not follow the data
-    other = _world(dataclasses.replace(SMALL, seed=1))
+    other = _world(dataclasses.replace(SMOKE, seed=1))
     assert not np.array_equal(base[1], other[1])
 
 
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 def test_learners_draw_nothing():
     # no seed reaches the learners because they have no randomness: two fits on the same data are identical
-    mdp, _, (H, R, demos), _, _ = _world(SMALL)
+    mdp, _, (H, R, demos), _, _ = _world(SMOKE)
     demos = [d[:2] for d in demos]
     a = GradIRL(max_iter=5).fit(mdp, demos)
     b = GradIRL(max_iter=5).fit(mdp, demos)
@@ -78,11 +77,11 @@ def test_quick_preset_is_the_documented_one():
 
 
 def test_worlds_are_independent_and_do_not_depend_on_their_number():
-    a, b = _world(TINY, 0), _world(TINY, 1)
+    a, b = _world(SMOKE, 0), _world(SMOKE, 1)
     assert not np.array_equal(a[1], b[1])  # other primitives
-    more = dataclasses.replace(TINY, n_worlds=4)
+    more = dataclasses.replace(SMOKE, n_worlds=4)
     np.testing.assert_array_equal(_world(more, 1)[1], b[1])  # world 1 is world 1 whatever n_worlds
-    states = [world_streams(TINY, w).sequence(*key).generate_state(2).tolist() for w in range(3)
+    states = [world_streams(SMOKE, w).sequence(*key).generate_state(2).tolist() for w in range(3)
               for key in (("data", 0), ("data", 1), ("data", 2), ("reference",))]
     assert len({tuple(x) for x in states}) == len(states)  # no stream shared within or across worlds
 
@@ -97,21 +96,23 @@ def test_claims_are_the_thesis_statements_with_their_sources():
 
 
 def test_one_world_gives_per_task_samples_within_one_fit():
-    res = compute(TINY, RunContext(show_progress=False))
+    few_demos, few_tasks = min(SMOKE.demos_curve), min(SMOKE.tasks_curve)
+    assert SMOKE.n_worlds == 1 and few_demos < SMOKE.n_demos and few_tasks < SMOKE.n_tasks  # points below the default
+    res = compute(SMOKE, RunContext(show_progress=False))
     res.validate()
     s, u = res.samples, res.sample_units
     assert set(u) == set(s)
     assert {k.kind for k in res.units.values()} == {"within-fit"}
-    assert len(s["train.flat.deviation"]) == len(s["train.factorial.deviation"]) == TINY.n_tasks
+    assert len(s["train.flat.deviation"]) == len(s["train.factorial.deviation"]) == SMOKE.n_tasks
     assert u["train.flat.deviation"] == u["few_demos.flat.deviation"] == "training tasks"  # the same tasks, paired
-    few = res.figure_data["points"][(2, TINY.n_tasks)]["train"]  # the curve's point with 2 demonstrations per task
+    few = res.figure_data["points"][(few_demos, SMOKE.n_tasks)]["train"]  # the curve's point with fewer demonstrations
     assert s["few_demos.flat.deviation"] == few["flat"]["deviation"]
     assert s["few_demos.factorial.deviation"] == few["factorial"]["deviation"]
-    assert len(s["transfer.factorial.deviation"]) == TINY.n_test_tasks
-    # the tasks curve compares the same first tasks: learnt from 4 tasks, and from all 8 (the default point)
+    assert len(s["transfer.factorial.deviation"]) == SMOKE.n_test_tasks
+    # the tasks curve compares the same first tasks: learnt from the fewest tasks, and from all (the default point)
     first = s["tasks_curve.max_tasks.factorial.deviation"]
-    assert len(first) == len(s["tasks_curve.min_tasks.factorial.deviation"]) == 4
-    assert first == s["train.factorial.deviation"][:4]
+    assert len(first) == len(s["tasks_curve.min_tasks.factorial.deviation"]) == few_tasks
+    assert first == s["train.factorial.deviation"][:few_tasks]
     assert res.split_groups["tasks"]["shared_sources"] == 0
     exp = get("ch4-factorial-irl")
     for claim in exp.claims:
@@ -123,7 +124,8 @@ def test_one_world_gives_per_task_samples_within_one_fit():
 
 
 def test_several_worlds_give_per_world_samples():
-    cfg = dataclasses.replace(TINY, n_worlds=2, demos_curve=(10,), tasks_curve=(8,))
+    # deviation from the smoke preset: two worlds, and no point below the default on either curve
+    cfg = dataclasses.replace(SMOKE, n_worlds=2, demos_curve=(10,), tasks_curve=(8,))
     res = compute(cfg, RunContext(show_progress=False))
     res.validate()
     assert set(res.sample_units.values()) == {"worlds"} and res.units["worlds"].kind == "independent"
@@ -142,16 +144,15 @@ def test_several_worlds_give_per_world_samples():
 @given(seed=st.integers(0, 2**31 - 1), n_tasks=st.integers(1, 6), n_test=st.integers(1, 4))
 def test_test_tasks_are_new_tasks(seed, n_tasks, n_test):
     """No test task is a training task: its mixture is drawn apart from every training task's."""
-    cfg = dataclasses.replace(SMALL, grid_size=3, seed=seed, n_tasks=n_tasks, n_test_tasks=n_test, n_demos=1,
+    cfg = dataclasses.replace(SMOKE, grid_size=3, seed=seed, n_tasks=n_tasks, n_test_tasks=n_test, n_demos=1,
                               demos_curve=(1,))
     _, _, (H, _, _), (H_te, _, _), _ = _world(cfg)
     assert not (np.abs(H_te[:, None, :] - H[None, :, :]).max(-1) == 0).any()
 
 
 @pytest.mark.slow
-def test_small_run_produces_every_metric_and_figure():
-    cfg = Config(grid_size=6, n_tasks=12, n_test_tasks=6, flat_max_iter=15, factorial_max_iter=3, inner_steps=2,
-                 demos_curve=(2, 10), tasks_curve=(6, 12), n_worlds=1)
+def test_smoke_run_produces_every_metric_and_figure():
+    cfg = dataclasses.replace(SMOKE, maxent=True)  # deviation from the smoke preset: the maximum-entropy baseline too
     res = run(cfg, RunContext(show_progress=False))
     res.validate()
     for split in ("train", "transfer"):
@@ -164,7 +165,7 @@ def test_small_run_produces_every_metric_and_figure():
                                 "fig4_7_value_functions"}
     assert len(res.tables["train_vs_tasks"].rows) == 2 and len(res.tables["train_vs_demos"].rows) == 2
     # per-task samples behind every mean, paired across learners
-    assert len(res.samples["train.flat.deviation"]) == len(res.samples["train.factorial.deviation"]) == 12
-    assert len(res.samples["transfer.factorial.deviation"]) == 6
+    assert len(res.samples["train.flat.deviation"]) == len(res.samples["train.factorial.deviation"]) == cfg.n_tasks
+    assert len(res.samples["transfer.factorial.deviation"]) == cfg.n_test_tasks
     assert res.metrics["train.flat.deviation"] == pytest.approx(np.mean(res.samples["train.flat.deviation"]))
-    assert len(res.samples["tasks_curve.min_tasks.factorial.deviation"]) == 6
+    assert len(res.samples["tasks_curve.min_tasks.factorial.deviation"]) == min(cfg.tasks_curve)

@@ -32,8 +32,7 @@ from mmconcepts.experiments.ch4.inverse_control import (
 from mmconcepts.engine.verdicts import decide_claim
 from mmconcepts.tasks import FactorialInverseControl, RBFFeatures, control_trajectories, relative_l2_error
 
-TINY = dataclasses.replace(Config.quick(), n_train=30, n_test=6, n_steps=30, max_iter=3, n_repeats=1,
-                           dynamics=("euler",), sensor_noises=(1e-4,), diagnostics=False)
+SMOKE = Config.smoke()
 _SOURCE = re.compile(r"\((?:line \d+|lines \d+(?:-\d+|, \d+))\)\Z")
 
 
@@ -72,8 +71,8 @@ def test_claims_kinds_sources_and_settings():
             assert all(name.startswith(label + ".") for name in re.findall(r"[a-z_]+\.[a-z0-9_.]+", c.settings[title]))
 
 
-def test_tiny_run_declares_units_and_split():
-    cfg = dataclasses.replace(TINY, n_repeats=2)
+def test_smoke_run_declares_units_and_split():
+    cfg = dataclasses.replace(SMOKE, n_repeats=2)  # deviation from the smoke preset: more than one repetition
     res = compute(cfg, RunContext(show_progress=False))
     res.validate()
     assert set(res.sample_units) == set(res.samples) and set(res.sample_units.values()) == {"repetitions"}
@@ -87,12 +86,14 @@ def test_tiny_run_declares_units_and_split():
 
 
 def test_settings_not_computed_are_not_evaluated():
-    res = compute(TINY, RunContext(show_progress=False))
+    # deviation from the smoke preset: one setting computed, Euler with noise 1e-4
+    cfg = dataclasses.replace(SMOKE, dynamics=("euler",), sensor_noises=(1e-4,))
+    res = compute(cfg, RunContext(show_progress=False))
     exp = get("ch4-inverse-control")
     for claim in exp.claims:
         rec = decide_claim(claim, res.metrics, res.samples, reference=exp.reference, units=res.sample_units,
                            unit_kinds=res.units)
-        if claim.kind == "magnitude":  # TINY computes Euler with noise 1e-4 only
+        if claim.kind == "magnitude":  # Euler with noise 1e-4 only
             assert (rec.verdict == "not evaluated") != claim.rule.startswith("euler.noise_1e_4.")
         else:
             per = {s["label"]: s["verdict"] for s in rec.settings}
@@ -133,7 +134,7 @@ def _state(seed_seq):
 
 
 def test_settings_share_the_draws():
-    euler, ode = _data(TINY, dynamics="euler"), _data(TINY, dynamics="ode")
+    euler, ode = _data(SMOKE, dynamics="euler"), _data(SMOKE, dynamics="ode")
     for key in ("D", "A_tr", "A_te", "s_tr", "s_te", "s_new", "z_tr", "z_te"):  # the same tasks under both dynamics
         np.testing.assert_array_equal(euler[key], ode[key])
     assert not np.allclose(euler["demo_tr"], ode["demo_tr"])  # only the agent's law differs
@@ -143,7 +144,8 @@ def test_settings_share_the_draws():
 
 
 def test_control_ignores_the_learners_and_the_noise():
-    cfg = dataclasses.replace(TINY, sensor_noises=(1e-4, 1e-3))
+    cfg = SMOKE
+    assert {1e-4, 1e-3} <= set(cfg.sensor_noises) and "euler" in cfg.dynamics  # the settings read below
     m = compute(cfg, RunContext(show_progress=False)).metrics
     # the average task of the true dictionary: the same under both noise levels, and the same whatever the learners
     assert m["euler.noise_1e_4.mean_task.new_start.rel_l2"] == m["euler.noise_1e_3.mean_task.new_start.rel_l2"]
@@ -162,7 +164,7 @@ def test_control_ignores_the_learners_and_the_noise():
 @given(seed=st.integers(0, 2**31 - 1), n_train=st.integers(2, 12), n_test=st.integers(1, 6))
 def test_test_tasks_are_new_tasks(seed, n_train, n_test):
     """No test task is a training task: its mixture and its start points are drawn apart from every training one."""
-    cfg = dataclasses.replace(TINY, seed=seed, n_train=n_train, n_test=n_test, n_steps=3)
+    cfg = dataclasses.replace(SMOKE, seed=seed, n_train=n_train, n_test=n_test, n_steps=3)
     d = _data(cfg)
     for A_te, s in ((d["A_te"], d["s_te"]), (d["A_te"], d["s_new"])):
         same_task = (np.abs(A_te[:, None, :] - d["A_tr"][None, :, :]).max(-1) == 0)
@@ -171,17 +173,17 @@ def test_test_tasks_are_new_tasks(seed, n_train, n_test):
 
 
 def test_learner_seed_alone_leaves_the_data_unchanged():
-    other = dataclasses.replace(TINY, learner_seed=12345)
-    a, b = _data(TINY), _data(other)
+    other = dataclasses.replace(SMOKE, learner_seed=12345)
+    a, b = _data(SMOKE), _data(other)
     assert a.keys() == b.keys()
     for key in a:
         np.testing.assert_array_equal(a[key], b[key])
-    assert _state(run_streams(TINY)[0].sequence("learner", SUPERVISED)) != \
+    assert _state(run_streams(SMOKE)[0].sequence("learner", SUPERVISED)) != \
         _state(run_streams(other)[0].sequence("learner", SUPERVISED))
 
 
 def test_data_seed_alone_leaves_the_learner_unchanged():
-    one, two = dataclasses.replace(TINY, seed=1, learner_seed=7), dataclasses.replace(TINY, seed=2, learner_seed=7)
+    one, two = dataclasses.replace(SMOKE, seed=1, learner_seed=7), dataclasses.replace(SMOKE, seed=2, learner_seed=7)
     assert not np.array_equal(_data(one)["D"], _data(two)["D"])
     assert not np.array_equal(_data(one)["z_tr"], _data(two)["z_tr"])
     assert _state(run_streams(one)[0].sequence("learner", UNSUPERVISED)) == \
@@ -189,7 +191,7 @@ def test_data_seed_alone_leaves_the_learner_unchanged():
 
 
 def test_no_stream_is_shared_and_repetitions_differ():
-    cfg = dataclasses.replace(TINY, n_repeats=2)
+    cfg = dataclasses.replace(SMOKE, n_repeats=2)  # deviation from the smoke preset: two repetitions to compare
     ss = run_streams(cfg)
     states = [_state(s.sequence(*k)) for s in ss
               for k in (("data", TASKS), ("data", SENSOR), ("learner", SUPERVISED), ("learner", UNSUPERVISED))]
@@ -198,7 +200,7 @@ def test_no_stream_is_shared_and_repetitions_differ():
 
 
 def test_same_config_same_numbers_with_one_or_two_workers():
-    cfg = dataclasses.replace(TINY, n_repeats=2)
+    cfg = dataclasses.replace(SMOKE, n_repeats=2)  # deviation from the smoke preset: two repetitions to share out
     a = compute(cfg, RunContext(show_progress=False, workers=1)).metrics
     b = compute(cfg, RunContext(show_progress=False, workers=2)).metrics
     assert a.keys() == b.keys()
@@ -207,23 +209,24 @@ def test_same_config_same_numbers_with_one_or_two_workers():
 
 def test_learners_do_not_start_at_the_true_dictionary():
     # regression: the true dictionary and the learners' initial one used to be the same draw of default_rng(seed)
-    res = compute(dataclasses.replace(TINY, supervised_max_iter=1, diagnostics=True), RunContext(show_progress=False))
+    # deviation from the smoke preset: one gradient step of the supervised learner, and its diagnostics
+    res = compute(dataclasses.replace(SMOKE, supervised_max_iter=1, diagnostics=True), RunContext(show_progress=False))
     m = res.metrics
     assert m["supervised.initial_dictionary_rel_error"] > 0.5
     assert m["unsupervised.initial_dictionary_mixing_rel_error"] > 0.5
     assert m["euler.noise_0.supervised.dictionary_rel_error"] > 0.1  # one gradient step from a random start
     assert m["euler.noise_0.supervised.train.rel_l2"] > 1e-3
     # the same comparison at the level of the learner: its seed-derived initial dictionary is not the truth
-    D = _data(TINY)["D"]
-    learner = FactorialInverseControl(6, features=RBFFeatures(5), max_iter=1, random_state=TINY.seed)
-    learner.fit(list(_data(TINY)["demo_tr"][:3]), np.ones((3, 6)))
+    D = _data(SMOKE)["D"]
+    learner = FactorialInverseControl(6, features=RBFFeatures(5), max_iter=1, random_state=SMOKE.seed)
+    learner.fit(list(_data(SMOKE)["demo_tr"][:3]), np.ones((3, 6)))
     assert np.linalg.norm(learner.init_components_ - D) > 0.5 * np.linalg.norm(D)
 
 
 def test_changing_the_learner_seed_changes_only_the_learners():
     ctx = RunContext(show_progress=False)
-    a = compute(TINY, ctx).metrics
-    b = compute(dataclasses.replace(TINY, learner_seed=99), ctx).metrics
+    a = compute(SMOKE, ctx).metrics
+    b = compute(dataclasses.replace(SMOKE, learner_seed=99), ctx).metrics
     for split in ("train", "test", "new_start"):  # data only: no learner seed
         assert a[f"euler.noise_1e_4.flat.{split}.rel_l2"] == b[f"euler.noise_1e_4.flat.{split}.rel_l2"]
     assert a["supervised.initial_dictionary_rel_error"] != b["supervised.initial_dictionary_rel_error"]
@@ -232,9 +235,10 @@ def test_changing_the_learner_seed_changes_only_the_learners():
 
 
 @pytest.mark.slow
-def test_small_run_under_both_dynamics():
-    cfg = dataclasses.replace(Config.quick(), n_train=40, n_test=10, n_steps=50, max_iter=20, n_repeats=1,
-                              sensor_noises=(1e-4, 1e-2), diagnostics=True)
+def test_smoke_run_under_both_dynamics():
+    # deviation from the smoke preset: a noise far above the other (1e-2), and the diagnostics (noise 0, steepest
+    # descent)
+    cfg = dataclasses.replace(SMOKE, sensor_noises=(1e-4, 1e-2), diagnostics=True)
     res = run(cfg, RunContext(show_progress=False))
     res.validate()
     m = res.metrics
@@ -257,4 +261,4 @@ def test_small_run_under_both_dynamics():
 
 def test_unknown_dynamics_is_refused():
     with pytest.raises(ValueError, match="dynamics"):
-        compute(dataclasses.replace(TINY, dynamics=("rk4",)), RunContext(show_progress=False))
+        compute(dataclasses.replace(SMOKE, dynamics=("rk4",)), RunContext(show_progress=False))

@@ -80,42 +80,46 @@ def ctx_for(root, tmp_path):
 
 
 @pytest.mark.slow
-def test_ch5_incremental_small(tiny_corpus, tmp_path):
+def test_ch5_incremental_smoke(tiny_corpus, tmp_path):
     from mmconcepts.experiments.ch5.incremental import Config, run
 
-    cfg = dataclasses.replace(Config.quick(), n_train=30, n_test=10, session=10, multi_session=20)
+    cfg = Config.smoke()
     res = run(cfg, ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
     assert 0 <= m["single_speaker.final_accuracy"] <= 1
     assert m["single_speaker.final_accuracy"] > 2 * m["chance.accuracy"]
-    assert len(res.tables["single_speaker"].rows) == 3  # after 10, 20, 30 utterances
-    assert [r[0] for r in res.tables["multi_speaker"].rows] == [20, 40, 60]
-    assert len(res.tables["repetitions"].rows) == 5
+    # one row after each session of training utterances; two speakers in turn for the multi-speaker learner
+    assert [r[0] for r in res.tables["single_speaker"].rows] == list(range(cfg.session, cfg.n_train + 1, cfg.session))
+    assert [r[0] for r in res.tables["multi_speaker"].rows] == list(range(cfg.multi_session, 2 * cfg.n_train + 1,
+                                                                          cfg.multi_session))
+    assert len(res.tables["repetitions"].rows) == cfg.n_repeats
     assert set(res.figures) == {"fig5_3", "fig5_4"}
 
 
 @pytest.mark.slow
-def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
+def test_ch5_nmf_keywords_smoke(tiny_corpus, tmp_path):
     from mmconcepts.experiments.ch5.nmf_keywords import Config, compute, present
 
-    cfg = dataclasses.replace(Config.quick(), n_folds=3, n_components=12, max_iter=40, n_composed_per_fold=10,
-                              threshold_cv=2)
+    cfg = Config.smoke()
+    k = cfg.n_folds
     res = compute(cfg, ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
-    assert m["n_utterances"] == 50 and m["n_folds"] == 3
-    assert m["composed.n_utterances"] == 30 and 2 <= m["composed.mean_words"] <= 4
-    assert len(res.samples["composed.nmf.l_given_number"]) == 3
+    assert m["n_utterances"] == 50 and m["n_folds"] == k  # the corpus' first speaker
+    assert m["composed.n_utterances"] == k * cfg.n_composed_per_fold and 2 <= m["composed.mean_words"] <= 4
+    assert len(res.samples["composed.nmf.l_given_number"]) == k
     assert m["composed.nmf.keyword_recall"] > m["composed.chance.keyword_recall"]
     assert m["nmf.accuracy"] > 2 * m["chance.accuracy"]
     assert m["voting.accuracy"] > 2 * m["chance.accuracy"]
     for name in _claim_metrics("ch5_nmf_keywords"):  # every claimed metric that is drawn keeps per-fold values
-        assert name == "chance.accuracy" or len(res.samples[name]) == 3, name
-    assert {u.kind for u in res.units.values()} == {"resampled"} and set(res.sample_units.values()) == {"3 folds"}
-    assert res.units["3 folds"].test_train_ratio == pytest.approx(1 / 2)
+        assert name == "chance.accuracy" or len(res.samples[name]) == k, name
+    unit = f"{k} folds"
+    assert {u.kind for u in res.units.values()} == {"resampled"} and set(res.sample_units.values()) == {unit}
+    assert res.units[unit].test_train_ratio == pytest.approx(1 / (k - 1))
     assert {g["shared_sources"] for g in res.split_groups.values()} == {0}
-    for v in _verdicts("ch5_nmf_keywords", res):  # 3 folds: too few units to decide anything sampled
+    assert k < 5
+    for v in _verdicts("ch5_nmf_keywords", res):  # fewer than 5 folds: too few units to decide anything sampled
         assert v.verdict == "inconclusive", v.text
         assert v.kind == "magnitude" or all("fewer than 5 units" in t["note"] for t in v.tests), v.text
     # the figure draws the per-keyword table: one bar per keyword and system
@@ -125,11 +129,10 @@ def test_ch5_nmf_keywords_small(tiny_corpus, tmp_path):
 
 
 @pytest.mark.slow
-def test_ch5_tree_small(tiny_corpus, tmp_path):
+def test_ch5_tree_smoke(tiny_corpus, tmp_path):
     from mmconcepts.experiments.ch5.tree import Config, compute
 
-    cfg = dataclasses.replace(Config.quick(), n_train_utterances=40, n_queries=150)
-    res = compute(cfg, ctx_for(tiny_corpus, tmp_path))
+    res = compute(Config.smoke(), ctx_for(tiny_corpus, tmp_path))
     res.validate()
     m = res.metrics
     assert m["exact.n_distances"] == m["n_leaves"]
@@ -207,19 +210,19 @@ class _SpyContext(RunContext):
 BASE = common.streams(11)
 
 
-def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams, **tiny):
+def _capture(monkeypatch, tmp_path, fsdd, module, stop_at, streams):
+    """Run the experiment on its smoke preset up to the parallel call ``stop_at``; return that call's items."""
     mod = experiment_module(module)
     monkeypatch.setattr(common, "streams", lambda seed: streams)
     ctx = _SpyContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False)
     ctx.stop_at = stop_at
     with pytest.raises(_Stop):
-        mod.compute(dataclasses.replace(mod.Config.quick(), **tiny), ctx)
+        mod.compute(mod.Config.smoke(), ctx)
     return _SpyContext.seen
 
 
 def test_ch5_nmf_keywords_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
-    tiny = {"n_folds": 3, "n_composed_per_fold": 6}
-    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_nmf_keywords", "folds", s, **tiny)  # noqa: E731
+    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_nmf_keywords", "folds", s)  # noqa: E731
     a, learner, data, splits = grab(BASE), grab(BASE.rooted("learner", 99)), grab(BASE.rooted("composition", 77)), \
         grab(BASE.rooted("splits", 55))
 
@@ -237,13 +240,15 @@ def test_ch5_nmf_keywords_streams_are_independent(monkeypatch, tmp_path, fake_fs
     assert [x["seed"] for x in data] == [x["seed"] for x in a]
     # the splits' seed alone: other folds, same learners
     assert folds(splits) != folds(a) and [x["seed"] for x in splits] == [x["seed"] for x in a]
-    # each fold's composed utterances come from its own recordings: 6 per fold
-    assert all(len(x["c_test"]) == 6 and len(x["c_train"]) == 12 for x in a)
+    # each fold's composed utterances come from its own recordings: n per fold
+    cfg = experiment_module("ch5_nmf_keywords").Config.smoke()
+    n = cfg.n_composed_per_fold
+    assert len(a) == cfg.n_folds and all(len(x["c_test"]) == n and len(x["c_train"]) == (cfg.n_folds - 1) * n
+                                         for x in a)
 
 
 def test_ch5_incremental_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
-    tiny = {"n_train": 20, "n_test": 10, "session": 10, "multi_session": 20, "n_repeats": 2}
-    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_incremental", "learners", s, **tiny)  # noqa: E731
+    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_incremental", "learners", s)  # noqa: E731
     a, learner, splits = grab(BASE), grab(BASE.rooted("learner", 99)), grab(BASE.rooted("splits", 55))
 
     def split(t):
@@ -252,19 +257,20 @@ def test_ch5_incremental_streams_are_independent(monkeypatch, tmp_path, fake_fsd
     assert split(learner) == split(a) and [x["seed"] for x in learner] != [x["seed"] for x in a]
     assert split(splits) != split(a) and [x["seed"] for x in splits] == [x["seed"] for x in a]
     # sorted speaker ids, none hard-coded; one set of learners per repetition, each with its own split and seeds
-    assert [x["name"] for x in a] == ["amy", "bob", "__multi__"] * 2
-    assert split(a)[:3] != split(a)[3:] and len({x["seed"] for x in a}) == 6
+    n = experiment_module("ch5_incremental").Config.smoke().n_repeats
+    assert n >= 2 and [x["name"] for x in a] == ["amy", "bob", "__multi__"] * n
+    assert split(a)[:3] != split(a)[3:6] and len({x["seed"] for x in a}) == 3 * n
 
 
 def test_ch5_tree_streams_are_independent(monkeypatch, tmp_path, fake_fsdd):
-    tiny = {"n_train_utterances": 8, "n_queries": 20}
-    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_tree", "trees", s, **tiny)  # noqa: E731
+    grab = lambda s: _capture(monkeypatch, tmp_path, fake_fsdd, "ch5_tree", "trees", s)  # noqa: E731
     a, learner, splits = grab(BASE), grab(BASE.rooted("learner", 99)), grab(BASE.rooted("splits", 55))
 
     def plan(t):
         return [(np.concatenate(x["windows"]).tolist(), x["queries"].tolist()) for x in t]
 
-    assert len(a) == 5 and len({x["seed"] for x in a}) == 5  # one tree per repetition, each its own seed
+    n = experiment_module("ch5_tree").Config.smoke().n_repeats
+    assert n >= 2 and len(a) == n and len({x["seed"] for x in a}) == n  # one tree per repetition, each its own seed
     assert plan(learner) == plan(a) and [x["seed"] for x in learner] != [x["seed"] for x in a]
     assert plan(splits) != plan(a) and [x["seed"] for x in splits] == [x["seed"] for x in a]
 
@@ -439,14 +445,14 @@ def real_fsdd_subset(tmp_path):
 def test_ch5_incremental_on_real_voices(real_fsdd_subset, tmp_path):
     from mmconcepts.experiments.ch5.incremental import Config, compute
 
-    cfg = dataclasses.replace(Config.quick(), n_train=40, n_test=20, session=20, multi_session=40)
+    cfg = Config.smoke()
     res = compute(cfg, RunContext(data={"fsdd": real_fsdd_subset}, cache_dir=tmp_path / "cache", show_progress=False))
     res.validate()
     m = res.metrics
     assert m["chance.accuracy"] == pytest.approx(0.1)
     assert m["single_speaker.final_accuracy"] > 3 * m["chance.accuracy"]  # real digits, one speaker
     assert "Free Spoken Digit" in res.notes[0] and "120 utterances, 2 speakers" in res.notes[0]
-    assert len(res.samples["single_speaker.final_accuracy"]) == 5  # one per repetition
+    assert len(res.samples["single_speaker.final_accuracy"]) == cfg.n_repeats  # one per repetition
 
 
 # -- per-repetition samples behind every claim, units and split groups ------------------------------
@@ -514,20 +520,21 @@ def test_ch5_tree_cost_claim_reads_recall_and_cost_of_every_restart_search():
 def test_ch5_tree_samples_per_repetition_behind_every_claim(tmp_path, fake_fsdd):
     from mmconcepts.experiments.ch5 import tree as ch5_tree
 
-    cfg = dataclasses.replace(ch5_tree.Config.quick(), n_train_utterances=10, n_queries=30)
+    cfg = ch5_tree.Config.smoke()
+    n = cfg.n_repeats
     res = ch5_tree.compute(cfg, RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path / "cache",
                                            show_progress=False))
     res.validate()
     m, s = res.metrics, res.samples
-    assert m["n_repeats"] == 5 and m["n_queries"] == 150
+    assert m["n_repeats"] == n >= 2 and m["n_queries"] == n * cfg.n_queries
     used = _claim_metrics("ch5_tree")
     for name in used:
         if not np.isnan(m[name]):
-            assert len(s[name]) == 5, name  # one value per repetition, the same for every search: paired
+            assert len(s[name]) == n, name  # one value per repetition, the same for every search: paired
             assert np.nanmean(s[name]) == pytest.approx(m[name])
     assert set(res.sample_units.values()) == {"repetitions"} and res.units["repetitions"].kind == "independent"
     assert res.split_groups["tree_and_queries"]["shared_sources"] == 0
-    assert res.split_groups["tree_and_queries"]["n_folds"] == 5
+    assert res.split_groups["tree_and_queries"]["n_folds"] == n
     assert s["exact.n_distances"] == [float(r[3]) for r in res.tables["repetitions"].rows]  # exact: every leaf
     # the thesis' ambiguities that decide a setting are in the notes, with the reading taken
     assert any("Algorithm 1" in n and "centroid" in n for n in res.notes)
@@ -540,12 +547,13 @@ def test_ch5_incremental_keeps_one_value_per_repetition(tmp_path, rng):
     from mmconcepts.experiments.ch5.incremental import Config, compute
 
     fsdd = _fake_fsdd(tmp_path / "fsdd", rng, speakers=("amy", "bob", "cy"), per_digit=3)
-    cfg = dataclasses.replace(Config.quick(), n_train=10, n_test=10, session=5, multi_session=10)
+    cfg = Config.smoke()
+    n = cfg.n_repeats
     res = compute(cfg, RunContext(data={"fsdd": fsdd}, cache_dir=tmp_path / "cache", show_progress=False))
     res.validate()
     m, s = res.metrics, res.samples
     reps = res.tables["repetitions"].rows
-    assert len(reps) == 5
+    assert len(reps) == n >= 2
     for name, col in (("single_speaker.first_session_accuracy", 1), ("single_speaker.final_accuracy", 2),
                       ("multi_speaker.final_accuracy", 3)):
         assert s[name] == [r[col] for r in reps]
@@ -557,11 +565,11 @@ def test_ch5_incremental_keeps_one_value_per_repetition(tmp_path, rng):
         np.subtract(s["multi_speaker.new_speaker_after"], s["multi_speaker.new_speaker_before"]).tolist())
     assert set(res.sample_units) == set(s) and set(res.sample_units.values()) == {"repetitions"}
     unit = res.units["repetitions"]
-    assert unit.kind == "resampled" and unit.test_train_ratio == pytest.approx(10 / 10)  # 10 tested, 10 trained
+    assert unit.kind == "resampled" and unit.test_train_ratio == pytest.approx(cfg.n_test / cfg.n_train)
     for name in _claim_metrics("ch5_incremental"):
-        assert name == "chance.accuracy" or len(s[name]) == 5, name  # chance is computed, not drawn
+        assert name == "chance.accuracy" or len(s[name]) == n, name  # chance is computed, not drawn
     assert {g["shared_sources"] for g in res.split_groups.values()} == {0}
-    assert res.split_groups["single_speaker"]["n_folds"] == 15  # 5 repetitions x 3 speakers
+    assert res.split_groups["single_speaker"]["n_folds"] == 3 * n  # n repetitions x 3 speakers
     assert "speaker-dependent" in res.split_groups["several_speakers"]["by"]
     for v in _verdicts("ch5_incremental", res):
         assert "corrected resampled t" in v.basis, v.basis

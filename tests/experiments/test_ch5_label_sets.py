@@ -184,29 +184,28 @@ def fake_fsdd(tmp_path_factory):
     return _fake_fsdd(tmp_path_factory.mktemp("fsdd") / "fsdd", np.random.default_rng(7))
 
 
-SMALL = dict(n_folds=3, n_composed_per_fold=10, n_components=8, max_iter=20, threshold_cv=2)
-
-
-def test_ch5_label_sets_small_on_tones(fake_fsdd, tmp_path):
-    cfg = dataclasses.replace(ls.Config.quick(), **SMALL)
+def test_ch5_label_sets_smoke_on_tones(fake_fsdd, tmp_path):
+    cfg = ls.Config.smoke()
+    k, n = cfg.n_folds, cfg.n_folds * cfg.n_composed_per_fold
     ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False)
     res = ls.compute(cfg, ctx)
     res.validate()
     m = res.metrics
-    assert m["n_utterances"] == 30 and m["n_folds"] == 3 and 1 <= m["mean_words"] <= 3
+    assert m["n_utterances"] == n and m["n_folds"] == k and 1 <= m["mean_words"] <= 3
     for who in ("nmf", "voting", "chance"):
         for s in ls.SCORES:
             assert 0 <= m[f"{who}.{s}"] <= 1, (who, s)
-            assert len(res.samples[f"{who}.{s}"]) == 3
+            assert len(res.samples[f"{who}.{s}"]) == k
     assert m["voting.l_given_number"] > m["chance.l_given_number"]
     assert m["diff.l_full"] == pytest.approx(m["nmf.l_full"] - m["voting.l_full"])
     # the by-size table covers every utterance once
-    assert sum(r[1] for r in res.tables["by_size"].rows) == 30
+    assert sum(r[1] for r in res.tables["by_size"].rows) == n
     # folds of one data set (corrected resampled t), composed fold by fold: no recording on both sides
-    assert set(res.sample_units.values()) == {"3 folds"} and res.units["3 folds"].kind == "resampled"
-    assert res.units["3 folds"].test_train_ratio == pytest.approx(1 / 2)
+    unit = f"{k} folds"
+    assert set(res.sample_units.values()) == {unit} and res.units[unit].kind == "resampled"
+    assert res.units[unit].test_train_ratio == pytest.approx(1 / (k - 1))
     split = res.split_groups["label_sets"]
-    assert split["shared_sources"] == 0 and split["n_folds"] == 3 and "composed" in split["by"]
+    assert split["shared_sources"] == 0 and split["n_folds"] == k and "composed" in split["by"]
     assert split["n_sources"] <= 80  # the 80 recordings of the fake FSDD's two speakers, at most
     assert {c.kind for c in ls.EXPERIMENT.claims} == {"ours"}  # beyond the thesis
     for claim in ls.EXPERIMENT.claims:
@@ -248,21 +247,20 @@ def test_composed_label_sets_keep_each_fold_s_recordings(fake_fsdd, tmp_path):
 
 
 def test_ch5_label_sets_refuses_more_words_than_keywords(fake_fsdd, tmp_path):
-    cfg = dataclasses.replace(ls.Config.quick(), **SMALL, max_words=11)
+    cfg = dataclasses.replace(ls.Config.smoke(), max_words=11)
     ctx = RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False)
     with pytest.raises(ParameterError, match="vocabulary has 10 keywords"):
         ls.compute(cfg, ctx)
 
 
 @pytest.mark.slow
-def test_ch5_label_sets_on_real_fsdd(tmp_path):
+def test_ch5_label_sets_smoke_on_real_fsdd(tmp_path):
     fsdd = real_data_path("fsdd")
-    cfg = dataclasses.replace(ls.Config.quick(), n_folds=2, n_composed_per_fold=15, n_components=20, max_iter=30,
-                              threshold_cv=2)
+    cfg = ls.Config.smoke()
     res = ls.compute(cfg, RunContext(data={"fsdd": fsdd}, cache_dir=tmp_path, show_progress=False))
     res.validate()
     m = res.metrics
-    assert m["n_utterances"] == 30 and m["n_folds"] == 2
+    assert m["n_utterances"] == cfg.n_folds * cfg.n_composed_per_fold and m["n_folds"] == cfg.n_folds
     assert m["voting.l_given_number"] > m["chance.l_given_number"]
     assert "Free Spoken Digit" in res.notes[0]
 

@@ -76,21 +76,19 @@ def fake_fsdd(tmp_path_factory):
     return _fake_fsdd(tmp_path_factory.mktemp("fsdd") / "fsdd", np.random.default_rng(11))
 
 
-SMALL = dict(n_utterances=40, n_repeats=2, max_iter=40)
-
-
-def test_ch5_word_discovery_small_on_tones(fake_fsdd, tmp_path):
-    cfg = dataclasses.replace(wd.Config.quick(), **SMALL)
+def test_ch5_word_discovery_smoke_on_tones(fake_fsdd, tmp_path):
+    cfg = wd.Config.smoke()
     res = wd.compute(cfg, RunContext(data={"fsdd": fake_fsdd}, cache_dir=tmp_path, show_progress=False))
     res.validate()
     m = res.metrics
-    assert m["n_utterances"] == 40 and m["n_words"] == 10 and m["n_atoms"] == 10
+    assert m["n_utterances"] == cfg.n_utterances and m["n_words"] == 10 and m["n_atoms"] == 10
+    n = cfg.n_repeats
     for name in wd.REPEATED:
-        assert len(res.samples[name]) == 2, name
-    # two disjoint parts of the data, one repetition each: independent, no recording in both
-    assert m["n_parts"] == 2 and [r[1] for r in res.tables["repetitions"].rows] == [20, 20]
+        assert len(res.samples[name]) == n, name
+    # disjoint parts of the data, one repetition each: independent, no recording in two
+    assert m["n_parts"] == n and [r[1] for r in res.tables["repetitions"].rows] == [cfg.n_utterances // n] * n
     assert set(res.sample_units.values()) == {"parts"} and res.units["parts"].kind == "independent"
-    assert res.split_groups["parts"]["shared_sources"] == 0 and res.split_groups["parts"]["n_folds"] == 2
+    assert res.split_groups["parts"]["shared_sources"] == 0 and res.split_groups["parts"]["n_folds"] == n
     assert {c.kind for c in wd.EXPERIMENT.claims} == {"ours"}  # beyond the thesis
     assert all("shuffled" in c.rule for c in wd.EXPERIMENT.claims)  # each decided against the control
     assert 0 <= m["matched.mean_fraction"] <= 1
@@ -116,7 +114,7 @@ def test_learner_seed_changes_the_atoms_not_the_data(fake_fsdd, tmp_path):
     np.testing.assert_array_equal(a.Y, b.Y)
     assert np.all(a.fold == -1)
     # through the experiment: the same seed gives the same numbers
-    cfg = dataclasses.replace(wd.Config.quick(), **SMALL)
+    cfg = wd.Config.smoke()
     r1 = wd.compute(cfg, ctx)
     r2 = wd.compute(cfg, ctx)
     assert r1.metrics == r2.metrics
@@ -129,14 +127,14 @@ def test_bad_input(fake_fsdd, tmp_path):
     with pytest.raises(ParameterError, match="n_repeats must be >= 2"):
         wd.compute(dataclasses.replace(wd.Config.quick(), n_repeats=1), ctx)
     with pytest.raises(ParameterError, match=r"up to 12 distinct keywords.*vocabulary has 10"):
-        wd.compute(dataclasses.replace(wd.Config.quick(), **SMALL, max_words=12), ctx)
+        wd.compute(dataclasses.replace(wd.Config.smoke(), max_words=12), ctx)
 
 
 @pytest.mark.slow
-def test_ch5_word_discovery_on_real_fsdd(tmp_path):
+def test_ch5_word_discovery_smoke_on_real_fsdd(tmp_path):
     fsdd = real_data_path("fsdd")
-    cfg = dataclasses.replace(wd.Config.quick(), n_utterances=60, n_repeats=2)
+    cfg = wd.Config.smoke()
     res = wd.compute(cfg, RunContext(data={"fsdd": fsdd}, cache_dir=tmp_path, show_progress=False))
     res.validate()
-    assert res.metrics["n_utterances"] == 60 and res.metrics["n_words"] == 10
+    assert res.metrics["n_utterances"] == cfg.n_utterances and res.metrics["n_words"] == 10
     assert "Free Spoken Digit" in res.notes[0]

@@ -98,7 +98,7 @@ def test_kinds_of_every_chapter_6_claim():
 
 
 @pytest.mark.slow
-def test_ch6_motion_sound_symbolic_labels_concepts_small(tiny_speech_corpus, tmp_path):
+def test_ch6_motion_sound_symbolic_labels_concepts_smoke(tiny_speech_corpus, tmp_path):
     from mmconcepts.experiments.ch6 import protocol as common
     from mmconcepts.experiments.ch6.concepts import compute as compute_concepts
     from mmconcepts.experiments.ch6.motion_sound import (
@@ -110,8 +110,9 @@ def test_ch6_motion_sound_symbolic_labels_concepts_small(tiny_speech_corpus, tmp
     )
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(Config.quick(), n_motion=60, n_folds=3, k=12, n_iter=30, concept_k=8)
-    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=60, streams=common.streams(0))
+    cfg = Config.smoke()
+    n_folds = cfg.n_folds
+    data = common.load_pairs(ctx, n_per_speaker=50, n_motion=cfg.n_motion, streams=common.streams(0))
     # pairing by concept: each utterance's motion has the gesture its keyword maps to
     assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 50
     assert sorted(data["mapping"].values()) == sorted(set(data["mapping"].values()))  # a bijection
@@ -135,29 +136,30 @@ def test_ch6_motion_sound_symbolic_labels_concepts_small(tiny_speech_corpus, tmp
     s = res.samples
     shuffled = [k for k in s if k.startswith("shuffled.") and k.count(".") == 3 and not k.endswith("kl_normalised")]
     assert len(shuffled) == 18
-    assert s["shuffled.mean"] == pytest.approx([np.mean([s[k][f] for k in shuffled]) for f in range(3)])
+    assert s["shuffled.mean"] == pytest.approx([np.mean([s[k][f] for k in shuffled]) for f in range(n_folds)])
     assert m["shuffled.mean"] == pytest.approx(np.mean([m[k] for k in shuffled]))
     assert s["shuffled.max"] == s[max((k for k in s if k.startswith("shuffled.") and k.count(".") == 3),
                                       key=lambda k: m[k])]
     # Fig. 6.10 on the training pairs of the same folds (computed with them, read from the cache)
     con = compute_concepts(cfg, ctx)
-    assert con.metrics["n_concepts"] == 10 and 0 <= con.metrics["n_specialised"] <= 8
+    assert cfg.concept_k < 10
+    assert con.metrics["n_concepts"] == 10 and 0 <= con.metrics["n_specialised"] <= cfg.concept_k
     assert con.metrics["matched.mean_mi"] >= con.metrics["others.mean_mi"]
-    assert len(con.tables["matching"].rows) == 8  # k = 8 coefficients matched to 8 of the 10 concepts
-    assert len(con.tables["folds"].rows) == 3
-    assert len(set(con.samples["matched.mean_mi"])) == 3  # the folds differ
+    assert len(con.tables["matching"].rows) == cfg.concept_k  # every coefficient matched to one of the 10 concepts
+    assert len(con.tables["folds"].rows) == n_folds
+    assert len(set(con.samples["matched.mean_mi"])) == n_folds  # the folds differ
     assert con.split_groups == res.split_groups
     for exp_id, result in (("ch6-motion-sound", res), ("ch6-symbolic", sym), ("ch6-labels", lab),
                            ("ch6-concepts", con)):
-        _check_result(exp_id, result, 3)
+        _check_result(exp_id, result, n_folds)
         notes = " ".join(result.notes)
         assert "13 or 10 keywords" in notes and "reclassified" in notes
-        assert result.split_groups["folds"]["n_folds"] == 3
-        assert result.split_groups["folds"]["n_test_examples"] >= 16  # 50 pairs in 3 folds
-    # the folds of one cross-validation (corrected resampled t, n_test / n_train = 1 / 2)
-    assert {(u.kind, u.test_train_ratio) for u in res.units.values()} == {("resampled", 0.5)}
-    # Fig. 6.10's statistics are of the overlapping training folds: n_shared / n_own = k - 2
-    assert {(u.kind, u.test_train_ratio) for u in con.units.values()} == {("resampled", 1.0)}
+        assert result.split_groups["folds"]["n_folds"] == n_folds
+        assert result.split_groups["folds"]["n_test_examples"] >= 50 // n_folds  # 50 pairs in n_folds folds
+    # the folds of one cross-validation (corrected resampled t, n_test / n_train = 1 / (n_folds - 1))
+    assert {(u.kind, u.test_train_ratio) for u in res.units.values()} == {("resampled", 1 / (n_folds - 1))}
+    # Fig. 6.10's statistics are of the overlapping training folds: n_shared / n_own = n_folds - 2
+    assert {(u.kind, u.test_train_ratio) for u in con.units.values()} == {("resampled", n_folds - 2)}
 
 
 def _fake_evaluation(monkeypatch, n_folds=5):
@@ -305,11 +307,12 @@ def test_symbolic_and_labels_absence_claims():
 
 
 @pytest.mark.slow
-def test_ch6_image_features_small(tiny_speech_corpus, tmp_path):
+def test_ch6_image_features_smoke(tiny_speech_corpus, tmp_path):
     from mmconcepts.experiments.ch6.image_features import SETS, Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(Config.quick(), n_views=6, n_repeats=2, k=12, n_iter=30)
+    cfg = Config.smoke()
+    assert cfg.n_repeats == 2 and cfg.n_views == 6  # the sizes read below
     res = compute(cfg, ctx)
     m, s = res.metrics, res.samples
     for name in SETS:
@@ -432,7 +435,7 @@ def test_concepts_repetition_by_hand(rng):
 
 
 @pytest.mark.slow
-def test_ch6_modalities_small(tiny_speech_corpus, tmp_path, monkeypatch):
+def test_ch6_modalities_smoke(tiny_speech_corpus, tmp_path, monkeypatch):
     from mmconcepts.experiments.ch6 import modalities as ch6_modalities
     from mmconcepts.experiments.ch6.modalities import Config, _key, _setups, run
 
@@ -444,8 +447,8 @@ def test_ch6_modalities_small(tiny_speech_corpus, tmp_path, monkeypatch):
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
     # several k besides the main one: the sweep's models are freed one after the other (regression: a
     # cache keyed on id(model) then served a freed model's representations to a later model)
-    cfg = dataclasses.replace(Config.quick(), n_motion=60, n_views=6, n_repeats=2, k=10,
-                              k_sweep=(3, 4, 5, 10), n_iter=20)
+    cfg = Config.smoke()
+    assert cfg.n_repeats == 2 and cfg.k == 10 and set(cfg.k_sweep) == {3, 4, 5, 10}  # the sizes read below
     res = run(cfg, ctx)
     m, s = res.metrics, res.samples
     # three.min_all is, per repetition, the worst of the twelve setups learnt from three modalities
@@ -477,12 +480,13 @@ def test_stream_windows_cover_the_stream():
 
 
 @pytest.mark.slow
-def test_ch6_sliding_small(tiny_speech_corpus, tmp_path):
+def test_ch6_sliding_smoke(tiny_speech_corpus, tmp_path):
     from mmconcepts.experiments.ch6.sliding import Config, run
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(Config.quick(), n_views=6, widths=(0.2, 0.5), k=12, n_iter=30,
-                              fixed_width=0.5, n_test_folds=3, n_repeats=1)
+    cfg = Config.smoke()
+    # the sizes read below: one repetition, three test folds, the probe at the wider of two widths
+    assert (cfg.n_repeats, cfg.n_test_folds, cfg.widths, cfg.fixed_width) == (1, 3, (0.2, 0.5), 0.5)
     res = run(cfg, ctx)
     m, s = res.metrics, res.samples
     for key in ("width_0_2.s2i", "width_0_5.i2s", "whole.s2i", "whole.i2s", "localisation.peak_in_keyword",
@@ -520,8 +524,8 @@ def test_ch6_sliding_repetitions_small(tiny_speech_corpus, tmp_path):
     from mmconcepts.experiments.ch6.sliding import Config, compute
 
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(Config.quick(), n_views=6, widths=(0.5,), k=8, n_iter=20,
-                              fixed_width=0.5, n_repeats=2)
+    # deviation from the smoke preset (one repetition, per-fold values): two repetitions, of one width
+    cfg = dataclasses.replace(Config.smoke(), widths=(0.5,), fixed_width=0.5, n_repeats=2)
     res = compute(cfg, ctx)
     for key in ("width_0_5.s2i", "fixed_width.s2i", "whole.i2s", "localisation.peak_in_keyword",
                 "localisation.chance"):
@@ -646,7 +650,8 @@ def test_real_pairs_follow_the_bijection_and_keep_streams_apart(tmp_path):
     assert all(a.shape[1] == 16 for a in data["angles"])  # joint angles of the limb model
     for rec in set(data["motion_idx"].tolist()):  # a motion record serves in one fold only
         assert len(set(data["fold"][data["motion_idx"] == rec].tolist())) == 1
-    cfg = dataclasses.replace(Config.quick(), n_folds=3)
+    cfg = Config.smoke()
+    assert cfg.n_folds == 3  # the folds of the pairs drawn above
     # a new learner seed leaves the data (bijection, pairing, folds) unchanged ...
     other_learner = common.load_pairs(ctx, streams=st.rooted("learner", 1234), **kw)
     for key in ("y", "fold", "motion_idx"):
@@ -670,7 +675,8 @@ def test_ch6_labels_on_real_voices_and_motion(tmp_path):
     from mmconcepts.experiments.ch6.motion_sound import Config, compute_labels
 
     ctx = _real_ctx(tmp_path, "fsdd", "msr-action3d")
-    res = compute_labels(dataclasses.replace(Config.quick(), n_per_speaker=100, n_folds=2, k=12, n_iter=30), ctx)
+    # deviation from the smoke preset: 100 recordings of the real speaker (rates above chance)
+    res = compute_labels(dataclasses.replace(Config.smoke(), n_per_speaker=100), ctx)
     assert "Free Spoken Digit" in res.notes[0] and "MSR Action3D" in res.notes[0]
     assert res.split_groups["folds"]["shared_sources"] == 0  # FSDD files and MSR Action3D records
     assert res.split_groups["folds"]["n_sources"] > 100  # 100 recordings of one speaker and the records they use
@@ -683,8 +689,8 @@ def test_ch6_sliding_on_real_words_and_objects(tmp_path):
     from mmconcepts.experiments.ch6.sliding import Config, compute
 
     ctx = _real_ctx(tmp_path, "fsdd", "eth80")
-    cfg = dataclasses.replace(Config.quick(), n_per_speaker=100, widths=(0.2, 0.5), k=12, n_iter=30,
-                              fixed_width=0.2, n_repeats=1)
+    # deviation from the smoke preset: 100 recordings of the real speaker, 20 of them held out to be localised
+    cfg = dataclasses.replace(Config.smoke(), n_per_speaker=100)
     res = compute(cfg, ctx)
     res.validate()
     m = res.metrics
@@ -707,7 +713,8 @@ def test_learner_seed_alone_leaves_the_data_unchanged_and_vice_versa(monkeypatch
     monkeypatch.setattr(pairs_protocol, "load_speech", lambda ctx, **kw: speech)
     monkeypatch.setattr(pairs_protocol, "load_motion", lambda ctx, **kw: motion)
     ctx = RunContext(data={}, cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(Config.quick(), n_folds=3)
+    cfg = Config.smoke()
+    assert cfg.n_folds == 3  # the folds of the pairs drawn below
     st = common.streams(7)
 
     def draw(seeds):

@@ -46,8 +46,7 @@ def tone_corpus(tmp_path_factory):
     return root
 
 
-TINY = dataclasses.replace(ch7.Config.quick(), n_compositional=48, n_single=40, n_folds=2, k=10, n_iter=20,
-                           n_candidates=5, n_draws=3, n_calibration=20)
+SMOKE = ch7.Config.smoke()
 
 
 def _ctx(tone_corpus, tmp_path, **data):
@@ -203,8 +202,8 @@ def test_given_number_chance_known_values():
 def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus, tmp_path):
     ctx = _ctx(tone_corpus, tmp_path)
     st = streams(1)
-    data = ch7.build_data(ctx, TINY, st)
-    n = TINY.n_compositional + TINY.n_single
+    data = ch7.build_data(ctx, SMOKE, st)
+    n = SMOKE.n_compositional + SMOKE.n_single
     assert len(data["angles"]) == len(data["sound_plan"]) == len(data["combos"]) == n
     assert sorted(data["mapping"].values()) == sorted(common.SYNTHETIC_VOCABULARY.gestures)  # a bijection
     for kws, gs, combo in zip(data["keyword_sets"], data["gesture_sets"], data["combos"]):
@@ -224,7 +223,7 @@ def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus
             assert rec_owner.setdefault(x, int(f)) == int(f)
     # every fold has single-concept examples of every concept (its references), each concept equally often
     single = data["kind"] == "single"
-    for f in range(TINY.n_folds):
+    for f in range(SMOKE.n_folds):
         assert (data["Y"][single & (data["fold"] == f)].sum(0) >= 1).all()
     assert np.ptp(data["Y"][single].sum(0)) <= 1
     # the held-out combinations partition the possible pairs and triples
@@ -234,23 +233,23 @@ def test_build_data_pairs_by_concept_and_keeps_sources_in_their_fold(tone_corpus
 
 def test_streams_are_independent(tone_corpus, tmp_path):
     ctx = _ctx(tone_corpus, tmp_path)
-    a = ch7.build_data(ctx, TINY, streams(1))
-    b = ch7.build_data(ctx, TINY, streams(1).rooted("learner", 99).rooted("reference", 77).rooted("composition", 55))  # not data
+    a = ch7.build_data(ctx, SMOKE, streams(1))
+    b = ch7.build_data(ctx, SMOKE, streams(1).rooted("learner", 99).rooted("reference", 77).rooted("composition", 55))  # not data
     assert a["combos"] == b["combos"] and a["sound_plan"] == b["sound_plan"] and (a["fold"] == b["fold"]).all()
     assert all(np.array_equal(x, y) for x, y in zip(a["angles"], b["angles"]))
-    c = ch7.build_data(ctx, TINY, streams(1).rooted("data", 8))  # the data stream changed
+    c = ch7.build_data(ctx, SMOKE, streams(1).rooted("data", 8))  # the data stream changed
     assert c["combos"] != a["combos"]
-    ta = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, streams(1))
-    tc = ch7.fold_tasks(c, [None] * len(c["combos"]), TINY, streams(1).rooted("data", 8))
+    ta = ch7.fold_tasks(a, [None] * len(a["combos"]), SMOKE, streams(1))
+    tc = ch7.fold_tasks(c, [None] * len(c["combos"]), SMOKE, streams(1).rooted("data", 8))
     assert [t["learner_seed"] for t in ta] == [t["learner_seed"] for t in tc]
-    tb = ch7.fold_tasks(a, [None] * len(a["combos"]), TINY, streams(1).rooted("learner", 99))
+    tb = ch7.fold_tasks(a, [None] * len(a["combos"]), SMOKE, streams(1).rooted("learner", 99))
     assert [t["learner_seed"] for t in tb] != [t["learner_seed"] for t in ta]
     assert [t["calibration"].tolist() for t in tb] == [t["calibration"].tolist() for t in ta]
 
 
 def test_fold_tasks_hold_out_combinations_and_match_training_sizes(tone_corpus, tmp_path):
-    data = ch7.build_data(_ctx(tone_corpus, tmp_path), TINY, streams(1))
-    for f, t in enumerate(ch7.fold_tasks(data, [None] * len(data["combos"]), TINY, streams(1))):
+    data = ch7.build_data(_ctx(tone_corpus, tmp_path), SMOKE, streams(1))
+    for f, t in enumerate(ch7.fold_tasks(data, [None] * len(data["combos"]), SMOKE, streams(1))):
         assert not {tuple(data["combos"][i]) for i in t["train_comp"]} & data["held_out"][f]
         assert (data["fold"][t["train_comp"]] != f).all() and (data["fold"][t["test"]] == f).all()
         assert len(t["train_single"]) == min(len(t["train_comp"]), int(((data["kind"] == "single")
@@ -261,13 +260,13 @@ def test_fold_tasks_hold_out_combinations_and_match_training_sizes(tone_corpus, 
 def test_config_bad_input(tone_corpus, tmp_path):
     ctx = _ctx(tone_corpus, tmp_path)
     with pytest.raises(ParameterError, match="limb groups"):
-        ch7.build_data(ctx, dataclasses.replace(TINY, max_concepts=4))
+        ch7.build_data(ctx, dataclasses.replace(SMOKE, max_concepts=4))
     with pytest.raises(ParameterError, match="above the vocabulary"):
-        ch7.build_data(ctx, dataclasses.replace(TINY, max_concepts=11))
+        ch7.build_data(ctx, dataclasses.replace(SMOKE, max_concepts=11))
     with pytest.raises(ParameterError, match="n_folds"):
-        ch7.build_data(ctx, dataclasses.replace(TINY, n_folds=1))
+        ch7.build_data(ctx, dataclasses.replace(SMOKE, n_folds=1))
     with pytest.raises(ParameterError, match="references"):
-        ch7.build_data(ctx, dataclasses.replace(TINY, n_single=19))
+        ch7.build_data(ctx, dataclasses.replace(SMOKE, n_single=19))
 
 
 # --------------------------------------------------------------------------- a reduced run
@@ -277,12 +276,12 @@ def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus,
     from mmconcepts.engine.evidence import claim_verdict
 
     ctx = _ctx(tone_corpus, tmp_path)
-    res = ch7.compute(TINY, ctx)
+    res = ch7.compute(SMOKE, ctx)
     res.validate()
     m = res.metrics
-    assert m["chance.retrieval"] == pytest.approx(1 / TINY.n_candidates)
+    assert m["chance.retrieval"] == pytest.approx(1 / SMOKE.n_candidates)
     for key, values in res.samples.items():
-        assert len(values) == TINY.n_folds, key
+        assert len(values) == SMOKE.n_folds, key
         if not key.endswith("threshold"):
             assert all(0.0 <= v <= 1.0 for v in values), key
     assert m["n2.chance.l_given_number"] == pytest.approx(1 / 45)
@@ -294,16 +293,16 @@ def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus,
     # every sampled metric is declared as the folds of one cross-validation; the split is grouped by recording
     assert set(res.sample_units) == set(res.samples) and set(res.sample_units.values()) == {"folds"}
     unit = res.units["folds"]
-    assert unit.kind == "resampled" and unit.test_train_ratio == pytest.approx(1 / (TINY.n_folds - 1))
+    assert unit.kind == "resampled" and unit.test_train_ratio == pytest.approx(1 / (SMOKE.n_folds - 1))
     groups = res.split_groups["folds"]
-    assert groups["shared_sources"] == 0 and groups["n_folds"] == TINY.n_folds
-    assert groups["n_test_examples"] >= 1 and groups["n_sources"] > TINY.n_compositional
+    assert groups["shared_sources"] == 0 and groups["n_folds"] == SMOKE.n_folds
+    assert groups["n_test_examples"] >= 1 and groups["n_sources"] > SMOKE.n_compositional
     for claim in ch7.EXPERIMENT.claims:
         for name in parse_rule(claim.rule).metrics:
-            assert name == "chance.retrieval" or len(res.samples[name]) == TINY.n_folds
+            assert name == "chance.retrieval" or len(res.samples[name]) == SMOKE.n_folds
         verdict = claim_verdict(claim.rule, m, res.samples, units=res.sample_units, unit_kinds=res.units)
         assert verdict.verdict == "inconclusive"  # 2 folds: fewer than 5 units decide nothing
-    figs = ch7.present(res, TINY)
+    figs = ch7.present(res, SMOKE)
     assert set(figs) == {"retrieval", "l_given_number", "l_full"}
     bars = figs["retrieval"].axes[0].patches
     assert [b.get_height() for b in bars][:len(ch7.SUBSETS)] == [m[f"{s}s2m.retrieval"] for s in ch7.SUBSETS]
@@ -313,7 +312,7 @@ def test_reduced_run_has_every_metric_with_fold_samples_and_figures(tone_corpus,
 def test_real_data_builders(tmp_path):
     fsdd, msr = real_data_path("fsdd"), real_data_path("msr-action3d")
     ctx = RunContext(data={"fsdd": fsdd, "msr-action3d": msr}, cache_dir=tmp_path, workers=1, show_progress=False)
-    cfg = dataclasses.replace(ch7.Config.quick(), n_compositional=30, n_single=50)
+    cfg = SMOKE
     data = ch7.build_data(ctx, cfg)
     assert data["real_motion"] and data["speech_source"] == "fsdd" and len(data["keywords"]) == 10
     assert sorted(data["mapping"].values()) == sorted(common.MSR_VOCABULARY.gestures)
@@ -321,7 +320,7 @@ def test_real_data_builders(tmp_path):
         assert sorted(data["mapping"][k] for k in kws) == sorted(gs)
     assert all(a.ndim == 2 and a.shape[1] == 16 and np.isfinite(a).all() for a in data["angles"])
     mf = ch7.utterance_mfcc(ctx, data)
-    assert len(mf) == 80 and all(x.shape[1] == 22 for x in mf)
+    assert len(mf) == cfg.n_compositional + cfg.n_single and all(x.shape[1] == 22 for x in mf)
     # every recording behind an example (utterances, limbs, idle donor) belongs to that example's fold only
     owner: dict[str, int] = {}
     for sources, f in zip(data["sources"], data["fold"]):
@@ -423,7 +422,7 @@ def test_property_no_recording_on_both_sides_of_a_fold(problem):
     data = {"kind": np.where(single, "single", "compositional"), "fold": fold, "combos": combos,
             "Y": common.label_matrix(combos, L), "held_out": common.held_out_combinations(possible, n_folds, frng),
             "angles": [None] * len(combos), "sources": sources}
-    cfg = dataclasses.replace(TINY, n_folds=n_folds, n_calibration=10)
+    cfg = dataclasses.replace(SMOKE, n_folds=n_folds, n_calibration=10)
     tasks = ch7.fold_tasks(data, [None] * len(combos), cfg, streams(1))
     folds = ch7.split_sources(data, tasks)
     assert len(folds) == n_folds

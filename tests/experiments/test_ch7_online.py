@@ -6,8 +6,6 @@ without the real sets); the building blocks against outside answers.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -19,10 +17,6 @@ from conftest import real_data_path
 import mmconcepts.experiments.ch7.online as ch7  # importing registers ch7-online
 from mmconcepts.experiments import RunContext
 from mmconcepts.engine.splits import concept_parts
-
-_TINY = dict(n_per_speaker=50, n_motion=60, n_folds=2, k=10, n_iter=20, batch_size=10, partial_max_iter=5,
-             points=(0.3, 1.0))
-
 
 def _check_result(res, n_folds):
     from mmconcepts.engine.rules import parse_rule
@@ -58,22 +52,22 @@ def _check_result(res, n_folds):
 
 
 @pytest.mark.slow
-def test_ch7_online_small_generated(tiny_speech_corpus, tmp_path):
+def test_ch7_online_smoke_generated(tiny_speech_corpus, tmp_path):
     ctx = RunContext(data={"audio": tiny_speech_corpus}, cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(ch7.Config.quick(), **_TINY)
+    cfg = ch7.Config.smoke()
     res = ch7.compute(cfg, ctx)
-    _check_result(res, 2)
+    _check_result(res, cfg.n_folds)
     assert "stream" in ch7.present(res, cfg)
-    assert len(res.tables["stream"].rows) == 2
+    assert len(res.tables["stream"].rows) == len(cfg.points)
 
 
 @pytest.mark.slow
-def test_ch7_online_small_real(tmp_path):
+def test_ch7_online_smoke_real(tmp_path):
     ctx = RunContext(data={"fsdd": real_data_path("fsdd"), "msr-action3d": real_data_path("msr-action3d")},
                      cache_dir=tmp_path, show_progress=False)
-    cfg = dataclasses.replace(ch7.Config.quick(), **{**_TINY, "n_per_speaker": 60})
+    cfg = ch7.Config.smoke()
     res = ch7.compute(cfg, ctx)
-    _check_result(res, 2)
+    _check_result(res, cfg.n_folds)
     assert any("FSDD" in n for n in res.notes)
 
 

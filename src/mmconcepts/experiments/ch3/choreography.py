@@ -111,6 +111,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     QUICK = dict(n_folds=10, max_iter=100, inner_cv=2)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_folds=5, n_components=20, max_iter=40, n_records_partial=60, n_records_full=90, sensitivity=False)
 
     def features(self) -> dict:
         feats = {"data": self.data, "method": self.method, "n_bins": self.n_bins, "delay": self.delay}

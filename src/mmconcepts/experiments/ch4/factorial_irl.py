@@ -85,6 +85,9 @@ class Config(PresetConfig):
 
     QUICK = dict(n_tasks=30, n_test_tasks=30, flat_max_iter=50, demos_curve=(2, 10), tasks_curve=(10, 30), n_worlds=1,
                  maxent=False)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(grid_size=4, n_primitives=3, n_tasks=8, n_test_tasks=4, flat_max_iter=10, factorial_max_iter=3,
+                 inner_steps=2, tasks_curve=(4, 8))
 
 
 def make_tasks(config: Config, n_tasks: int, n_demos: int, rng: np.random.Generator, D_true: np.ndarray, mdp):

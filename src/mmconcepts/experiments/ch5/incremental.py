@@ -74,6 +74,8 @@ class Config(PresetConfig):
     seed: int = 0
 
     QUICK = dict(n_per_speaker=250, n_train=90, n_test=20, session=10, multi_session=90)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=20, n_repeats=2, n_train=10, n_test=10, session=5, multi_session=10)
 
 
 def _split(y: np.ndarray, n_train: int, n_test: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -115,6 +115,9 @@ class Config(PresetConfig):
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
     QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, n_single=150, n_double=150, threshold_cv=3,
                  hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=20, n_folds=3, n_composed_per_fold=10, n_single=20, n_double=20, n_components=8,
+                 max_iter=20, threshold_cv=2)
 
 
 def vote_threshold(bags: list[np.ndarray], tags: list[tuple], Y: np.ndarray, keywords: list[str], *, cv: int,

@@ -107,6 +107,8 @@ class Config(PresetConfig):
 
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
     QUICK = dict(n_per_speaker=250, n_folds=5, n_composed_per_fold=60, threshold_cv=0, hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=20, n_folds=3, n_components=12, max_iter=40, n_composed_per_fold=10, threshold_cv=2)
 
 
 def _observed(X) -> np.ndarray:

@@ -82,6 +82,8 @@ class Config(PresetConfig):
 
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
     QUICK = dict(n_per_speaker=250, n_utterances=300, n_single=150, n_double=150, n_repeats=5, hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=20, n_utterances=40, n_single=20, n_double=20, max_iter=40, n_repeats=2)
 
 
 def _entropy_bits(p: np.ndarray) -> np.ndarray:

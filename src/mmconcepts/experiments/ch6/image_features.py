@@ -70,6 +70,8 @@ class Config(PresetConfig):
     hac_fit_frames: int = 100_000  # training frames (at most) for each HAC codebook: HAC's max_fit_frames
     # five repetitions, the fewest units behind a decided claim (the thesis: "several times")
     QUICK = dict(n_per_speaker=250, n_views=24, n_repeats=5, hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    SMOKE = dict(n_per_speaker=50, n_views=6, n_repeats=2, k=12, n_iter=30, hac_fit_frames=5_000)
 
 
 def load_images(ctx: RunContext, n_objects: int, n_views: int):

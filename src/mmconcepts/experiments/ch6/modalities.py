@@ -76,6 +76,10 @@ class Config(PresetConfig):
     # five repetitions, the fewest units behind a decided claim (the thesis: 20)
     QUICK = dict(n_per_speaker=250, n_motion=250, n_views=24, n_repeats=5, k_sweep=(10, 50),
                  hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    # (k_sweep: several k besides the main one, each scored with its own models, freed one after the other)
+    SMOKE = dict(n_per_speaker=50, n_motion=60, n_views=6, n_repeats=2, k=10, k_sweep=(3, 4, 5, 10), n_iter=20,
+                 hac_fit_frames=5_000)
 
 
 def _setups() -> list[tuple[str, str, str]]:

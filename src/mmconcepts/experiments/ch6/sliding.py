@@ -112,6 +112,10 @@ class Config(PresetConfig):
     # narrower (a window then holds a word or less)
     QUICK = dict(n_per_speaker=250, n_views=24, widths=(0.1, 1.0), fixed_width=0.1, n_repeats=5,
                  hac_fit_frames=20_000)
+    # the smoke preset (seconds, its numbers mean nothing): what it changes from the quick one
+    # (one repetition: the rates' values are per test fold)
+    SMOKE = dict(n_per_speaker=50, n_views=6, widths=(0.2, 0.5), fixed_width=0.5, k=8, n_iter=20, n_repeats=1,
+                 n_test_folds=3, hac_fit_frames=5_000)
 
 
 def stream_windows(starts: np.ndarray, durations: np.ndarray, width: float, shift: float) -> np.ndarray:
