@@ -1,4 +1,4 @@
-"""Fuzzing harness (issue 14 section 4): what a public entry point does with one generated input.
+"""Fuzzing harness: what a public entry point does with one generated input.
 
 Each call is put in one of five outcomes:
 

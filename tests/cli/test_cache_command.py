@@ -1,4 +1,4 @@
-"""The cache folder and `mmconcepts cache list / clear` (issue 14 section 4)."""
+"""The cache folder and `mmconcepts cache list / clear`."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Fuzzing the command line (issue 14 section 4): ``mmconcepts.cli.main(argv)`` in this process.
+"""Fuzzing the command line: ``mmconcepts.cli.main(argv)`` in this process.
 
 Random subcommands, options and values (unknown ids, negative or non-numeric workers, bad
 variants, empty strings, paths that are files, folders that cannot be written, bad

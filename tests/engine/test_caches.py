@@ -1,4 +1,4 @@
-"""The experiments' disk caches (issue 13: one entry per call; issue 14: no cache may unpickle).
+"""The experiments' disk caches: one entry per call, and no cache may unpickle.
 
 Each cache (chapter-3 folds, chapter-5 MFCC, chapter-6 folds and image local features) is a
 folder of ``.npz`` entries (arrays + the structure as JSON) under ``ctx.cache_dir/<name>``

@@ -1,4 +1,4 @@
-"""Experiments on a Dask cluster (issue 16, section 1): ``--scheduler``, ``reproduce --concurrent``.
+"""Experiments on a Dask cluster: ``--scheduler``, ``reproduce --concurrent``.
 
 One ``LocalCluster`` of two single-threaded worker processes on 127.0.0.1 serves the module.
 """

@@ -1,4 +1,4 @@
-"""Faults of the command line (issue 14 section 4): a run killed with SIGKILL, two runs into one folder.
+"""Faults of the command line: a run killed with SIGKILL, two runs into one folder.
 
 The runs are real ``mmconcepts`` command lines in subprocesses. Their experiments are small
 test experiments written into a temporary folder and put in place of the package's

@@ -232,7 +232,7 @@ def test_rerun_after_code_change_recomputes(toy, tmp_path):
 
 
 def test_code_fingerprint_changes_with_any_source_file(tmp_path):
-    """Regression (issue 12): results were keyed on the package version, never bumped."""
+    """Regression: results were keyed on the package version, never bumped."""
     import shutil
 
     import mmconcepts
@@ -401,7 +401,7 @@ def test_toy_module_not_leaked(registry):
     assert "_toy_experiment" not in sys.modules
 
 
-# --------------------------------------------------------------------------- data variants (issue 11)
+# --------------------------------------------------------------------------- data variants
 
 
 def _variant_experiment(toy):
@@ -576,7 +576,7 @@ def test_a_runs_workers_keep_what_they_load(toy, tmp_path):
     assert rec["metrics"] == {"ctx": float(WORKER_MEMORY_GROWTH), "own": float(WORKER_MEMORY_GROWTH)}
 
 
-# --------------------------------------------------------------------------- a config instead of a preset (issue 13)
+# --------------------------------------------------------------------------- a config instead of a preset
 
 
 def test_run_with_a_config_object(toy, tmp_path):
@@ -621,7 +621,7 @@ def test_returned_record_is_the_file_written(toy, tmp_path):
     assert record["metrics"] == record.metrics and record["claims"] == [c.to_dict() for c in record.claims]
 
 
-# --------------------------------------------------------------------------- compute and present (issue 13)
+# --------------------------------------------------------------------------- compute and present
 
 
 def _compute(config, ctx):

@@ -1,4 +1,4 @@
-"""Chapter 3: independent random streams, and claims that can fail (issue 12, section 1)."""
+"""Chapter 3: independent random streams, and claims that can fail."""
 
 from __future__ import annotations
 

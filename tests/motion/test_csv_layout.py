@@ -1,4 +1,4 @@
-"""The generic motion layout (issue 14 section 4): per-recording CSV files + labels.csv.
+"""The generic motion layout: per-recording CSV files + labels.csv.
 
 A round trip of MSR-like skeletons through CSV gives the same arrays and the same motion
 histograms as the skeletons themselves; bad files (missing joints, ragged rows, NaN, text,

@@ -1,4 +1,4 @@
-"""The estimator contract (issue 13) for the multimodal learner and the image and motion transformers.
+"""The estimator contract for the multimodal learner and the image and motion transformers.
 
 MultimodalNMF, ImageFeatures, ColorHistograms, KeypointBag, MidFeatures and MotionHistograms:
 scikit-learn estimators (clone, get_params/set_params), parameters declared once in

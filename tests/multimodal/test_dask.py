@@ -1,4 +1,4 @@
-"""MultimodalNMF on dask arrays (issue 16): the same fit as in memory, modality by modality chunk by chunk."""
+"""MultimodalNMF on dask arrays: the same fit as in memory, modality by modality chunk by chunk."""
 
 from __future__ import annotations
 

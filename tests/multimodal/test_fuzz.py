@@ -1,4 +1,4 @@
-"""Fuzz tests of mmconcepts.multimodal (issue 14 section 4): a typed error or a correct result.
+"""Fuzz tests of mmconcepts.multimodal: a typed error or a correct result.
 
 Modalities come mismatched (rows, columns, names), empty, negative, NaN, infinite, sparse
 or all zeros; saved models come truncated, empty, with bytes flipped, with an edited JSON

@@ -1,4 +1,4 @@
-"""Tests written from the mutation run of issue 13 (section 3) on ``mmconcepts.multimodal``.
+"""Tests written from the mutation run on ``mmconcepts.multimodal``.
 
 Each test kills mutants that the rest of the suite let survive (see /work/notes/mutation13.md):
 argument checks whose ``or`` could become ``and``, error messages that must name what is wrong,

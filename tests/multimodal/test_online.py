@@ -1,4 +1,4 @@
-"""MultimodalNMF.partial_fit: the online multimodal learner (issue 15, section 2).
+"""MultimodalNMF.partial_fit: the online multimodal learner.
 
 What is checked, and against what:
 - one call on all the data is ``fit`` (same dictionary, scales and transform, dense and sparse,

@@ -1,4 +1,4 @@
-"""The estimator contract for the factorization core: NMF and LabelNMF (issue 13).
+"""The estimator contract for the factorization core: NMF and LabelNMF.
 
 scikit-learn's estimator checks with default parameters, the constraints table, and save/load
 without pickle.

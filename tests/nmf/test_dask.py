@@ -1,4 +1,4 @@
-"""Distributed and out-of-core beta-NMF (nmf/_dask.py) against the in-memory solver (issue 16, part 2).
+"""Distributed and out-of-core beta-NMF (nmf/_dask.py) against the in-memory solver.
 
 The outside answer is the in-memory :func:`beta_nmf` on the whole matrix: from the same start,
 the iterates of the chunked solver must equal its iterates to 1e-10 (relative), for beta in

@@ -1,4 +1,4 @@
-"""Fuzz tests of mmconcepts.nmf's public entry points (issue 14 section 4).
+"""Fuzz tests of mmconcepts.nmf's public entry points.
 
 Every example ends in :func:`_fuzz.assert_typed_or_good`: a typed mmconcepts error naming
 the problem, or a finite result that is *right* (the ``check`` says what right means:
@@ -507,7 +507,7 @@ print((after - before) * 1024)
 
 def test_masked_sparse_fit_stays_sparse():
     """A masked fit of a sparse 20000 x 20000 matrix (0.1 % nonzeros, a sparse mask) never densifies:
-    its peak memory stays far below the 3.2 GB of one dense copy (issue 14: 7.24 GB before)."""
+    its peak memory stays far below the 3.2 GB of one dense copy (it once reached 7.24 GB)."""
     import subprocess
     import sys
 
@@ -519,7 +519,7 @@ def test_masked_sparse_fit_stays_sparse():
 
 @pytest.mark.parametrize("beta, c", [(1.0, 1e-8), (2.0, 1e-8), (2.0, 1e150), (1.0, 1e250), (0.0, 1e-200), (0.5, 1e12)])
 def test_the_issue_scales_give_the_unscaled_fit(beta, c):
-    """Issue 14: KL-NMF of X * 1e-8 rose under the monotone updates and ended at inf, Frobenius of
+    """KL-NMF of X * 1e-8 rose under the monotone updates and ended at inf, Frobenius of
     X * 1e300 gave NaN factors. Now fit(c X) = (W, c H) from the start (W0, c H0), the objective is
     c ** beta times the unscaled one, and it never rises."""
     rng = np.random.default_rng(0)
@@ -543,7 +543,7 @@ def test_an_objective_beyond_float64_is_named():
 
 @pytest.mark.parametrize("side", ["W", "H"])
 def test_hoyer_sparseness_on_ordinary_data(side):
-    """Issue 14: sparseness_H=0.5 (or sparseness_W) on random data raised ZeroDivisionError."""
+    """sparseness_H=0.5 (or sparseness_W) on random data raised ZeroDivisionError."""
     from mmconcepts.nmf import hoyer_sparseness
 
     X = np.random.default_rng(0).random((30, 20))

@@ -1,4 +1,4 @@
-"""Tests written from the mutation run of issue 13 (section 3) on ``mmconcepts.nmf``.
+"""Tests written from the mutation run on ``mmconcepts.nmf``.
 
 Each test kills mutants that the rest of the suite let survive (see /work/notes/mutation13.md):
 Hoyer's sparseness on known answers and on the all-zero vector (NaN, without a warning), and

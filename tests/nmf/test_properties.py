@@ -1,4 +1,4 @@
-"""Property tests (hypothesis) of the NMF core's invariants (issue 13, section 3).
+"""Property tests (hypothesis) of the NMF core's invariants.
 
 Hoyer's projection (thesis eq. 2.20; Hoyer 2004, Fig. 1) gives a nonnegative vector with
 the target L1 and L2 norms, hence the target sparseness, and is idempotent; the

@@ -1,4 +1,4 @@
-"""The threshold rule of LabelNMF on constructed cross-validation curves (issue 13, section 3).
+"""The threshold rule of LabelNMF on constructed cross-validation curves.
 
 The rule (thesis Fig. 3.7): keep the threshold with the best pooled l_full; among ties,
 the median one, the middle of the plateau. The validation curves are replaced by

@@ -1,4 +1,4 @@
-"""Inputs that gave silently wrong output or an untyped error (issue 14 section 4), one test each.
+"""Inputs that gave silently wrong output or an untyped error, one test each.
 
 Each asserts what a user should get instead: a ParameterError/DataError naming the problem,
 or a correct finite result checked against an answer computed here.

@@ -54,3 +54,8 @@ def test_the_source_has_no(what, pattern):
 def test_the_tests_name_no_path_of_a_machine():
     found = _hits([p for p in TESTS if p.name != Path(__file__).name], MACHINE_PATH)
     assert not found, "absolute paths in the tests (use tmp_path or paths relative to the test):\n" + "\n".join(found)
+
+
+def test_the_tests_cite_no_issue_of_the_tracker():
+    found = _hits([p for p in TESTS if p.name != Path(__file__).name], ISSUE)
+    assert not found, "issue numbers in the tests (say what the test checks instead):\n" + "\n".join(found)

@@ -1,4 +1,4 @@
-"""Data root, named data sets and `data fetch` (mmconcepts.datasets; issue 11 section 1)."""
+"""Data root, named data sets and `data fetch` (mmconcepts.datasets)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""One contract for every learner of the package (issue 13), checked across all subpackages.
+"""One contract for every learner of the package, checked across all subpackages.
 
 Each public estimator class: subclasses scikit-learn's BaseEstimator, declares every constructor
 parameter once in ``_parameter_constraints``, survives ``clone`` with its parameters, and, when a

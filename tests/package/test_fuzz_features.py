@@ -1,4 +1,4 @@
-"""Fuzz tests of the motion and sound feature entry points (issue 14 section 4).
+"""Fuzz tests of the motion and sound feature entry points.
 
 MotionHistograms and delayed_velocity (mmconcepts.motion), mfcc / MFCCConfig, deltas and
 windows, HAC and cooccurrence_counts, DTW, the cluster tree and the voting classifiers

@@ -1,4 +1,4 @@
-"""Corrupt or tampered files (issue 14 section 4): an error naming the file, or the data read right.
+"""Corrupt or tampered files: an error naming the file, or the data read right.
 
 Valid files are written in a temporary folder, then one of them is damaged by hypothesis
 (truncated, emptied, a byte flipped, text or garbage in place of data, an edited JSON

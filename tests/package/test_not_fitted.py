@@ -1,4 +1,4 @@
-"""Every learner says "not fitted" the same way: scikit-learn's NotFittedError (issue 13)."""
+"""Every learner says "not fitted" the same way: scikit-learn's NotFittedError."""
 
 from __future__ import annotations
 

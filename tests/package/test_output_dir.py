@@ -1,4 +1,4 @@
-"""The results folder is checked before any work (issue 14 section 4)."""
+"""The results folder is checked before any work."""
 
 from __future__ import annotations
 

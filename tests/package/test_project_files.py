@@ -1,4 +1,4 @@
-"""The project files a user reads before depending on mmconcepts agree with each other (issue 14)."""
+"""The project files a user reads before depending on mmconcepts agree with each other."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The README's library examples run as written (issue 14: a new user copies them first)."""
+"""The README's library examples run as written (a new user copies them first)."""
 
 from __future__ import annotations
 

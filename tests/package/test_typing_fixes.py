@@ -1,4 +1,4 @@
-"""Bugs that mypy found (issue 14, section 2: type hints that check).
+"""Bugs that mypy found (type hints that check).
 
 Each test failed before its fix; the fix and the mypy error that led to it are named.
 """

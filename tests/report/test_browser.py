@@ -1,4 +1,4 @@
-"""``report.html`` checked in a real browser: headless Chromium driven by Selenium (issue 14, section 3).
+"""``report.html`` checked in a real browser: headless Chromium driven by Selenium.
 
 The report is built from a small results folder (the toy experiments' records, a real
 record of ``tests/data/records`` whose figure files are absent, and a damaged record), then

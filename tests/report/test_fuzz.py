@@ -1,4 +1,4 @@
-"""Fuzz ``mmconcepts report`` with edited and corrupted result records (issue 14 sections 3 and 4).
+"""Fuzz ``mmconcepts report`` with edited and corrupted result records.
 
 Each example writes one damaged record beside good ones (copies of the records in
 ``tests/data/records``) and runs the command line's ``report`` in this process. The damage:

@@ -131,13 +131,13 @@ def test_report_ignores_non_records_and_logs_it(results, caplog):
 
 
 def _damaged(results):
-    """Records damaged by hand (issue 14): truncated, a string metric, claims not a list, a list config, int notes."""
+    """Records damaged by hand: truncated, a string metric, claims not a list, a list config, int notes."""
     good = json.loads((results / "toy-mean.json").read_text())
     (results / "cut.json").write_text(json.dumps(good)[:200])
     bad_metric = dict(good, experiment="toy-cut-metric", metrics=dict(good["metrics"], mean="high"))
     (results / "bad-metric.json").write_text(json.dumps(bad_metric))
     (results / "bad-claims.json").write_text(json.dumps(dict(good, experiment="toy-bad-claims", claims={"a": 1})))
-    # read as a record, but the report cannot show it (crashed the report before issue 14)
+    # read as a record, but the report cannot show it (it crashed the report once)
     (results / "list-config.json").write_text(json.dumps(dict(good, experiment="toy-list-config", config=[1])))
     (results / "int-notes.json").write_text(json.dumps(dict(good, experiment="toy-int-notes", notes=5)))
     return {"cut.json", "bad-metric.json", "bad-claims.json", "list-config.json", "int-notes.json"}
@@ -224,7 +224,8 @@ def test_report_flags_records_of_older_code_and_verdicts_without_spread(toy, tmp
     run_experiment(exp, output=tmp_path, progress=False)
     md = write_report(tmp_path)[1].read_text()
     assert "| a beats b | ours |   | a &gt; b | holds |" in md  # decided over the folds: no suffix
-    assert re.search(r"\| a \| +\| 0\.8 \[0\.7\d*, 0\.8\d*\] \|", md)
+    assert re.search(r"\| a \| 0\.8 \[0\.7\d*, 0\.8\d*\] \|", md)  # no thesis number: no thesis column
+    assert "| metric | generated data |" in md and "| metric | thesis |" not in md
     assert "older code" not in md
     path = tmp_path / "toy-spread.json"
     record = json.loads(path.read_text())
@@ -272,7 +273,7 @@ def test_claims_by_data_lists_each_claim_once_with_its_verdict_per_data_disagree
 
 
 def test_markdown_shows_hand_edited_fields_verbatim(results):
-    """Issue 14: report.md let raw HTML through (the status field, backticks in an id)."""
+    """report.md let raw HTML through (the status field, backticks in an id)."""
     good = json.loads((results / "toy-mean.json").read_text())
     edited = dict(good, experiment="toy``x<i>", status="<script>alert(1)</script>", data={"a`b": "/p<a>th"})
     (results / "edited.json").write_text(json.dumps(edited))
@@ -372,7 +373,7 @@ def test_missing_figure_is_named_not_an_image_that_cannot_load(results):
     assert "*Figure `hist`: file missing (`toy-mean/hist.png`)*" in md
 
 
-# --------------------------------------------------------------------------- the figures the report shows (issue 14)
+# --------------------------------------------------------------------------- the figures the report shows
 
 def _figure_problems(fig) -> list[str]:
     """What a reader would miss: unlabelled data axes, images without a colour bar, unlabelled reference lines,
@@ -485,3 +486,19 @@ def test_figure_check_catches_what_it_is_for():
     assert any("colour bar" in p for p in problems)
     assert any("unlabelled horizontal line" in p for p in problems)
     assert any("no y label" in p for p in problems) and any("no legend" in p for p in problems)
+
+
+def test_a_spread_is_shown_beside_its_value_and_not_as_a_row(toy, tmp_path):
+    exp = toy.make_experiment(
+        "toy-sd",
+        lambda c, x: Result(metrics={"acc": 0.8, "acc_std": 0.05, "lone_std": 0.3, "base": 0.5}),
+        reference={"acc": 0.9},
+    )
+    run_experiment(exp, output=tmp_path, progress=False)
+    md = write_report(tmp_path)[1].read_text()
+    html = (tmp_path / "report.html").read_text()
+    assert "| metric | thesis | generated data |" in md  # the thesis has a number here
+    assert "| acc | 0.9 | 0.8, sd 0.05 |" in md
+    assert "| acc_std |" not in md  # no row of its own
+    assert "| lone_std |   | 0.3 |" in md  # a _std metric without its base stays a row
+    assert "0.8, sd 0.05" in html and ">acc_std<" not in html

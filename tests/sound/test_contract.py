@@ -1,4 +1,4 @@
-"""The estimator contract (issue 13) for the sound learners: ClusterTree, HAC, EventVoting,
+"""The estimator contract for the sound learners: ClusterTree, HAC, EventVoting,
 TreeVotingClassifier, and the parameter checks of the public functions of ``mmconcepts.sound``.
 
 scikit-learn's estimator checks feed 2-D arrays. ``ClusterTree`` takes them and runs all the

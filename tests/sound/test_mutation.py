@@ -1,4 +1,4 @@
-"""Tests written from the mutation run of issue 13 (section 3) on ``mmconcepts.sound``.
+"""Tests written from the mutation run on ``mmconcepts.sound``.
 
 Each test kills mutants that the rest of the suite let survive (see /work/notes/mutation13.md):
 the synthetic room impulse response against the acoustic definitions of its two parameters,

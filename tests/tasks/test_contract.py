@@ -1,4 +1,4 @@
-"""The estimator contract of the task learners (issue 13): GradIRL, MaxEntIRL, FactorialIRL,
+"""The estimator contract of the task learners: GradIRL, MaxEntIRL, FactorialIRL,
 FactorialInverseControl, the RBFFeatures parameter object, and the parameter tables of the public
 functions of ``mmconcepts.tasks``.
 
@@ -202,7 +202,7 @@ def test_rbf_features_is_a_parameter_object_whose_set_params_recomputes_the_grid
 # ---------------------------------------------------------------- parameter constraints
 
 BAD_PARAMETERS = [
-    # GradIRL.tol was never checked before issue 13: a negative or NaN tol was accepted silently
+    # GradIRL.tol was never checked: a negative or NaN tol was accepted silently
     (GradIRL, {"tol": -1.0}, "GradIRL: tol must be a real number >= 0; got -1.0"),
     (GradIRL, {"tol": np.nan}, "GradIRL: tol must be a real number >= 0; got nan"),
     (GradIRL, {"beta": 0.0}, "GradIRL: beta must be a real number > 0; got 0.0. beta is the Boltzmann"),
@@ -251,7 +251,7 @@ def test_a_bad_parameter_is_refused_at_the_start_of_fit(cls, params, message):
 
 @pytest.mark.parametrize("tol", [-1.0, np.nan])
 def test_gradirl_checks_its_tolerance_on_good_data(tol):
-    # before issue 13, GradIRL.tol was never checked: this fit ran and returned
+    # once, GradIRL.tol was never checked: this fit ran and returned
     with pytest.raises(ParameterError, match="GradIRL: tol must be a real number >= 0"):
         GradIRL(tol=tol, max_iter=2).fit(WORLD, DEMOS)
 
@@ -267,7 +267,7 @@ def test_the_learners_run_at_the_edges_of_their_ranges():
 
 @pytest.mark.parametrize("function", [value_iteration, soft_value_iteration, policy_iteration])
 def test_zero_iterations_are_a_parameter_error(function):
-    # value_iteration(max_iter=0) and soft_value_iteration(max_iter=0) raised UnboundLocalError before issue 13
+    # value_iteration(max_iter=0) and soft_value_iteration(max_iter=0) raised UnboundLocalError once
     R = np.zeros((WORLD.n_states, WORLD.n_actions))
     with pytest.raises(ParameterError, match=rf"^{function.__name__}: max_iter must be an int >= 1; got 0\. .*q_values"):
         function(WORLD, R, max_iter=0)

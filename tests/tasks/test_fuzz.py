@@ -1,4 +1,4 @@
-"""Fuzz tests of mmconcepts.tasks (issue 14 section 4): a typed error or a correct result.
+"""Fuzz tests of mmconcepts.tasks: a typed error or a correct result.
 
 Every example ends in :func:`_fuzz.assert_typed_or_good`. "Correct" is checked against
 references that do not share code with the package: the optimal values of a small MDP by

@@ -1,4 +1,4 @@
-"""Tests written from the mutation run of issue 13 (section 3) on ``mmconcepts.tasks``.
+"""Tests written from the mutation run on ``mmconcepts.tasks``.
 
 Each test kills mutants that the rest of the suite let survive (see /work/notes/mutation13.md):
 the adjoint gradient against the same derivative written by hand as a linear solve (both

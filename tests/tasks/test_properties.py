@@ -1,4 +1,4 @@
-"""Property tests (hypothesis) of the planning invariants (issue 13, section 3).
+"""Property tests (hypothesis) of the planning invariants.
 
 On random MDPs and rewards: value iteration reaches the Bellman optimality fixed point and
 policy iteration the same values; the greedy policy's exact value is the optimal value;

@@ -1,4 +1,4 @@
-"""Known answers and library references for the task learners (issue 13, section 3).
+"""Known answers and library references for the task learners.
 
 ``MaxEntIRL`` fitted on demonstrations whose action counts are those of a soft-optimal
 policy must give that policy back (the likelihood is maximal there); the soft values are

@@ -1,4 +1,4 @@
-"""Fuzz tests of mmconcepts.vision (issue 14 section 4): a typed error or a correct result.
+"""Fuzz tests of mmconcepts.vision: a typed error or a correct result.
 
 Images come in every shape a user may hold: gray (H, W), (H, W, 1), gray + alpha
 (H, W, 2), RGB, RGBA, wrong channel counts, tiny and empty images, integer, boolean and

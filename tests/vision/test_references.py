@@ -1,4 +1,4 @@
-"""Known answers for the dense SIFT descriptor (issue 13, section 3).
+"""Known answers for the dense SIFT descriptor.
 
 On an intensity ramp ``I(y, x) = a (cos(phi) x + sin(phi) y)`` the gradient is the same
 vector ``a (cos phi, sin phi)`` at every pixel (``np.gradient`` is exact on a linear

@@ -60,6 +60,9 @@ def format_duration(seconds: Any) -> str:
 
 
 #: How the report names each kind of claim, in the order it counts them.
+#: The suffix of a metric that is the spread (standard deviation) of another: ``<name>_std``.
+SPREAD_SUFFIX = "_std"
+
 KIND_LABELS = {"thesis": "thesis statements", "magnitude": "magnitudes (ours / thesis)", "ours": "our checks",
                "check": "sanity checks (not evidence)", "unclassified": "unclassified (older records)"}
 
@@ -235,17 +238,33 @@ class ExperimentGroup:
     views: list[ExperimentView]
 
     def metric_rows(self) -> tuple[list[str], list[list[str]]]:
-        """Columns ``metric, thesis, <one per run>`` and one row per metric (values with their interval)."""
-        columns = ["metric", "thesis"] + [v.data_label for v in self.views]
+        """Columns ``metric, thesis, <one per run>`` and one row per metric (values with their interval).
+
+        A metric's spread (the metric ``<name>_std`` beside ``<name>``) is shown in its value's
+        cell (``0.81 [0.75, 0.87], sd 0.04``), not as a row of its own; the ``thesis`` column is
+        there only when the thesis has a number for one of the metrics.
+        """
         reference: dict[str, str] = {}
         names: list[str] = []
+        spreads: list[dict[str, str]] = []
         for view in self.views:
+            spreads.append({name: ours for name, ours, _ in view.metrics})
             for name, _ours, thesis in view.metrics:
                 if name not in names:
                     names.append(name)
                 if thesis and name not in reference:
                     reference[name] = thesis
-        rows = [[n, reference.get(n, "")] + [v.values.get(n, "") for v in self.views] for n in names]
+        shown = set(names)
+        names = [n for n in names if not (n.endswith(SPREAD_SUFFIX) and n[: -len(SPREAD_SUFFIX)] in shown)]
+
+        def cell(view: ExperimentView, spread: dict[str, str], name: str) -> str:
+            value, sd = view.values.get(name, ""), spread.get(name + SPREAD_SUFFIX, "")
+            return f"{value}, sd {sd}" if value and sd else value
+
+        thesis = any(reference.get(n) for n in names)
+        columns = ["metric"] + (["thesis"] if thesis else []) + [v.data_label for v in self.views]
+        rows = [[n] + ([reference.get(n, "")] if thesis else [])
+                + [cell(v, sp, n) for v, sp in zip(self.views, spreads)] for n in names]
         return columns, rows
 
     def claim_rows(self) -> tuple[list[str], list[list[str]]]:
