@@ -16,6 +16,7 @@ Values
     - numpy arrays of any dtype that holds no Python objects (an array of the file; an array
       subclass comes back as a plain array), and object arrays of strings only (in the JSON);
     - numpy scalars (bool, integer, floating, complex, string, datetime): a 0-d array;
+    - slices (of integers or None);
     - lists, tuples, the package's named tuples, and dicts (string keys as a JSON object,
       other keys, themselves values of this list, as a list of pairs);
     - the package's :class:`Stateful` objects (the fitted estimators): their class, their
@@ -29,7 +30,7 @@ Structure
     node is a JSON object whose key ``"__mmconcepts__"`` names its kind: ``array`` and
     ``scalar`` (``"entry"``: the array's name), ``str-object-array`` (``"shape"``,
     ``"items"``), ``float`` (``"value"``: ``"inf"``, ``"-inf"`` or ``"nan"``, and ``"bits"``
-    for a NaN), ``tuple`` (``"items"``), ``namedtuple`` (``"class"``: ``module:qualname``,
+    for a NaN), ``tuple`` and ``slice`` (``"items"``: start, stop, step), ``namedtuple`` (``"class"``: ``module:qualname``,
     ``"fields"``, ``"items"``), ``dict`` (``"items"``: key-value pairs) and ``estimator``
     (``"class"``, ``"params"``, ``"state"``). A string-keyed dict that holds the key
     ``"__mmconcepts__"`` is written as a ``dict`` node.
@@ -146,6 +147,9 @@ def encode(value: Any, arrays: dict[str, np.ndarray], *, where: str = "value") -
             return [enc(v, f"{at}[{i}]") for i, v in enumerate(x)]
         if t is tuple:
             return {MARK: "tuple", "items": [enc(v, f"{at}[{i}]") for i, v in enumerate(x)]}
+        if t is slice:
+            return {MARK: "slice", "items": [enc(v, f"{at}.{f}") for f, v in
+                                             (("start", x.start), ("stop", x.stop), ("step", x.step))]}
         if isinstance(x, tuple) and hasattr(t, "_fields") and _in_package(getattr(t, "__module__", "") or ""):
             return {MARK: "namedtuple", "class": f"{t.__module__}:{t.__qualname__}", "fields": list(t._fields),
                     "items": [enc(v, f"{at}.{f}") for f, v in zip(t._fields, x)]}
@@ -266,6 +270,12 @@ def decode(structure: Any, arrays: Mapping[str, Any]) -> Any:
             return value
         if kind == "tuple":
             return tuple(dec(v) for v in items(x))
+        if kind == "slice":
+            bounds = [dec(v) for v in items(x)]
+            if len(bounds) != 3 or not all(b is None or (isinstance(b, (int, np.integer)) and type(b) is not bool)
+                                           for b in bounds):
+                raise CorruptFile(f"a bad slice {bounds!r:.60}")
+            return slice(*bounds)
         if kind == "namedtuple":
             cls = _package_object(x.get("class"), ":")
             fields, values = x.get("fields"), items(x)

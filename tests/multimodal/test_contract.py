@@ -354,7 +354,8 @@ def test_multimodal_nmf_is_a_scikit_learn_estimator():
     assert twin is not model and twin.get_params() == model.get_params()
     assert model.get_params(deep=True) == model.get_params(deep=False) == dict(
         n_components=3, beta_loss="kullback-leibler", max_iter=20, transform_max_iter=None, tol=0.0,
-        normalize="l1", init="random", random_state=0, forget_factor=1.0, partial_max_iter=None, forget="deprecated")
+        normalize="l1", init="random", random_state=0, forget_factor=1.0, partial_max_iter=None, forget="deprecated",
+        modalities=None)
     X = _modalities()
     fitted = clone(model).set_params(n_components=4).fit(X)  # set_params reaches fit
     assert fitted.components_.shape == (4, 16) and fitted.nmf_.n_components == 4

@@ -36,13 +36,22 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
-from .._validation import Interval, Options, check_nonnegative_matrix, validate_params
-from ..errors import DataError, DataFormatError, MMConceptsError
+from .._validation import InstanceOf, Interval, Options, check_nonnegative_matrix, validate_params
+from ..errors import DataError, DataFormatError, MMConceptsError, ParameterError
 from ..nmf import NMF
 from ..nmf._beta import EPSILON
 from ..nmf._dask import check_row_chunks, hstack_row_chunks, is_dask_array
+from .matching import matching_success_rate, pairwise_divergence
 
-__all__ = ["MultimodalNMF", "FORMAT_VERSION"]
+__all__ = ["MultimodalNMF", "FORMAT_VERSION", "SCORE_METRIC", "SCORE_DRAWS"]
+
+#: The metric of :meth:`MultimodalNMF.score` (see :func:`~mmconcepts.multimodal.pairwise_divergence`).
+SCORE_METRIC = "cosine"
+#: Reference draws per example in :meth:`MultimodalNMF.score`.
+SCORE_DRAWS = 10
+#: Mixed with an int ``random_state`` into the seed of :meth:`MultimodalNMF.score`'s reference draws, so they
+#: come from a stream of their own, not the learner's initialisation stream.
+_SCORE_STREAM = 0x5C0E
 
 #: Version of the save format written by :meth:`MultimodalNMF.save` (version 1 files still load).
 FORMAT_VERSION = 2
@@ -64,6 +73,19 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
     ----------
     n_components : int, default=50
         Number of atoms k (the thesis uses k = 50).
+    modalities : mapping of str to slice or array of int, optional
+        The columns of each modality when X is one 2-D table (n_samples, n_features), dense
+        or sparse, e.g. ``{"sound": slice(0, 300), "image": slice(300, None)}`` (or arrays of
+        column indices): :meth:`fit`, :meth:`partial_fit`, :meth:`transform` and
+        :meth:`score` then take such a table and split it by these columns, and the learner
+        is a plain scikit-learn estimator (``GridSearchCV``, ``cross_val_score``,
+        ``Pipeline``). Each modality needs at least one column and no column belongs to two
+        modalities; columns of no modality are ignored. The modalities are stacked in this
+        mapping's order. A mapping X (one matrix per modality) is still taken: its names must
+        be among these (at fit, all of them), and it is read in this mapping's order, so a
+        table and the mapping of its column blocks give the same fit; a mapping is how to
+        :meth:`transform` from a subset of the modalities. None (the default): X is always
+        a mapping, as read in its own order.
     beta_loss : float or str, default="kullback-leibler"
         The beta-divergence (the thesis: I-divergence, beta = 1).
     max_iter : int, default=50
@@ -117,11 +139,16 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         the batches; the number of examples after :meth:`fit`): the weight of the running
         L1 norms behind ``scales_``.
 
+    n_features_in_ : int
+        Only after fitting on a 2-D table (``modalities`` given): its number of columns.
+
     Notes
     -----
-    X is a mapping of modality names to matrices, not one 2-D array, so scikit-learn's
-    ``check_estimator`` cannot run on this learner; it is still a scikit-learn estimator
-    (``clone``, ``get_params``/``set_params``, ``NotFittedError``). :meth:`save` writes
+    Without ``modalities``, X is a mapping of modality names to matrices, not one 2-D
+    array, and the tags say so: scikit-learn's ``check_estimator`` cannot feed it, though
+    the learner is still a scikit-learn estimator (``clone``, ``get_params``/``set_params``,
+    ``NotFittedError``). With ``modalities``, it takes 2-D tables and runs
+    ``check_estimator``. :meth:`save` writes
     format version 2 (the inner :class:`~mmconcepts.nmf.NMF` saved as a nested model);
     :meth:`load` also reads the version-1 files of earlier mmconcepts (the dictionary and
     a header with the modalities, their widths and scales).
@@ -129,6 +156,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
     _parameter_constraints: ClassVar[dict] = {
         "n_components": [Interval("int", 1)],  # NMF's None (min(n_samples, n_features)) is not offered
+        "modalities": [InstanceOf(Mapping, description="a mapping of modality names to column slices or arrays of "
+                                                       "column indices"), None],
         **{name: NMF._parameter_constraints[name]
            for name in ("beta_loss", "max_iter", "transform_max_iter", "tol", "random_state")},
         "normalize": [Options("l1", None)],
@@ -139,6 +168,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
     }
     _hints: ClassVar[dict] = {
         "init": "'custom' is not available: MultimodalNMF.fit takes no starting factors.",
+        "modalities": "e.g. modalities={'sound': slice(0, 300), 'image': slice(300, None)}, or None to give X as a "
+                      "mapping of modality names to matrices.",
     }
     _save_format_version: ClassVar[int] = FORMAT_VERSION
 
@@ -146,6 +177,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self,
         n_components: int = 50,
         *,
+        modalities: Mapping[str, slice | Sequence[int] | np.ndarray] | None = None,
         beta_loss: float | str = "kullback-leibler",
         max_iter: int = 50,
         transform_max_iter: int | None = None,
@@ -158,6 +190,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         forget: float | str = "deprecated",
     ) -> None:
         self.n_components = n_components
+        self.modalities = modalities
         self.beta_loss = beta_loss
         self.max_iter = max_iter
         self.transform_max_iter = transform_max_iter
@@ -179,7 +212,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
-        tags.input_tags.two_d_array = False  # X is a mapping of modality names to matrices
+        # X is a mapping of modality names to matrices; with ``modalities``, also one 2-D table
+        tags.input_tags.two_d_array = self.modalities is not None
         tags.input_tags.dict = True
         tags.input_tags.sparse = True
         tags.input_tags.positive_only = True
@@ -220,6 +254,79 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 )
             out[name] = Xm
         return out
+
+    def _column_groups(self, n_columns: int) -> dict[str, np.ndarray]:
+        """The column indices of each modality of ``modalities`` in a table of ``n_columns`` columns."""
+        if not self.modalities:  # called with modalities given: only an empty mapping comes here
+            raise ParameterError("MultimodalNMF: modalities must name at least one modality; got an empty mapping. "
+                                 + self._hints["modalities"])
+        out: dict[str, np.ndarray] = {}
+        owner = np.full(n_columns, -1)
+        for i, (name, cols) in enumerate(self.modalities.items()):
+            if not isinstance(name, str):
+                raise ParameterError(f"MultimodalNMF: modality names must be strings; got {name!r} in modalities.")
+            if isinstance(cols, slice):
+                idx = np.arange(n_columns)[cols]
+            else:
+                idx = np.asarray(cols)
+                if idx.ndim != 1 or idx.dtype.kind not in "iu":
+                    raise ParameterError(
+                        f"MultimodalNMF: modalities[{name!r}] must be a slice or a 1-D array of column indices; got "
+                        f"{type(cols).__name__} of dtype {idx.dtype} and shape {idx.shape}. For a boolean mask, give "
+                        "np.flatnonzero(mask).")
+                if idx.size and (idx.min() < -n_columns or idx.max() >= n_columns):
+                    raise DataError(
+                        f"X has {n_columns} features, but modality {name!r} takes columns {idx.min()} to {idx.max()}; "
+                        f"give a table with the columns of modalities, or column indices in [-{n_columns}, "
+                        f"{n_columns}).")
+                idx = np.arange(n_columns)[idx]
+            if idx.size == 0:
+                raise DataError(f"modality {name!r} has no column in X's {n_columns} feature(s) (modalities[{name!r}] "
+                                f"= {cols!r}); give a table holding the columns of every modality.")
+            taken = owner[idx]
+            if (taken >= 0).any() or np.unique(idx).size != idx.size:
+                other = list(self.modalities)[taken.max()] if (taken >= 0).any() else name
+                raise ParameterError(f"MultimodalNMF: modalities {other!r} and {name!r} share columns; each column "
+                                     "belongs to at most one modality.")
+            owner[idx] = i
+            out[name] = idx
+        return out
+
+    def _by_modality(self, X: Any, *, fitting: bool) -> tuple[Any, int | None]:
+        """X as a mapping of modality names to matrices, and the width of X when it is a table (else None).
+
+        A table is split by ``modalities``; a mapping is taken as given (with ``modalities``: checked against it and
+        put in its order). Anything else is left to ``_check_modalities``."""
+        if isinstance(X, Mapping) and not sp.issparse(X):  # a scipy.sparse dok matrix is a dict
+            if self.modalities is None:
+                return X, None
+            unknown = [k for k in X if k not in self.modalities]
+            missing = [k for k in self.modalities if k not in X] if fitting else []
+            if unknown or missing:
+                raise DataError(
+                    f"X names the modalities {list(X)}, but modalities names {list(self.modalities)} "
+                    f"({'unknown: ' + repr(unknown) if unknown else 'missing: ' + repr(missing)}); give a mapping with "
+                    f"{'these' if fitting else 'some of these'} names, or one 2-D table.")
+            return {name: X[name] for name in self.modalities if name in X}, None
+        if self.modalities is None:
+            raise DataError(
+                "X must be a non-empty mapping of modality names to (n_samples, n_features) arrays, e.g. "
+                f"{{'sound': X_sound, 'motion': X_motion}}; got {type(X).__name__}. To give one 2-D table, say which columns are which "
+                "modality: MultimodalNMF(modalities={'sound': slice(0, 300), 'motion': slice(300, None)}).")
+        if not is_dask_array(X):
+            X = check_nonnegative_matrix(X, "X")
+        expected = None if fitting else getattr(self, "n_features_in_", None)
+        if expected is not None and X.shape[1] != expected:
+            raise DataError(f"X has {X.shape[1]} features, but MultimodalNMF is expecting {expected} features as "
+                            "input (the width of the table it was fitted on); give a table with the same columns.")
+        return {name: X[:, idx] for name, idx in self._column_groups(X.shape[1]).items()}, int(X.shape[1])
+
+    def _remember_width(self, width: int | None) -> None:
+        """After fitting: ``n_features_in_`` is the width of a fitted table; a mapping X has none."""
+        if width is None:
+            self.__dict__.pop("n_features_in_", None)
+        else:
+            self.n_features_in_ = width
 
     @staticmethod
     def _columns(modalities: Sequence[str], n_features: Mapping[str, int]) -> dict[str, slice]:
@@ -269,9 +376,9 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : mapping of str to {array-like, sparse matrix} of shape (n_samples, n_features_m)
+        X : mapping of str to {array-like, sparse matrix} of shape (n_samples, n_features_m), or {array-like, sparse matrix} of shape (n_samples, n_features)
             One nonnegative matrix per modality, rows aligned (row i of every modality is
-            example i). Or one ``dask.array`` per modality, split by rows only, the same row
+            example i); or, with ``modalities``, one table whose columns it splits. Or one ``dask.array`` per modality, split by rows only, the same row
             chunks for all (dense or sparse chunks): the modalities are stacked chunk by chunk
             and fitted by the distributed solver (:mod:`mmconcepts.nmf`), with the same
             iterates as in memory; ``fit_transform`` and ``transform`` then return dask arrays.
@@ -292,7 +399,8 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         ndarray of shape (n_samples, n_components)
         """
         validate_params(self, self._parameter_constraints, hints=self._hints)
-        mods = self._check_modalities(X)
+        split, width = self._by_modality(X, fitting=True)
+        mods = self._check_modalities(split)
         scales = {}
         for name, Xm in mods.items():
             l1 = _mean_l1(Xm) if self.normalize == "l1" else 1.0
@@ -308,6 +416,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.nmf_ = nmf
         self.components_ = nmf.components_
         self.n_samples_seen_ = float(stacked.shape[0])
+        self._remember_width(width)
         return W
 
     def partial_fit(self, X: Mapping[str, Any], y: Any = None) -> MultimodalNMF:
@@ -354,9 +463,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : mapping of str to {array-like, sparse matrix} of shape (n_batch, n_features_m)
+        X : mapping of str to {array-like, sparse matrix} of shape (n_batch, n_features_m), or {array-like, sparse matrix} of shape (n_batch, n_features)
             One nonnegative matrix per modality, rows aligned; the same modalities, with
-            the same numbers of features, at every call.
+            the same numbers of features, at every call. Or, with ``modalities``, one table
+            whose columns it splits.
         y : ignored
 
         Returns
@@ -372,6 +482,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         """
         validate_params(self, self._parameter_constraints, hints=self._hints)
         fitted = hasattr(self, "components_")
+        X, width = self._by_modality(X, fitting=not fitted)
         if fitted and isinstance(X, Mapping):
             unknown = [k for k in X if k not in self.modalities_]
             missing = [k for k in self.modalities_ if k not in X]
@@ -432,6 +543,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.nmf_ = nmf
         self.components_ = nmf.components_
         self.n_samples_seen_ = rho * seen + n_batch
+        self._remember_width(width)
         return self
 
     def _rescale(self, nmf: NMF, names: Sequence[str], n_features: Mapping[str, int],
@@ -454,26 +566,107 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 np.maximum(H[:, cols], floor, out=H[:, cols])
         nmf.components_ = H
 
-    def transform(self, X: Mapping[str, Any]) -> np.ndarray:
+    def _observed(self, X: Any) -> dict[str, Any]:
+        """The checked matrices of the modalities X observes, for a fitted learner (transform, score)."""
+        check_is_fitted(self)
+        X, _ = self._by_modality(X, fitting=False)
+        if isinstance(X, Mapping):
+            unknown = [k for k in X if k not in self.modalities_]
+            if unknown:
+                raise DataError(f"unknown modality {unknown[0]!r}; the learner knows {self.modalities_}.")
+        return self._check_modalities(X)
+
+    def transform(self, X: Any) -> np.ndarray:
         """Internal representations from any subset of the modalities (eq. 6.3).
 
         Parameters
         ----------
-        X : mapping of str to array-like
-            The observed modalities (any non-empty subset of ``modalities_``), rows aligned.
+        X : mapping of str to array-like, or {array-like, sparse matrix} of shape (n_samples, n_features)
+            The observed modalities (any non-empty subset of ``modalities_``), rows aligned;
+            or, with ``modalities``, one table holding every modality.
 
         Returns
         -------
         ndarray of shape (n_samples, n_components)
         """
-        check_is_fitted(self)
-        if isinstance(X, Mapping):
-            unknown = [k for k in X if k not in self.modalities_]
-            if unknown:
-                raise DataError(f"unknown modality {unknown[0]!r}; the learner knows {self.modalities_}.")
-        mods = self._check_modalities(X)
+        mods = self._observed(X)
         stacked, cols = self._stack(mods, self.modalities_, self.n_features_, self.scales_)
         return self.nmf_.transform(stacked, features=cols)
+
+    def score(self, X: Any, y: Any) -> float:
+        """Cross-modal success on held-out pairs: the matching of thesis section 6.6.1 (Fig. 6.3).
+
+        Every example of X is seen in one modality ``a`` (its internal representation from
+        ``a`` alone, :meth:`transform`) and matched against references seen in another
+        modality ``b``: for each concept present among the *other* examples of X, one of
+        them is drawn at random and represented from ``b`` alone; the example succeeds when
+        the nearest reference (cosine dissimilarity of the internal representations,
+        :data:`SCORE_METRIC`) has its concept. This is chapter 6's "internal space"
+        comparison (:func:`~mmconcepts.multimodal.matching_success_rate` over
+        :data:`SCORE_DRAWS` draws per example), except that an example's own view in ``b`` is
+        never among its references, so the score measures concepts shared across
+        modalities, not the recognition of a pair. The score is the mean over every ordered
+        pair of distinct modalities (a -> b and b -> a both count) of the fraction of
+        successes. Higher is better, as scikit-learn's model selection expects.
+
+        Chance level: ``1 / K``, K the number of concepts among the other examples (the
+        number of concepts in ``y`` when each has at least two examples), for a learner whose
+        representations say nothing of the concepts. An example whose concept has no other
+        example in X cannot be matched and is left out.
+
+        The draws are seeded: from an int ``random_state`` (on a stream of its own, not the
+        learner's), else from a fixed seed, so a fitted learner's score is deterministic and
+        every candidate of a grid search is scored on the same draws.
+
+        Parameters
+        ----------
+        X : mapping of str to array-like, or {array-like, sparse matrix} of shape (n_samples, n_features)
+            Held-out examples in at least two modalities, as :meth:`transform` takes them.
+        y : array-like of shape (n_samples,)
+            The concept of each example.
+
+        Returns
+        -------
+        float
+            In [0, 1].
+
+        Raises
+        ------
+        DataError
+            Without ``y``, with ``y`` of another length than X, with fewer than two
+            modalities, or when no example's concept has another example in X.
+        """
+        mods = self._observed(X)
+        names = [m for m in self.modalities_ if m in mods]
+        if len(names) < 2:
+            raise DataError(f"score matches examples across modalities: X needs at least two of {self.modalities_}; "
+                            f"got {names}.")
+        if y is None:
+            raise DataError("score needs y, the concept of each example of X (an array of shape (n_samples,)).")
+        y = np.asarray(y)
+        n = next(iter(mods.values())).shape[0]
+        if y.shape != (n,):
+            raise DataError(f"y must have one concept per example of X, shape ({n},); got shape {y.shape}.")
+        labels, inverse, counts = np.unique(y, return_inverse=True, return_counts=True)
+        scored = np.flatnonzero(counts[inverse] >= 2)  # an example whose concept has another example in X
+        if scored.size == 0:
+            raise DataError(f"score needs concepts with at least two examples in X; every concept of y has one "
+                            f"({labels.size} example(s)).")
+        W = {m: self.transform({m: mods[m]}) for m in names}
+        directions = [(a, b) for a in names for b in names if a != b]
+        seed = ([int(self.random_state), _SCORE_STREAM] if isinstance(self.random_state, (int, np.integer))
+                else _SCORE_STREAM)
+        rates = []
+        for (a, b), stream in zip(directions, np.random.SeedSequence(seed).spawn(len(directions))):
+            D = pairwise_divergence(W[a], W[b], SCORE_METRIC)
+            rng = np.random.default_rng(stream)
+            wins = 0.0
+            for i in scored:
+                others = np.flatnonzero(np.arange(n) != i)
+                wins += matching_success_rate(D[i:i + 1, others], y[i:i + 1], y[others], n_draws=SCORE_DRAWS,
+                                              random_state=rng)
+            rates.append(wins / scored.size)
+        return float(np.mean(rates))
 
     def reconstruct(self, W: Any, modality: str | Sequence[str]) -> np.ndarray:
         """Expected perception in ``modality`` from internal representations, in its own units.
@@ -509,6 +702,12 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         for name in names:
             out.append(W @ self.components_[:, self._slice(name)] * self.scales_[name])
         return np.hstack(out)
+
+    @property
+    def n_iter_(self) -> int:
+        """Iterations of the last :meth:`fit` or :meth:`partial_fit` call (``nmf_.n_iter_``)."""
+        check_is_fitted(self, "nmf_")
+        return int(self.nmf_.n_iter_)
 
     def component_slice(self, modality: str) -> slice:
         """Columns of ``components_`` belonging to ``modality``."""

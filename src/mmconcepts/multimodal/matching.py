@@ -21,8 +21,8 @@ Kullback-Leibler divergence after normalising both sides to sum to one; ``"kl_re
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,7 +30,14 @@ from numpy.typing import ArrayLike
 
 from .._validation import Interval, Options, check_random_state, validate_params
 from ..errors import DataError
-from .learner import MultimodalNMF
+
+
+class CrossmodalModel(Protocol):
+    """What the matching needs of a fitted learner (:class:`~mmconcepts.multimodal.MultimodalNMF`)."""
+
+    def transform(self, X: Mapping[str, Any]) -> np.ndarray: ...
+
+    def reconstruct(self, W: Any, modality: str | Sequence[str]) -> np.ndarray: ...
 
 __all__ = ["METRICS", "SPACES", "pairwise_divergence", "crossmodal_distances", "matching_success_rate"]
 
@@ -129,7 +136,7 @@ def _names(X: Mapping[str, Any], what: str) -> list[str]:
 
 
 def crossmodal_distances(
-    model: MultimodalNMF,
+    model: CrossmodalModel,
     X_test: Mapping[str, Any],
     X_ref: Mapping[str, Any],
     *,
