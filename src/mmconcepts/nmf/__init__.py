@@ -22,6 +22,8 @@ NMF
     The scikit-learn estimator over it, with ``transform(X, features=..., mask=...)``,
     ``inverse_transform(W, features=...)`` and ``partial_fit``; ``NMF.from_params(owner)``
     builds one from the NMF parameters of an estimator that takes them under NMF's names.
+select_rank, RankSelection
+    The number of components chosen by the error on held-out entries (masked fits).
 beta_divergence
     D_beta(X | WH) (eq. 2.2-2.3), never densifying a sparse X.
 match_components, dictionary_distance
@@ -47,6 +49,7 @@ from ._solver import beta_nmf
 from ._updates import NMFResult
 from .compare import ComponentMatching, dictionary_distance, match_components
 from .labels import DEFAULT_THRESHOLD_GRID, LabelNMF, make_svm_baseline
+from .rank import RankSelection, select_rank
 from .scores import l_full, l_full_curve, l_given_number, l_single, threshold_scores
 from .sparseness import hoyer_sparseness, project_hoyer
 
@@ -70,6 +73,8 @@ __all__ = [
     "l_full",
     "l_full_curve",
     "threshold_scores",
+    "select_rank",
+    "RankSelection",
     "beta_nmf_out_of_core",
     "save_npz_chunks",
     "load_npz_chunks",
