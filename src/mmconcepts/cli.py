@@ -13,7 +13,9 @@ Examples
     mmconcepts report results
 
 Exit codes: 0 on success, 1 if an experiment failed (or another error occurred), 2 on a
-usage error (bad option, unknown experiment id, bad ``--data``).
+usage error (bad option, unknown experiment id, a ``--data`` path that does not exist or does
+not hold its set, a ``--data-root`` that does not exist or holds no known set without
+``--allow-generated``, ``--variant real`` when no real set of the experiment is found).
 """
 
 from __future__ import annotations
@@ -131,6 +133,11 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         "--data", metavar="NAME=PATH", action="append", default=[],
         help="a real data set for the experiments that use NAME, overriding the data root's "
              "(repeatable; see `mmconcepts data list` for the names)",
+    )
+    parser.add_argument(
+        "--allow-generated", action="store_true",
+        help="accept a --data-root that holds no known data set and run on generated data (without it, such a "
+             "root is an error: a wrong folder would otherwise silently give results on generated data)",
     )
     parser.add_argument(
         "--workers", "-j", metavar="N", type=_workers, default=1,
@@ -434,14 +441,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     try:
         exp = get(args.id)
         exp.make_config(args.preset, seed=args.seed)
-        plan = DataPlan.build([exp], data, args.data_root)  # --data and --data-root checked, resolved once
+        # --data and --data-root checked, resolved once
+        plan = DataPlan.build([exp], data, args.data_root, allow_generated=args.allow_generated)
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
+    entry = plan.entry(exp)
+    if args.variant == "real" and not entry.sets:
+        raise _UsageError(f"--variant real: {plan.missing(exp)}")
+    if args.variant == "synthetic" and not exp.synthetic:
+        raise _UsageError(f"--variant synthetic: {exp.id} runs only on real data ({', '.join(exp.datasets)}); "
+                          "run it without --variant, or with --variant real.")
     record = run_experiment(
         exp, preset=args.preset, seed=args.seed, output=args.output, data_plan=plan, variant=args.variant,
         workers=args.workers, scheduler=args.scheduler, force=args.force, progress=not args.quiet, raise_errors=False,
     )
-    secondary = plan.entry(exp).secondary(record.variant)
+    secondary = entry.secondary(record.variant)
     _print_record(record, record_path(args.output, exp.id, secondary=secondary))
     if record["status"] == "failed" and args.verbose and record.get("traceback"):
         print(record["traceback"], file=sys.stderr, end="")
@@ -457,7 +471,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     try:
         for exp_id in args.only or ():
             get(exp_id)
-        plan = DataPlan.build(all_experiments(), data, args.data_root)  # --data and --data-root checked, resolved once
+        # --data and --data-root checked, resolved once
+        plan = DataPlan.build(all_experiments(), data, args.data_root, allow_generated=args.allow_generated)
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
     records = reproduce(
