@@ -361,9 +361,36 @@ def _setup_logging(verbose: int, quiet: bool) -> None:
         root.setLevel(logging.INFO)
 
 
-def _columns(rows: list[list[str]], indent: str = "  ") -> str:
+def _columns(rows: list[list[str]], indent: str = "  ", width: int | None = None) -> str:
+    """``rows`` as aligned columns; with ``width``, the widest columns but the first are narrowed (down to
+    :data:`_MIN_COLUMN` characters) and their cells wrapped at spaces (cut where a word is longer) so that no
+    line is longer than ``width``, when it can be."""
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join(indent + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+    if width is not None:
+        room = width - len(indent) - 2 * (len(widths) - 1)
+        while sum(widths) > room:
+            i = max(range(1, len(widths)), key=lambda k: widths[k], default=0)
+            if i == 0 or widths[i] <= _MIN_COLUMN:
+                break
+            widths[i] -= 1
+    lines = []
+    for r in rows:
+        cells = [textwrap.wrap(c, w, break_on_hyphens=False) or [""] for c, w in zip(r, widths)]
+        for k in range(max(len(c) for c in cells)):
+            parts = [(c[k] if k < len(c) else "").ljust(w) for c, w in zip(cells, widths)]
+            lines.append((indent + "  ".join(parts)).rstrip())
+    return "\n".join(lines)
+
+
+#: The narrowest a column of :func:`_columns` is made to fit the terminal.
+_MIN_COLUMN = 8
+
+
+def _terminal_width() -> int:
+    """Columns of the terminal (``$COLUMNS`` first); 100 when the output is not a terminal."""
+    import shutil
+
+    return shutil.get_terminal_size((100, 24)).columns
 
 
 def _claims_summary(claims: list[dict[str, Any]]) -> str:
@@ -427,7 +454,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
         return 0
     rows = [["id", "title", "thesis", "data"]]
     rows += [[e.id, e.title, e.thesis_ref, ", ".join(e.datasets) or "-"] for e in experiments]
-    print(_columns(rows, indent=""))
+    print(_columns(rows, indent="", width=_terminal_width()))  # long cells wrapped within their column
     return 0
 
 

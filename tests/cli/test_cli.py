@@ -29,6 +29,29 @@ def test_list(toy, capsys):
     assert any(line.startswith("toy-data") and line.rstrip().endswith("toyfile") for line in lines)
 
 
+def test_list_fits_the_terminal_width(toy, capsys, monkeypatch):
+    from mmconcepts.experiments import Result
+
+    title = "A very long title of a toy experiment that goes on and on well past any sensible width of a terminal"
+    exp = toy.make_experiment("toy-long", lambda config, ctx: Result(metrics={}), datasets=("fsdd", "msr-action3d",
+                                                                                          "eth80", "acorns", "audio"))
+    register(type(exp)(**{**{f: getattr(exp, f) for f in ("id", "thesis_ref", "config_cls", "run", "datasets")},
+                          "title": title}))
+    for columns in ("100", "60"):
+        monkeypatch.setenv("COLUMNS", columns)
+        assert main(["list"]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert max(len(line) for line in lines) <= int(columns)
+        start = next(i for i, line in enumerate(lines) if line.startswith("toy-long "))
+        end = next((i for i in range(start + 1, len(lines)) if not lines[i].startswith(" ")), len(lines))
+        block = lines[start:end]  # the experiment's line and its continuation lines
+        column = lines[0].index("title")
+        assert " ".join(line[column:].split("  ")[0].strip() for line in block) == title  # wrapped, not cut
+    monkeypatch.setenv("COLUMNS", "300")  # a wide terminal: one line per experiment, as before
+    assert main(["list"]) == 0
+    assert any(title in line for line in capsys.readouterr().out.splitlines())
+
+
 def test_run_prints_summary_and_writes_result(toy, in_tmp, capsys):
     assert main(["run", "toy-mean"]) == 0
     out = capsys.readouterr().out
@@ -172,11 +195,11 @@ def test_a_data_path_that_does_not_hold_its_set_exits_2(toy, in_tmp, capsys):
     _register_fsdd_experiment(toy)
     bad = in_tmp / "my-fsdd"
     bad.mkdir()
-    (bad / "labels.csv").write_text("file,label\n0_alice_0.wav,zero\n")
+    (bad / "labels.csv").write_text("file,tags\n0_alice_0.wav,zero\n")
     assert main(["run", "toy-fsdd", "--data", f"fsdd={bad}", "-o", "out"]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: --data fsdd={bad}: the folder does not hold 'fsdd' in its layout (")
-    assert "lacks column(s) ['speaker', 'labels']" in err and "Expected: Mono 8 kHz WAV files" in err
+    assert "lacks column(s) ['labels', 'speaker']" in err and "Expected: Mono 8 kHz WAV files" in err
     assert main(["run", "toy-fsdd", "--data", f"fsdd={in_tmp / 'nowhere'}", "-o", "out"]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert not (in_tmp / "out").exists()
@@ -195,7 +218,7 @@ def test_a_variant_that_cannot_run_exits_2_naming_the_sets_it_needs(toy, in_tmp,
     (in_tmp / "root" / "fsdd").mkdir(parents=True)
     _fsdd_like(in_tmp / "root" / "audio")  # a known set, not one the experiment uses
     (in_tmp / "root" / "audio").rename(in_tmp / "root" / "images")
-    (in_tmp / "root" / "images" / "labels.csv").write_text("file,label\n0_alice_0.wav,zero\n")
+    (in_tmp / "root" / "images" / "labels.csv").write_text("file,labels\n0_alice_0.wav,zero\n")
     assert main(["run", "toy-fsdd", "--variant", "real", "--data-root", "root", "-o", "out"]) == 2
     err = capsys.readouterr().err
     assert f"and none is in the data root {str(in_tmp / 'root')!r} ({in_tmp / 'root' / 'fsdd'}: no labels.csv" in err
