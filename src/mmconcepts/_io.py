@@ -16,7 +16,8 @@ from pathlib import Path
 from .errors import DataFormatError, ParameterError
 
 __all__ = ["check_output_dir", "atomic_dir", "atomic_path", "atomic_write", "folder_lock", "leftover_dirs",
-           "read_csv_rows", "replace_dir"]
+           "read_csv_rows", "read_labels_csv", "split_labels", "LABELS_HEADER", "LABEL_SEPARATOR", "OLD_LABEL_COLUMNS",
+           "replace_dir"]
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
@@ -37,6 +38,72 @@ def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
     return header, rows
+
+
+#: The columns every generic layout's ``labels.csv`` starts with: the file (relative to the folder) and its labels.
+LABELS_HEADER = ("file", "labels")
+
+#: What separates several labels in a ``labels`` cell.
+LABEL_SEPARATOR = ";"
+
+#: Old spellings of the ``labels`` column, still read (with a :class:`FutureWarning`).
+OLD_LABEL_COLUMNS = ("label",)
+
+
+def read_labels_csv(path: Path, *, layout: str, required: tuple[str, ...] = (),
+                    optional: tuple[str, ...] = ()) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
+    """Header and ``(line number, row)`` pairs of a generic layout's ``labels.csv``.
+
+    The header is ``file,labels`` (:data:`LABELS_HEADER`; several labels in a cell separated by
+    ``;``, :func:`split_labels`), then the layout's own columns. A table written with an old
+    spelling of ``labels`` (:data:`OLD_LABEL_COLUMNS`: ``label``) is read as if it had the new
+    one, with one :class:`FutureWarning` per table read, naming the file and the new header.
+
+    Parameters
+    ----------
+    path : Path
+        The ``labels.csv`` file.
+    layout : str
+        The layout's name, for messages (``"generic image"``).
+    required, optional : tuple of str
+        The layout's columns after ``file,labels`` that must be there, and those it also reads;
+        named in messages.
+
+    Returns
+    -------
+    header : list of str
+        The columns, ``labels`` under its new spelling.
+    rows : list of (int, dict of str to str)
+        Line number and cells of each row, cells stripped; the labels under ``"labels"``.
+
+    Raises
+    ------
+    DataFormatError
+        If the file cannot be read, or a column of ``file``, ``labels`` and ``required`` is
+        missing (the message names the file, the header found and the one expected).
+    """
+    header, rows = read_csv_rows(path)
+    columns = [*LABELS_HEADER, *required]
+    expected = ",".join(columns) + "".join(f"[,{c}]" for c in optional)
+    old = next((c for c in OLD_LABEL_COLUMNS if c in header), None)
+    if "labels" not in header and old is not None:
+        import warnings
+
+        warnings.warn(f"{path}: the column {old!r} is the old spelling of 'labels'; it is read for now, but a "
+                      f"future version will not read it. Write the header {expected} (several labels in a cell "
+                      f"separated by '{LABEL_SEPARATOR}').", FutureWarning, stacklevel=3)
+        header = ["labels" if h == old else h for h in header]
+        rows = [(line, {("labels" if k == old else k): v for k, v in row.items()}) for line, row in rows]
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise DataFormatError(f"{path}: missing column(s) {missing}; the {layout} layout's labels.csv has the header "
+                              f"{expected} (labels separated by '{LABEL_SEPARATOR}'); found {header}.")
+    return header, rows
+
+
+def split_labels(cell: str) -> tuple[str, ...]:
+    """The labels of a ``labels`` cell: split at ``;`` (:data:`LABEL_SEPARATOR`), stripped, empty ones dropped."""
+    return tuple(part.strip() for part in cell.split(LABEL_SEPARATOR) if part.strip())
 
 
 def replace_dir(tmp: Path, root: Path) -> None:

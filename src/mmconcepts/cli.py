@@ -13,7 +13,9 @@ Examples
     mmconcepts report results
 
 Exit codes: 0 on success, 1 if an experiment failed (or another error occurred), 2 on a
-usage error (bad option, unknown experiment id, bad ``--data``).
+usage error (bad option, unknown experiment id, a ``--data`` path that does not exist or does
+not hold its set, a ``--data-root`` that does not exist or holds no known set without
+``--allow-generated``, ``--variant real`` when no real set of the experiment is found).
 """
 
 from __future__ import annotations
@@ -131,6 +133,11 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         "--data", metavar="NAME=PATH", action="append", default=[],
         help="a real data set for the experiments that use NAME, overriding the data root's "
              "(repeatable; see `mmconcepts data list` for the names)",
+    )
+    parser.add_argument(
+        "--allow-generated", action="store_true",
+        help="accept a --data-root that holds no known data set and run on generated data (without it, such a "
+             "root is an error: a wrong folder would otherwise silently give results on generated data)",
     )
     parser.add_argument(
         "--workers", "-j", metavar="N", type=_workers, default=1,
@@ -354,9 +361,36 @@ def _setup_logging(verbose: int, quiet: bool) -> None:
         root.setLevel(logging.INFO)
 
 
-def _columns(rows: list[list[str]], indent: str = "  ") -> str:
+def _columns(rows: list[list[str]], indent: str = "  ", width: int | None = None) -> str:
+    """``rows`` as aligned columns; with ``width``, the widest columns but the first are narrowed (down to
+    :data:`_MIN_COLUMN` characters) and their cells wrapped at spaces (cut where a word is longer) so that no
+    line is longer than ``width``, when it can be."""
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join(indent + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+    if width is not None:
+        room = width - len(indent) - 2 * (len(widths) - 1)
+        while sum(widths) > room:
+            i = max(range(1, len(widths)), key=lambda k: widths[k], default=0)
+            if i == 0 or widths[i] <= _MIN_COLUMN:
+                break
+            widths[i] -= 1
+    lines = []
+    for r in rows:
+        cells = [textwrap.wrap(c, w, break_on_hyphens=False) or [""] for c, w in zip(r, widths)]
+        for k in range(max(len(c) for c in cells)):
+            parts = [(c[k] if k < len(c) else "").ljust(w) for c, w in zip(cells, widths)]
+            lines.append((indent + "  ".join(parts)).rstrip())
+    return "\n".join(lines)
+
+
+#: The narrowest a column of :func:`_columns` is made to fit the terminal.
+_MIN_COLUMN = 8
+
+
+def _terminal_width() -> int:
+    """Columns of the terminal (``$COLUMNS`` first); 100 when the output is not a terminal."""
+    import shutil
+
+    return shutil.get_terminal_size((100, 24)).columns
 
 
 def _claims_summary(claims: list[dict[str, Any]]) -> str:
@@ -420,7 +454,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
         return 0
     rows = [["id", "title", "thesis", "data"]]
     rows += [[e.id, e.title, e.thesis_ref, ", ".join(e.datasets) or "-"] for e in experiments]
-    print(_columns(rows, indent=""))
+    print(_columns(rows, indent="", width=_terminal_width()))  # long cells wrapped within their column
     return 0
 
 
@@ -434,14 +468,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     try:
         exp = get(args.id)
         exp.make_config(args.preset, seed=args.seed)
-        plan = DataPlan.build([exp], data, args.data_root)  # --data and --data-root checked, resolved once
+        # --data and --data-root checked, resolved once
+        plan = DataPlan.build([exp], data, args.data_root, allow_generated=args.allow_generated)
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
+    entry = plan.entry(exp)
+    if args.variant == "real" and not entry.sets:
+        raise _UsageError(f"--variant real: {plan.missing(exp)}")
+    if args.variant == "synthetic" and not exp.synthetic:
+        raise _UsageError(f"--variant synthetic: {exp.id} runs only on real data ({', '.join(exp.datasets)}); "
+                          "run it without --variant, or with --variant real.")
     record = run_experiment(
         exp, preset=args.preset, seed=args.seed, output=args.output, data_plan=plan, variant=args.variant,
         workers=args.workers, scheduler=args.scheduler, force=args.force, progress=not args.quiet, raise_errors=False,
     )
-    secondary = plan.entry(exp).secondary(record.variant)
+    secondary = entry.secondary(record.variant)
     _print_record(record, record_path(args.output, exp.id, secondary=secondary))
     if record["status"] == "failed" and args.verbose and record.get("traceback"):
         print(record["traceback"], file=sys.stderr, end="")
@@ -457,7 +498,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     try:
         for exp_id in args.only or ():
             get(exp_id)
-        plan = DataPlan.build(all_experiments(), data, args.data_root)  # --data and --data-root checked, resolved once
+        # --data and --data-root checked, resolved once
+        plan = DataPlan.build(all_experiments(), data, args.data_root, allow_generated=args.allow_generated)
     except MMConceptsError as exc:
         raise _UsageError(str(exc)) from exc
     records = reproduce(

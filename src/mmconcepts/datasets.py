@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
+from ._io import LABELS_HEADER, OLD_LABEL_COLUMNS
 from .errors import DataError, ParameterError
 
 __all__ = [
@@ -114,14 +115,15 @@ def _check_labels_csv(path: Path, columns: tuple[str, ...], layout: str) -> str 
     header = _csv_header(labels)
     if header is None:
         return f"{labels} is empty or unreadable"
-    missing = [c for c in columns if c not in header]
+    have = set(header) | ({"labels"} if set(OLD_LABEL_COLUMNS) & set(header) else set())  # read with a warning
+    missing = [c for c in columns if c not in have]
     if missing:
         return f"{labels} lacks column(s) {missing}; its header is {header}, expected {','.join(columns)}"
     return None
 
 
 def _check_fsdd(path: Path) -> str | None:
-    problem = _check_labels_csv(path, ("file", "speaker", "labels"), "generic audio")
+    problem = _check_audio(path)
     if problem:
         if not (path / "labels.csv").exists() and next(iter(_iter_files(path, _fsdd_name)), None) is not None:
             problem += "; it holds FSDD WAVs: move them aside and run `mmconcepts data fetch fsdd`, or write labels.csv"
@@ -248,23 +250,15 @@ def _count_acorns(path: Path) -> int:
 
 
 def _check_audio(path: Path) -> str | None:
-    return _check_labels_csv(path, ("file", "speaker", "labels"), "generic audio")
+    return _check_labels_csv(path, (*LABELS_HEADER, "speaker"), "generic audio")
 
 
 def _check_images(path: Path) -> str | None:
-    return _check_labels_csv(path, ("file", "label"), "generic image")
+    return _check_labels_csv(path, LABELS_HEADER, "generic image")
 
 
 def _check_motion(path: Path) -> str | None:
-    labels = path / "labels.csv"
-    if not labels.is_file():
-        return "no labels.csv (the generic motion layout needs one with columns file,labels)"
-    header = _csv_header(labels)
-    if header is None:
-        return f"{labels} is empty or unreadable"
-    if "file" not in header or not ({"labels", "label"} & set(header)):
-        return f"{labels} lacks the column file or labels; its header is {header}, expected file,labels"
-    return None
+    return _check_labels_csv(path, LABELS_HEADER, "generic motion")
 
 
 def _count_labels_csv(path: Path) -> int:
@@ -351,7 +345,7 @@ _LIST: tuple[DatasetInfo, ...] = (
         folders=("fsdd",),
         layout=(
             "Mono 8 kHz WAV files named {digit}_{speaker}_{index}.wav (one digit word said alone, "
-            "'zero'..'nine') and labels.csv in the generic audio layout (file,speaker,labels,"
+            "'zero'..'nine') and labels.csv in the generic audio layout (file,labels,speaker,"
             "transcription; labels is the digit's word). `data fetch fsdd` writes this layout from "
             "the v1.0.9 archive (5 speakers, 2500 recordings; upstream's recordings/ folder "
             "flattened, its README.md and metadata.py kept as upstream-*)."
@@ -522,7 +516,7 @@ _LIST: tuple[DatasetInfo, ...] = (
         folders=("audio",),
         layout=(
             "WAV or FLAC files (in the folder or sub-folders) and labels.csv with columns "
-            "file,speaker,labels,transcription (labels separated by ';'; transcription optional; "
+            "file,labels,speaker,transcription (labels separated by ';'; transcription optional; "
             "file relative to the folder); optional word_timings.csv (file,word,start,end)."
         ),
         source="your own data",
@@ -559,8 +553,8 @@ _LIST: tuple[DatasetInfo, ...] = (
         modality="images",
         folders=("images",),
         layout=(
-            "Image files (in the folder or sub-folders) and labels.csv with columns file,label "
-            "(optionally view and category; file relative to the folder)."
+            "Image files (in the folder or sub-folders) and labels.csv with columns file,labels "
+            "(one label per image; optionally view and category; file relative to the folder)."
         ),
         source="your own data",
         licence="yours",
@@ -719,7 +713,7 @@ def _single_top(folder: Path) -> Path:
 
 def _arrange_fsdd(unpacked: Path, out: Path) -> None:
     """FSDD archive -> WAVs at the top level + labels.csv (generic audio layout)."""
-    from .sound.data import FSDD_WORDS, parse_fsdd_name
+    from .sound.data import AUDIO_LABELS_HEADER, FSDD_WORDS, parse_fsdd_name
 
     wavs = sorted(_iter_files(unpacked, _fsdd_name), key=lambda p: p.name)
     if not wavs:
@@ -736,10 +730,10 @@ def _arrange_fsdd(unpacked: Path, out: Path) -> None:
         digit, speaker, _ = parsed
         word = FSDD_WORDS[digit]
         shutil.move(str(p), out / p.name)
-        rows.append((p.name, speaker, word, word))
+        rows.append((p.name, word, speaker, word))
     with open(out / "labels.csv", "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(("file", "speaker", "labels", "transcription"))
+        w.writerow(AUDIO_LABELS_HEADER)
         w.writerows(rows)
     top = _single_top(unpacked)
     for extra in ("README.md", "metadata.py"):

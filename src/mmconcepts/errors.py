@@ -16,6 +16,7 @@ __all__ = [
     "DataFormatError",
     "VersionMismatchError",
     "ExperimentError",
+    "MissingExtraError",
     "ConvergenceWarning",
     "ParameterWarning",
 ]
@@ -43,6 +44,14 @@ class VersionMismatchError(MMConceptsError, ValueError):
 
 class ExperimentError(MMConceptsError, RuntimeError):
     """An experiment cannot run (unknown id, missing data, a claim rule that does not parse)."""
+
+
+class MissingExtraError(MMConceptsError, ImportError):
+    """A package of an optional extra is not installed; the message names the extra to install
+    (``pip install "mmconcepts[<extra>]"``).
+
+    Subclass of :class:`ImportError`, so ``except ImportError`` keeps working.
+    """
 
 
 class ConvergenceWarning(_SklearnConvergenceWarning):

@@ -29,6 +29,29 @@ def test_list(toy, capsys):
     assert any(line.startswith("toy-data") and line.rstrip().endswith("toyfile") for line in lines)
 
 
+def test_list_fits_the_terminal_width(toy, capsys, monkeypatch):
+    from mmconcepts.experiments import Result
+
+    title = "A very long title of a toy experiment that goes on and on well past any sensible width of a terminal"
+    exp = toy.make_experiment("toy-long", lambda config, ctx: Result(metrics={}), datasets=("fsdd", "msr-action3d",
+                                                                                          "eth80", "acorns", "audio"))
+    register(type(exp)(**{**{f: getattr(exp, f) for f in ("id", "thesis_ref", "config_cls", "run", "datasets")},
+                          "title": title}))
+    for columns in ("100", "60"):
+        monkeypatch.setenv("COLUMNS", columns)
+        assert main(["list"]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert max(len(line) for line in lines) <= int(columns)
+        start = next(i for i, line in enumerate(lines) if line.startswith("toy-long "))
+        end = next((i for i in range(start + 1, len(lines)) if not lines[i].startswith(" ")), len(lines))
+        block = lines[start:end]  # the experiment's line and its continuation lines
+        column = lines[0].index("title")
+        assert " ".join(line[column:].split("  ")[0].strip() for line in block) == title  # wrapped, not cut
+    monkeypatch.setenv("COLUMNS", "300")  # a wide terminal: one line per experiment, as before
+    assert main(["list"]) == 0
+    assert any(title in line for line in capsys.readouterr().out.splitlines())
+
+
 def test_run_prints_summary_and_writes_result(toy, in_tmp, capsys):
     assert main(["run", "toy-mean"]) == 0
     out = capsys.readouterr().out
@@ -118,6 +141,93 @@ def test_run_and_reproduce_resolve_the_data_root_once_and_refuse_a_mistyped_one(
         err = capsys.readouterr().err
         assert "the data root" in err and "does not exist" in err and "Did you mean" in err and "data'?" in err
         assert "Traceback" not in err and not (in_tmp / "typo").exists()
+
+
+def _fsdd_like(folder):
+    folder.mkdir(parents=True)
+    (folder / "labels.csv").write_text("file,speaker,labels,transcription\n0_alice_0.wav,alice,zero,zero\n")
+    (folder / "0_alice_0.wav").write_bytes(b"RIFF")
+    return folder
+
+
+def _register_fsdd_experiment(toy):
+    from mmconcepts.experiments import Result
+
+    return register(toy.make_experiment("toy-fsdd", lambda config, ctx: Result(metrics={"n": float(len(ctx.data))}),
+                                        datasets=("fsdd",)))
+
+
+def test_a_data_root_that_holds_no_known_set_exits_2_unless_generated_data_is_allowed(toy, in_tmp, capsys,
+                                                                                        monkeypatch):
+    _register_fsdd_experiment(toy)
+    empty = in_tmp / "empty"
+    empty.mkdir()
+    wrong = in_tmp / "wrong"
+    (wrong / "fsdd").mkdir(parents=True)  # present, but no labels.csv
+    for command in (["run", "toy-fsdd"], ["reproduce", "--only", "toy-fsdd"]):
+        assert main([*command, "--data-root", "empty", "-o", "out"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: --data-root 'empty': the folder ") and str(empty) in err
+        assert "holds no known data set" in err and "fsdd/, msr-action3d/, eth80/ or eth80-96px/" in err
+        assert "None of these folders is in it" in err and "--allow-generated" in err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+        assert main([*command, "--data-root", "wrong", "-o", "out"]) == 2
+        err = capsys.readouterr().err
+        assert f"Refused: {wrong / 'fsdd'}: no labels.csv" in err
+        assert not (in_tmp / "out").exists()  # refused before any work
+    # a set's own folder given as the root: the message names its parent
+    fsdd = _fsdd_like(in_tmp / "data" / "fsdd")
+    assert main(["run", "toy-fsdd", "--data-root", str(fsdd), "-o", "out"]) == 2
+    assert f"looks like the set 'fsdd' itself: give the folder that holds it ({str(fsdd.parent)!r})" in \
+        capsys.readouterr().err
+    # --allow-generated: the same roots run on generated data
+    assert main(["run", "toy-fsdd", "--data-root", "empty", "--allow-generated", "-o", "out"]) == 0
+    assert json.loads((in_tmp / "out" / "toy-fsdd.json").read_text())["variant"] == "synthetic"
+    assert main(["reproduce", "--only", "toy-fsdd", "--data-root", "wrong", "--allow-generated", "-o", "out2"]) == 0
+    # a root holding a known set is accepted, also when the experiment does not use it
+    assert main(["run", "toy-mean", "--data-root", "data", "-o", "out3"]) == 0
+    # a data root from the environment is not refused (no option named it)
+    monkeypatch.setenv("MMCONCEPTS_DATA_ROOT", str(empty))
+    assert main(["run", "toy-fsdd", "-o", "out4"]) == 0
+
+
+def test_a_data_path_that_does_not_hold_its_set_exits_2(toy, in_tmp, capsys):
+    _register_fsdd_experiment(toy)
+    bad = in_tmp / "my-fsdd"
+    bad.mkdir()
+    (bad / "labels.csv").write_text("file,tags\n0_alice_0.wav,zero\n")
+    assert main(["run", "toy-fsdd", "--data", f"fsdd={bad}", "-o", "out"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: --data fsdd={bad}: the folder does not hold 'fsdd' in its layout (")
+    assert "lacks column(s) ['labels', 'speaker']" in err and "Expected: Mono 8 kHz WAV files" in err
+    assert main(["run", "toy-fsdd", "--data", f"fsdd={in_tmp / 'nowhere'}", "-o", "out"]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not (in_tmp / "out").exists()
+    good = _fsdd_like(in_tmp / "good")
+    assert main(["run", "toy-fsdd", "--data", f"fsdd={good}", "-o", "out"]) == 0
+
+
+def test_a_variant_that_cannot_run_exits_2_naming_the_sets_it_needs(toy, in_tmp, capsys, monkeypatch):
+    from mmconcepts.experiments import Experiment, Result
+
+    monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
+    _register_fsdd_experiment(toy)
+    assert main(["run", "toy-fsdd", "--variant", "real", "-o", "out"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --variant real: toy-fsdd runs on real data of 'fsdd', and no data root was given")
+    (in_tmp / "root" / "fsdd").mkdir(parents=True)
+    _fsdd_like(in_tmp / "root" / "audio")  # a known set, not one the experiment uses
+    (in_tmp / "root" / "audio").rename(in_tmp / "root" / "images")
+    (in_tmp / "root" / "images" / "labels.csv").write_text("file,labels\n0_alice_0.wav,zero\n")
+    assert main(["run", "toy-fsdd", "--variant", "real", "--data-root", "root", "-o", "out"]) == 2
+    err = capsys.readouterr().err
+    assert f"and none is in the data root {str(in_tmp / 'root')!r} ({in_tmp / 'root' / 'fsdd'}: no labels.csv" in err
+    assert not (in_tmp / "out").exists()
+    register(Experiment(id="toy-real-only", title="Toy", thesis_ref="none", config_cls=toy.SmallConfig,
+                        run=lambda config, ctx: Result(metrics={}), datasets=("fsdd",), synthetic=False))
+    assert main(["run", "toy-real-only", "--variant", "synthetic", "-o", "out"]) == 2
+    assert "toy-real-only runs only on real data (fsdd)" in capsys.readouterr().err
+    assert main(["run", "toy-fsdd", "--variant", "real", "--data", f"fsdd={_fsdd_like(in_tmp / 'f')}"]) == 0
 
 
 def test_failed_experiment_exits_1(toy, in_tmp, capsys):

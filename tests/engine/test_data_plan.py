@@ -103,6 +103,7 @@ def test_the_record_holds_the_plan_entry_and_the_sets_the_run_used(toy, tmp_path
     _msr_like(root)
     given = tmp_path / "my-msr"
     given.mkdir()
+    (given / "a02_s01_e01_skeleton3D.txt").write_text("0 0 0 1\n" * 20)
     (exp,) = _experiments(toy, ("msr-action3d", "fsdd", "eth80"))
     plan = DataPlan.build([exp], {"msr-action3d": given}, root)
     entry = plan.entry(exp)
@@ -182,3 +183,26 @@ def test_a_plan_is_not_given_with_the_data_it_was_made_from(toy, tmp_path):
         run_experiment(exps[0], output=tmp_path, data_plan={"fsdd": tmp_path})
     with pytest.raises(ExperimentError, match="no entry for 'toy-mean'"):
         run_experiment("toy-mean", output=tmp_path, data_plan=plan)
+
+
+def test_a_given_data_root_that_holds_no_known_set_is_refused_unless_generated_data_is_allowed(toy, tmp_path):
+    exps = _experiments(toy, ("fsdd",))
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ExperimentError, match=r"holds no known data set; looked for fsdd/, .*allow_generated=True"):
+        DataPlan.build(exps, data_root=empty)
+    with pytest.raises(ExperimentError, match="holds no known data set"):
+        run_experiment(exps[0], output=tmp_path / "out", data_root=empty, progress=False)
+    plan = DataPlan.build(exps, data_root=empty, allow_generated=True)
+    assert plan.entry(exps[0]).variants == ("synthetic",)
+    assert "none is in the data root" in plan.missing(exps[0])
+    _msr_like(empty)  # a known set the experiment does not use: the root is accepted
+    assert DataPlan.build(exps, data_root=empty).entry(exps[0]).sets == {}
+
+
+def test_a_given_set_path_is_checked_against_its_layout(toy, tmp_path):
+    exps = _experiments(toy, ("msr-action3d",))
+    with pytest.raises(ExperimentError, match=r"does not hold 'msr-action3d' in its layout \(no aAA_sSS_eEE"):
+        DataPlan.build(exps, {"msr-action3d": tmp_path})
+    folder = _msr_like(tmp_path / "root")
+    assert DataPlan.build(exps, {"msr-action3d": folder}).entry(exps[0]).sets == {"msr-action3d": folder.resolve()}

@@ -453,6 +453,8 @@ def test_explicit_data_overrides_the_root_and_real_variant_skips_without_data(to
     assert rec["status"] == "skipped" and "--data-root" in rec["message"]
     other = tmp_path / "elsewhere"
     other.mkdir()
+    (other / "labels.csv").write_text("file,labels,speaker,transcription\n0_alice_0.wav,zero,alice,zero\n")
+    (other / "0_alice_0.wav").write_bytes(b"RIFF")  # a set given by path must hold its layout
     rec = run_experiment(exp, output=tmp_path / "b", data={"fsdd": other, "toyfile": other}, progress=False)
     assert rec["variant"] == "real" and rec["data"] == {"fsdd": str(other.resolve()), "toyfile": str(other.resolve())}
     assert rec["metrics"]["n_sets"] == 2.0

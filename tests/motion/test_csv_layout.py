@@ -151,8 +151,9 @@ def test_bad_rows_of_labels_csv(tmp_path, labels, message):
 
 
 @pytest.mark.parametrize("labels, message", [
-    ("path,labels\nr0.csv,1\n", r"labels\.csv: the header must have the columns file and labels"),
-    ("", r"labels\.csv: the header must have the columns file and labels"),
+    ("path,labels\nr0.csv,1\n", r"labels\.csv: missing column\(s\) \['file'\]; the generic motion layout's labels\.csv "
+                                 r"has the header file,labels \(labels separated by ';'\); found \['path', 'labels'\]"),
+    ("", r"labels\.csv: missing column\(s\) \['file', 'labels'\]"),
     (b"file,labels\nr0.csv,\xe9\n", r"Cannot read .*labels\.csv"),
 ])
 def test_unusable_labels_csv_raises_whatever_on_error(tmp_path, labels, message):
@@ -183,4 +184,4 @@ def test_the_layout_is_a_named_data_set(tmp_path):
     assert info.check(root) is None and info.count(root) == 3
     assert len(info.load(root)) == 3
     (root / "labels.csv").write_text("file,what\n")
-    assert "lacks the column file or labels" in info.check(root)
+    assert "lacks column(s) ['labels']; its header is ['file', 'what'], expected file,labels" in info.check(root)

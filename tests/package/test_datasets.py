@@ -239,12 +239,15 @@ def test_checks_and_counts_of_every_layout(tmp_path):
     au = tmp_path / "audio"
     au.mkdir()
     (au / "labels.csv").write_text("file,label\nx.wav,a\n")
-    assert "lacks column(s) ['speaker', 'labels']" in ds.DATASETS["audio"].check(au)
+    assert "lacks column(s) ['speaker']; its header is ['file', 'label'], expected file,labels,speaker" in \
+        ds.DATASETS["audio"].check(au)  # 'label', the old spelling of 'labels', is accepted
+    (au / "labels.csv").write_text("file,speaker\nx.wav,s\n")
+    assert "lacks column(s) ['labels']" in ds.DATASETS["audio"].check(au)
     (au / "labels.csv").write_text("file,speaker,labels,transcription\nx.wav,s,a,\ny.wav,s,b,\n")
     assert ds.DATASETS["audio"].check(au) is None and ds.DATASETS["audio"].count(au) == 2
     im = tmp_path / "images"
     im.mkdir()
-    (im / "labels.csv").write_text("file,label,view\na.png,cup,0\n")
+    (im / "labels.csv").write_text("file,labels,view\na.png,cup,0\n")
     assert ds.DATASETS["images"].check(im) is None and ds.DATASETS["images"].count(im) == 1
     assert ds.DATASETS["images"].check(tmp_path / "nothing").endswith("is not a folder")
 
@@ -285,8 +288,8 @@ def test_fetch_fsdd_from_loopback(server, tmp_path, no_env_root):
     assert ds.DATASETS["fsdd"].count(out) == len(FSDD_FILES)
     assert sorted(p.name for p in out.glob("*.wav")) == sorted(FSDD_FILES)
     lines = (out / "labels.csv").read_text().splitlines()
-    assert lines[0] == "file,speaker,labels,transcription"
-    assert "7_nicolas_12.wav,nicolas,seven,seven" in lines and len(lines) == 1 + len(FSDD_FILES)
+    assert lines[0] == "file,labels,speaker,transcription"
+    assert "7_nicolas_12.wav,seven,nicolas,seven" in lines and len(lines) == 1 + len(FSDD_FILES)
     assert (out / "upstream-README.md").is_file() and "sha256" in (out / "SOURCE.txt").read_text()
     # The generic audio loader reads the result.
     from mmconcepts.sound.data import load_generic_audio

@@ -148,7 +148,7 @@ def _write_image_set(root: Path):
     import imageio.v3 as iio
 
     rng = np.random.default_rng(0)
-    rows = ["file,label"]
+    rows = ["file,labels"]
     for i in range(N_FILES):
         iio.imwrite(root / f"im{i}.png", (rng.random((8, 9, 3)) * 255).astype(np.uint8))
         rows.append(f"im{i}.png,c{i}")

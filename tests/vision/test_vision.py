@@ -171,7 +171,7 @@ def test_image_folder_errors(tmp_path):
     (root / "labels.csv").write_text("file,name\na.png,x\n")
     with pytest.raises(DataFormatError, match="label"):
         load_image_folder(root)
-    (root / "labels.csv").write_text("file,label\na.png,x\nbroken.png,y\ng.png,z\nmissing.png,w\n")
+    (root / "labels.csv").write_text("file,labels\na.png,x\nbroken.png,y\ng.png,z\nmissing.png,w\n")
     with pytest.raises(DataFormatError, match="broken.png"):
         load_image_folder(root)
     with pytest.warns(RuntimeWarning, match="2 file"):

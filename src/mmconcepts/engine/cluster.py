@@ -27,6 +27,7 @@ import warnings
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
+from .._optional import optional_import
 from ..errors import ExperimentError, ParameterError
 
 __all__ = ["parse_scheduler", "open_client", "map_in_order", "DEFAULT_CONNECT_TIMEOUT"]
@@ -82,14 +83,7 @@ def parse_scheduler(spec: str) -> tuple[str, Any]:
 
 
 def _distributed() -> Any:
-    try:
-        import distributed
-    except ImportError as exc:  # pragma: no cover - the dask extra is missing
-        raise ExperimentError(
-            "--scheduler needs dask.distributed, which is not installed; install the dask extra: "
-            "pip install 'mmconcepts[dask]'."
-        ) from exc
-    return distributed
+    return optional_import("distributed", "dask", "a Dask cluster (--scheduler)")
 
 
 @contextlib.contextmanager

@@ -26,7 +26,7 @@ from .registry import all_experiments
 
 
 __all__ = ["VARIANTS", "DataPlan", "PlanEntry", "make_data_plan", "resolve_root", "parse_data_args", "check_data",
-           "data_signature"]
+           "check_root_holds_a_set", "data_signature"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
@@ -76,7 +76,8 @@ def check_data(
     Raises
     ------
     ExperimentError
-        If no experiment declares a name, or a path does not exist (both are named).
+        If no experiment declares a name, a path does not exist, or the path of a set of
+        :data:`mmconcepts.datasets.DATASETS` does not hold its layout (each is named).
     """
     if not data:
         return {}
@@ -98,8 +99,49 @@ def check_data(
         )
     for name, path in resolved.items():
         if not path.exists():
-            raise ExperimentError(f"--data {name}={path}: the path {str(path)!r} does not exist.")
+            raise ExperimentError(f"--data {name}={path}: the path {str(path)!r} does not exist; give the folder "
+                                  f"holding {name!r} (see `mmconcepts data list`).")
+        info = DATASETS.get(name)
+        problem = None if info is None else info.check(path)
+        if info is not None and problem is not None:
+            raise ExperimentError(f"--data {name}={path}: the folder does not hold {name!r} in its layout ({problem}). "
+                                  f"Expected: {info.layout}")
     return {name: path.resolve() for name, path in resolved.items()}
+
+
+def check_root_holds_a_set(root: Path, given: str | os.PathLike[str]) -> None:
+    """Refuse a data root that is a folder but holds none of the known sets.
+
+    Parameters
+    ----------
+    root : Path
+        The resolved data root (an existing folder).
+    given : str or path-like
+        The data root as it was given, named in the message.
+
+    Raises
+    ------
+    ExperimentError
+        If no set of :data:`mmconcepts.datasets.DATASETS` is found in ``root`` with a sound
+        layout. The message names the folders looked for, why each one present was refused,
+        and the set ``root`` itself looks like, if any (a set's folder given for its parent).
+    """
+    from ..datasets import DATASETS, dataset_status
+
+    rows = dataset_status(root)
+    if any(row["found"] is not None for row in rows):
+        return
+    looked = ", ".join(" or ".join(f + "/" for f in info.folders) for info in DATASETS.values())
+    refused = [f"{row['problem']}" for row in rows if row["problem"]]
+    why = f" Refused: {'; '.join(refused)}." if refused else " None of these folders is in it."
+    itself = [name for name, info in DATASETS.items() if info.check(root) is None]
+    hint = (f" It looks like the set {itself[0]!r} itself: give the folder that holds it "
+            f"({str(root.parent)!r}), or --data {itself[0]}={given}." if itself else "")
+    raise ExperimentError(
+        f"--data-root {str(given)!r}: the folder {str(root)!r} holds no known data set; looked for {looked}.{why}"
+        f"{hint} Fix: give the folder holding the real sets (see `mmconcepts data list --data-root DIR`), or pass "
+        "--allow-generated (DataPlan.build(..., allow_generated=True)) to run on generated data."
+    )
 
 
 def resolve_root(data_root: str | os.PathLike[str] | None = None) -> Path | None:
@@ -205,7 +247,7 @@ class DataPlan:
 
     @classmethod
     def build(cls, experiments: Sequence[Experiment], data: Mapping[str, str | os.PathLike[str]] | None = None,
-              data_root: str | os.PathLike[str] | None = None) -> DataPlan:
+              data_root: str | os.PathLike[str] | None = None, *, allow_generated: bool = False) -> DataPlan:
         """Resolve the data root and ``data`` once into the plan of ``experiments``.
 
         The root is looked at once for every set the experiments declare (each set's layout
@@ -219,12 +261,17 @@ class DataPlan:
             Real sets by name (``--data NAME=PATH``); checked by :func:`check_data`.
         data_root : str or path-like, optional
             The data root (default ``$MMCONCEPTS_DATA_ROOT``, else none): :func:`resolve_root`.
+        allow_generated : bool, default=False
+            Accept a ``data_root`` given that holds no known set (every experiment then runs on
+            generated data). A root from the environment is never refused.
 
         Raises
         ------
         ExperimentError
-            On a ``data`` name no experiment declares or a path that does not exist, or a
-            ``data_root`` that is not an existing folder.
+            On a ``data`` name no experiment declares, a path that does not exist or (for a
+            known set) does not hold the set's layout; a ``data_root`` that is not an existing
+            folder, or that holds no known set (:func:`check_root_holds_a_set`) unless
+            ``allow_generated``.
         """
         from ..datasets import DATASETS, find_datasets
 
@@ -232,6 +279,8 @@ class DataPlan:
         root = resolve_root(data_root)
         names = list(dict.fromkeys(n for exp in experiments for n in exp.datasets if n in DATASETS))
         found = find_datasets(root, names=names) if root is not None and root.is_dir() and names else {}
+        if data_root is not None and str(data_root) != "" and root is not None and not found and not allow_generated:
+            check_root_holds_a_set(root, data_root)  # a root given that holds no known set (a root from $ is not)
         located = {**{n: Path(p).resolve() for n, p in found.items()}, **given}
         entries = {}
         for exp in experiments:
@@ -242,6 +291,31 @@ class DataPlan:
         logger.debug("data plan: root %s; %s", root, "; ".join(
             f"{e.experiment}: {'+'.join(e.variants)} {sorted(e.sets)}" for e in entries.values()))
         return plan
+
+    def missing(self, exp: Experiment) -> str:
+        """Why no real set of ``exp`` is in the plan: the sets it needs and where they were looked for.
+
+        Returns
+        -------
+        str
+            One sentence for an error message, naming the sets ``exp`` declares (any one is enough),
+            the data root (or that there is none) and why each folder present under it was refused.
+        """
+        from ..datasets import DATA_ROOT_ENV, dataset_status
+
+        if not exp.datasets:
+            return f"{exp.id} declares no real data set: it runs on generated data only."
+        needs = " or ".join(repr(n) for n in exp.datasets)
+        if self.root is None:
+            where = f"no data root was given (--data-root DIR, or ${DATA_ROOT_ENV})"
+        elif not self.root.is_dir():
+            where = f"the data root {str(self.root)!r} is not a folder"
+        else:
+            refused = [row["problem"] for row in dataset_status(self.root)
+                       if row["name"] in exp.datasets and row["problem"]]
+            where = f"none is in the data root {str(self.root)!r}" + (f" ({'; '.join(refused)})" if refused else "")
+        return (f"{exp.id} runs on real data of {needs}, and {where}. Give the set with --data NAME=PATH or a data "
+                "root holding it (see `mmconcepts data list`).")
 
     def entry(self, exp: Experiment | str) -> PlanEntry:
         """The entry of ``exp`` (an experiment or its id).

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_path
+from .._io import LABEL_SEPARATOR, LABELS_HEADER, atomic_path
 from ..errors import DataError, DataFormatError, ParameterError
 
 __all__ = [
@@ -957,8 +957,9 @@ def load_motion_folder(
     every joint (joint names as in :func:`normalize_marker_name`: ``left_hand_x``,
     ``Left Hand_x``...; the joint is what comes before the last ``_``) and one row per frame
     of positions (metres, any fixed frame of reference). ``labels.csv`` has the columns
-    ``file`` (relative to ``root``) and ``labels`` (one label, or several separated by ``;``)
-    or ``label``; other columns are ignored, and only the files it lists are read.
+    ``file`` (relative to ``root``) and ``labels`` (one label, or several separated by ``;``);
+    other columns are ignored, and only the files it lists are read. A column ``label`` (the
+    old spelling of ``labels``) is still read, with a :class:`FutureWarning`.
 
     Parameters
     ----------
@@ -989,7 +990,7 @@ def load_motion_folder(
         integer ids: the labels themselves when every label is an integer, else their
         ranks in sorted order; ``label_names`` maps each id to the label as written.
     """
-    from .._io import read_csv_rows
+    from .._io import read_labels_csv, split_labels
 
     _check_on_error(on_error)
     if not (isinstance(frame_rate, (int, float)) and not isinstance(frame_rate, bool)
@@ -1005,12 +1006,8 @@ def load_motion_folder(
     labels_path = root / MOTION_LABELS_FILE
     if not labels_path.is_file():
         raise DataFormatError(f"{root} has no {MOTION_LABELS_FILE}; the generic motion layout needs one with columns "
-                              "file,labels (or file,label) and one CSV file per recording.")
-    header, rows = read_csv_rows(labels_path)
-    label_col = "labels" if "labels" in header else "label" if "label" in header else None
-    if "file" not in header or label_col is None:
-        raise DataFormatError(f"{labels_path}: the header must have the columns file and labels (or label); found "
-                              f"{header}.")
+                              "file,labels and one CSV file per recording.")
+    _, rows = read_labels_csv(labels_path, layout="generic motion")
     read: list[tuple[str, tuple[str, ...], str, np.ndarray, str]] = []  # file, labels, record id, positions, where
     skipped: list[SkippedRecord] = []
     names: list[str] | None = want
@@ -1020,7 +1017,7 @@ def load_motion_folder(
         try:
             if not rel:
                 raise DataFormatError(f"{where}: empty 'file' cell.")
-            labels = tuple(l.strip() for l in row.get(label_col, "").split(";") if l.strip())
+            labels = split_labels(row.get("labels", ""))
             if not labels:
                 raise DataFormatError(f"{where}: no label for {rel!r}.")
             path = root / rel
@@ -1086,17 +1083,17 @@ def save_motion_folder(dataset: MotionDataset | Sequence[MotionRecording], root:
         if not r.labels:
             raise DataError(f"Recording {i}{r._where()} has no label; the generic motion layout needs one.")
         labels = [names.get(l, str(l)) for l in r.labels]
-        if any(";" in l for l in labels):
-            raise DataError(f"Labels of recording {i} contain ';', the label separator: {labels}.")
+        if any(LABEL_SEPARATOR in l for l in labels):
+            raise DataError(f"Labels of recording {i} contain {LABEL_SEPARATOR!r}, the label separator: {labels}.")
         fname = f"{r.record_id if safe else f'rec{i}'}.csv"
         header = [f"{m}_{a}" for m in r.marker_names for a in _AXES]
         with atomic_path(root / fname) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
             w = csv.writer(f)
             w.writerow(header)
             w.writerows([[f"{v:.17g}" for v in frame.ravel()] for frame in r.positions])
-        rows.append([fname, ";".join(labels)])
+        rows.append([fname, LABEL_SEPARATOR.join(labels)])
     with atomic_path(root / MOTION_LABELS_FILE) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["file", "labels"])
+        w.writerow(LABELS_HEADER)
         w.writerows(rows)
     return root / MOTION_LABELS_FILE

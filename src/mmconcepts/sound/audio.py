@@ -2,7 +2,8 @@
 
 Decoding is soundfile's (libsndfile), resampling soxr's (the resampler librosa uses by
 default; :func:`librosa.resample` when soxr is missing). Both are in the ``audio`` extra
-(``pip install mmconcepts[audio]``).
+(``pip install "mmconcepts[audio]"``); without them, these functions raise
+:class:`~mmconcepts.errors.MissingExtraError` naming the extra.
 
 Every file problem is a :class:`~mmconcepts.errors.DataFormatError` whose message names
 the file and says what is wrong with it (corrupt, empty, too short, non-finite samples),
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .._io import atomic_path
+from .._optional import optional_import
 from .._validation import check_scalar
 from ..errors import DataError, DataFormatError, ParameterError
 
@@ -34,13 +36,7 @@ _FORMATS = {".wav": "WAV", ".flac": "FLAC"}
 
 
 def _soundfile():
-    try:
-        import soundfile
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "Reading and writing audio needs the soundfile package: pip install mmconcepts[audio]"
-        ) from exc
-    return soundfile
+    return optional_import("soundfile", "audio", "reading and writing audio")
 
 
 def audio_info(path: str | os.PathLike[str]) -> tuple[int, int, int]:
@@ -138,9 +134,8 @@ def resample(y: np.ndarray, orig_sr: float, target_sr: float) -> np.ndarray:
         return y
     try:
         import soxr
-    except ImportError:  # pragma: no cover - soxr comes with librosa
-        import librosa
-
+    except ImportError:  # soxr comes with librosa
+        librosa = optional_import("librosa", "audio", "resampling audio")
         return librosa.resample(y, orig_sr=orig_sr, target_sr=target_sr).astype(np.float32)
     if y.ndim == 1:
         return soxr.resample(y, orig_sr, target_sr, quality="HQ").astype(np.float32, copy=False)

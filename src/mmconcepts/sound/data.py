@@ -4,10 +4,12 @@ Layouts (as the thesis' data formats describe them):
 
 Generic audio layout
     A folder holding audio files (WAV or FLAC, in it or in sub-folders) and
-    ``labels.csv`` with the header ``file,speaker,labels,transcription``: ``file`` is
-    the path relative to the folder, ``labels`` the utterance's labels separated by
-    ``;`` (may be empty), ``transcription`` optional (the column may be missing or the
-    cell empty). Extra columns are ignored.
+    ``labels.csv`` with the header ``file,labels,speaker,transcription`` (the
+    ``file,labels`` of every generic layout, then this layout's columns, in any order):
+    ``file`` is the path relative to the folder, ``labels`` the utterance's labels
+    separated by ``;`` (may be empty), ``speaker`` its speaker, ``transcription`` optional
+    (the column may be missing or the cell empty). Extra columns are ignored. A column
+    ``label`` (the old spelling of ``labels``) is still read, with a :class:`FutureWarning`.
 
     Word timings, optional, live in a sidecar file of this package,
     ``word_timings.csv``, with the header ``file,word,start,end``: one row per word,
@@ -57,13 +59,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._io import atomic_path, read_csv_rows
+from .._io import LABEL_SEPARATOR, atomic_path, read_csv_rows, read_labels_csv, split_labels
 from .._validation import check_subset_indices
 from ..errors import DataError, DataFormatError, ParameterError
 from .audio import DEFAULT_SR, audio_info, load_audio
 
 __all__ = [
     "LABELS_FILE",
+    "AUDIO_LABELS_HEADER",
     "TIMINGS_FILE",
     "SkippedFile",
     "SpeechCorpus",
@@ -84,6 +87,10 @@ _LOG = logging.getLogger(__name__)
 
 #: Name of the label table of the generic audio layout.
 LABELS_FILE = "labels.csv"
+
+#: The header of the generic audio layout's ``labels.csv`` (``file,labels`` as every generic layout, then the
+#: speaker and the optional transcription), as the writers write it.
+AUDIO_LABELS_HEADER = ("file", "labels", "speaker", "transcription")
 
 #: Name of the word-timing sidecar of the generic audio layout (this package's own).
 TIMINGS_FILE = "word_timings.csv"
@@ -357,15 +364,10 @@ def load_generic_audio(
     if not labels_path.exists():
         raise DataFormatError(
             f"{root} has no {LABELS_FILE}; the generic audio layout needs one with columns "
-            "file,speaker,labels,transcription."
+            "file,labels,speaker[,transcription]."
         )
-    header, rows = read_csv_rows(labels_path)
-    missing = [c for c in ("file", "speaker", "labels") if c not in header]
-    if missing:
-        raise DataFormatError(
-            f"{labels_path}: missing column(s) {missing}; the header must be file,speaker,labels,transcription "
-            f"(transcription optional); found {header}."
-        )
+    header, rows = read_labels_csv(labels_path, layout="generic audio", required=("speaker",),
+                                   optional=("transcription",))
     timings, timing_errors = _read_timings(root)
     skipped: list[SkippedFile] = []
     utts: list[Utterance] = []
@@ -385,7 +387,7 @@ def load_generic_audio(
                 if not path.is_file():
                     raise DataFormatError(f"Audio file {path} not found ({where}).")
                 duration = None
-            labels = tuple(l.strip() for l in row.get("labels", "").split(";") if l.strip())
+            labels = split_labels(row.get("labels", ""))
             key = Path(rel).as_posix()
             if key in timing_errors:
                 raise DataFormatError(timing_errors[key])
@@ -465,12 +467,12 @@ def save_generic_audio(corpus: SpeechCorpus | Sequence[Utterance], root: str | o
             rel = Path(u.path).resolve().relative_to(root.resolve()).as_posix()
         except ValueError as exc:
             raise DataError(f"Audio file {u.path} is not inside {root}; copy it there first.") from exc
-        if any(";" in l for l in u.labels):
-            raise DataError(f"Labels of {u.path} contain ';', the label separator: {u.labels}.")
-        rows.append([rel, u.speaker, ";".join(u.labels), u.transcription])
+        if any(LABEL_SEPARATOR in l for l in u.labels):
+            raise DataError(f"Labels of {u.path} contain {LABEL_SEPARATOR!r}, the label separator: {u.labels}.")
+        rows.append([rel, LABEL_SEPARATOR.join(u.labels), u.speaker, u.transcription])
         for w in u.word_timings or ():
             trows.append([rel, w.word, f"{w.start:.4f}", f"{w.end:.4f}"])
-    _write_csv(root / LABELS_FILE, ["file", "speaker", "labels", "transcription"], rows)
+    _write_csv(root / LABELS_FILE, list(AUDIO_LABELS_HEADER), rows)
     if trows:
         _write_csv(root / TIMINGS_FILE, ["file", "word", "start", "end"], trows)
     return root / LABELS_FILE
@@ -843,10 +845,10 @@ def _write_composition(folder: Path, utts: list[Utterance], n_utt: int, n_words:
                 offset += pauses[k]
         rel = f"{j:05d}_{spk}.wav"
         write_audio(folder / rel, np.clip(np.concatenate(pieces), -1.0, 1.0), sr)
-        label_rows.append([rel, spk, ";".join(utts[i].labels[0] for i in srcs),
+        label_rows.append([rel, LABEL_SEPARATOR.join(utts[i].labels[0] for i in srcs), spk,
                            " ".join(utts[i].transcription.strip() or utts[i].labels[0] for i in srcs)])
         timing_rows += [[rel, w.word, format(w.start, ".9g"), format(w.end, ".9g")] for w in words]
-    _write_csv(folder / LABELS_FILE, ["file", "speaker", "labels", "transcription"], label_rows)
+    _write_csv(folder / LABELS_FILE, list(AUDIO_LABELS_HEADER), label_rows)
     _write_csv(folder / TIMINGS_FILE, ["file", "word", "start", "end"], timing_rows)
     sources = [[str(utts[i].path) for i in srcs] for _, srcs, _ in plan]
     (folder / "sources.json").write_text(json.dumps(sources))

@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .._optional import optional_import
 from .._validation import InstanceOf, Interval, validate_params
 from ..errors import DataError, ParameterError
 
@@ -207,7 +208,7 @@ def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
 
     # librosa compiles numba ufuncs when its modules load: once per machine, not in every worker at once
     with first_use("librosa"):
-        import librosa  # optional dependency (extra "audio")
+        librosa = optional_import("librosa", "audio", "the MFCC front end")
 
         mel = librosa.feature.melspectrogram(
             y=y.astype(np.float32, copy=False),

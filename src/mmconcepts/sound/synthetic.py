@@ -100,13 +100,14 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from .._io import atomic_dir
+from .._io import LABEL_SEPARATOR, atomic_dir
 from .._paths import data_home as _data_home
 from .._store import generated_folder, versioned
 from .._validation import check_positive_int, check_random_state
 from ..errors import ParameterError
 from .audio import resample, write_audio
 from .data import (
+    AUDIO_LABELS_HEADER,
     LABELS_FILE,
     TIMINGS_FILE,
     SpeechCorpus,
@@ -556,9 +557,9 @@ def _write_tables(folder: Path, rows: list) -> None:
 
     with open(folder / LABELS_FILE, "w", encoding="utf-8", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["file", "speaker", "labels", "transcription"])
+        w.writerow(AUDIO_LABELS_HEADER)
         for rel, spk, labels, text, _ in rows:
-            w.writerow([rel, spk, ";".join(labels), text])
+            w.writerow([rel, LABEL_SEPARATOR.join(labels), spk, text])
     with open(folder / TIMINGS_FILE, "w", encoding="utf-8", newline="") as f:
         w = csv.writer(f)
         w.writerow(["file", "word", "start", "end"])

@@ -70,7 +70,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._validation import check_random_state
-from ..errors import DataError, MMConceptsError, ParameterError
+from ..errors import DataError, MMConceptsError, MissingExtraError, ParameterError
 from .data import WordTiming, normalize_word
 
 __all__ = [
@@ -85,7 +85,7 @@ __all__ = [
 ]
 
 
-class MissingEngineError(MMConceptsError, ImportError):
+class MissingEngineError(MissingExtraError):
     """A text-to-speech engine (or a package it needs) is not installed."""
 
 
@@ -97,7 +97,7 @@ class SynthesisResult(NamedTuple):
     word_timings: tuple[WordTiming, ...] | None
 
 
-_INSTALL = "pip install mmconcepts[speech]"
+_INSTALL = 'pip install "mmconcepts[speech]"'
 _PUNCT = set(",.;:!?¡¿…—–\"()[]-")
 
 

@@ -5,7 +5,7 @@ Contents
 data
     :class:`ImageSet` (float RGB images in [0, 1], labels, views, categories, paths);
     loaders for the generic image layout (:func:`load_image_folder`, ``labels.csv`` with
-    ``file,label[,view]``), ETH-80 (:func:`load_eth80`) and COIL-20 (:func:`load_coil20`).
+    ``file,labels[,view]``), ETH-80 (:func:`load_eth80`) and COIL-20 (:func:`load_coil20`).
 features
     Bags of visual words as scikit-learn transformers fit on training images only:
     :class:`ColorHistograms` (HSV colours of SLIC superpixels), :class:`KeypointBag`

@@ -4,11 +4,12 @@ Layouts (as the thesis' data formats describe them):
 
 Generic image layout
     A folder holding image files (PNG, JPEG, ... anything ``imageio`` reads; in it or in
-    sub-folders) and ``labels.csv`` with the header ``file,label`` and optionally
-    ``view``: ``file`` is the path relative to the folder, ``label`` the object (concept)
-    shown, ``view`` an identifier of the viewpoint. This package also reads and writes
-    an optional ``category`` column (the object's category, e.g. ``cow`` for ``cow3``);
-    any other column is ignored.
+    sub-folders) and ``labels.csv`` with the header ``file,labels`` (as every generic
+    layout) and optionally ``view``: ``file`` is the path relative to the folder,
+    ``labels`` the object (concept) shown, one per image, ``view`` an identifier of the
+    viewpoint. This package also reads and writes an optional ``category`` column (the
+    object's category, e.g. ``cow`` for ``cow3``); any other column is ignored. A column
+    ``label`` (the old spelling of ``labels``) is still read, with a :class:`FutureWarning`.
 ETH-80
     Leibe and Schiele (CVPR 2003): one PNG per view, named
     ``<category><instance>-<tilt>-<pan>.png`` (``cow3-045-090.png``), in one folder or in
@@ -47,7 +48,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .._io import read_csv_rows
+from .._io import read_labels_csv, split_labels
 from .._validation import check_subset_indices
 from ..errors import DataError, DataFormatError, ParameterError
 
@@ -378,7 +379,7 @@ def load_image_folder(
     on_error: str = "raise",
     name: str | None = None,
 ) -> ImageSet:
-    """Load a folder in the generic image layout (``labels.csv`` with ``file,label[,view]``).
+    """Load a folder in the generic image layout (``labels.csv`` with ``file,labels[,view][,category]``).
 
     Parameters
     ----------
@@ -404,16 +405,10 @@ def load_image_folder(
     labels_path = root / LABELS_FILE
     if not labels_path.exists():
         raise DataFormatError(
-            f"{root} has no {LABELS_FILE}; the generic image layout needs one with columns file,label (and "
-            "optionally view)."
+            f"{root} has no {LABELS_FILE}; the generic image layout needs one with columns file,labels (and "
+            "optionally view and category)."
         )
-    header, rows = read_csv_rows(labels_path)
-    missing = [c for c in ("file", "label") if c not in header]
-    if missing:
-        raise DataFormatError(
-            f"{labels_path}: missing column(s) {missing}; the header must be file,label (view optional); "
-            f"found {header}."
-        )
+    header, rows = read_labels_csv(labels_path, layout="generic image", optional=("view", "category"))
     has_view, has_cat = "view" in header, "category" in header
     images, labels, views, cats = [], [], [], []
     paths: list[Path | None] = []
@@ -424,8 +419,10 @@ def load_image_folder(
         try:
             if not rel:
                 raise DataFormatError(f"{where}: empty 'file' cell.")
-            if not row.get("label", ""):
-                raise DataFormatError(f"{where}: empty 'label' cell for {rel!r}.")
+            label = split_labels(row.get("labels", ""))
+            if len(label) != 1:
+                raise DataFormatError(f"{where}: {len(label)} labels for {rel!r} ({row.get('labels', '')!r}); the "
+                                      "generic image layout takes one label per image.")
             path = root / rel
             if not path.is_file():
                 raise DataFormatError(f"Image file {path} not found ({where}).")
@@ -435,7 +432,7 @@ def load_image_folder(
                 raise
             skipped.append(SkippedFile(str(root / rel), str(exc)))
             continue
-        labels.append(row["label"])
+        labels.append(label[0])
         views.append(row.get("view", ""))
         cats.append(row.get("category", ""))
         paths.append(path)

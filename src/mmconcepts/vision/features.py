@@ -77,6 +77,7 @@ from sklearn.base import BaseEstimator, TransformerMixin, clone
 from sklearn.metrics.pairwise import euclidean_distances
 from sklearn.utils.validation import check_is_fitted
 
+from .._optional import optional_import
 from .._persist import SaveLoadMixin
 from .._validation import InstanceOf, Interval, Options, is_finite_real, check_random_state, validate_params
 from ..errors import DataError, ParameterError
@@ -205,8 +206,8 @@ def superpixel_colors(image: np.ndarray, *, n_segments: int = 50, compactness: f
         :math:`(s v \cos 2\pi h, s v \sin 2\pi h, v)`; ``positions`` the centroids;
         ``weights`` the areas in pixels.
     """
-    from skimage.color import rgb2hsv
-    from skimage.segmentation import slic
+    rgb2hsv = optional_import("skimage.color", "vision", "superpixel_colors").rgb2hsv
+    slic = optional_import("skimage.segmentation", "vision", "superpixel_colors").slic
 
     validate_params({"n_segments": n_segments, "compactness": compactness}, _SUPERPIXEL_CONSTRAINTS,
                     owner="superpixel_colors", hints=_SUPERPIXEL_HINTS)
@@ -277,7 +278,7 @@ def dense_sift(
         which only ``contrast_threshold=0`` keeps); ``positions`` the patch centres (row,
         column); ``weights`` ones.
     """
-    from skimage.color import rgb2gray
+    rgb2gray = optional_import("skimage.color", "vision", "dense_sift").rgb2gray
 
     validate_params({"patch_size": patch_size, "step": step, "contrast_threshold": contrast_threshold,
                      "rotation_invariant": rotation_invariant}, _SIFT_CONSTRAINTS, owner="dense_sift")

@@ -72,7 +72,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import replace_dir
+from .._io import LABELS_HEADER, replace_dir
+from .._optional import optional_import
 from .._validation import check_random_state
 from ..errors import DataError, ParameterError
 from .data import LABELS_FILE, ImageSet
@@ -129,7 +130,7 @@ class ViewParams:
 
 
 def _hsv(h: float, s: float, v: float) -> np.ndarray:
-    from skimage.color import hsv2rgb
+    hsv2rgb = optional_import("skimage.color", "vision", "generating images").hsv2rgb
 
     return hsv2rgb(np.array([[[h % 1.0, s, v]]]))[0, 0]
 
@@ -256,7 +257,7 @@ def _texture(part: _Part, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _polygon_mask(shape: tuple[int, int], pts_xy: np.ndarray) -> np.ndarray:
-    from skimage.draw import polygon
+    polygon = optional_import("skimage.draw", "vision", "generating images").polygon
 
     m = np.zeros(shape, dtype=bool)
     rr, cc = polygon(pts_xy[:, 1], pts_xy[:, 0], shape=shape)
@@ -426,7 +427,7 @@ def image_statistics(image_set: ImageSet | None = None, *, n_objects: int = 10, 
     ``object_hsv`` and ``object_rgb`` (mean colour of the object), ``background_v``.
     ``image_set`` is ignored unless None (kept for symmetry with measured sets).
     """
-    from skimage.color import rgb2hsv
+    rgb2hsv = optional_import("skimage.color", "vision", "generating images").rgb2hsv
 
     images, masks, *_ = _views(n_objects, n_views, 96, random_state, True, ViewParams())
     out: dict[str, list] = {k: [] for k in ("area", "bbox", "centre", "object_hsv", "object_rgb", "background_v")}
@@ -457,7 +458,7 @@ def write_image_folder(
     """Write an image set in the generic image layout: PNG files and ``labels.csv``.
 
     Files are named ``<label>_<view>.png`` (``<label>_<index>.png`` when the set has no
-    views or these names repeat); ``labels.csv`` has the columns ``file,label``, then
+    views or these names repeat); ``labels.csv`` has the columns ``file,labels``, then
     ``view`` and ``category`` when the set has them. Pixels are written as 8-bit
     (``round(255 x)``). The folder is built next to ``root`` and renamed into place, so
     ``root`` is either complete or absent.
@@ -493,7 +494,7 @@ def write_image_folder(
             names = None
     if names is None:
         names = [f"{_safe(l)}_{i:0{width}d}.png" for i, l in enumerate(image_set.labels)]
-    header = ["file", "label"] + (["view"] if image_set.views is not None else []) + \
+    header = [*LABELS_HEADER] + (["view"] if image_set.views is not None else []) + \
         (["category"] if image_set.categories is not None else [])
     root.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.building-", dir=root.parent))
