@@ -529,7 +529,7 @@ def load_fsdd(
     ``jackson``), in either of two layouts:
 
     - *generic* (what :func:`load_generic_audio` reads): the folder holds the WAV files
-      and ``labels.csv`` (``file,speaker,labels,transcription``; ``labels`` is the digit's
+      and ``labels.csv`` (``file,labels,speaker,transcription``; ``labels`` is the digit's
       word, ``"zero"`` .. ``"nine"``). The table is authoritative: labels and speakers come
       from it.
     - *upstream* (a clone or archive of the repository): a ``recordings/`` sub-folder of
