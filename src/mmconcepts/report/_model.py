@@ -261,9 +261,9 @@ class ExperimentGroup:
             value, sd = view.values.get(name, ""), spread.get(name + SPREAD_SUFFIX, "")
             return f"{value}, sd {sd}" if value and sd else value
 
-        thesis = any(reference.get(n) for n in names)
-        columns = ["metric"] + (["thesis"] if thesis else []) + [v.data_label for v in self.views]
-        rows = [[n] + ([reference.get(n, "")] if thesis else [])
+        has_thesis = any(reference.get(n) for n in names)
+        columns = ["metric"] + (["thesis"] if has_thesis else []) + [v.data_label for v in self.views]
+        rows = [[n] + ([reference.get(n, "")] if has_thesis else [])
                 + [cell(v, sp, n) for v, sp in zip(self.views, spreads)] for n in names]
         return columns, rows
 
