@@ -9,7 +9,7 @@ compiles the same kernel. :func:`njit` adds an inter-process lock around numba's
 compile-on-first-call: the first process compiles and writes the cache, and the others wait
 for it, then load the cached code instead of compiling it again.
 
-The lock is a file per kernel under ``<tempdir>/mmconcepts-<user>/numba-locks``
+The lock is a file per kernel under ``<cache>/.locks/numba`` in the user's cache folder
 (:func:`mmconcepts._io.folder_lock`: ``fcntl.flock``, released when the process ends). It
 is taken only when a call finds no compiled version of the kernel for its argument types in
 this process, so calls after the first cost nothing more. It hooks numba's
@@ -21,10 +21,8 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import getpass
 import hashlib
 import os
-import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -38,11 +36,12 @@ __all__ = ["njit", "lock_file", "first_use", "single_threaded"]
 
 
 def _lock_dir() -> Path:
-    try:
-        user = getpass.getuser()
-    except (KeyError, OSError):  # no user name (a container without a passwd entry)
-        user = str(os.getuid()) if hasattr(os, "getuid") else "user"
-    return Path(tempfile.gettempdir()) / f"mmconcepts-{user}" / "numba-locks"
+    """``<cache>/.locks/numba``: the user's cache folder (:func:`mmconcepts._paths.data_home`), where every lock of
+    the package is (:data:`mmconcepts._store.LOCKS`), never a folder shared with other users."""
+    from ._paths import data_home
+    from ._store import LOCKS
+
+    return data_home(create=False) / LOCKS / "numba"
 
 
 def lock_file(dispatcher: Any) -> Path:
@@ -67,7 +66,7 @@ def _shared(dispatcher: Any) -> Any:
     def locked(*args: Any, **kws: Any) -> Any:
         path = lock_file(dispatcher)
         with contextlib.ExitStack() as stack:
-            with contextlib.suppress(OSError):  # no writable temporary folder: compile unlocked
+            with contextlib.suppress(OSError):  # no writable cache folder: compile unlocked
                 stack.enter_context(folder_lock(path.parent, path.name))
             # numba looks in its disk cache before compiling: filled by whoever held the lock before
             return compile_for_args(*args, **kws)

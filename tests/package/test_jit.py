@@ -178,3 +178,11 @@ def test_mfcc_imports_librosa_under_the_first_use_lock(taken):
     assert taken == ["first-use.librosa.lock"]
     np.testing.assert_array_equal(mfcc(y), first)
     assert taken == ["first-use.librosa.lock"]
+
+
+def test_the_compile_locks_are_in_the_user_s_cache_folder(tmp_path, monkeypatch):
+    # never a machine-wide temporary folder shared with other users: under the cache folder's lock folder
+    from mmconcepts._store import LOCKS
+
+    monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
+    assert _jit._lock_dir() == tmp_path / "cache" / LOCKS / "numba"
