@@ -21,6 +21,15 @@ def experiment_module(name: str):
     return importlib.import_module("mmconcepts.experiments." + (name if "." in name else name.replace("_", ".", 1)))
 
 
+def fsdd_like(root: Path) -> Path:
+    """A one-recording folder in FSDD's generic layout under ``root`` (``root/fsdd``): a data set the registry finds."""
+    folder = root / "fsdd"
+    folder.mkdir(parents=True)
+    (folder / "labels.csv").write_text("file,speaker,labels,transcription\n0_alice_0.wav,alice,zero,zero\n")
+    (folder / "0_alice_0.wav").write_bytes(b"RIFF")
+    return folder
+
+
 def _data_root() -> Path | None:
     """The data root of the real-data tests: $MMCONCEPTS_DATA_ROOT, else ../shared/data beside the checkout."""
     env = os.environ.get("MMCONCEPTS_DATA_ROOT")

@@ -44,6 +44,7 @@ Files
 
 from __future__ import annotations
 
+import abc
 import importlib
 import json
 import math
@@ -72,7 +73,7 @@ class CorruptFile(DataFormatError):
     """A file or structure that the codec did not write (torn, edited, planted)."""
 
 
-class Stateful:
+class Stateful(abc.ABC):
     """Base of the objects the codec keeps by class: constructor parameters and state.
 
     :class:`mmconcepts._persist.SaveLoadMixin` implements the three methods; the codec builds
@@ -80,17 +81,17 @@ class Stateful:
     subclasses defined in the package.
     """
 
+    @abc.abstractmethod
     def _saved_params(self) -> dict[str, Any]:
         """The constructor parameters to save."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def _get_state(self) -> dict[str, Any]:
         """The state to save (attribute name -> value)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def _set_state(self, state: dict[str, Any]) -> None:
         """Restore what :meth:`_get_state` returned."""
-        raise NotImplementedError
 
 
 def _in_package(module: str) -> bool:

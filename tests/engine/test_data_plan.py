@@ -12,19 +12,12 @@ from pathlib import Path
 
 import pytest
 
+from conftest import fsdd_like
 import mmconcepts.datasets as datasets_module
 import mmconcepts.engine.data as data_module
 from mmconcepts.engine import DataPlan, Experiment, Result, register, reproduce, run_experiment
 from mmconcepts.engine.data import PlanEntry, make_data_plan
 from mmconcepts.errors import ExperimentError, ParameterError
-
-
-def _fsdd_like(root: Path) -> Path:
-    folder = root / "fsdd"
-    folder.mkdir(parents=True)
-    (folder / "labels.csv").write_text("file,speaker,labels,transcription\n0_alice_0.wav,alice,zero,zero\n")
-    (folder / "0_alice_0.wav").write_bytes(b"RIFF")
-    return folder
 
 
 def _msr_like(root: Path) -> Path:
@@ -57,7 +50,7 @@ def _counting(monkeypatch, module, name):
 
 def test_reproduce_resolves_the_data_root_once(toy, tmp_path, monkeypatch):
     root = tmp_path / "root"
-    _fsdd_like(root)
+    fsdd_like(root)
     _msr_like(root)
     _experiments(toy, ("fsdd",), ("fsdd", "msr-action3d"))
     roots = _counting(monkeypatch, data_module, "resolve_root")
@@ -71,7 +64,7 @@ def test_reproduce_resolves_the_data_root_once(toy, tmp_path, monkeypatch):
 
 def test_run_experiment_alone_resolves_the_data_root_once(toy, tmp_path, monkeypatch):
     root = tmp_path / "root"
-    _fsdd_like(root)
+    fsdd_like(root)
     (exp,) = _experiments(toy, ("fsdd",))
     roots = _counting(monkeypatch, data_module, "resolve_root")
     rec = run_experiment(exp, output=tmp_path / "out", data_root=root, progress=False)
@@ -80,7 +73,7 @@ def test_run_experiment_alone_resolves_the_data_root_once(toy, tmp_path, monkeyp
 
 def test_a_given_plan_is_used_as_it_is(toy, tmp_path, monkeypatch):
     root = tmp_path / "root"
-    folder = _fsdd_like(root)
+    folder = fsdd_like(root)
     exps = _experiments(toy, ("fsdd",), ())
     plan = DataPlan.build(exps, data_root=root)
 
@@ -99,7 +92,7 @@ def test_a_given_plan_is_used_as_it_is(toy, tmp_path, monkeypatch):
 
 def test_the_record_holds_the_plan_entry_and_the_sets_the_run_used(toy, tmp_path):
     root = tmp_path / "root"
-    _fsdd_like(root)
+    fsdd_like(root)
     _msr_like(root)
     given = tmp_path / "my-msr"
     given.mkdir()
@@ -121,7 +114,7 @@ def test_the_record_holds_the_plan_entry_and_the_sets_the_run_used(toy, tmp_path
 
 def test_plan_entries_say_which_variants_run(toy, tmp_path):
     root = tmp_path / "root"
-    _fsdd_like(root)
+    fsdd_like(root)
     real, none = _experiments(toy, ("fsdd",), ("eth80",))
     real_only = Experiment(id="toy-real-only", title="Toy", thesis_ref="none", config_cls=toy.SmallConfig, run=_seen,
                            datasets=("fsdd",), synthetic=False)
@@ -139,7 +132,7 @@ def test_plan_entries_say_which_variants_run(toy, tmp_path):
 
 def test_reproduce_without_synthetic_runs_the_default_variant_only(toy, tmp_path):
     root = tmp_path / "root"
-    _fsdd_like(root)
+    fsdd_like(root)
     _experiments(toy, ("fsdd",))
     records = reproduce(output=tmp_path / "out", ids=["toy-plan0"], data_root=root, synthetic=False, progress=False)
     assert [r.variant for r in records] == ["real"]
@@ -147,7 +140,7 @@ def test_reproduce_without_synthetic_runs_the_default_variant_only(toy, tmp_path
 
 def test_a_mistyped_data_root_is_reported_before_any_work(toy, tmp_path):
     root = tmp_path / "data"
-    _fsdd_like(root)
+    fsdd_like(root)
     exps = _experiments(toy, ("fsdd",))
     out = tmp_path / "out"
     typo = tmp_path / "dat"

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import fsdd_like
 from mmconcepts import __version__
 from mmconcepts.errors import ExperimentError, ParameterError
 from mmconcepts.experiments import (
@@ -416,18 +417,10 @@ def _variant_experiment(toy):
                                claims=[Claim("accuracy above 0.7", "acc > 0.7")])
 
 
-def _fsdd_like(root: Path) -> Path:
-    folder = root / "fsdd"
-    folder.mkdir(parents=True)
-    (folder / "labels.csv").write_text("file,speaker,labels,transcription\n0_alice_0.wav,alice,zero,zero\n")
-    (folder / "0_alice_0.wav").write_bytes(b"RIFF")
-    return folder
-
-
 def test_reproduce_runs_real_and_synthetic_side_by_side(toy, tmp_path, monkeypatch):
     exp = _variant_experiment(toy)
     root = tmp_path / "root"
-    folder = _fsdd_like(root)
+    folder = fsdd_like(root)
     monkeypatch.setenv("MMCONCEPTS_DATA_ROOT", str(root))
     register(exp)
     out = tmp_path / "res"
@@ -508,7 +501,7 @@ def test_an_asked_variant_that_cannot_run_overwrites_nothing(toy, tmp_path):
 def test_reproduce_removes_a_secondary_record_it_does_not_refresh(toy, tmp_path, monkeypatch):
     exp = _variant_experiment(toy)
     register(exp)
-    folder = _fsdd_like(tmp_path / "root")
+    folder = fsdd_like(tmp_path / "root")
     out = tmp_path / "res"
     reproduce(output=out, ids=["toy-variant"], data={"fsdd": folder}, progress=False)
     assert (out / "toy-variant.synthetic.json").exists()
@@ -525,7 +518,7 @@ def test_changed_recordings_recompute_the_result(toy, tmp_path):
         return Result(metrics={"n": float(len(list(ctx.data["fsdd"].iterdir())))})
 
     exp = toy.make_experiment("toy-sig", run, datasets=("fsdd",))
-    folder = _fsdd_like(tmp_path / "root")
+    folder = fsdd_like(tmp_path / "root")
     out = tmp_path / "res"
     assert run_experiment(exp, output=out, data={"fsdd": folder}, progress=False)["metrics"]["n"] == 2
     run_experiment(exp, output=out, data={"fsdd": folder}, progress=False)
