@@ -8,6 +8,9 @@ crossmodal_distances, matching_success_rate, pairwise_divergence
     The cross-modal matching protocol of section 6.6.1 (Fig. 6.3): comparison in the
     internal, test or reference space with KL, reversed or symmetric KL, Euclidean or
     cosine dissimilarities.
+top_examples, atom_label_association
+    What a learnt concept is: the examples that express each atom most, the share of
+    each atom's activation that falls on each label.
 mutual_information_matrix
     The information each learnt coefficient carries about each concept (section 6.6.3,
     Fig. 6.10).
@@ -15,15 +18,18 @@ mutual_information_matrix
 
 from .learner import FORMAT_VERSION, MultimodalNMF
 from .matching import METRICS, SPACES, crossmodal_distances, matching_success_rate, pairwise_divergence
+from .concepts import atom_label_association, top_examples
 from .metrics import mutual_information_matrix
 
 __all__ = [
     "FORMAT_VERSION",
     "METRICS",
     "SPACES",
+    "atom_label_association",
     "MultimodalNMF",
     "crossmodal_distances",
     "matching_success_rate",
     "mutual_information_matrix",
     "pairwise_divergence",
+    "top_examples",
 ]
