@@ -90,9 +90,13 @@ browser:
 typecheck: $(VENV)/.installed-dev
 	$(BIN)/python -m mypy
 
+# The data root of the gallery examples that use real sets: DATA_ROOT, else $$MMCONCEPTS_DATA_ROOT, else the data
+# folder that the project's CI machines place beside the checkout, when it exists (else generated stand-ins)
+DOCS_DATA_ROOT ?= $(or $(DATA_ROOT),$(MMCONCEPTS_DATA_ROOT),$(wildcard ../shared/data))
+
 ## Build the documentation site into docs/_build/html (warnings are errors)
 docs: $(VENV)/.installed-dev
-	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	MMCONCEPTS_DATA_ROOT="$(DOCS_DATA_ROOT)" $(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 ## Speed comparisons against the peer libraries (see benchmarks/README.md)
 bench: $(VENV)/.installed-bench

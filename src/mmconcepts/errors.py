@@ -18,6 +18,7 @@ __all__ = [
     "ExperimentError",
     "MissingExtraError",
     "ConvergenceWarning",
+    "DataWarning",
     "ParameterWarning",
 ]
 
@@ -63,3 +64,7 @@ class ConvergenceWarning(_SklearnConvergenceWarning):
 
 class ParameterWarning(UserWarning):
     """A parameter combination is allowed but probably not what was meant."""
+
+
+class DataWarning(UserWarning):
+    """Some of the data given was left out (the message counts what and says why)."""

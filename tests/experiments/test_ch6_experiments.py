@@ -114,7 +114,7 @@ def test_ch6_motion_sound_symbolic_labels_concepts_smoke(tiny_speech_corpus, tmp
     n_folds = cfg.n_folds
     data = common.load_pairs(ctx, n_per_speaker=50, n_motion=cfg.n_motion, streams=common.streams(0))
     # pairing by concept: each utterance's motion has the gesture its keyword maps to
-    assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 50
+    assert len(data["mfcc"]) == len(data["angles"]) == len(data["y"]) == 100  # own data: every speaker, whole
     assert sorted(data["mapping"].values()) == sorted(set(data["mapping"].values()))  # a bijection
     res = compute_motion_sound(cfg, ctx)
     bars = present_motion_sound(res, cfg)["table6_2"].axes[0].patches  # sound -> motion: 3 spaces x 4 metrics
@@ -330,7 +330,8 @@ def test_ch6_image_features_smoke(tiny_speech_corpus, tmp_path):
     # repeated random splits of one set, 40 % held out (test and reference): n_test / n_train = 2 / 3
     assert [(u.kind, u.test_train_ratio) for u in res.units.values()] == [("resampled", pytest.approx(2 / 3))]
     groups = res.split_groups["repetitions"]
-    assert groups["n_folds"] == 2 and groups["n_test_examples"] == 20 and groups["n_train_examples"] == 30
+    # own recordings are used whole: both speakers of the tiny corpus, 100 utterances
+    assert groups["n_folds"] == 2 and groups["n_test_examples"] == 40 and groups["n_train_examples"] == 60
     assert any("Fig. 6.4" in n and "cross-validation" in n for n in res.notes)  # the caption's ambiguity
 
 
@@ -459,7 +460,7 @@ def test_ch6_modalities_smoke(tiny_speech_corpus, tmp_path, monkeypatch):
     assert m["three.min_all"] <= min(m[k] for k in three) + 1e-12
     _check_result("ch6-modalities", res, 2)
     assert [(u.kind, u.test_train_ratio) for u in res.units.values()] == [("resampled", pytest.approx(2 / 3))]
-    assert res.split_groups["repetitions"]["n_test_examples"] == 20  # test and reference examples
+    assert res.split_groups["repetitions"]["n_test_examples"] == 40  # test and reference examples (both speakers: own recordings are used whole)
     notes = " ".join(res.notes)
     assert "Fig. 6.5-6.7" in notes and "six [testing setups]" in notes and "13 or 10 keywords" in notes
     assert "reclassified" in notes

@@ -16,6 +16,9 @@ Sequences and events (section 5.2.3)
 Synthetic speech (loaded lazily: needs the ``speech`` extra)
     EspeakEngine, PiperEngine, get_engine, available_engines, MissingEngineError;
     CAREGIVER_KEYWORDS, SPEAKERS, make_caregiver_corpus, fetch_caregiver.
+Made-up words without text-to-speech (a stand-in for examples)
+    make_syllable_words: two- and three-syllable words from vowel-like sounds, several
+    speakers, in the generic audio layout.
 """
 
 from __future__ import annotations
@@ -62,6 +65,8 @@ _LAZY = {
     "dtw_distance_matrix": "dtw",
     "dtw_one_to_many": "dtw",
     "ClusterTree": "tree",
+    "make_syllable_words": "syllables",
+    "VOWEL_FORMANTS": "syllables",
 }
 
 
@@ -74,6 +79,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = [
     "FSDD_WORDS",
+    "VOWEL_FORMANTS",
     "HAC",
     "EventVoting",
     "MFCCConfig",
@@ -88,6 +94,7 @@ __all__ = [
     "cooccurrence_counts",
     "delta",
     "load_acorns",
+    "make_syllable_words",
     "load_audio",
     "load_fsdd",
     "load_generic_audio",

@@ -3,8 +3,8 @@
 Thesis sections 6.5-6.6. Each modality comes from a real set when it is in ``ctx.data``,
 else from its generated stand-in:
 
-- sound: the utterances of one speaker (the first by name; the thesis uses speaker 1),
-  one keyword each (:mod:`mmconcepts.experiments.protocols.speech`): ``fsdd``, ``acorns`` or
+- sound: the utterances of one speaker (the first by name; the thesis uses speaker 1; every
+  utterance of every speaker of the user's own ``audio`` recordings), one keyword each (:mod:`mmconcepts.experiments.protocols.speech`): ``fsdd``, ``acorns`` or
   ``audio``, else the generated Caregiver-like corpus;
 - motion: one gesture per record: ten MSR Action3D actions (``msr-action3d``, positions
   only, turned into joint angles by :func:`mmconcepts.motion.joint_angles`) or
@@ -31,7 +31,7 @@ from ...engine import RunContext, Streams, concept_parts, describe_split, fill_t
 from ...errors import DataError
 from ...motion import MotionRecording, joint_angles, load_choreo2, load_msr_action3d, orientation_angles
 from ...sound.features import MFCCConfig
-from .speech import corpus_mfcc, first_speaker
+from .speech import chapter6_utterances, corpus_mfcc
 
 __all__ = ["SPEECH_SETS", "MOTION_SETS", "MSR_ACTIONS", "THESIS_CHANCE", "KEYWORDS_NOTE", "load_speech",
            "load_motion", "speech_note", "motion_note", "data_source_note", "example_sources", "part_split_groups",
@@ -76,15 +76,17 @@ SOUND_FOLDS, MOTION_FOLDS = 0, 1
 
 
 def load_speech(ctx: RunContext, *, n_per_speaker: int, streams: Streams) -> dict:
-    """Utterances of the first speaker: MFCC sequences, concepts, keyword spans, recording ids (their files).
+    """Utterances of the first speaker (every utterance of ``audio``): MFCC sequences, concepts, keyword spans,
+    recording ids (their files).
 
-    A real speaker with more than ``n_per_speaker`` utterances is subsampled to that many,
-    stratified by keyword (draw :data:`SPEECH_SUBSAMPLE` of the data stream); the generated corpus has exactly
-    ``n_per_speaker`` per speaker.
+    A real corpus' speaker (``fsdd``, ``acorns``) with more than ``n_per_speaker`` utterances is subsampled to that
+    many, stratified by keyword (draw :data:`SPEECH_SUBSAMPLE` of the data stream); the generated corpus has
+    exactly ``n_per_speaker`` per speaker; the user's own recordings (``audio``) are used whole, every speaker
+    (:func:`~mmconcepts.experiments.protocols.speech.chapter6_utterances`).
     """
-    sub, first, keywords, y = first_speaker(ctx, n_per_speaker=n_per_speaker)
+    sub, first, keywords, y = chapter6_utterances(ctx, n_per_speaker=n_per_speaker)
     n_all = len(y)
-    if _speech_name(ctx) is not None and len(y) > n_per_speaker:
+    if _speech_name(ctx) not in (None, "audio") and len(y) > n_per_speaker:
         rng = streams.rng("data", SPEECH_SUBSAMPLE)  # apart from the pairing's draws
         per = max(1, n_per_speaker // len(keywords))
         keep = np.sort(np.concatenate([rng.permutation(np.flatnonzero(y == c))[:per] for c in range(len(keywords))]))
@@ -122,7 +124,7 @@ def speech_note(ctx: RunContext, speech: dict | None = None) -> str:
     name = _speech_name(ctx)
     size = ""
     if speech is not None:
-        size = (f" ({len(speech['y'])} of speaker {speech['speaker']}'s {speech['n_available']} utterances, "
+        size = (f" ({len(speech['y'])} of the {speech['n_available']} utterances of speaker {speech['speaker']}, "
                 f"{len(speech['keywords'])} words)")
     if name == "fsdd":
         return (f"Sound: real spoken digits of the Free Spoken Digit Dataset (FSDD, {ctx.dataset('fsdd')}){size}, one "

@@ -10,7 +10,9 @@ Chapter 5 learns words from it; chapters 6 and 7 pair its utterances with gestur
   (:data:`CORPUS_SEED`) so that every experiment shares one cached corpus; an experiment's
   own seed drives compositions, splits and learners.
 - :func:`first_speaker` gives the utterances of the first speaker by name (the thesis'
-  chapter 6 uses speaker 1), with the keyword of each (:func:`keyword_targets`).
+  chapter 6 uses speaker 1), with the keyword of each (:func:`keyword_targets`);
+  :func:`chapter6_utterances` gives them for the thesis' corpora and every utterance of
+  the user's own recordings (``audio``).
 - :func:`corpus_mfcc` computes the MFCC sequence of every utterance once per data set
   and MFCC configuration and caches it under ``ctx.cache_dir/ch5-mfcc``, keyed on the
   files, the configuration and the code fingerprint; :func:`corpus_windows` cuts them into
@@ -30,7 +32,8 @@ from ...errors import DataError
 from ...sound.features import MFCCConfig, mfcc
 
 __all__ = ["CORPUS_SEED", "REAL_SETS", "data_source", "load_corpus", "corpus_sizes", "data_source_note", "speaker_ids",
-           "keyword_targets", "corpus_mfcc", "corpus_windows", "first_speaker"]
+           "keyword_targets", "corpus_mfcc", "corpus_windows", "first_speaker",
+           "chapter6_utterances", "speakers_name"]
 
 #: Seed of the generated corpus, shared by all experiments (chapters 5 and 6).
 CORPUS_SEED = 0
@@ -180,3 +183,32 @@ def first_speaker(ctx: RunContext, *, n_per_speaker: int):
     kw = keyword_targets(sub)
     keywords = sorted(set(kw))
     return sub, speaker, keywords, np.searchsorted(keywords, kw)
+
+
+def speakers_name(speakers) -> str:
+    """The speakers of a set of utterances, for the notes: ``"s1"``, ``"s1 and s2"``, ``"s1, ..., s9 (9 speakers)"``."""
+    speakers = sorted(set(speakers))
+    if len(speakers) <= 3:
+        return " and ".join([", ".join(speakers[:-1]), speakers[-1]] if len(speakers) > 1 else speakers)
+    return f"{speakers[0]}, ..., {speakers[-1]} ({len(speakers)} speakers)"
+
+
+def chapter6_utterances(ctx: RunContext, *, n_per_speaker: int):
+    """The utterances chapter 6 learns from: the first speaker's of a corpus, every one of the user's own recordings.
+
+    The thesis' corpora (ACORNS, and FSDD read the same way) give the first speaker by name,
+    as the thesis uses speaker 1 (:func:`first_speaker`). The user's own recordings (the
+    ``audio`` set, generic layout) are used whole, every speaker: what a person gives is
+    what is learnt from.
+
+    Returns
+    -------
+    The values of :func:`first_speaker`; ``speaker`` names every speaker used
+    (:func:`speakers_name`).
+    """
+    if data_source(ctx) != "audio":
+        return first_speaker(ctx, n_per_speaker=n_per_speaker)
+    corpus = load_corpus(ctx, n_per_speaker=n_per_speaker)
+    kw = keyword_targets(corpus)
+    keywords = sorted(set(kw))
+    return corpus, speakers_name(speaker_ids(corpus)), keywords, np.searchsorted(keywords, kw)
