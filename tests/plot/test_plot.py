@@ -172,13 +172,13 @@ def test_each_panel_draws_the_poses_of_the_atoms_top_motion(W, rng):
     for j, row in enumerate(grid(fig, 2)):
         for k, ax in enumerate(row):
             P = recordings[top[j, k]].positions
-            assert len(ax.lines) == 3 * len(bones)
+            assert len(ax.collections) == 3
             frames = [0, (len(P) - 1) / 2, len(P) - 1]
-            for pose, f in enumerate(np.round(frames).astype(int)):
-                for b, (p, q) in enumerate(bones):
-                    line = ax.lines[pose * len(bones) + b]
-                    np.testing.assert_array_equal(line.get_xdata(), P[f, [p, q], 0])
-                    np.testing.assert_array_equal(line.get_ydata(), P[f, [p, q], 2])
+            for pose, f in zip(ax.collections, np.round(frames).astype(int)):
+                segments = pose.get_segments()
+                assert len(segments) == len(bones)
+                for segment, (p, q) in zip(segments, bones):
+                    np.testing.assert_array_equal(segment, P[f][[p, q]][:, [0, 2]])
 
 
 def test_skeleton_options_are_checked(W, rng):
@@ -186,7 +186,7 @@ def test_skeleton_options_are_checked(W, rng):
     with pytest.raises(DataError, match="'tail' is needed but missing"):
         plot_dictionary_skeletons(W, recordings, bones=[("head", "tail")])
     fig = plot_dictionary_skeletons(W, recordings, bones=[("head", "neck")], n=1, n_poses=2)
-    assert all(len(ax.lines) == 2 for ax in fig.axes)
+    assert all([len(c.get_segments()) for c in ax.collections] == [1, 1] for ax in fig.axes)
     with pytest.raises(ParameterError, match="plane"):
         plot_dictionary_skeletons(W, recordings, plane=(1, 1))
     with pytest.raises(DataError, match="must be a MotionRecording"):
@@ -285,8 +285,9 @@ def test_timeline_lines_are_the_activations_and_bands_the_segments(rng):
     A = rng.random((25, 3))
     t = np.arange(25) * 0.05
     fig = plot_activation_timeline(A, times=t, labels=["ball", "cup", "dog"],
-                                   segments=[(0.2, 0.5, "cup"), (0.7, 0.9, "cat")])
+                                   segments=[(0.2, 0.5, "cup"), (0.7, 0.9, "cat")], ylabel="similarity")
     ax = fig.axes[0]
+    assert ax.get_ylabel() == "similarity" and ax.get_xlabel() == "time (s)"
     assert len(ax.lines) == 3
     for j, line in enumerate(ax.lines):
         np.testing.assert_array_equal(line.get_xdata(), t)
@@ -316,6 +317,8 @@ def test_timeline_checks_its_input(rng):
         plot_activation_timeline(A, segments=[(1, 2)])
     with pytest.raises(DataError, match="start <= end"):
         plot_activation_timeline(A, segments=[(2, 1, "a")])
+    with pytest.raises(ParameterError, match="ylabel"):
+        plot_activation_timeline(A, ylabel=None)
 
 
 # --------------------------------------------------------------------------- drawing where asked, no pyplot state

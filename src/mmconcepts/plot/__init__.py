@@ -2,10 +2,13 @@
 
 A dictionary learnt by :class:`~mmconcepts.multimodal.MultimodalNMF` holds atoms that no one
 reads directly; these functions show them through the examples and labels they go with.
-Each returns a :class:`matplotlib.figure.Figure`, made directly rather than through
-``pyplot`` (safe in threads; show it in a notebook by leaving it as a cell's value, save it
-with ``fig.savefig``), and takes its options by keyword; the functions that draw one panel
-accept ``ax=``, the grids ``fig=`` (a Figure or SubFigure).
+Each returns a :class:`matplotlib.figure.Figure` and takes its options by keyword. A figure
+a function makes is made directly, not through ``pyplot`` (safe in threads, no window left
+open): save it with ``fig.savefig``, show it in a notebook as a cell's value, or hand it to
+pyplot with ``plt.figure(fig)`` (matplotlib >= 3.11). To draw into a figure of your own
+(made by ``pyplot``, or a panel of a larger figure), pass ``ax=`` to the functions that draw
+one panel and ``fig=`` (a Figure or SubFigure) to the grids; the figure returned is then the
+one that holds it.
 
 A learnt dictionary, modality by modality
     plot_dictionary_images (each atom's top images), plot_dictionary_sounds (the

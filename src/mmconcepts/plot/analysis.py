@@ -169,7 +169,7 @@ def plot_confusion(y_true: Any, y_pred: Any, *, labels: Any = None, normalize: s
     return figure_of(ax)
 
 
-_TIMELINE_CONSTRAINTS: dict[str, list] = {"ax": AXES}
+_TIMELINE_CONSTRAINTS: dict[str, list] = {"ylabel": [str], "ax": AXES}
 
 
 def _check_activations(activations: Any) -> np.ndarray:
@@ -200,7 +200,7 @@ def _check_segments(segments: Any, owner: str) -> list[tuple[float, float, Any]]
 
 
 def plot_activation_timeline(activations: Any, *, times: Any = None, labels: Sequence[Any] | None = None,
-                             segments: Any = None, ax: Axes | None = None,
+                             segments: Any = None, ylabel: str = "activation", ax: Axes | None = None,
                              figsize: tuple[float, float] | None = None) -> Figure:
     """The activation of each concept along a stream cut into sliding windows (Thesis Fig. 6.9).
 
@@ -223,6 +223,8 @@ def plot_activation_timeline(activations: Any, *, times: Any = None, labels: Seq
     segments : sequence of (start, end, label), optional
         Where each concept is present, in the units of ``times``; a band in the colour of
         the column whose label is ``label`` (grey when no column has it).
+    ylabel : str, default="activation"
+        What the values are (e.g. "cosine similarity to the concept's image").
     ax : Axes, optional
         Where to draw (default: a new figure).
     figsize : (float, float), optional
@@ -242,7 +244,7 @@ def plot_activation_timeline(activations: Any, *, times: Any = None, labels: Seq
     ParameterError
         If ``labels`` does not name every column, or another option is not allowed.
     """
-    validate_params({"ax": ax}, _TIMELINE_CONSTRAINTS, owner="plot_activation_timeline")
+    validate_params({"ylabel": ylabel, "ax": ax}, _TIMELINE_CONSTRAINTS, owner="plot_activation_timeline")
     owner = "plot_activation_timeline"
     A = _check_activations(activations)
     if times is None:
@@ -269,7 +271,7 @@ def plot_activation_timeline(activations: Any, *, times: Any = None, labels: Seq
         ax.text((start + end) / 2, 1.0, str(label), transform=ax.get_xaxis_transform(), ha="center", va="bottom",
                 fontsize=7, color=colours.get(label, "0.3"))
     ax.set_xlabel("window number" if times is None else "time (s)")
-    ax.set_ylabel("activation")
+    ax.set_ylabel(ylabel)
     ax.set_xlim(t.min(), t.max() if t.max() > t.min() else t.min() + 1.0)
     ax.legend(fontsize=7, ncols=max(1, min(len(names), 8)), loc="upper left", bbox_to_anchor=(0.0, -0.18),
               frameon=False)

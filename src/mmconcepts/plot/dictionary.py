@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure, FigureBase
 
 from .._validation import InstanceOf, Interval, validate_params
@@ -376,9 +377,9 @@ def plot_dictionary_skeletons(W: Any, recordings: Any, *, bones: Sequence[tuple[
     Returns
     -------
     Figure
-        Axes ``(r, k)`` (row-major, ``n`` per row) has ``n_poses * n_bones`` lines, pose by pose:
-        bone ``(a, b)`` of frame ``f`` joins ``positions[f, a, plane]`` and
-        ``positions[f, b, plane]``, for the frames ``round(linspace(0, n_frames - 1, n_poses))``.
+        Axes ``(r, k)`` (row-major, ``n`` per row) has one line collection per pose, for the
+        frames ``f = round(linspace(0, n_frames - 1, n_poses))``: its segment for bone ``(a, b)``
+        joins ``positions[f, a, plane]`` and ``positions[f, b, plane]``.
 
     Raises
     ------
@@ -411,10 +412,12 @@ def plot_dictionary_skeletons(W: Any, recordings: Any, *, bones: Sequence[tuple[
             raise DataError(f"plot_dictionary_skeletons: recording {i} must be a MotionRecording; got "
                             f"{type(rec).__name__}.")
         pairs = _bone_indices(bones, rec, i)
-        P = rec.positions
+        P = rec.positions[:, :, [h, v]]
+        a, b = np.array(pairs).T
         for shade, f in zip(shades, np.round(np.linspace(0, P.shape[0] - 1, n_poses)).astype(int)):
-            for a, b in pairs:
-                ax.plot(P[f, [a, b], h], P[f, [a, b], v], color=shade, lw=1.2, solid_capstyle="round")
+            ax.add_collection(LineCollection(np.stack([P[f, a], P[f, b]], axis=1), colors=[shade], linewidths=1.2,
+                                             capstyle="round"))
+        ax.autoscale_view()
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xticks([])
         ax.set_yticks([])
