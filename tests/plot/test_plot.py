@@ -99,6 +99,7 @@ def test_frame_features_are_shown_as_they_are(W, rng):
     assert fig.axes[0].images[0].get_extent()[1] == pytest.approx((20 + i) * 0.01)  # 10 ms hop at 16 kHz
 
 
+@pytest.mark.fuzz
 def test_sound_options_are_checked(W, rng, monkeypatch):
     sounds = [rng.normal(size=4000).astype(np.float32) for _ in range(12)]
     with pytest.raises(ParameterError, match="disagree"):
@@ -130,6 +131,7 @@ def test_each_panel_draws_the_chosen_angle_curves(W, rng):
     assert [t.get_text() for t in fig.legends[0].get_texts()] == ["angle 4", "angle 1"]
 
 
+@pytest.mark.fuzz
 def test_motion_options_are_checked(W, rng):
     trajectories = [rng.normal(size=(10, 4)) for _ in range(12)]
     with pytest.raises(ParameterError, match=r"dofs must be in \[0, 4\)"):
@@ -181,6 +183,7 @@ def test_each_panel_draws_the_poses_of_the_atoms_top_motion(W, rng):
                     np.testing.assert_array_equal(segment, P[f][[p, q]][:, [0, 2]])
 
 
+@pytest.mark.fuzz
 def test_skeleton_options_are_checked(W, rng):
     recordings = [_recording(rng) for _ in range(12)]
     with pytest.raises(DataError, match="'tail' is needed but missing"):
@@ -196,6 +199,7 @@ def test_skeleton_options_are_checked(W, rng):
 
 
 # --------------------------------------------------------------------------- what the grids share
+@pytest.mark.fuzz
 @pytest.mark.parametrize("plot, items", [
     (plot_dictionary_images, [np.zeros((4, 4))] * 12),
     (plot_dictionary_sounds, [np.zeros((4, 3))] * 12),
@@ -268,6 +272,7 @@ def test_confusion_is_sklearns(normalize, rng):
     assert [t.get_text() for t in ax.get_xticklabels()] == ["ball", "cup", "dog"]
 
 
+@pytest.mark.fuzz
 def test_confusion_keeps_the_given_label_order_and_checks_its_input():
     fig = plot_confusion([0, 1, 1, 2], [0, 2, 1, 2], labels=[2, 1, 0], colorbar=False, title="S -> I")
     np.testing.assert_array_equal(fig.axes[0].images[0].get_array(), [[1, 0, 0], [1, 1, 0], [0, 0, 1]])
@@ -301,6 +306,7 @@ def test_timeline_lines_are_the_activations_and_bands_the_segments(rng):
     np.testing.assert_allclose([x.min(), x.max()], [0.2, 0.5])
 
 
+@pytest.mark.fuzz
 def test_timeline_checks_its_input(rng):
     A = rng.random((5, 2))
     fig = plot_activation_timeline(A)

@@ -415,8 +415,8 @@ def plot_dictionary_skeletons(W: Any, recordings: Any, *, bones: Sequence[tuple[
         P = rec.positions[:, :, [h, v]]
         a, b = np.array(pairs).T
         for shade, f in zip(shades, np.round(np.linspace(0, P.shape[0] - 1, n_poses)).astype(int)):
-            ax.add_collection(LineCollection(np.stack([P[f, a], P[f, b]], axis=1), colors=[shade], linewidths=1.2,
-                                             capstyle="round"))
+            segments = list(np.stack([P[f, a], P[f, b]], axis=1))  # one (2, 2) array per bone
+            ax.add_collection(LineCollection(segments, colors=[shade], linewidths=1.2, capstyle="round"))
         ax.autoscale_view()
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xticks([])
