@@ -1,10 +1,11 @@
 """The import rules of the package, read from the source (``ast``), and the engine's size limits.
 
 The layers, from the bottom up: the library (``nmf``, ``motion``, ``sound``, ``vision``, ``tasks``,
-``multimodal``, ``datasets``), the engine (``mmconcepts.engine``), the thesis' chapters
-(``mmconcepts.experiments.ch2`` ... ``ch7``), then the report and the command line. A layer imports
-only the layers below it; a chapter imports no other chapter; no engine module imports another in a
-circle; no private name crosses a module. See docs/architecture.rst.
+``multimodal``, ``datasets``), the engine (``mmconcepts.engine``) and beside it the figures of the
+library (``mmconcepts.plot``), the thesis' chapters (``mmconcepts.experiments.ch2`` ... ``ch7``), then
+the report and the command line. A layer imports only the layers below it; only the report and the
+command line import the figures; a chapter imports no other chapter; no engine module imports another
+in a circle; no private name crosses a module. See docs/architecture.rst.
 """
 
 from __future__ import annotations
@@ -92,6 +93,19 @@ def test_the_library_imports_neither_the_engine_nor_the_chapters():
     found = {(m, i) for m, imported in _graph().items() if any(_in(m, f"mmconcepts.{lib}") for lib in LIBRARY)
              for i in imported if _in(i, "mmconcepts.engine") or _in(i, "mmconcepts.experiments")}
     assert not found, f"library modules importing the engine or the chapters: {sorted(found)}"
+
+
+def test_the_figures_import_only_the_library():
+    found = {(m, i) for m, imported in _graph().items() if _in(m, "mmconcepts.plot") for i in imported
+             if any(_in(i, f"mmconcepts.{up}") for up in ("engine", "experiments", "report", "cli"))}
+    assert not found, f"mmconcepts.plot importing more than the library: {sorted(found)}"
+
+
+def test_only_the_report_and_the_command_line_import_the_figures():
+    found = {(m, i) for m, imported in _graph().items()
+             if not any(_in(m, f"mmconcepts.{up}") for up in ("plot", "report", "cli"))
+             for i in imported if _in(i, "mmconcepts.plot")}
+    assert not found, f"modules below the report importing mmconcepts.plot: {sorted(found)}"
 
 
 def test_no_chapter_imports_another():

@@ -12,6 +12,7 @@ from mmconcepts.sound.features import (
     MFCCConfig,
     add_deltas,
     delta,
+    log_mel_spectrogram,
     mfcc,
     mfcc_windows,
     sliding_windows,
@@ -95,16 +96,11 @@ def htk_mel_filterbank(sr, n_fft, n_mels, fmin, fmax):
     return np.maximum(0.0, np.minimum(rising, falling)) * (2.0 / (edges[2:] - edges[:-2]))[:, None]
 
 
-def test_mfcc_uses_the_htk_mel_scale():
-    """MFCC = DCT-II (orthonormal) of the dB energies of HTK-mel filters on the power spectrum of
-    Hamming-windowed, uncentred frames, computed here from the formulas (Thesis section 5.2.3)."""
-    import scipy.fft
+def log_mel_by_formula(y, cfg):
+    """dB energies of HTK-mel filters on the power spectrum of Hamming-windowed, uncentred frames,
+    computed from the formulas (Thesis section 5.2.3)."""
     import scipy.signal
 
-    cfg = MFCCConfig(n_mfcc=13)
-    t = np.arange(8000) / cfg.sr
-    y = (0.3 * np.sin(2 * np.pi * 300 * t) + 0.2 * np.sin(2 * np.pi * 2300 * t * (1 + t))
-         + 0.01 * np.random.default_rng(0).normal(size=t.size)).astype(np.float32)
     window = np.zeros(cfg.n_fft)
     off = (cfg.n_fft - cfg.win_length) // 2
     window[off : off + cfg.win_length] = scipy.signal.get_window("hamming", cfg.win_length, fftbins=True)
@@ -113,11 +109,36 @@ def test_mfcc_uses_the_htk_mel_scale():
     power = np.abs(np.fft.rfft(frames.astype(np.float64) * window, axis=1)) ** 2
     energies = power @ htk_mel_filterbank(cfg.sr, cfg.n_fft, cfg.n_mels, 0.0, cfg.sr / 2).T
     db = 10.0 * np.log10(np.maximum(energies, 1e-10))
-    db = np.maximum(db, db.max() - cfg.top_db)
-    expected = scipy.fft.dct(db, type=2, norm="ortho", axis=1)[:, : cfg.n_mfcc]
+    return np.maximum(db, db.max() - cfg.top_db)
+
+
+def two_tones(cfg):
+    t = np.arange(8000) / cfg.sr
+    return (0.3 * np.sin(2 * np.pi * 300 * t) + 0.2 * np.sin(2 * np.pi * 2300 * t * (1 + t))
+            + 0.01 * np.random.default_rng(0).normal(size=t.size)).astype(np.float32)
+
+
+def test_mfcc_uses_the_htk_mel_scale():
+    """MFCC = DCT-II (orthonormal) of the dB energies of HTK-mel filters (Thesis section 5.2.3)."""
+    import scipy.fft
+
+    cfg = MFCCConfig(n_mfcc=13)
+    y = two_tones(cfg)
+    expected = scipy.fft.dct(log_mel_by_formula(y, cfg), type=2, norm="ortho", axis=1)[:, : cfg.n_mfcc]
     got = mfcc(y, cfg)
     assert got.shape == expected.shape
     np.testing.assert_allclose(got, expected, rtol=0, atol=2e-3 * np.abs(expected).max())
+
+
+def test_log_mel_spectrogram_is_the_front_end_before_the_dct():
+    cfg = MFCCConfig(n_mels=32, top_db=30.0)
+    y = two_tones(cfg)
+    expected = log_mel_by_formula(y, cfg)
+    got = log_mel_spectrogram(y, cfg)
+    assert got.shape == expected.shape == (1 + (y.size - cfg.n_fft) // cfg.hop_length, 32)
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, expected, rtol=0, atol=2e-3 * np.abs(expected).max())
+    assert got.max() - got.min() == pytest.approx(30.0, abs=1e-3)  # top_db clips the quietest bands
 
 
 def test_mfcc_separates_different_sounds():

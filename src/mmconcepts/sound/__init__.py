@@ -7,8 +7,8 @@ Audio and data
     load_fsdd (Free Spoken Digit Dataset, generic or upstream layout), save_generic_audio,
     compose_utterances (several recordings of one speaker in a row, exact word timings).
 Features (sections 5.2.3, 5.3)
-    MFCCConfig, mfcc, delta (the thesis' operator), add_deltas, sliding_windows,
-    mfcc_windows; HAC (histograms of acoustic co-occurrences, sparse).
+    MFCCConfig, log_mel_spectrogram, mfcc, delta (the thesis' operator), add_deltas,
+    sliding_windows, mfcc_windows; HAC (histograms of acoustic co-occurrences, sparse).
 Sequences and events (section 5.2.3)
     dtw, dtw_distance_matrix, dtw_one_to_many; ClusterTree (Algorithm 1 and the two
     backtracking searches); EventVoting (TF-IDF votes, eq. 5.1); TreeVotingClassifier
@@ -43,6 +43,7 @@ from .features import (
     MFCCConfig,
     add_deltas,
     delta,
+    log_mel_spectrogram,
     mfcc,
     mfcc_windows,
     sliding_windows,
@@ -98,6 +99,7 @@ __all__ = [
     "load_audio",
     "load_fsdd",
     "load_generic_audio",
+    "log_mel_spectrogram",
     "mfcc",
     "mfcc_windows",
     "resample",

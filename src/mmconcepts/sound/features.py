@@ -21,6 +21,7 @@ from ..errors import DataError, ParameterError
 
 __all__ = [
     "MFCCConfig",
+    "log_mel_spectrogram",
     "mfcc",
     "delta",
     "add_deltas",
@@ -183,13 +184,14 @@ def _check_audio(y: np.ndarray, config: MFCCConfig) -> np.ndarray:
     return y
 
 
-def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
-    """MFCC sequence of a mono signal (Thesis section 5.2.3).
+def log_mel_spectrogram(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
+    """Log (dB) mel energies of a mono signal: the MFCC front end before its DCT (Thesis section 5.2.3).
 
-    Power spectrum of Hamming-windowed frames, triangular mel filters, log (dB), DCT-II:
-    ``MFCC = DCT[log MFSC]``. Frames are not centred (the first frame starts at sample 0):
-    frame ``t`` is the FFT block ``[t * hop, t * hop + n_fft)`` with the ``win_length``
-    window in its middle, so there are ``1 + (n_samples - n_fft) // hop`` frames.
+    Power spectrum of Hamming-windowed frames, triangular mel filters (HTK mel scale),
+    ``power_to_db`` with ``config.top_db`` of dynamic range. Frames are not centred: frame
+    ``t`` is the FFT block ``[t * hop, t * hop + n_fft)`` with the ``win_length`` window in
+    its middle, so there are ``1 + (n_samples - n_fft) // hop`` frames. The computation is
+    librosa's (:func:`librosa.feature.melspectrogram`, :func:`librosa.power_to_db`).
 
     Parameters
     ----------
@@ -200,7 +202,9 @@ def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
 
     Returns
     -------
-    ndarray of shape (n_frames, n_mfcc), float32
+    ndarray of shape (n_frames, n_mels), float32
+        Frame ``t``'s energy in mel band ``b`` (dB relative to 1, the lowest ``top_db``
+        below the loudest).
     """
     config = MFCCConfig() if config is None else config
     y = _check_audio(y, config)
@@ -225,9 +229,31 @@ def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
             htk=True,
         )
         log_mel = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=config.top_db)
-        m = librosa.feature.mfcc(
-            S=log_mel, sr=config.sr, n_mfcc=config.n_mfcc, dct_type=2, norm="ortho", lifter=config.lifter
-        )
+    return np.ascontiguousarray(log_mel.T, dtype=np.float32)
+
+
+def mfcc(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
+    """MFCC sequence of a mono signal (Thesis section 5.2.3).
+
+    ``MFCC = DCT[log MFSC]``: the DCT-II (orthonormal) of the log mel energies of
+    :func:`log_mel_spectrogram`, frame by frame (same frames).
+
+    Parameters
+    ----------
+    y : ndarray of shape (n_samples,)
+        Mono audio at ``config.sr``.
+    config : MFCCConfig, optional
+        Front-end parameters (defaults of :class:`MFCCConfig` when None).
+
+    Returns
+    -------
+    ndarray of shape (n_frames, n_mfcc), float32
+    """
+    config = MFCCConfig() if config is None else config
+    log_mel = np.ascontiguousarray(log_mel_spectrogram(y, config).T)
+    librosa = optional_import("librosa", "audio", "the MFCC front end")
+    m = librosa.feature.mfcc(S=log_mel, sr=config.sr, n_mfcc=config.n_mfcc, dct_type=2, norm="ortho",
+                             lifter=config.lifter)
     return np.ascontiguousarray(m.T, dtype=np.float32)
 
 
