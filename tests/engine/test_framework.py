@@ -326,6 +326,18 @@ def test_reproduce_records_failures_and_skips_and_keeps_going(toy, tmp_path):
     assert [r["experiment"] for r in records] == ["toy-skip", "toy-mean"]
 
 
+def test_a_missing_extra_skips_the_experiment_naming_the_extra(toy, tmp_path):
+    """A user with "mmconcepts[all]" (no text-to-speech) sees the generated-speech runs skipped, not failed."""
+    from mmconcepts.errors import MissingExtraError
+
+    def needs_speech(config, ctx):
+        raise MissingExtraError('piper is not installed: pip install "mmconcepts[speech]"')
+
+    record = run_experiment(toy.make_experiment("toy-extra", needs_speech), output=tmp_path, progress=False)
+    assert record["status"] == "skipped" and record["traceback"] is None
+    assert 'needs an optional extra' in record["message"] and '"mmconcepts[speech]"' in record["message"]
+
+
 def test_skipped_experiment_returns_record_without_raising(toy, tmp_path):
     record = run_experiment(toy.SKIP, output=tmp_path, progress=False)
     assert record["status"] == "skipped"

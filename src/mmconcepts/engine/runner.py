@@ -23,7 +23,7 @@ from .. import __version__
 from .._fingerprint import code_fingerprint
 from .._io import atomic_write, check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR, data_home
-from ..errors import ExperimentError, ParameterError
+from ..errors import ExperimentError, MissingExtraError, ParameterError
 from .experiment import PRESETS, SMOKE, Experiment, check_seed
 from .spec import ExperimentSkipped, Result, Table
 from .context import RunContext
@@ -226,6 +226,9 @@ def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord
     except ExperimentSkipped as exc:
         record.status, record.message = "skipped", str(exc)
         logger.warning("%s: skipped: %s", exp.id, exc)
+    except MissingExtraError as exc:  # an optional extra this run needs is not installed: skipped, saying which
+        record.status, record.message = "skipped", f"needs an optional extra that is not installed: {exc}"
+        logger.warning("%s: skipped: %s", exp.id, record.message)
     except Exception as exc:
         record.status, record.message = "failed", f"{type(exc).__name__}: {exc}"
         record.traceback = traceback.format_exc()
