@@ -50,7 +50,8 @@ caches each fold's result on disk as the fold ends (key: the data, the setting, 
 :func:`code_fingerprint`), so the four experiments share one computation and an
 interrupted run resumes from the folds it finished. Each fold also fits the k = 15 learner of
 Fig. 6.10 on its training pairs and measures the mutual information between concepts and
-coefficients there (:func:`concept_analysis`).
+coefficients there (:func:`concept_analysis`); the first fold keeps that learner's coefficients,
+from which the four experiments' concept explorer is read (:func:`fold_explorer`).
 """
 
 from __future__ import annotations
