@@ -129,3 +129,31 @@ def _skip(config, ctx):
 
 FAIL = make_experiment("toy-fail", _fail, claims=[Claim("Never evaluated.", "x > 0")])
 SKIP = make_experiment("toy-skip", _skip)
+
+
+#: The clips of ``toy-concepts`` (seconds) and their sample rate: what the tests expect back from the files.
+CLIP_SECONDS = (0.5, 0.8, 1.25)
+CLIP_RATE = 8000
+
+
+def _concepts(config, ctx):
+    """Two concept cards made of tones, gradients, a waving stick figure and curves (no learning)."""
+    from mmconcepts.engine import AudioClip, ConceptCard, Explorer, MotionClip, Thumbnail
+
+    t = [np.arange(int(s * CLIP_RATE)) / CLIP_RATE for s in CLIP_SECONDS]
+    clips = tuple(AudioClip(0.5 * np.sin(2 * np.pi * f * x), CLIP_RATE, f"{f} Hz") for f, x in zip((220, 330, 440), t))
+    ramp = np.linspace(0.0, 1.0, 60)
+    images = (Thumbnail.from_image(np.tile(ramp, (40, 1)), "grey ramp"),
+              Thumbnail.from_image(np.dstack([np.tile(ramp, (40, 1))] * 3)[::-1], "colour ramp"))
+    frames = np.linspace(0, 2 * np.pi, 20)
+    body = np.array([[0.0, 2.0], [0.0, 1.0], [0.0, 0.0], [0.5, 1.5]])  # head, hips, feet, hand (waving)
+    positions = np.repeat(body[None], len(frames), axis=0)
+    positions[:, 3, 1] += 0.4 * np.sin(frames)
+    stick = MotionClip(positions=positions, bones=((0, 1), (1, 2), (0, 3)), frame_rate=10.0, caption="waving")
+    curves = MotionClip(curves=np.stack([np.sin(frames), np.cos(frames)], axis=1), frame_rate=10.0, caption="angles")
+    cards = (ConceptCard("atom 0", (("tone", 0.75), ("noise", 0.25)), clips, images, (stick,), note="a toy card"),
+             ConceptCard("atom 1", (("ramp", 1.0),), clips[:1], images[:1], (curves,)))
+    return Result(metrics={"n_cards": 2.0}, explorer=Explorer(cards, "Toy concepts: tones, ramps and a wave."))
+
+
+CONCEPTS = make_experiment("toy-concepts", _concepts)

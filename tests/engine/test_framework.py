@@ -158,7 +158,8 @@ def test_run_writes_complete_record_and_figures(toy, tmp_path):
     path = out / "toy-mean.json"
     stored = _strict_json(path)
     assert set(RECORD_KEYS) <= stored.keys()
-    assert stored["schema_version"] == 3
+    assert stored["schema_version"] == 4
+    assert stored["explorer"] == {}  # toy-mean has no concept explorer
     assert stored["status"] == "ok" and record["status"] == "ok"
     assert stored["experiment"] == "toy-mean"
     assert stored["preset"] == "quick"

@@ -30,7 +30,7 @@ def test_records_written_by_the_runner_round_trip_byte_for_byte(toy, tmp_path):
     assert ResultRecord.from_dict(dict(record)).to_json() == text  # the mapping view reads back too
     assert list(json.loads(text)) == list(RECORD_KEYS) == list(record.to_dict())
     assert load_record(path).to_json() == text
-    assert record.schema_version == SCHEMA_VERSION == 3
+    assert record.schema_version == SCHEMA_VERSION == 4
     assert [c.kind for c in record.claims] == ["thesis", "ours", "magnitude"]
 
 
@@ -48,6 +48,32 @@ def test_schema_2_records_read_with_unclassified_claims(name):
     # written back, it is a record of this schema's keys that reads back the same
     again = ResultRecord.from_json(record.to_json())
     assert again.to_json() == record.to_json()
+
+
+#: Records of schema 3 (before the concept explorer): the smoke records kept by the golden-record test.
+GOLDEN = Path(__file__).resolve().parents[1] / "golden"
+
+
+@pytest.mark.parametrize("name", ["ch6-concepts.json", "ch7-online.json"])
+def test_schema_3_records_read_without_an_explorer(name):
+    text = (GOLDEN / name).read_text(encoding="utf-8")
+    old = json.loads(text)
+    assert old["schema_version"] == 3 and "explorer" not in old
+    record = ResultRecord.from_json(text)
+    assert record.schema_version == 3 and record.explorer == {} and record["explorer"] == {}
+    assert record.metrics.keys() == old["metrics"].keys() and [c.verdict for c in record.claims] == \
+        [c["verdict"] for c in old["claims"]]
+    again = json.loads(record.to_json())  # written back: this schema's keys, the explorer empty
+    assert list(again) == list(RECORD_KEYS) and again["explorer"] == {}
+
+
+def test_an_explorer_entry_round_trips():
+    entry = {"note": "n", "cards": [{"title": "atom 1", "note": "", "labels": [{"label": "seven", "share": 0.5}],
+                                     "clips": [{"path": "x/explorer/card-1-clip-1.wav", "seconds": 0.5,
+                                                "sample_rate": 8000, "caption": "c"}], "images": [], "motions": []}]}
+    record = ResultRecord(experiment="x", status="ok", explorer=entry)
+    assert list(record.to_dict()).index("explorer") == list(RECORD_KEYS).index("figures") + 1
+    assert ResultRecord.from_json(record.to_json()).explorer == entry
 
 
 def test_real_record_fields_are_typed():
@@ -98,7 +124,7 @@ def test_known_answer_json():
                             "ratio_interval": None, "settings": [], "detail": "", "support": None}]
     assert d["tables"] == {"t": {"title": "cap", "columns": ["k", "v"], "rows": [[1, None]], "note": ""}}
     text = record.to_json()
-    assert text.startswith('{\n  "schema_version": 3,\n  "experiment": "x-1",\n  "title": "T",\n') and text.endswith("}\n")
+    assert text.startswith('{\n  "schema_version": 4,\n  "experiment": "x-1",\n  "title": "T",\n') and text.endswith("}\n")
     assert '"b": null' in text and "NaN" not in text
     back = ResultRecord.from_json(text)
     assert math.isnan(back.metrics["b"]) and back.metrics["a"] == 0.5
@@ -110,7 +136,8 @@ def test_known_answer_json():
     ("not json", "not valid JSON"),
     ("[1, 2]", "not a result record"),
     ('{"experiment": "x", "status": "ok"}', "not a result record"),
-    ('{"schema_version": 4, "experiment": "x", "status": "ok"}', "schema version 4"),
+    ('{"schema_version": 5, "experiment": "x", "status": "ok"}', "schema version 5"),
+    ('{"schema_version": 4, "experiment": "x", "status": "ok", "explorer": [1]}', "explorer of a result record"),
     ('{"schema_version": true, "experiment": "x", "status": "ok"}', "schema version True"),
     ('{"schema_version": 2, "experiment": "x", "status": "ok", "metrics": [1]}', "metrics"),
     ('{"schema_version": 2, "experiment": "x", "status": "ok", "metrics": {"a": "high"}}', "malformed"),

@@ -3,11 +3,14 @@
 The report is built from a small results folder (the toy experiments' records, a real
 record of ``tests/data/records`` whose figure files are absent, and a damaged record), then
 opened in headless Chromium. Asserted: no console errors, every ``<img>`` loaded
-(``naturalWidth > 0``), every in-page link (``#anchor``) names an element, the contents stay
+(``naturalWidth > 0``), every ``<audio>`` loaded (its metadata read, a finite duration) and
+playing (muted), every in-page link (``#anchor``) names an element, the contents stay
 in view after scrolling to the bottom, and following an anchor into a closed section opens
-it. Screenshots go to ``tests/.artifacts/report.png`` (and ``report-bottom.png``) for a
-developer to look at. A second test breaks a report (an image path, an anchor, a script
-error) and checks that the same inspection catches each break.
+it. A run with a concept explorer (the toy's) has its clips' durations checked against the
+clips written, its thumbnails and animated motions loaded. Screenshots go to
+``tests/.artifacts/report.png`` (and ``report-bottom.png``, ``explorer.png``) for a developer
+to look at. Other tests break a report (an image path, an anchor, a script error, an audio,
+thumbnail or motion path) and check that the same inspection catches each break.
 
 Needs Debian's ``chromium`` and ``chromium-driver`` packages (``make test`` installs them
 where it can) and the ``selenium`` package (the ``test`` extra); the tests skip, naming
@@ -73,7 +76,8 @@ def browser():
     options.binary_location = CHROMIUM
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--window-size=1400,1000", "--hide-scrollbars", "--allow-file-access-from-files",
-                "--disable-extensions", "--no-first-run", "--disable-background-networking"):
+                "--disable-extensions", "--no-first-run", "--disable-background-networking",
+                "--autoplay-policy=no-user-gesture-required"):
         options.add_argument(arg)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     try:
@@ -120,6 +124,29 @@ Promise.all(imgs.map(img => img.complete ? null : new Promise(r => {
 });
 """
 
+#: Every <audio> of the page: wait for its metadata (or its error), then play it muted and see it go.
+_AUDIO = """
+const done = arguments[arguments.length - 1];
+const clips = Array.from(document.querySelectorAll("audio"));
+const ready = a => a.readyState >= 1 || a.error ? Promise.resolve() : new Promise(r => {
+    a.addEventListener("loadedmetadata", r); a.addEventListener("error", r); setTimeout(r, 10000); });
+Promise.all(clips.map(a => { a.preload = "auto"; a.load(); return ready(a); })).then(async () => {
+  const out = [];
+  for (const a of clips) {
+    let played = null;
+    if (!a.error && a.readyState >= 1) {
+      a.muted = true;
+      try { await a.play(); await new Promise(r => setTimeout(r, 250)); played = !a.paused || a.ended || a.currentTime > 0; }
+      catch (e) { played = String(e); }
+      a.pause();
+    }
+    out.push({src: a.getAttribute("src"), ready: a.readyState, duration: a.duration,
+              error: a.error ? a.error.code : null, played: played});
+  }
+  done(out);
+});
+"""
+
 _TOC_IN_VIEW = """
 const toc = document.getElementById("toc");
 if (!toc) return {found: false};
@@ -140,6 +167,7 @@ def inspect(driver, html_path: Path, *, screenshot: str | None = None) -> dict:
     driver.get_log("browser")  # drop what earlier pages logged
     driver.get(html_path.resolve().as_uri())
     found = driver.execute_async_script(_INSPECT)
+    found["audio"] = driver.execute_async_script(_AUDIO)
     if screenshot:
         ARTIFACTS.mkdir(exist_ok=True)
         driver.save_screenshot(str(ARTIFACTS / f"{screenshot}.png"))
@@ -155,6 +183,10 @@ def _problems(found: dict) -> list[str]:
     """Everything wrong with an inspected page, in words."""
     problems = [f"console error: {m}" for m in found["console_errors"]]
     problems += [f"image not loaded: {src}" for src, complete, width in found["images"] if not (complete and width > 0)]
+    problems += [f"audio not loaded: {a['src']} ({a})" for a in found["audio"]
+                 if a["error"] is not None or a["ready"] < 1 or not (a["duration"] or 0) > 0]
+    problems += [f"audio does not play: {a['src']} ({a['played']})" for a in found["audio"]
+                 if a["error"] is None and a["ready"] >= 1 and a["played"] is not True]
     problems += [f"link to a missing anchor: {h}" for h in found["dangling"]]
     problems += [f"duplicate id: {i}" for i in found["duplicate_ids"]]
     toc = found["toc"]
@@ -184,6 +216,47 @@ def test_following_an_anchor_opens_a_closed_section(browser, report_dir):
         "return document.getElementById(arguments[0]).closest('details.experiment').open;", claim)
     assert opened
     assert _console_errors(browser) == []
+
+
+@pytest.fixture
+def explorer_dir(toy, tmp_path):
+    """A results folder with a run that has a concept explorer (the toy's: tones, ramps, a stick figure, curves)."""
+    register(toy.CONCEPTS)
+    out = tmp_path / "results"
+    reproduce(output=out, progress=False, ids=["toy-concepts"])
+    write_report(out)
+    return out
+
+
+def test_the_concept_explorer_plays_and_shows_in_headless_chromium(browser, explorer_dir, toy):
+    record = json.loads((explorer_dir / "toy-concepts.json").read_text())
+    clips = [c for card in record["explorer"]["cards"] for c in card["clips"]]
+    pictures = [m["path"] for card in record["explorer"]["cards"] for kind in ("images", "motions") for m in card[kind]]
+    found = inspect(browser, explorer_dir / "report.html", screenshot="explorer")
+    assert _problems(found) == []
+    # every clip: its metadata loaded, its duration the clip's, and it plays
+    assert [a["src"] for a in found["audio"]] == [c["path"] for c in clips] and len(clips) == 4
+    for a, clip in zip(found["audio"], clips):
+        assert a["ready"] >= 1 and a["error"] is None and a["played"] is True
+        assert a["duration"] == pytest.approx(clip["seconds"], abs=0.05)
+    assert sorted(c["seconds"] for c in clips) == sorted([*toy.CLIP_SECONDS, toy.CLIP_SECONDS[0]])
+    # every thumbnail and both motions (animated SVG) loaded
+    loaded = {src: width for src, complete, width in found["images"] if complete}
+    assert sorted(loaded) == sorted(pictures) and all(width > 0 for width in loaded.values())
+
+
+@pytest.mark.parametrize("damage", ["audio path", "thumbnail path", "motion path"])
+def test_the_browser_check_catches_a_broken_explorer(browser, explorer_dir, damage):
+    path = explorer_dir / "report.html"
+    text = path.read_text()
+    old = {"audio path": "card-1-clip-2.wav", "thumbnail path": "card-2-image-1.png",
+           "motion path": "card-1-motion-1.svg"}[damage]
+    broken = text.replace(f'src="toy-concepts/explorer/{old}"', 'src="toy-concepts/explorer/nothing-here.x"')
+    assert broken != text
+    path.write_text(broken)
+    problems = _problems(inspect(browser, path))
+    expected = "audio not loaded" if damage == "audio path" else "image not loaded"
+    assert any(expected in p and "nothing-here" in p for p in problems), problems
 
 
 @pytest.mark.parametrize("damage", ["image path", "anchor", "script error", "toc not sticky"])

@@ -373,6 +373,82 @@ def test_missing_figure_is_named_not_an_image_that_cannot_load(results):
     assert "*Figure `hist`: file missing (`toy-mean/hist.png`)*" in md
 
 
+# --------------------------------------------------------------------------- the concept explorer
+
+@pytest.fixture
+def concepts(toy, tmp_path):
+    """A results folder with the toy concept explorer's record (two cards: clips, thumbnails, a motion each)."""
+    register(toy.CONCEPTS)
+    out = tmp_path / "results"
+    run_experiment("toy-concepts", output=out, progress=False)
+    return out
+
+
+def test_the_explorer_plays_every_clip_and_shows_every_image_and_motion(concepts):
+    record = json.loads((concepts / "toy-concepts.json").read_text())
+    files = {kind: [m["path"] for card in record["explorer"]["cards"] for m in card[kind]]
+             for kind in ("clips", "images", "motions")}
+    html_text, md = (p.read_text() for p in write_report(concepts))
+    page = _parse(html_text)
+    assert page.errors == []
+    audio = re.findall(r'<audio controls preload="metadata" src="([^"]+)"></audio>', html_text)
+    assert audio == files["clips"] and len(audio) == 4
+    assert page.imgs == files["images"][:2] + files["motions"][:1] + files["images"][2:] + files["motions"][1:]
+    assert all(path.endswith(".svg") for path in files["motions"])
+    # one card per concept, with its aligned labels and their shares, and anchors
+    assert html_text.count('<article class="card"') == 2
+    assert 'aligned with <span class="label">tone <b>75 %</b></span>, <span class="label">noise <b>25 %</b></span>' \
+        in html_text
+    assert {"exp-toy-concepts-synthetic-explorer", "exp-toy-concepts-synthetic-card-1",
+            "exp-toy-concepts-synthetic-card-2"} <= set(_anchors(html_text).ids)
+    assert "Toy concepts: tones, ramps and a wave." in html_text and "220 Hz · 0.50 s" in html_text
+    # the Markdown report: a compact list of links
+    assert '<a id="exp-toy-concepts-synthetic-explorer"></a>\n#### Concept explorer' in md
+    card = next(line for line in md.splitlines() if "**atom 0**" in line)
+    assert card.startswith('- <a id="exp-toy-concepts-synthetic-card-1"></a>**atom 0**: aligned with tone (75 %), '
+                           "noise (25 %) · clips: [1](toy-concepts/explorer/card-1-clip-1.wav) [2](")
+    assert "motion: [1](toy-concepts/explorer/card-1-motion-1.svg)" in card
+
+
+def test_explorer_files_missing_are_named_not_elements_that_cannot_load(concepts):
+    (concepts / "toy-concepts" / "explorer" / "card-1-clip-2.wav").unlink()
+    (concepts / "toy-concepts" / "explorer" / "card-2-image-1.png").unlink()
+    (concepts / "toy-concepts" / "explorer" / "card-1-motion-1.svg").unlink()
+    html_text, md = (p.read_text() for p in write_report(concepts))
+    assert html_text.count("<audio") == 3 and "card-1-clip-2.wav\"" not in html_text
+    assert "audio file missing: <code>toy-concepts/explorer/card-1-clip-2.wav</code>" in html_text
+    assert "image file missing: <code>toy-concepts/explorer/card-2-image-1.png</code>" in html_text
+    assert "motion file missing: <code>toy-concepts/explorer/card-1-motion-1.svg</code>" in html_text
+    assert all(not src.endswith(("card-2-image-1.png", "card-1-motion-1.svg")) for src in _parse(html_text).imgs)
+    assert "2 (missing: `toy-concepts/explorer/card-1-clip-2.wav`)" in md
+
+
+def test_explorer_entries_from_a_hand_edited_record_are_shown_safely(concepts):
+    path = concepts / "toy-concepts.json"
+    record = json.loads(path.read_text())
+    cards = record["explorer"]["cards"]
+    cards[0]["title"] = "<script>alert(1)</script>"
+    cards[0]["clips"][0]["path"] = "/etc/passwd"  # absolute: not a file of the results folder
+    cards[0]["clips"][1]["path"] = "../outside.wav"
+    cards[1]["labels"] = [{"label": "x", "share": "much"}, "not a label"]
+    cards.append("not a card")
+    path.write_text(json.dumps(record))
+    html_text = write_report(concepts)[0].read_text()
+    assert "<script>alert(1)</script>" not in html_text and "&lt;script&gt;alert(1)&lt;/script&gt;" in html_text
+    assert "/etc/passwd" not in html_text and "outside.wav" not in html_text
+    assert html_text.count("<audio") == 2 and html_text.count('<article class="card"') == 2
+    assert '<span class="label">x</span>' in html_text
+
+
+def test_a_record_of_schema_3_has_no_explorer_section(results):
+    record = json.loads((results / "toy-mean.json").read_text())
+    record["schema_version"] = 3
+    del record["explorer"]
+    (results / "toy-mean.json").write_text(json.dumps(record))
+    html_text, md = (p.read_text() for p in write_report(results))
+    assert "Concept explorer" not in html_text and "Concept explorer" not in md and "exp-toy-mean" in html_text
+
+
 # --------------------------------------------------------------------------- the figures the report shows
 
 def _figure_problems(fig) -> list[str]:

@@ -11,7 +11,9 @@ importable from here:
 - compute: :class:`RunContext` (workers, real data sets, caches, progress), :func:`streams`
   (independent random streams from the seed), :class:`Result`, :class:`Table`,
   :class:`SampleUnit` (what the repetitions behind a metric are), :func:`describe_split`
-  (no source recording on both sides of a split), :class:`ExperimentSkipped`;
+  (no source recording on both sides of a split), :class:`ExperimentSkipped`; :class:`Explorer`
+  (:class:`ConceptCard`, :class:`AudioClip`, :class:`Thumbnail`, :class:`MotionClip`: the cards of
+  the concepts a run learnt, written beside its figures);
 - run: :func:`run_experiment`, :func:`reproduce`, :class:`DataPlan` (which real sets each
   experiment of a run uses, resolved once per run), :func:`load_record`,
   :func:`compare_records`, :func:`redraw_figures` (figures drawn again from what a run kept).
@@ -19,9 +21,10 @@ importable from here:
 The modules, from the bottom up: ``rule_syntax``/``rules`` (the claim language),
 ``uncertainty`` (units and intervals), ``evidence`` (the tests behind a verdict),
 ``verdicts`` (a claim decided once, when its record is made), ``spec``, ``context``,
-``streams``, ``experiment``, ``config``, ``splits`` (what an experiment declares and uses),
+``streams``, ``experiment``, ``config``, ``splits``, ``explorer`` (what an experiment declares and uses),
 ``codec``/``cache`` (the no-pickle disk caches), ``workers``/``cluster`` (processes, Dask),
-``registry``, ``record``/``outputs``/``data`` (records and their files, the data plan),
+``registry``, ``record``/``outputs``/``media``/``data`` (records and their files, the explorer's
+files, the data plan),
 ``runner`` (one experiment), ``lanes``/``batch`` (many), ``compare`` (two runs' records),
 ``redraw`` (figures again, without recomputing).
 See ``docs/architecture.rst`` for the picture and the import rules.
@@ -35,6 +38,7 @@ from .config import PresetConfig
 from .context import RunContext, array_digest, cached_call
 from .data import DataPlan, check_data, parse_data_args
 from .experiment import PRESETS, Experiment
+from .explorer import AudioClip, ConceptCard, Explorer, MotionClip, Thumbnail
 from .outputs import load_record
 from .record import RECORD_KEYS, SCHEMA_VERSION, ClaimRecord, ResultRecord
 from .redraw import redraw_figures
@@ -47,8 +51,11 @@ from .streams import STREAMS, Streams, streams
 from .uncertainty import SampleUnit
 
 __all__ = [
+    "AudioClip",
     "CLAIM_KINDS",
+    "ConceptCard",
     "FAIR_AGREEMENT",
+    "MotionClip",
     "PRESETS",
     "RECORD_KEYS",
     "SCHEMA_VERSION",
@@ -57,6 +64,7 @@ __all__ = [
     "DataPlan",
     "Experiment",
     "ExperimentSkipped",
+    "Explorer",
     "PresetConfig",
     "Result",
     "ResultRecord",
@@ -66,6 +74,7 @@ __all__ = [
     "STREAMS",
     "Streams",
     "Table",
+    "Thumbnail",
     "above_chance_rule",
     "all_experiments",
     "array_digest",

@@ -3,9 +3,9 @@ written and stale ones removed (everything written atomically).
 
 Run experiments, write their results as JSON + PNG, skip what is up to date.
 
-A result record is a JSON object with a stable schema (``schema_version`` 3)::
+A result record is a JSON object with a stable schema (``schema_version`` 4)::
 
-    schema_version  3
+    schema_version  4
     experiment      id                       title, thesis_ref
     status          "ok" | "failed" | "skipped"
     message         why it failed or was skipped (null when ok)
@@ -43,6 +43,10 @@ A result record is a JSON object with a stable schema (``schema_version`` 3)::
                     thesis; settings and detail: a claim decided under several settings
     tables          name -> {title, columns, rows, note}
     figures         name -> path of the PNG, relative to the results folder
+    explorer        {} or {note, cards: [{title, note, labels: [{label, share}], clips: [{path, seconds,
+                    sample_rate, caption}], images: [{path, width, height, caption}], motions: [{path,
+                    frames, seconds, caption}]}]}: the concept explorer (:mod:`.explorer`), its files
+                    (WAV, PNG, animated SVG) relative to the results folder
     notes, extra    remarks and JSON-able extras
     warnings        the distinct warnings raised during the run ("RuntimeWarning: 2 file(s)
                     of ... could not be read and were skipped ..."), so that the report
@@ -52,10 +56,12 @@ A result record is a JSON object with a stable schema (``schema_version`` 3)::
 The record of an experiment's default run is ``<output>/<id>.json`` (on the real sets
 when any is found, else on generated data); when real sets were found, its run on
 generated data is ``<output>/<id>.synthetic.json``. Figures go to ``<output>/<id>/`` (and
-``<output>/<id>.synthetic/``). Everything is written atomically (a temporary file in the
-same folder, then :func:`os.replace`), figures first, so a JSON file on disk always
-describes complete results. Records of schemas 1 and 2 (before variants, verdicts and claim
-kinds) are still read: their claims are of kind "unclassified".
+``<output>/<id>.synthetic/``), the explorer's files to ``<output>/<id>/explorer/``. Everything
+is written atomically (a temporary file in the same folder, then :func:`os.replace`; the
+explorer's folder built beside and moved into place), figures and explorer first, so a JSON
+file on disk always describes complete results. Records of schemas 1 and 2 (before variants,
+verdicts and claim kinds) are still read: their claims are of kind "unclassified"; records of
+schema 3 (before the explorer) are read without one.
 
 In Python a record is a :class:`~mmconcepts.engine.record.ResultRecord`, whose
 ``to_json``/``from_json`` write and read this JSON (and which reads like its JSON dict:
@@ -67,12 +73,14 @@ from __future__ import annotations
 import io
 import logging
 import os
+import shutil
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from .._io import atomic_write
 from ..errors import ExperimentError
+from .media import EXPLORER_DIR, explorer_files
 from .record import SCHEMA_VERSION, ResultRecord
 
 
@@ -127,7 +135,7 @@ def up_to_date(existing: ResultRecord | None, fresh: ResultRecord, output: Path)
     for key in ("config", "code", "data", "data_signature", "preset", "variant"):
         if getattr(existing, key) != getattr(fresh, key):
             return False
-    return all((output / rel).is_file() for rel in existing.figures.values())
+    return all((output / rel).is_file() for rel in [*existing.figures.values(), *explorer_files(existing.explorer)])
 
 
 def close_figures(figures: Mapping[str, Any]) -> None:
@@ -143,7 +151,8 @@ def close_figures(figures: Mapping[str, Any]) -> None:
 
 
 def remove_stale_figures(fig_dir: Path, keep: Iterable[str]) -> None:
-    """Delete the figures of ``fig_dir`` not named in ``keep`` (and its kept figure data, unless named)."""
+    """Delete the figures of ``fig_dir`` not named in ``keep`` (and its kept figure data and explorer folder, unless
+    named)."""
     if not fig_dir.is_dir():
         return
     keep = set(keep)
@@ -152,6 +161,8 @@ def remove_stale_figures(fig_dir: Path, keep: Iterable[str]) -> None:
             png.unlink()
     if FIGURE_DATA not in keep:
         (fig_dir / FIGURE_DATA).unlink(missing_ok=True)
+    if EXPLORER_DIR not in keep:
+        shutil.rmtree(fig_dir / EXPLORER_DIR, ignore_errors=True)
     try:
         fig_dir.rmdir()  # only succeeds when empty
     except OSError:

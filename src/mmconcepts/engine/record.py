@@ -33,7 +33,7 @@ from .spec import Table
 __all__ = ["SCHEMA_VERSION", "RECORD_KEYS", "ClaimRecord", "ResultRecord", "to_jsonable"]
 
 #: Version of the result-record schema written by :func:`run_experiment`.
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 #: Keys present in every result record, whatever its status, in the order they are written.
 RECORD_KEYS = (
@@ -62,6 +62,7 @@ RECORD_KEYS = (
     "claims",
     "tables",
     "figures",
+    "explorer",
     "notes",
     "extra",
     "warnings",
@@ -224,7 +225,7 @@ class ClaimRecord:
 
 @dataclass(kw_only=True)
 class ResultRecord(Mapping[str, Any]):
-    """The record of one experiment run (schema version 3).
+    """The record of one experiment run (schema version 4).
 
     Its fields are the keys of the JSON record, in the order written (:data:`RECORD_KEYS`);
     the runner's module docstring and the README describe each. Read-only mapping access
@@ -240,6 +241,9 @@ class ResultRecord(Mapping[str, Any]):
         NaN for a metric that was not measured (null in the JSON).
     claims : list of ClaimRecord
     tables : dict of str to Table
+    explorer : dict
+        ``{}``, or the concept explorer's ``{"note", "cards"}`` with the relative paths of its
+        files (:func:`mmconcepts.engine.media.write_explorer`).
     (others)
         As in the JSON; see :data:`RECORD_KEYS`.
     """
@@ -269,6 +273,7 @@ class ResultRecord(Mapping[str, Any]):
     claims: list[ClaimRecord] = field(default_factory=list)
     tables: dict[str, Table] = field(default_factory=dict)
     figures: dict[str, str] = field(default_factory=dict)
+    explorer: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
@@ -315,7 +320,7 @@ class ResultRecord(Mapping[str, Any]):
         """Read a record from its JSON dict (as :meth:`to_dict` gives it, or as older versions wrote it).
 
         Keys missing from older records get their defaults: no intervals, samples, sample
-        units or warnings; the variant ``"real"`` when the record names real data, else
+        units, warnings or explorer (before schema 4); the variant ``"real"`` when the record names real data, else
         ``"synthetic"``; no code fingerprint; a claim without a verdict gets that of its
         ``holds``. Unknown keys are ignored.
 
@@ -324,7 +329,7 @@ class ResultRecord(Mapping[str, Any]):
         ExperimentError
             If ``d`` is not a result record: a key of ``schema_version``, ``experiment``,
             ``status`` is missing, the schema version is newer than :data:`SCHEMA_VERSION`,
-            or metrics, claims or tables are malformed.
+            or metrics, claims, tables or the explorer are malformed.
         """
         if not isinstance(d, Mapping) or not all(key in d for key in _REQUIRED):
             raise ExperimentError(f"not a result record: a result record is a JSON object with the keys "
@@ -340,6 +345,8 @@ class ResultRecord(Mapping[str, Any]):
         claims = d.get("claims") or []
         if not isinstance(tables, Mapping) or not isinstance(claims, list):
             raise ExperimentError("the tables of a result record must be a dict and its claims a list.")
+        if not isinstance(d.get("explorer") or {}, Mapping):
+            raise ExperimentError(f"the explorer of a result record must be a dict; got {type(d['explorer']).__name__}.")
         try:
             metric_values = {str(k): math.nan if v is None else float(v) for k, v in metrics.items()}
             table_values = {str(name): Table.from_dict(t) for name, t in tables.items()}
@@ -353,7 +360,7 @@ class ResultRecord(Mapping[str, Any]):
             fields["variant"] = "real" if d.get("data") else "synthetic"
         for key in ("config", "data", "data_signature", "intervals", "samples", "sample_units", "units", "split_groups",
                     "reference",
-                    "figures", "notes", "extra", "warnings"):
+                    "figures", "explorer", "notes", "extra", "warnings"):
             if key in fields and fields[key] is None:  # null where a dict or list belongs: empty
                 del fields[key]
         return cls(**fields)

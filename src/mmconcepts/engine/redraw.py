@@ -23,6 +23,7 @@ from .._codec import CorruptFile
 from .._store import MISSING, read_entry, write_entry
 from ..errors import ExperimentError, ParameterError
 from .experiment import Experiment
+from .media import EXPLORER_DIR
 from .outputs import FIGURE_DATA, close_figures, load_record, remove_stale_figures, save_figures
 from .record import ResultRecord
 from .registry import get
@@ -141,7 +142,7 @@ def redraw_figures(output: str | os.PathLike[str], ids: Sequence[str] | None = N
         if saved != record.figures:  # present draws other figures now: the record lists them
             record.figures = saved
             atomic_write(path, record.to_json().encode("utf-8"))
-            remove_stale_figures(fig_dir, [*(Path(p).name for p in saved.values()), FIGURE_DATA])
+            remove_stale_figures(fig_dir, [*(Path(p).name for p in saved.values()), FIGURE_DATA, EXPLORER_DIR])
         drawn[path.name] = sorted(saved)
         logger.info("%s: redrew %d figure(s) in %s", record.experiment, len(saved), fig_dir)
     return drawn

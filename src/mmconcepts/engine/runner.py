@@ -39,6 +39,7 @@ from .outputs import (
     save_figures,
     up_to_date,
 )
+from .media import EXPLORER_DIR, write_explorer
 from .record import ClaimRecord, ResultRecord, to_jsonable
 from .redraw import store_figure_data
 from .registry import get
@@ -195,13 +196,11 @@ def _record_result(record: ResultRecord, exp: Experiment, result: Result) -> Non
     record.extra = to_jsonable(result.extra, where="extra")
 
 
-
-
 def clear_results(record: ResultRecord) -> None:
     """A run that did not finish has no numbers, figures or verdicts."""
     record.metrics, record.intervals, record.samples, record.sample_units = {}, {}, {}, {}
     record.units, record.split_groups = {}, {}
-    record.tables, record.figures, record.notes, record.extra = {}, {}, [], {}
+    record.tables, record.figures, record.explorer, record.notes, record.extra = {}, {}, {}, [], {}
     record.claims = [ClaimRecord(text=c.text, rule=c.rule, kind=c.kind, source=c.source, settings=[
         {"label": s["label"], "rule": s["rule"]} for s in c.settings]) for c in record.claims]
 
@@ -221,6 +220,7 @@ def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord
         result.validate()
         _record_result(record, exp, result)
         record.figures = save_figures(result.figures, target.fig_dir)
+        record.explorer = write_explorer(result.explorer, target.fig_dir)
         if exp.present is not None and result.figures:
             store_figure_data(result, target.fig_dir, exp.id)
     except ExperimentSkipped as exc:
@@ -393,9 +393,10 @@ def remove_secondary_record(output: str | os.PathLike[str], exp_id: str) -> None
 
 
 def write_record(record: ResultRecord, target: RunTarget) -> None:
-    """Write ``record`` atomically (its figures are already written) and remove the figures it no longer has."""
+    """Write ``record`` atomically (its figures and explorer are written first) and remove the files it no longer has."""
     atomic_write(target.json_path, record.to_json().encode("utf-8"))
-    kept = [Path(p).name for p in record.figures.values()]
-    remove_stale_figures(target.fig_dir, [*kept, FIGURE_DATA] if record.status == "ok" and kept else kept)
+    figures = [Path(p).name for p in record.figures.values()]
+    kept = [*figures, FIGURE_DATA] if record.status == "ok" and figures else figures
+    remove_stale_figures(target.fig_dir, kept + ([EXPLORER_DIR] if record.explorer else []))
     if record.status == "ok":
         logger.info("%s: done in %.1f s, wrote %s", record.experiment, record.elapsed_s, target.json_path)

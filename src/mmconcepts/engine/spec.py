@@ -12,6 +12,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from ..errors import ExperimentError
+from .explorer import Explorer
 from .rules import is_valid_metric_name, parse_rule
 from .uncertainty import SampleUnit
 
@@ -245,6 +246,10 @@ class Result:
         What an experiment's ``present`` draws beyond the metrics and tables (loss curves,
         per-unit curves, value maps, ...), set by its ``compute``. Kept in memory only: the
         runner never writes it to the record.
+    explorer : Explorer, optional
+        The cards of the concepts the run's learner found (:class:`~mmconcepts.engine.explorer.Explorer`):
+        the runner writes their clips, thumbnails and motions beside the figures and lists them in
+        the record's ``explorer``.
     """
 
     metrics: dict[str, float] = field(default_factory=dict)
@@ -257,6 +262,7 @@ class Result:
     figure_data: dict[str, Any] = field(default_factory=dict)
     units: dict[str, SampleUnit] = field(default_factory=dict)
     split_groups: dict[str, Any] = field(default_factory=dict)
+    explorer: Explorer | None = None
 
     def validate(self) -> None:
         """Check names and types; raise :class:`ExperimentError` naming the culprit."""
@@ -318,5 +324,8 @@ class Result:
                                       f"{', '.join(sorted(named)) or 'none'}).")
         if not isinstance(self.split_groups, Mapping):
             raise ExperimentError(f"Result.split_groups must be a dict; got {type(self.split_groups).__name__}.")
+        if self.explorer is not None and not isinstance(self.explorer, Explorer):
+            raise ExperimentError(f"Result.explorer must be an Explorer (mmconcepts.engine.Explorer) or None; got "
+                                  f"{type(self.explorer).__name__}.")
 
 

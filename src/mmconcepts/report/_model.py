@@ -149,6 +149,61 @@ def claim_test(claim: ClaimRecord) -> str:
 
 
 @dataclass
+class MediaView:
+    """One file of a concept card: its path relative to the results folder, whether it is there, its caption."""
+
+    path: str
+    exists: bool
+    caption: str = ""
+    seconds: str = ""  # a clip's or a motion's duration, formatted ("0.62 s")
+    width: int = 0  # an image's size in pixels (0: unknown)
+    height: int = 0
+
+
+@dataclass
+class CardView:
+    """One card of a run's concept explorer, as the report shows it."""
+
+    title: str
+    note: str
+    labels: list[tuple[str, str]]  # (label, share as "81 %")
+    clips: list[MediaView]
+    images: list[MediaView]
+    motions: list[MediaView]
+
+
+def _media(items: Any, results_dir: Path) -> list[MediaView]:
+    """The files a card lists, in the order listed; entries without a usable relative path are left out."""
+    out = []
+    for item in items if isinstance(items, list) else []:
+        path = item.get("path") if isinstance(item, dict) else None
+        if not isinstance(path, str) or not path or Path(path).is_absolute() or ".." in Path(path).parts:
+            continue
+        seconds = item.get("seconds")
+        size = [item.get(k) for k in ("width", "height")]
+        out.append(MediaView(path=path, exists=(results_dir / path).is_file(), caption=str(item.get("caption") or ""),
+                             seconds=f"{seconds:.2f} s" if isinstance(seconds, (int, float)) else "",
+                             width=size[0] if isinstance(size[0], int) else 0,
+                             height=size[1] if isinstance(size[1], int) else 0))
+    return out
+
+
+def explorer_cards(explorer: Any, results_dir: Path) -> list[CardView]:
+    """The cards of a record's ``explorer`` entry (a malformed card is left out; a missing file is marked)."""
+    cards = explorer.get("cards") if isinstance(explorer, dict) else None
+    out = []
+    for card in cards if isinstance(cards, list) else []:
+        if not isinstance(card, dict):
+            continue
+        labels = [(str(lab.get("label", "")), f"{100 * lab['share']:.0f} %" if isinstance(lab.get("share"), (int, float))
+                   else "") for lab in card.get("labels") or [] if isinstance(lab, dict)]
+        out.append(CardView(title=str(card.get("title") or "concept"), note=str(card.get("note") or ""), labels=labels,
+                            clips=_media(card.get("clips"), results_dir), images=_media(card.get("images"), results_dir),
+                            motions=_media(card.get("motions"), results_dir)))
+    return out
+
+
+@dataclass
 class ExperimentView:
     """Everything the report shows for one result record."""
 
@@ -176,6 +231,8 @@ class ExperimentView:
     preset: str = ""
     code: str = ""
     seed: str = ""
+    cards: list[CardView] = field(default_factory=list)  # the concept explorer
+    explorer_note: str = ""
 
     @property
     def status_label(self) -> str:
@@ -389,6 +446,8 @@ def build_view(record: ResultRecord, results_dir: Path, source: Path) -> Experim
         preset=str(record.preset),
         code=str(record.code or ""),
         seed=format_cell(record.seed),
+        cards=explorer_cards(record.explorer, results_dir),
+        explorer_note=str(record.explorer.get("note") or ""),
     )
 
 
@@ -551,7 +610,8 @@ class Plan:
 
     Both formats use the same ones: ``exp-<id>`` per experiment, ``exp-<id>-claim-<n>`` per
     claim, ``exp-<id>-<variant>`` per run, ``...-table-<name>`` and ``...-fig-<name>`` per
-    table and figure (``-2``, ``-3`` appended where two would coincide).
+    table and figure, ``...-explorer`` and ``...-card-<n>`` for a run's concept explorer and its
+    cards (``-2``, ``-3`` appended where two would coincide).
     """
 
     def __init__(self, groups: list[ExperimentGroup]) -> None:
@@ -564,6 +624,8 @@ class Plan:
         self.run: dict[int, str] = {}
         self.table: dict[tuple[int, int], str] = {}
         self.figure: dict[tuple[int, int], str] = {}
+        self.explorer: dict[int, str] = {}
+        self.card: dict[tuple[int, int], str] = {}
         for g in groups:
             self.section[id(g)] = sec = anchors.make(slug(g.id))
             self.section_of.setdefault(g.id, sec)
@@ -576,6 +638,10 @@ class Plan:
                     self.table[(id(view), j)] = anchors.make(f"{run}-table-{slug_part(table['name'])}")
                 for j, (name, _rel, _ok) in enumerate(view.figures):
                     self.figure[(id(view), j)] = anchors.make(f"{run}-fig-{slug_part(name)}")
+                if view.cards:
+                    self.explorer[id(view)] = anchors.make(f"{run}-explorer")
+                for j in range(len(view.cards)):
+                    self.card[(id(view), j)] = anchors.make(f"{run}-card-{j + 1}")
 
 
 def variant_summaries(views: "list[ExperimentView]") -> list[tuple[str, str]]:

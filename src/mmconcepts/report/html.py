@@ -1,11 +1,19 @@
 """Render the report as one self-contained HTML file (CSS and a few lines of script inline,
-figures as relative PNGs).
+figures as relative PNGs, a concept explorer's clips, thumbnails and motions as the relative
+files its run wrote).
 
 The page has a table of contents that stays in view beside the text (a sticky sidebar; on
 a narrow screen it sits above), a summary, and one collapsible section per experiment
 (``<details open>``: open by default, every section opens before printing). Every
 experiment, run, table, figure and claim has an anchor (an ``id``) and every section a link
 back to the summary. Nothing a result record holds reaches the page unescaped.
+
+A run with a concept explorer shows one card per learnt concept: the labels it aligns with and
+their shares, its clips as ``<audio controls>``, its thumbnails and its motion (an animated SVG)
+as ``<img>``. The media are the files beside the record, linked by relative paths as the
+figures are, rather than ``data:`` URIs: the page stays small (the bytes are on disk once), it
+works offline from ``file://`` and from any static server, and the Markdown report links the
+same files. A file that is missing is named in a muted note instead of a broken element.
 """
 
 from __future__ import annotations
@@ -19,8 +27,8 @@ from urllib.parse import quote
 from .. import __version__
 from ..engine.uncertainty import MAGNITUDE_VERDICTS, VERDICTS
 from ..engine.verdicts import TALLY_KINDS
-from ._model import (KIND_SECTIONS, STATUS_LABELS, VARIANT_LABELS, ExperimentGroup, ExperimentView, Plan, chance_line, claims_by_data,
-                     group, kind_tally_rows, slug_part, variant_summaries)
+from ._model import (KIND_SECTIONS, STATUS_LABELS, VARIANT_LABELS, CardView, ExperimentGroup, ExperimentView, MediaView,
+                     Plan, chance_line, claims_by_data, group, kind_tally_rows, slug_part, variant_summaries)
 
 __all__ = ["render_html"]
 
@@ -157,6 +165,8 @@ def _run(view: ExperimentView, plan: Plan) -> str:
         else:  # no <img> that cannot load: say which file is missing
             out.append(f'<figure id="{_e(anchor)}" class="missing"><p class="muted">figure file missing: '
                        f"<code>{_e(rel)}</code></p>{caption}</figure>")
+    if view.cards:
+        out.append(_explorer(view, plan))
     if view.notes:
         out.append("<h4>Notes</h4><ul>" + "".join(f"<li>{_e(n)}</li>" for n in view.notes) + "</ul>")
     if view.warnings:
@@ -170,6 +180,62 @@ def _run(view: ExperimentView, plan: Plan) -> str:
     out.append(_table(["", ""], [list(r) for r in view.run_info], numeric=False))
     out.append(f'<p class="note">Record: <code>{_e(view.source)}</code></p></details>')
     out.append("</section>")
+    return "\n".join(out)
+
+
+def _missing(what: str, media: MediaView) -> str:
+    """What stands where a file is missing: its name, muted (no element that cannot load)."""
+    return f'<p class="muted missing">{_e(what)} file missing: <code>{_e(media.path)}</code></p>'
+
+
+def _card(card: CardView, anchor: str) -> str:
+    out = [f'<article class="card" id="{_e(anchor)}"><h5>{_e(card.title)} <a class="anchor" href="#{_e(anchor)}" '
+           f'aria-label="link to this concept">#</a></h5>']
+    if card.note:
+        out.append(f'<p class="note">{_e(card.note)}</p>')
+    if card.labels:
+        out.append('<p class="labels">aligned with ' + ", ".join(
+            f'<span class="label">{_e(label)}{f" <b>{_e(share)}</b>" if share else ""}</span>'
+            for label, share in card.labels) + "</p>")
+    for clip in card.clips:
+        caption = " · ".join(x for x in (clip.caption, clip.seconds) if x)
+        if clip.exists:
+            src = _e(quote(clip.path, safe="/"))
+            out.append(f'<figure class="clip"><audio controls preload="metadata" src="{src}"></audio>'
+                       f"<figcaption>{_e(caption)}</figcaption></figure>")
+        else:
+            out.append(_missing("audio", clip))
+    thumbs = []
+    for image in card.images:
+        if image.exists:
+            size = f' width="{image.width}" height="{image.height}"' if image.width and image.height else ""
+            thumbs.append(f'<figure><img src="{_e(quote(image.path, safe="/"))}"{size} alt="{_e(image.caption or "view")}" '
+                          f'loading="lazy"><figcaption>{_e(image.caption)}</figcaption></figure>')
+        else:
+            thumbs.append(_missing("image", image))
+    if thumbs:
+        out.append('<div class="thumbs">' + "".join(thumbs) + "</div>")
+    motions = []
+    for motion in card.motions:
+        if motion.exists:
+            motions.append(f'<figure class="motion"><img src="{_e(quote(motion.path, safe="/"))}" '
+                          f'alt="motion: {_e(motion.caption)}" loading="lazy"><figcaption>{_e(motion.caption)}'
+                          "</figcaption></figure>")
+        else:
+            motions.append(_missing("motion", motion))
+    if motions:
+        out.append('<div class="thumbs motions">' + "".join(motions) + "</div>")
+    out.append("</article>")
+    return "".join(out)
+
+
+def _explorer(view: ExperimentView, plan: Plan) -> str:
+    """The run's concept explorer: one card per learnt concept, its clips playable, its images and motion shown."""
+    out = [_heading(4, "Concept explorer", plan.explorer[id(view)])]
+    if view.explorer_note:
+        out.append(f'<p class="note">{_e(view.explorer_note)}</p>')
+    out.append('<div class="cards">' + "".join(_card(card, plan.card[(id(view), j)])
+                                              for j, card in enumerate(view.cards)) + "</div>")
     return "\n".join(out)
 
 

@@ -1,4 +1,5 @@
-"""Render the report as Markdown (GitHub-flavoured tables, figures as relative images).
+"""Render the report as Markdown (GitHub-flavoured tables, figures as relative images, a concept
+explorer as a list of links to its files).
 
 The same structure as the HTML report where Markdown can: a contents list, a summary, one
 section per experiment, each with a link back to the summary, and an anchor (an empty
@@ -15,8 +16,8 @@ from urllib.parse import quote
 
 from .. import __version__
 from ..engine.verdicts import TALLY_KINDS
-from ._model import (KIND_SECTIONS, VARIANT_LABELS, ExperimentGroup, ExperimentView, Plan, chance_line, claims_by_data,
-                     group, kind_tally_rows, variant_summaries)
+from ._model import (KIND_SECTIONS, VARIANT_LABELS, ExperimentGroup, ExperimentView, MediaView, Plan, chance_line,
+                     claims_by_data, group, kind_tally_rows, variant_summaries)
 
 __all__ = ["render_markdown"]
 
@@ -91,6 +92,8 @@ def _run(view: ExperimentView, plan: Plan) -> list[str]:
             out += [f"![figure {_text(name)}]({quote(rel, safe='/')})", "", f"*Figure {_code(name)}*", ""]
         else:
             out += [f"*Figure {_code(name)}: file missing ({_code(rel)})*", ""]
+    if view.cards:
+        out += _explorer(view, plan)
     if view.notes:
         out += ["#### Notes", ""] + [f"- {_text(n)}" for n in view.notes] + [""]
     if view.warnings:
@@ -100,6 +103,26 @@ def _run(view: ExperimentView, plan: Plan) -> list[str]:
     out += ["#### Run", ""] + _table(["", ""], [list(r) for r in view.run_info])
     out += [f"Record: {_code(view.source)}", ""]
     return out
+
+
+def _files(what: str, media: list[MediaView]) -> str:
+    """``clips: [1](a.wav) [2](b.wav)``; a missing file named instead of linked."""
+    links = [f"[{k}]({quote(m.path, safe='/')})" if m.exists else f"{k} (missing: {_code(m.path)})"
+             for k, m in enumerate(media, start=1)]
+    return f"{what}: " + " ".join(links) if links else ""
+
+
+def _explorer(view: ExperimentView, plan: Plan) -> list[str]:
+    """The concept explorer as a compact list: per card its labels and links to its files."""
+    out = [_anchor(plan.explorer[id(view)]), "#### Concept explorer", ""]
+    if view.explorer_note:
+        out += [_text(view.explorer_note), ""]
+    for j, card in enumerate(view.cards):
+        labels = ", ".join(f"{_text(label)} ({share})" if share else _text(label) for label, share in card.labels)
+        parts = [p for p in (f"aligned with {labels}" if labels else "", _files("clips", card.clips),
+                             _files("images", card.images), _files("motion", card.motions)) if p]
+        out.append(f"- {_anchor(plan.card[(id(view), j)])}**{_text(card.title)}**: " + " · ".join(parts))
+    return out + [""]
 
 
 def _section(g: ExperimentGroup, plan: Plan) -> list[str]:

@@ -94,6 +94,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
                 "folds": Table("Per training fold (shuffled control with its own permutation)",
                                ["fold"] + list(REPEATED), fold_rows)},
         figure_data={"mi": np.asarray(first["mi"]), "order": list(first["order"]), "keywords": keywords},
+        explorer=common.fold_explorer(data, folds),
         notes=[common.data_source_note(ctx, data["speech"], data["motion"]),
                f"{len(y)} sound-motion pairs of speaker {data['speaker']} in the {data['n_folds']} folds of "
                f"ch6-motion-sound; per fold, a k = {config.concept_k} learner ({config.n_iter} iterations) fitted "

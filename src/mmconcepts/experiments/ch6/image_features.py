@@ -31,6 +31,7 @@ from ...errors import ConvergenceWarning, DataError
 from ...multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ...sound.hac import HAC
 from . import protocol as common
+from ..protocols.explorer import UTTERANCES, explorer_note, recordings_explorer
 from ...engine import (
     Claim,
     Experiment,
@@ -89,7 +90,7 @@ def _repeat(task: dict) -> dict:
     y, ref_seed = task["y"], task["reference_seed"]
     tr, te, ref = task["train"], task["test"], task["ref"]
     c_loc, k_loc, mfcc = task["c_loc"], task["k_loc"], task["mfcc"]
-    out = {}
+    out: dict = {}
     with single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         learner = task["learner_seeds"]  # the HAC codebook, the image codebooks, the NMF
@@ -105,8 +106,10 @@ def _repeat(task: dict) -> dict:
         for name in SETS:
             I = F[name][idx]
             I = I[:, common.seen_columns(I[tr])]
-            model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=learner[2]).fit(
-                {"sound": S[tr], "image": I[tr]})
+            model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=learner[2])
+            W = model.fit_transform({"sound": S[tr], "image": I[tr]})
+            if task["explorer"] and name == "all":  # the concept explorer's learner
+                out["coefficients"] = W
             X = {"sound": S, "image": I}
             H = {(m, part): model.transform({m: X[m][rows]}) for m in X for part, rows in (("test", te), ("ref", ref))}
             for key, (tm, rm) in (("i2s", ("image", "sound")), ("s2i", ("sound", "image"))):
@@ -152,11 +155,17 @@ def compute(config: Config, ctx: RunContext) -> Result:
                       "ref": np.flatnonzero(part_y == 2), "y": y, "mfcc": mfcc, "c_loc": c_loc, "k_loc": k_loc,
                       "image_of": image_of, "k": config.k, "n_iter": config.n_iter,
                       "learner_seeds": st.seeds_for("learner", 3, r), "hac_fit_frames": config.hac_fit_frames,
-                      "reference_seed": st.seed_for("reference", r)})
+                      "reference_seed": st.seed_for("reference", r), "explorer": r == 0})
     split_groups = {"repetitions": common.part_split_groups(
         "sound recordings and object views (each example: one utterance and one view of its concept's object)",
         grouping)}
     reps = ctx.parallel(_repeat, tasks, desc="repetitions")
+    W = reps[0].pop("coefficients")
+    explorer = recordings_explorer(
+        W, tasks[0]["train"], speech=speech, images=ims, image_of=tasks[0]["image_of"], image_ids=view_ids,
+        note=explorer_note(f"the k = {W.shape[1]} learner of the first repetition on all the descriptor sets, fitted "
+                           f"on its {len(tasks[0]['train'])} training examples (sound and image)", "examples",
+                           f"{UTTERANCES} and their object views"))
     metrics: dict[str, float] = {"chance": 1.0 / len(keywords)}
     for name in SETS:
         for key in ("i2s", "s2i"):
@@ -184,6 +193,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         units={REPETITIONS: SampleUnit.splits(held_out, f"{config.n_repeats} random 60/20/20 training / test / "
                                                          f"reference splits of one data set ({held_out:.0%} held out)")},
         split_groups=split_groups,
+        explorer=explorer,
         tables={"fig6_4": Table("Fig. 6.4: success rates by image descriptor set",
                                 ["descriptors", "I -> S", "std", "S -> I", "std"], rows)},
         notes=[_data_note(ctx, speech, ims),

@@ -34,9 +34,11 @@ from ...errors import ConvergenceWarning, DataError
 from ...motion import MotionHistograms
 from ...multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from . import protocol as common
+from ..protocols.explorer import UTTERANCES, explorer_note, recordings_explorer
 from ...engine import (
     Claim,
     Experiment,
+    Explorer,
     PresetConfig,
     Result,
     RunContext,
@@ -121,8 +123,13 @@ def _repeat(task: dict) -> dict:
         X = {m: V[:, common.seen_columns(V[tr])] for m, V in (("S", S), ("M", M), ("I", I))}
 
         def fit(train: str, k: int) -> MultimodalNMF:
-            return MultimodalNMF(k, max_iter=task["n_iter"], random_state=learner[2]).fit(
-                {NAMES[m]: X[m][tr] for m in train})
+            model = MultimodalNMF(k, max_iter=task["n_iter"], random_state=learner[2])
+            W = model.fit_transform({NAMES[m]: X[m][tr] for m in train})
+            if task["explorer"] and train == "SMI" and k == task["k"]:  # the concept explorer's learner
+                explorer["coefficients"] = W
+            return model
+
+        explorer: dict = {}
 
         # internal representations, once per model, modalities and part; each entry keeps its model
         # alive, so that the id of a model of the k sweep is never reused by a later one
@@ -147,7 +154,7 @@ def _repeat(task: dict) -> dict:
             ones = [(a, b) for a, b in permutations(MODS, 2)]
             out[f"k_{k}.two"] = float(np.mean([match(mk["".join(sorted((a, b), key=MODS.index))], a, b) for a, b in ones]))
             out[f"k_{k}.three"] = float(np.mean([match(mk["SMI"], a, b) for a, b in ones]))
-    return out
+    return {**out, **explorer}
 
 
 def split_repetition(keywords, y: np.ndarray, gestures: np.ndarray, image_labels, objects, drng: np.random.Generator,
@@ -167,6 +174,16 @@ def split_repetition(keywords, y: np.ndarray, gestures: np.ndarray, image_labels
     image_of = common.pair_within_parts(y, part_y, image_concept, concept_parts(image_concept, SPLIT, frng),
                                         drng, "image")
     return part_y, motion_of, image_of
+
+
+def _explorer(W: np.ndarray, task: dict, speech: dict, motion: dict, ims, view_ids: list[str]) -> Explorer:
+    """The concept explorer: the atoms of the first repetition's learner of the three modalities (k = ``k``), read
+    from its coefficients of the training examples (utterance, motion record, object view)."""
+    note = explorer_note(f"the k = {W.shape[1]} learner of the first repetition, fitted on its {len(task['train'])} "
+                         "training examples of the three modalities (sound, motion, image)", "examples",
+                         f"{UTTERANCES}, their object views and the first example's motion record")
+    return recordings_explorer(W, task["train"], speech=speech, motion=motion, motion_of=task["motion_of"],
+                               images=ims, image_of=task["image_of"], image_ids=view_ids, note=note)
 
 
 def compute(config: Config, ctx: RunContext) -> Result:
@@ -194,10 +211,11 @@ def compute(config: Config, ctx: RunContext) -> Result:
                       "motion_of": motion_of, "c_loc": c_loc, "image_of": image_of, "k": config.k,
                       "k_sweep": tuple(config.k_sweep), "n_iter": config.n_iter, "motion_bins": config.motion_bins,
                       "hac_fit_frames": config.hac_fit_frames, "learner_seeds": st.seeds_for("learner", 3, r),
-                      "reference_seed": st.seed_for("reference", r)})
+                      "reference_seed": st.seed_for("reference", r), "explorer": r == 0})
     split_groups = {"repetitions": common.part_split_groups(
         "sound recordings, motion records and object views (each example: one of each)", grouping)}
     reps = ctx.parallel(_repeat, tasks, desc="repetitions")
+    explorer = _explorer(reps[0].pop("coefficients"), tasks[0], speech, motion, ims, view_ids)
     keys = list(reps[0])
     metrics: dict[str, float] = {"chance": 1.0 / n_concepts}
     for k in keys:
@@ -232,6 +250,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
                 "k_sweep": Table("Fig. 6.6: mean one-to-one success against k", ["k", "two modalities", "three modalities"],
                                  [[k, metrics[f"k_{k}.two"], metrics[f"k_{k}.three"]] for k in ks])},
         figure_data={"repetitions": reps},
+        explorer=explorer,
         notes=[common.data_source_note(ctx, speech, motion) + " " + common.image_note(ctx, ims)
                + " Images represented by their colour descriptors.",
                f"{len(y)} examples (speaker {speech['speaker']}); {config.n_repeats} repetitions, each with new random "

@@ -144,10 +144,12 @@ def _units(data: dict) -> dict[str, SampleUnit]:
     return {FOLDS: SampleUnit.folds(data["n_folds"], f"{data['n_folds']} folds of one cross-validation of the pairs")}
 
 
-def _result(metrics: dict, samples: dict, data: dict, **kw) -> Result:
-    """A result whose every sampled metric is per fold (unit :data:`FOLDS`), with the folds' split groups."""
+def _result(metrics: dict, samples: dict, data: dict, *, folds: list[dict], **kw) -> Result:
+    """A result whose every sampled metric is per fold (unit :data:`FOLDS`), with the folds' split groups and
+    concept explorer (``folds``: the fold results)."""
     return Result(metrics=metrics, samples=samples, sample_units={name: FOLDS for name in samples},
-                  units=_units(data), split_groups={"folds": common.fold_split_groups(data)}, **kw)
+                  units=_units(data), split_groups={"folds": common.fold_split_groups(data)},
+                  explorer=common.fold_explorer(data, folds), **kw)
 
 
 def compute_motion_sound(config: Config, ctx: RunContext) -> Result:
@@ -167,7 +169,7 @@ def compute_motion_sound(config: Config, ctx: RunContext) -> Result:
     metrics["shuffled.max"] = metrics[top]
     samples["shuffled.max"] = list(samples[top])
     metrics["chance"] = 1.0 / len(data["keywords"])
-    return _result(metrics, samples, data,
+    return _result(metrics, samples, data, folds=folds,
                    tables={"table6_2": _table(metrics, "", "Table 6.2: motion <-> sound, success rates"),
                            "shuffled": _table(metrics, "shuffled.", "Control: shuffled training pairs")},
                    notes=_notes(ctx, data, folds, config) + [
@@ -221,7 +223,7 @@ def compute_symbolic(config: Config, ctx: RunContext) -> Result:
     samples = {**common.fold_samples(folds, metrics, lambda k: f"without_labels.{k}"),
                **common.fold_samples(folds, metrics, lambda k: k.removeprefix("symbolic.")
                                      if k.startswith("symbolic.") else None)}
-    return _result(metrics, samples, data,
+    return _result(metrics, samples, data, folds=folds,
                    tables={"table6_3": _table(metrics, "", "Table 6.3: motion <-> sound with labels in training"),
                            "without_labels": _table(metrics, "without_labels.", "Table 6.2 again (no labels)")},
                    notes=_notes(ctx, data, folds, config) + [
@@ -252,7 +254,7 @@ def compute_labels(config: Config, ctx: RunContext) -> Result:
             ["S+M+L", "S -> L", metrics["all.s2l"], metrics["all.s2l_std"]],
             ["S+M+L", "M -> L", metrics["all.m2l"], metrics["all.m2l_std"]],
             ["S+M+L", "S+M -> L", metrics["all.sm2l"], metrics["all.sm2l_std"]]]
-    return _result(metrics, common.fold_samples(folds, metrics), data,
+    return _result(metrics, common.fold_samples(folds, metrics), data, folds=folds,
                    tables={"table6_4": Table("Table 6.4: label recognition", ["training", "test", "success rate",
                                                                                "std over folds"], rows)},
                    notes=_notes(ctx, data, folds, config) + [

@@ -50,7 +50,8 @@ caches each fold's result on disk as the fold ends (key: the data, the setting, 
 :func:`code_fingerprint`), so the four experiments share one computation and an
 interrupted run resumes from the folds it finished. Each fold also fits the k = 15 learner of
 Fig. 6.10 on its training pairs and measures the mutual information between concepts and
-coefficients there (:func:`concept_analysis`).
+coefficients there (:func:`concept_analysis`); the first fold keeps that learner's coefficients,
+from which the four experiments' concept explorer is read (:func:`fold_explorer`).
 """
 
 from __future__ import annotations
@@ -88,7 +89,9 @@ from ..protocols.pairs import (
     part_split_groups,
     speech_note,
 )
+from ..protocols.explorer import UTTERANCES, explorer_note, recordings_explorer
 from ...engine import (
+    Explorer,
     PresetConfig,
     RunContext,
     Streams,
@@ -102,7 +105,8 @@ __all__ = ["Streams", "streams", "PairsConfig", "load_speech", "load_motion", "l
            "MOTION_SETS", "IMAGE_SETS", "image_locals", "image_concepts", "image_ids", "space_pairs",
            "gesture_mapping", "speech_note", "motion_note", "eth80_objects", "KEYWORDS_NOTE", "example_sources",
            "fold_split_groups", "part_split_groups", "concept_analysis", "entropy_bits", "CONCEPT_METRICS",
-           "SPECIALISED_FRACTION", "seen_columns", "TABLE_6_2", "TABLE_6_3", "TABLE_6_4", "THESIS_CHANCE"]
+           "SPECIALISED_FRACTION", "seen_columns", "TABLE_6_2", "TABLE_6_3", "TABLE_6_4", "THESIS_CHANCE",
+           "fold_explorer"]
 
 #: Metric names of the tables -> metric of :func:`mmconcepts.multimodal.pairwise_divergence`.
 #: "kl" is the thesis' setting: the data are not normalised per example, so the divergence
@@ -423,6 +427,8 @@ def _fold(task: dict) -> dict:
         res, _, values = concept_analysis(y[tr], W, task["mi_bins"], task["concept_seed"])
         out["concepts"] = {"values": values, "mi": res["mi"], "order": [int(j) for j in res["order"]],
                            "rows": res["rows"], "cols": res["cols"], "fraction": res["fraction"]}
+        if task["explorer"]:  # the coefficients of the concept explorer's learner (fold_explorer)
+            out["concepts"]["coefficients"] = W
     return out
 
 
@@ -437,7 +443,8 @@ def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
     The reference stream draws the reference examples (:data:`REFERENCE`), the shuffled pairs
     of the control (:data:`CONTROL`) and the concept permutation of Fig. 6.10's control
     (:data:`CONCEPTS`), each fold its own. A config without ``concept_k`` or ``mi_bins``
-    gets the thesis' k = 15 and 10 bins.
+    gets the thesis' k = 15 and 10 bins. The first fold keeps the coefficients of its Fig. 6.10
+    learner for the concept explorer (:func:`fold_explorer`).
     """
     n = data["n_folds"]
     features = {"data": "joint", "method": "vq", "n_bins": config.motion_bins, "delay": 3}
@@ -448,7 +455,8 @@ def fold_tasks(data: dict, config, st: Streams) -> list[dict]:
              "mfcc": data["mfcc"], "angles": data["angles"], "motion_features": features, "k": config.k,
              "n_iter": config.n_iter, "learner_seed": learner[f], "reference_seed": reference[f],
              "control_seed": control[f], "hac_fit_frames": config.hac_fit_frames, "concept_k": concept_k,
-             "mi_bins": mi_bins, "concept_seed": st.seed_for("reference", CONCEPTS, f)} for f in range(n)]
+             "mi_bins": mi_bins, "concept_seed": st.seed_for("reference", CONCEPTS, f), "explorer": f == 0}
+            for f in range(n)]
 
 
 def _fold_keys(data: dict, tasks: list[dict]) -> list[tuple]:
@@ -485,6 +493,26 @@ def evaluate(ctx: RunContext, config, *, desc: str = "folds", seeds: Streams | N
     code = code_fingerprint()
     return data, ctx.parallel_cached(memo, [(t, key, code) for t, key in zip(tasks, _fold_keys(data, tasks))],
                                      desc=desc)
+
+
+def fold_explorer(data: dict, folds: list[dict]) -> Explorer | None:
+    """The concept explorer of the folds' runs: the atoms of the first fold's Fig. 6.10 learner.
+
+    That learner (k = ``concept_k``, sound and motion) is fitted on the first fold's training
+    pairs; its coefficients of those pairs (kept by the fold, so nothing is fitted again) give
+    the cards: each atom's keywords, and the utterances and motion records of the pairs it
+    makes up most (:func:`~mmconcepts.experiments.protocols.explorer.recordings_explorer`).
+    None when the fold kept no coefficients.
+    """
+    W = folds[0]["concepts"].get("coefficients")
+    if W is None:
+        return None
+    rows = np.flatnonzero(data["fold"] != 0)
+    note = explorer_note(f"the k = {W.shape[1]} learner of Fig. 6.10 fitted on the {len(rows)} training pairs of fold 1 "
+                         f"of {data['n_folds']} (sound and motion)", "pairs",
+                         f"{UTTERANCES} and the first pair's motion record")
+    return recordings_explorer(W, rows, speech=data["speech"], motion=data["motion"], motion_of=data["motion_idx"],
+                               note=note)
 
 
 def summarise(folds: list[dict], keys) -> dict[str, float]:

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -56,14 +57,18 @@ from ...multimodal import MultimodalNMF, matching_success_rate, pairwise_diverge
 from ...sound.features import MFCCConfig
 from ...sound.hac import HAC
 from . import protocol as common
+from ..protocols.explorer import CLIP_RATE, THUMBNAIL, concept_cards, cut_clip, explorer_note
 from ...engine import (
+    AudioClip,
     Claim,
     Experiment,
+    Explorer,
     PresetConfig,
     Result,
     RunContext,
     SampleUnit,
     Table,
+    Thumbnail,
     concept_parts,
     describe_split,
     register,
@@ -132,7 +137,7 @@ def _overlap(a0, a1, b0, b1):
 
 
 def _window_features(task: dict, width: float) -> tuple:
-    """HAC and frame-weighted image features of every window of the training stream."""
+    """HAC and frame-weighted image features of every window of the training stream, and the windows' times."""
     hop = task["hop"]
     stream = task["stream"]
     win = stream_windows(task["starts"], task["durations"], width, width * task["shift"])
@@ -148,7 +153,7 @@ def _window_features(task: dict, width: float) -> tuple:
         f = np.arange(int(t0 * fps), min(int(np.ceil(t1 * fps)), F.shape[0]))
         w = _overlap(t0, t1, f / fps, (f + 1) / fps) / width
         images[i] = w @ F[f]
-    return seqs, images
+    return seqs, images, win
 
 
 def stratified_folds(concept: np.ndarray, n_folds: int, rng: np.random.Generator) -> list[np.ndarray]:
@@ -175,15 +180,17 @@ def _fold_rates(D: np.ndarray, y_test: np.ndarray, y_ref: np.ndarray, folds: lis
             for rows, s in zip(folds, seeds)]
 
 
-def _fit_and_match(task: dict, S, img: np.ndarray, seed: int) -> tuple[dict, MultimodalNMF, np.ndarray, np.ndarray]:
+def _fit_and_match(task: dict, S, img: np.ndarray, seed: int) -> tuple[dict, MultimodalNMF, np.ndarray, np.ndarray,
+                                                                      np.ndarray]:
     """Learn from (sound, image) training examples; success of the test utterances and reference images per fold.
 
     The sound columns never seen in training are dropped (:func:`~.protocol.seen_columns`:
-    the comparisons are in the internal space); the kept columns are returned.
+    the comparisons are in the internal space); the kept columns are returned, and the
+    coefficients of the training examples.
     """
     cols = common.seen_columns(S)
-    model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=seed).fit(
-        {"sound": S[:, cols], "image": img})
+    model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=seed)
+    W = model.fit_transform({"sound": S[:, cols], "image": img})
     # internal space, cosine (as crossmodal_distances(space="internal", metric="cosine")): the test utterances
     # and the reference images are transformed once; I -> S uses the same images as test examples and the
     # test utterances as references, so its dissimilarities are the transpose
@@ -192,7 +199,7 @@ def _fit_and_match(task: dict, S, img: np.ndarray, seed: int) -> tuple[dict, Mul
     D = pairwise_divergence(h_sound, h_image, "cosine")
     return ({"s2i": _fold_rates(D, task["y_test"], task["y_ref"], task["folds_test"], task["reference_seeds"]),
              "i2s": _fold_rates(D.T, task["y_ref"], task["y_test"], task["folds_image"], task["reference_seeds"])},
-            model, h_image, cols)
+            model, h_image, cols, W)
 
 
 def _repetition(task: dict) -> dict:
@@ -215,11 +222,13 @@ def _repetition(task: dict) -> dict:
                     frame_features=colour[task["frame_img"]], S_test=hac.transform([mfcc[i] for i in te]),
                     I_ref=colour[task["ref_imgs"]])
         for width, probe in zip(task["widths"], task["probe_at"]):
-            seqs, img = _window_features(task, width)
+            seqs, img, win = _window_features(task, width)
             keep = [i for i, sq in enumerate(seqs) if len(sq) > 0]
-            rates, model, h_image, cols = _fit_and_match(task, hac.transform([seqs[i] for i in keep]), img[keep],
-                                                         learner[2])
+            rates, model, h_image, cols, W = _fit_and_match(task, hac.transform([seqs[i] for i in keep]), img[keep],
+                                                            learner[2])
             out["widths"].append({"n_windows": len(keep), **rates})
+            if task["explorer"] and width == max(task["widths"]):  # the concept explorer's learner
+                out["explorer"] = {"coefficients": W, "windows": win[keep], "width": width}
             if probe:
                 seqs_p, y_p, spans_p = task["probe_input"]
                 out["probe"] = _probe(model, lambda windows, cols=cols: hac.transform(windows)[:, cols], seqs_p, y_p,
@@ -292,6 +301,40 @@ def _probe(model, sound_features, mfccs, y, spans, h_img, y_ref, width: float, s
     return {"hits": hits, "chance": chance, "traces": traces, "n": int(np.isfinite(hits).sum())}
 
 
+def _explorer(kept: dict, task: dict, speech: dict, ims) -> Explorer:
+    """The concept explorer: the atoms of the first repetition's learner of its widest windows, from its
+    coefficients of the training windows (each window's sound, cut from the stream, and the frame it shows most)."""
+    from ...sound.audio import load_audio
+
+    W, windows, width = kept["coefficients"], kept["windows"], kept["width"]
+    order, starts, durations, fps = task["order"], task["starts"], task["durations"], task["frame_rate"]
+    views = common.image_ids(ims)
+    playing = np.clip(np.searchsorted(starts, windows.mean(axis=1), side="right") - 1, 0, len(order) - 1)
+
+    def clip(i: int, label: str) -> AudioClip:
+        t0, t1 = windows[i]
+        pieces = []
+        for u in np.flatnonzero((starts < t1) & (starts + durations > t0)):  # the utterances the window meets
+            x = load_audio(speech["ids"][order[u]], sr=CLIP_RATE, min_duration=0.0)
+            pieces.append(x[int(max(t0 - starts[u], 0.0) * CLIP_RATE):int((min(t1, starts[u] + durations[u])
+                                                                          - starts[u]) * CLIP_RATE)])
+        name = Path(speech["ids"][order[playing[i]]]).name
+        return cut_clip(np.concatenate(pieces), CLIP_RATE, caption=f"{t0:.2f}-{t1:.2f} s of the stream ({name})")
+
+    def image(i: int) -> Thumbnail:
+        t0, t1 = windows[i]
+        f = np.arange(int(t0 * fps), min(int(np.ceil(t1 * fps)), len(task["frame_img"])))
+        view = int(task["frame_img"][f[np.argmax(_overlap(t0, t1, f / fps, (f + 1) / fps))]])
+        return Thumbnail.from_image(ims.images[view], Path(views[view]).name, size=THUMBNAIL)
+
+    keywords, y = speech["keywords"], speech["y"]
+    note = explorer_note(f"the learner of the first repetition's {width:g} s windows (the widest), fitted on its "
+                         f"{len(windows)} windows of the training stream (sound and the frames they meet)", "windows",
+                         "their sound and the frame each shows longest",
+                         counts=" (a window counts for the utterance playing at its middle)")
+    return concept_cards(W, [keywords[y[order[u]]] for u in playing], note=note, clip=clip, image=image)
+
+
 def _nanmean(x) -> float:
     x = np.asarray(x, dtype=float)
     return float(np.nanmean(x)) if np.isfinite(x).any() else float("nan")
@@ -302,11 +345,12 @@ def repetition_streams(st: common.Streams, r: int) -> common.Streams:
     return st.sub(r)
 
 
-def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams) -> dict:
+def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams, *, explorer: bool = False) -> dict:
     """One repetition's draws: the split, the training stream and its frames, the test folds, the probe's utterances.
 
     Everything random about the data of a repetition, drawn here from its streams; the
-    codebooks and learners are fitted by :func:`_repetition` from the learner stream.
+    codebooks and learners are fitted by :func:`_repetition` from the learner stream
+    (``explorer``: it keeps the coefficients of its widest windows' learner, for the concept explorer).
     """
     keywords, y, mfcc, sub = speech["keywords"], speech["y"], speech["mfcc"], speech["corpus"]
     hop = MFCCConfig(n_mfcc=22).hop_ms / 1000
@@ -362,7 +406,7 @@ def _prepare(config: Config, speech: dict, ims, c_loc: list, st: common.Streams)
             "y_test": y[te],
             "y_ref": y_ref_img, "folds_test": folds_test, "folds_image": folds_image,
             "widths": tuple(config.widths), "probe_at": tuple(j == fixed_at for j in range(len(config.widths))),
-            "probe_input": (seqs, y_probe, spans_probe), "probe_shift": config.probe_shift}
+            "probe_input": (seqs, y_probe, spans_probe), "probe_shift": config.probe_shift, "explorer": explorer}
     # what each side is made of, for split_groups: a training utterance of the stream with the views shown while it
     # plays (frame f covers [f / fps, (f + 1) / fps)); the test utterances, the probe's composed utterances and
     # the reference views
@@ -409,12 +453,13 @@ def compute(config: Config, ctx: RunContext) -> Result:
         raise DataError(f"{len(keywords)} keywords but only {len(set(ims.labels))} objects.")
     c_loc, _ = common.image_locals(ctx, ims)
     R = config.n_repeats
-    reps = [_prepare(config, speech, ims, c_loc, repetition_streams(st, r)) for r in range(R)]
+    reps = [_prepare(config, speech, ims, c_loc, repetition_streams(st, r), explorer=r == 0) for r in range(R)]
     split_groups = {"repetitions": describe_split(
         "sound recordings and object views (training: each utterance of the stream with the views shown while it "
         "plays, and the whole-utterance pairs; held out: test utterances, the probe's composed utterances, "
         "reference views)", [rep["sources"] for rep in reps])}
     outs = ctx.parallel(_repetition, [rep["task"] for rep in reps], desc="repetitions (every window width)")
+    explorer = _explorer(outs[0].pop("explorer"), reps[0]["task"], speech, ims)
     probes = [out["probe"] for out in outs]
     metrics: dict[str, float] = {"chance": 1.0 / len(keywords)}
     samples: dict[str, list[float]] = {}
@@ -478,6 +523,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         tables={"fig6_8": Table("Fig. 6.8: success against window width (every width), and the same learner "
                                 "trained on whole utterances each paired with one view",
                                 ["width (s)", "training examples", "S -> I", "I -> S"], rows)},
+        explorer=explorer,
         figure_data={"probe": probes[0], "y_probe": reps[0]["task"]["probe_input"][1], "texts": reps[0]["texts"],
                      "fixed_at": fixed_at, "units": units},
         notes=[common.image_note(ctx, ims) + " " + common.speech_note(ctx, speech),

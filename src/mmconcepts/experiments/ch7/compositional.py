@@ -52,10 +52,14 @@ from ..._fingerprint import code_fingerprint
 from ...errors import ConvergenceWarning, DataError, ParameterError
 from ..protocols import speech
 from . import protocol as common
+from ..protocols.explorer import CLIP_RATE, CLIP_SECONDS, angle_curves, concept_cards, cut_clip, explorer_note
 from ..._jit import single_threaded
 from ...engine import (
+    AudioClip,
     Claim,
     Experiment,
+    Explorer,
+    MotionClip,
     PresetConfig,
     Result,
     RunContext,
@@ -351,8 +355,12 @@ def _fold(task: dict) -> dict:
 
         kw = dict(n_components=task["k"], max_iter=task["n_iter"], random_state=seed)
         perm = np.random.default_rng(task["control_seed"]).permutation(len(tr_c))
+        compositional = MultimodalNMF(**kw)
+        W = compositional.fit_transform({"sound": S[rows(tr_c)], "motion": M[rows(tr_c)]})
+        if task["explorer"]:  # the concept explorer: the compositional learner's coefficients of its training pairs
+            out["coefficients"] = W
         models = {
-            "": MultimodalNMF(**kw).fit({"sound": S[rows(tr_c)], "motion": M[rows(tr_c)]}),
+            "": compositional,
             "shuffled.": MultimodalNMF(**kw).fit({"sound": S[rows(tr_c)], "motion": M[rows(tr_c)][perm]}),
             "single_trained.": MultimodalNMF(**kw).fit({"sound": S[rows(tr_s)], "motion": M[rows(tr_s)]}),
         }
@@ -418,7 +426,8 @@ def fold_tasks(data: dict, mfccs: list, config: Config, st: Streams) -> list[dic
                       "motion_bins": config.motion_bins, "n_candidates": config.n_candidates,
                       "n_draws": config.n_draws, "learner_seed": st.seed_for("learner", f),
                       "reference_seed": st.seed_for("reference", REFERENCE, f),
-                      "control_seed": st.seed_for("reference", CONTROL, f), "hac_fit_frames": config.hac_fit_frames})
+                      "control_seed": st.seed_for("reference", CONTROL, f), "hac_fit_frames": config.hac_fit_frames,
+                      "explorer": f == 0})
     return tasks
 
 
@@ -605,6 +614,44 @@ def _source_notes(ctx: RunContext, data: dict, config: Config, sizes: dict, metr
     ]
 
 
+#: MSR Action3D's frame rate (its recordings: 15 frames per second).
+_MSR_RATE = 15.0
+
+
+def _explorer(data: dict, rows: np.ndarray, W: np.ndarray) -> Explorer:
+    """The concept explorer: the atoms of the first fold's compositional learner, from its coefficients of its
+    training pairs (each pair's utterance, cut around the atom's keyword, and the joint angles of its motion)."""
+    from ...motion.synthetic import FRAME_RATE
+    from ...sound.audio import load_audio
+
+    def clip(i: int, label: str) -> AudioClip:
+        e = int(rows[i])
+        srcs, pauses = data["sound_plan"][e]
+        pieces = [load_audio(data["files"][j], sr=CLIP_RATE, min_duration=0.0) for j in srcs]
+        said = data["keyword_sets"][e]
+        span = None
+        if label in said:  # where the atom's keyword is said in the utterance
+            p = said.index(label)
+            start = sum(len(x) + int(round(q * CLIP_RATE)) for x, q in zip(pieces[:p], pauses[:p])) / CLIP_RATE
+            span = (start, start + len(pieces[p]) / CLIP_RATE)
+        return cut_clip(common.compose_utterance(pieces, pauses, CLIP_RATE), CLIP_RATE, span,
+                        caption=" + ".join(said))
+
+    def motion(i: int) -> MotionClip:
+        e = int(rows[i])
+        return angle_curves(data["angles"][e], _MSR_RATE if data["real_motion"] else FRAME_RATE,
+                            caption=f"16 joint angles of gestures {', '.join(map(str, data['gesture_sets'][e]))}")
+
+    keywords = data["keywords"]
+    note = explorer_note(f"the compositional learner of fold 1 (k = {W.shape[1]}), fitted on its {len(rows)} training "
+                         "pairs of 2-3 concepts (sound and motion)", "pairs",
+                         f"their utterances (at most {CLIP_SECONDS:g} s, around the atom's keyword where it is said) "
+                         "and the first pair's 16 joint angles (a collage of limbs has no single skeleton to draw)",
+                         counts=" (a pair counts for each of its keywords, with an equal part of its coefficients)")
+    return concept_cards(W, [tuple(keywords[c] for c in data["combos"][int(e)]) for e in rows], note=note, clip=clip,
+                         motion=motion)
+
+
 def compute(config: Config, ctx: RunContext) -> Result:
     """Every score of the five tests, per fold, with chance levels and the shuffled control."""
     data, tasks, folds = _evaluate(ctx, config)
@@ -638,7 +685,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
                          "subset_sizes": sizes},
                   sample_units={name: "folds" for name in samples}, units={"folds": unit},
                   split_groups={"folds": describe_split(by, split_sources(data, tasks))},
-                  figure_data=fd)
+                  figure_data=fd, explorer=_explorer(data, tasks[0]["train_comp"], folds[0]["coefficients"]))
 
 
 def _err(result: Result, key: str) -> float:

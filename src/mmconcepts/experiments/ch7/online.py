@@ -16,7 +16,9 @@ pair seen so far:
   coefficients (from both modalities), beside a shuffled-concept control;
 - the learning time of each learner and its memory: the online learner's state (dictionary
   and statistics, independent of the examples seen) against what the batch learner must
-  keep to refit (the examples seen).
+  keep to refit (the examples seen);
+- the concept explorer: the atoms of the first fold's online learner at the end of its stream,
+  read from its coefficients of the training pairs.
 
 Data: the pairs of ``ch6-motion-sound`` (real FSDD digits of one speaker with ten MSR
 Action3D actions when the data root has them, else the generated Caregiver-like corpus and
@@ -53,6 +55,7 @@ from ...motion import MotionHistograms
 from ...multimodal import MultimodalNMF, matching_success_rate, pairwise_divergence
 from ...sound.hac import HAC
 from ..protocols import pairs as common
+from ..protocols.explorer import UTTERANCES, explorer_note, recordings_explorer
 from ...engine import (
     Claim,
     Experiment,
@@ -218,6 +221,8 @@ def _fold(task: dict) -> dict:
             ev = _evaluate(batch, S[te], M[te], y[te], task["reference_seed"], task["control_seed"], cfg["n_bins"])
             kept = _nbytes(S[idx]) + _nbytes(M[idx]) + batch.components_.nbytes
             out["batch"].append({**ev, "time": dt, "memory_mb": kept / 2**20})
+        if task["explorer"]:  # the concept explorer: the online learner's coefficients of the training pairs
+            out["coefficients"] = online.transform({"sound": S[tr], "motion": M[tr]})
     return out
 
 
@@ -237,7 +242,7 @@ def _tasks(data: dict, config: Config, st: Streams) -> list[dict]:
              "mfcc": data["mfcc"], "angles": data["angles"], "config": cfg,
              "feature_seed": st.seed_for("learner", FEATURES, f), "learner_seed": st.seed_for("learner", NMF_INIT, f),
              "order_seed": st.seed_for("splits", ORDER, f), "reference_seed": st.seed_for("reference", REFERENCE, f),
-             "control_seed": st.seed_for("reference", CONTROL, f)} for f in range(n)]
+             "control_seed": st.seed_for("reference", CONTROL, f), "explorer": f == 0} for f in range(n)]
 
 
 #: Per-point values of each learner: the metric name part and the field of the fold result.
@@ -252,6 +257,13 @@ def compute(config: Config, ctx: RunContext) -> Result:
     data = common.load_pairs(ctx, n_per_speaker=config.n_per_speaker, n_motion=config.n_motion,
                              n_folds=config.n_folds, streams=st)
     folds = ctx.parallel(_fold, _tasks(data, config, st), desc="folds (stream and refits)")
+    W = folds[0].pop("coefficients")
+    trained = np.flatnonzero(data["fold"] != 0)
+    explorer = recordings_explorer(
+        W, trained, speech=data["speech"], motion=data["motion"], motion_of=data["motion_idx"],
+        note=explorer_note(f"the online learner of fold 1 at the end of its stream (k = {W.shape[1]}, each of its "
+                           f"{len(trained)} training pairs seen once; sound and motion)", "pairs",
+                           f"{UTTERANCES} and the first pair's motion record"))
     n_points = min(len(f["points"]) for f in folds)
     metrics: dict[str, float] = {"chance": 1.0 / len(data["keywords"])}
     samples: dict[str, list[float]] = {}
@@ -295,6 +307,7 @@ def compute(config: Config, ctx: RunContext) -> Result:
         sample_units={name: "folds" for name in samples},
         units={"folds": unit},
         split_groups={"folds": common.fold_split_groups(data)},
+        explorer=explorer,
         tables={"stream": Table("Along the stream (means over folds)", columns, rows,
                                 note="success: mean of sound -> motion and motion -> sound (internal space, cosine); "
                                      "CPU seconds of learning only (process time of the fold's worker).")},

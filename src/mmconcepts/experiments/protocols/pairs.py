@@ -98,7 +98,8 @@ def load_speech(ctx: RunContext, *, n_per_speaker: int, streams: Streams) -> dic
 
 
 def load_motion(ctx: RunContext, *, n_motion: int) -> dict:
-    """Motion records (one gesture each): angle trajectories, gesture ids, record ids."""
+    """Motion records (one gesture each): angle trajectories, gesture ids, record ids, and the skeletons (marker
+    positions as float32, marker names, frame rates) the concept explorer draws."""
     if ctx.has_dataset("choreo2"):
         path = Path(ctx.dataset("choreo2"))
         ds = load_choreo2(path if path.suffix == ".json" else path / "choreo2.json", on_error="skip")
@@ -109,15 +110,17 @@ def load_motion(ctx: RunContext, *, n_motion: int) -> dict:
         from ...motion.synthetic import make_choreo2
 
         ds, fn = make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_motion), orientation_angles
-    gestures, angles, ids = [], [], []
+    gestures, angles, ids, positions = [], [], [], []
     for rec in ds:
         if len(rec.labels) != 1:
             raise DataError(f"motion record {rec.record_id} has {len(rec.labels)} gestures; chapter 6 needs one each.")
         gestures.append(int(rec.labels[0]))
         angles.append(np.ascontiguousarray(fn(rec), dtype=np.float64))
         ids.append(str(rec.record_id))
+        positions.append(rec.positions.astype(np.float32))
     return {"angles": angles, "gesture": np.asarray(gestures), "ids": ids,
-            "skipped": [str(s) for s in getattr(ds, "skipped", [])]}
+            "skipped": [str(s) for s in getattr(ds, "skipped", [])], "positions": positions,
+            "markers": [rec.marker_names for rec in ds], "frame_rates": [float(rec.frame_rate) for rec in ds]}
 
 
 def speech_note(ctx: RunContext, speech: dict | None = None) -> str:
