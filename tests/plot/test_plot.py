@@ -15,6 +15,7 @@ from scipy.sparse import csgraph, coo_matrix
 from mmconcepts.errors import DataError, MissingExtraError, ParameterError
 from mmconcepts.motion import CHOREO1_MARKERS, CHOREO2_MARKERS, MSR_JOINTS, MotionDataset, MotionRecording
 from mmconcepts.multimodal import atom_label_association, top_examples
+from mmconcepts.motion import skeleton_bones
 from mmconcepts.plot import (
     plot_activation_timeline,
     plot_atom_labels,
@@ -23,7 +24,6 @@ from mmconcepts.plot import (
     plot_dictionary_motion,
     plot_dictionary_skeletons,
     plot_dictionary_sounds,
-    skeleton_bones,
 )
 from mmconcepts.sound import MFCCConfig
 from mmconcepts.vision import ImageSet, as_rgb_image

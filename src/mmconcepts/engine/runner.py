@@ -223,11 +223,9 @@ def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord
         record.explorer = write_explorer(result.explorer, target.fig_dir)
         if exp.present is not None and result.figures:
             store_figure_data(result, target.fig_dir, exp.id)
-    except ExperimentSkipped as exc:
-        record.status, record.message = "skipped", str(exc)
-        logger.warning("%s: skipped: %s", exp.id, exc)
-    except MissingExtraError as exc:  # an optional extra this run needs is not installed: skipped, saying which
-        record.status, record.message = "skipped", f"needs an optional extra that is not installed: {exc}"
+    except (ExperimentSkipped, MissingExtraError) as exc:  # a missing optional extra: skipped, naming the extra
+        why = "needs an optional extra that is not installed: " if isinstance(exc, MissingExtraError) else ""
+        record.status, record.message = "skipped", f"{why}{exc}"
         logger.warning("%s: skipped: %s", exp.id, record.message)
     except Exception as exc:
         record.status, record.message = "failed", f"{type(exc).__name__}: {exc}"

@@ -11,6 +11,8 @@ data
 kinematics
     :func:`joint_angles` (16 angles of a geometric limb model), :func:`orientation_angles`
     (relative rotations along the limbs as Euler angles), :func:`delayed_velocity`.
+skeleton
+    :data:`SKELETON_CHAINS`, :func:`skeleton_bones`: the bones a stick figure joins.
 histograms
     :class:`MotionHistograms`, the scikit-learn transformer turning angle trajectories into
     concatenated per-degree-of-freedom histograms (KDE or vector quantisation).
@@ -84,5 +86,6 @@ __all__ = [
 ]
 
 from .histograms import MotionHistograms
+from .skeleton import SKELETON_CHAINS, skeleton_bones
 
-__all__ += ["MotionHistograms"]
+__all__ += ["MotionHistograms", "SKELETON_CHAINS", "skeleton_bones"]

@@ -13,8 +13,8 @@ one that holds it.
 A learnt dictionary, modality by modality
     plot_dictionary_images (each atom's top images), plot_dictionary_sounds (the
     spectrograms of its top utterances), plot_dictionary_motion (the joint-angle curves of
-    its top motions), plot_dictionary_skeletons (stick figures of them); skeleton_bones,
-    SKELETON_CHAINS (the bones of the OpenNI and MSR Action3D skeletons).
+    its top motions), plot_dictionary_skeletons (stick figures of them, with the bones of
+    :func:`mmconcepts.motion.skeleton_bones`).
 What the atoms mean and how well they match
     plot_atom_labels (the atom x label association), plot_confusion (the confusion matrix of
     a cross-modal recognition, section 6.6.1), plot_activation_timeline (each concept's
@@ -29,16 +29,13 @@ from __future__ import annotations
 
 from .analysis import plot_activation_timeline, plot_atom_labels, plot_confusion
 from .dictionary import (
-    SKELETON_CHAINS,
     plot_dictionary_images,
     plot_dictionary_motion,
     plot_dictionary_skeletons,
     plot_dictionary_sounds,
-    skeleton_bones,
 )
 
 __all__ = [
-    "SKELETON_CHAINS",
     "plot_activation_timeline",
     "plot_atom_labels",
     "plot_confusion",
@@ -46,5 +43,4 @@ __all__ = [
     "plot_dictionary_motion",
     "plot_dictionary_skeletons",
     "plot_dictionary_sounds",
-    "skeleton_bones",
 ]

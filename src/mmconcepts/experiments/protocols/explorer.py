@@ -10,7 +10,7 @@ beside the figures and the report plays.
 
 The experiment says where an example's media come from (callables); the helpers here make them
 from recordings: :func:`recording_clip` (an utterance cut to :data:`CLIP_SECONDS` around its
-keyword, at :data:`CLIP_RATE`), :func:`stick_figure` (a skeleton's positions, :func:`skeleton_bones`),
+keyword, at :data:`CLIP_RATE`), :func:`stick_figure` (a skeleton's positions, :func:`~mmconcepts.motion.skeleton_bones`),
 :func:`angle_curves` (joint angles, where no skeleton is kept), :func:`recordings_explorer` (the
 chapter 6 pairs: utterances, and the motion record and object view paired with each).
 Building cards draws no random number and changes no number of the run.
@@ -26,10 +26,11 @@ import numpy as np
 
 from ...engine import AudioClip, ConceptCard, Explorer, MotionClip, Thumbnail
 from ...engine.explorer import MAX_CARDS, MAX_MEDIA, MAX_MOTION_FRAMES
+from ...motion import skeleton_bones
 from ...multimodal import atom_label_association, top_examples
 
-__all__ = ["CLIP_RATE", "CLIP_SECONDS", "THUMBNAIL", "LABEL_SHARE", "UTTERANCES", "explorer_note", "SKELETON_CHAINS", "concept_cards", "card_labels", "cut_clip",
-           "recording_clip", "skeleton_bones", "stick_figure", "angle_curves", "recordings_explorer"]
+__all__ = ["CLIP_RATE", "CLIP_SECONDS", "THUMBNAIL", "LABEL_SHARE", "UTTERANCES", "explorer_note", "concept_cards", "card_labels", "cut_clip",
+           "recording_clip", "stick_figure", "angle_curves", "recordings_explorer"]
 
 #: The clips' sample rate (Hz): FSDD's own, at which speech stays clear and a clip stays small.
 CLIP_RATE = 8000
@@ -39,17 +40,6 @@ CLIP_SECONDS = 1.0
 THUMBNAIL = 64
 #: A label is listed beside the one an atom aligns with most when it holds at least this share of the atom.
 LABEL_SHARE = 0.05
-
-#: The bones of a skeleton, as chains of markers (each link: one name, or alternatives, the first present used);
-#: a marker a skeleton lacks is skipped, its neighbours joined (MSR Action3D, Choreo1 and Choreo2 markers).
-SKELETON_CHAINS: tuple[tuple[tuple[str, ...], ...], ...] = (
-    (("head",), ("neck",), ("spine", "torso"), ("waist", "hip_center")),
-    (("left_shoulder",), ("neck",), ("right_shoulder",)),
-    (("left_hip",), ("hip_center", "waist", "torso"), ("right_hip",)),
-    *(((f"{s}_shoulder",), (f"{s}_elbow",), (f"{s}_wrist",), (f"{s}_hand",)) for s in ("left", "right")),
-    *(((f"{s}_hip",), (f"{s}_knee",), (f"{s}_ankle",), (f"{s}_foot",)) for s in ("left", "right")),
-)
-
 
 #: How the clips of utterances are cut, for the explorer's note (:func:`explorer_note`).
 UTTERANCES = f"their utterances (at most {CLIP_SECONDS:g} s, around the keyword)"
@@ -155,21 +145,6 @@ def recording_clip(path: str | Path, *, span: Any = None, caption: str = "") -> 
     return cut_clip(load_audio(path, sr=CLIP_RATE, min_duration=0.0), CLIP_RATE, span, caption=caption)
 
 
-def skeleton_bones(marker_names: Sequence[str]) -> tuple[tuple[int, int], ...]:
-    """The bones of a skeleton with these markers (:data:`SKELETON_CHAINS`), as pairs of marker indices."""
-    from ...motion import normalize_marker_name
-
-    index: dict[str, int] = {}
-    for i, name in enumerate(marker_names):
-        index.setdefault(normalize_marker_name(name), i)
-    bones: list[tuple[int, int]] = []
-    for chain in SKELETON_CHAINS:
-        present = [next((index[n] for n in link if n in index), None) for link in chain]
-        joints = [i for i in present if i is not None]
-        bones += [(a, b) for a, b in zip(joints, joints[1:]) if (a, b) not in bones]
-    return tuple(bones)
-
-
 def _every(n_frames: int) -> int:
     return -(-n_frames // MAX_MOTION_FRAMES)
 
@@ -179,7 +154,7 @@ def stick_figure(positions: np.ndarray, marker_names: Sequence[str], frame_rate:
     """A skeleton's motion seen from the front (x right, y up), every n-th frame so that it fits the bound."""
     x = np.asarray(positions, dtype=np.float64)
     step = _every(x.shape[0])
-    return MotionClip(positions=x[::step], bones=skeleton_bones(marker_names), frame_rate=frame_rate / step,
+    return MotionClip(positions=x[::step], bones=tuple(skeleton_bones(marker_names)), frame_rate=frame_rate / step,
                       caption=caption)
 
 
