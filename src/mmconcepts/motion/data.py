@@ -29,15 +29,18 @@ from __future__ import annotations
 
 import json
 import logging
+import numbers
 import os
 import re
 import warnings
 import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
 from .._io import LABEL_SEPARATOR, LABELS_HEADER, atomic_path
 from ..errors import DataError, DataFormatError, ParameterError
@@ -193,6 +196,77 @@ def normalize_marker_name(name: str) -> str:
 # --------------------------------------------------------------------------- types
 
 
+def _as_float_array(values: Any, what: str, where: str) -> np.ndarray:
+    """``values`` as a float array, or :class:`DataError` if they are not real numbers."""
+    if np.iscomplexobj(values):
+        raise DataError(f"{what} must be real numbers; got complex values{where}.")
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{what} must be an array of numbers; got a {type(values).__name__} that does not convert "
+                        f"to one ({exc}){where}.") from exc
+
+
+#: The policies of :class:`MotionRecording` for non-finite positions or orientations.
+_ON_MISSING: tuple[str, ...] = ("raise", "interpolate", "drop")
+
+
+def _check_frame_rate(frame_rate: object) -> float:
+    """``frame_rate`` as a float, or :class:`ParameterError` unless it is a finite number > 0."""
+    if (isinstance(frame_rate, bool) or not isinstance(frame_rate, (int, float, np.integer, np.floating))
+            or not (np.isfinite(frame_rate) and frame_rate > 0)):
+        raise ParameterError(f"frame_rate must be a finite number of frames per second > 0 (Kinect: 30, MSR "
+                             f"Action3D: 15); got {frame_rate!r}.")
+    return float(frame_rate)
+
+
+def _nonfinite(values: np.ndarray, names: Sequence[str], what: str) -> str | None:
+    """Where ``values`` (n_frames, n_markers, k) are not finite, in words naming the first frame and
+    joint; None if all are."""
+    bad = ~np.isfinite(values)
+    if not bad.any():
+        return None
+    t, j = (int(i) for i in np.argwhere(bad)[0][:2])
+    return (f"{what} hold {int(bad.sum())} non-finite value(s) in {int(bad.any(axis=(1, 2)).sum())} frame(s); the "
+            f"first at frame {t}, joint {names[j]!r} ({', '.join(str(v) for v in values[t, j].tolist())})")
+
+
+def _interpolate_missing(values: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """``values`` (n_frames, ...) with the entries where ``missing`` (broadcast to its shape) linearly
+    interpolated in time from the same column's other frames; before the first and after the last of
+    those the nearest value is held (:func:`numpy.interp`). Each column needs one entry not missing.
+    The one interpolation of lost motion: :class:`MotionRecording` (per coordinate) and the MSR
+    Action3D loader (whole frames) both use it."""
+    flat = values.reshape(len(values), -1).copy()
+    miss = np.broadcast_to(missing, values.shape).reshape(len(values), -1)
+    t = np.arange(len(values))
+    for j in np.flatnonzero(miss.any(axis=0)):
+        m = miss[:, j]
+        flat[m, j] = np.interp(t[m], t[~m], flat[~m, j])
+    return flat.reshape(values.shape)
+
+
+def _slerp_missing(Q: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """Quaternions ``Q`` (n_frames, n_markers, 4) with the frames where ``missing`` (n_frames, n_markers)
+    filled per marker by spherical linear interpolation between the nearest present frames
+    (:class:`scipy.spatial.transform.Slerp`), the nearest present one held at the ends. Zero
+    quaternions are no rotation: they are kept, and never interpolated from."""
+    out = Q.copy()
+    t = np.arange(len(Q), dtype=float)
+    for j in np.flatnonzero(missing.any(axis=0)):
+        m = missing[:, j]
+        q = Q[~m, j]
+        scale = np.abs(q).max(axis=1)
+        anchor = np.flatnonzero(~m)[scale > 0]
+        q = q[scale > 0] / scale[scale > 0, None]  # exact rotations; no overflow in the norm
+        if len(anchor) == 1:
+            out[m, j] = Rotation.from_quat(q[0]).as_quat()
+        else:
+            slerp = Slerp(t[anchor], Rotation.from_quat(q))
+            out[m, j] = slerp(np.clip(t[m], t[anchor[0]], t[anchor[-1]])).as_quat()
+    return out
+
+
 @dataclass(eq=False)
 class MotionRecording:
     """One recorded demonstration: marker positions over time and its labels.
@@ -200,19 +274,40 @@ class MotionRecording:
     Parameters
     ----------
     positions : ndarray of shape (n_frames, n_markers, 3)
-        Marker positions (metres, camera frame for Kinect data).
+        Marker positions (metres, camera frame for Kinect data), at least one frame. NaN
+        or infinite values mark a joint whose tracking was lost: see ``on_missing``.
     marker_names : sequence of str, length n_markers
         Names as found in the file; look-ups use :func:`normalize_marker_name`.
     labels : tuple of int
         Label ids (gesture ids of Table B.2 for Choreo1, 0..9 for Choreo2, action id for MSR).
     orientations : ndarray of shape (n_frames, n_markers, 4), optional
-        Unit quaternions (qx, qy, qz, qw) of each marker's frame (Choreo2).
+        Unit quaternions (qx, qy, qz, qw) of each marker's frame (Choreo2). A quaternion
+        with a NaN or infinite component is missing, as a position is.
     frame_rate : float
-        Frames per second.
+        Frames per second, finite and > 0.
     source : str
         File the record came from (used in error messages).
     record_id : str
         Record key inside that file.
+    on_missing : {"raise", "interpolate", "drop"}, default="raise"
+        What to do with non-finite positions or orientations (not stored):
+        ``"raise"``: a :class:`DataError` names the first frame and joint (and the file);
+        ``"interpolate"``: each missing coordinate is linearly interpolated in time between
+        the nearest frames where that joint's coordinate is finite, and the nearest finite
+        value is held before the first and after the last (orientations: spherical linear
+        interpolation, ``scipy.spatial.transform.Slerp``); the frames and the time axis stay
+        as they are, so delayed velocities keep their meaning. A joint with no finite value
+        in any frame is a :class:`DataError`;
+        ``"drop"``: every frame holding a non-finite value is left out (the time axis then
+        has gaps); a :class:`DataError` if no frame is left.
+
+    Raises
+    ------
+    DataError
+        Positions or orientations that are not arrays of numbers of the right shape, labels
+        that are not integers, non-finite values with ``on_missing="raise"``.
+    ParameterError
+        A frame rate that is not a finite number > 0, an unknown ``on_missing``.
     """
 
     positions: np.ndarray
@@ -222,22 +317,33 @@ class MotionRecording:
     frame_rate: float = 30.0
     source: str = ""
     record_id: str = ""
+    on_missing: InitVar[str] = "raise"
     _index: dict[str, int] = field(default_factory=dict, repr=False)
 
-    def __post_init__(self) -> None:
-        self.positions = np.asarray(self.positions, dtype=float)
-        self.marker_names = tuple(self.marker_names)
-        self.labels = tuple(int(x) for x in self.labels)
+    def __post_init__(self, on_missing: str) -> None:
+        if not (isinstance(on_missing, str) and on_missing in _ON_MISSING):
+            raise ParameterError(f"on_missing must be one of {list(_ON_MISSING)}; got {on_missing!r}.")
+        self.frame_rate = _check_frame_rate(self.frame_rate)
         where = self._where()
-        if self.positions.ndim != 3 or self.positions.shape[2] != 3:
-            raise DataError(f"positions must have shape (n_frames, n_markers, 3); got {self.positions.shape}{where}.")
+        self.positions = _as_float_array(self.positions, "positions", where)
+        if isinstance(self.marker_names, str) or not isinstance(self.marker_names, Iterable):
+            raise DataError(f"marker_names must be a sequence of names, one per marker; got {self.marker_names!r}"
+                            f"{where}.")
+        self.marker_names = tuple(self.marker_names)
+        labels = tuple(self.labels) if isinstance(self.labels, Iterable) and not isinstance(self.labels, str) else None
+        if labels is None or not all(isinstance(x, numbers.Integral) and not isinstance(x, bool) for x in labels):
+            raise DataError(f"labels must be a sequence of integer label ids; got {self.labels!r}{where}.")
+        self.labels = tuple(int(x) for x in labels)
+        if self.positions.ndim != 3 or self.positions.shape[2] != 3 or self.positions.shape[0] == 0:
+            raise DataError(f"positions must have shape (n_frames, n_markers, 3) with at least one frame; got "
+                            f"{self.positions.shape}{where}.")
         if self.positions.shape[1] != len(self.marker_names):
             raise DataError(
                 f"{len(self.marker_names)} marker names for {self.positions.shape[1]} markers in the "
                 f"positions array{where}."
             )
         if self.orientations is not None:
-            self.orientations = np.asarray(self.orientations, dtype=float)
+            self.orientations = _as_float_array(self.orientations, "orientations", where)
             if self.orientations.shape != self.positions.shape[:2] + (4,):
                 raise DataError(
                     f"orientations must have shape {self.positions.shape[:2] + (4,)}; got "
@@ -246,6 +352,45 @@ class MotionRecording:
         self._index = {}
         for i, n in enumerate(self.marker_names):
             self._index.setdefault(normalize_marker_name(n), i)
+        self._handle_missing(on_missing, where)
+
+    def _handle_missing(self, on_missing: str, where: str) -> None:
+        """Apply ``on_missing`` to non-finite positions and orientations (see the class docstring)."""
+        P, Q, names = self.positions, self.orientations, self.marker_names
+        lost_p = ~np.isfinite(P)
+        lost_q = np.zeros(P.shape[:2], dtype=bool) if Q is None else ~np.isfinite(Q).all(axis=2)
+        if not lost_p.any() and not lost_q.any():
+            return
+        if on_missing == "raise":
+            found = [_nonfinite(P, names, "positions"), None if Q is None else _nonfinite(Q, names, "orientations")]
+            raise DataError(
+                f"{'; '.join(m for m in found if m)}{where}. Expected finite values: pass on_missing='interpolate' "
+                "(fill lost joints linearly in time) or on_missing='drop' (leave those frames out), or leave lost "
+                "frames out before building the recording."
+            )
+        if on_missing == "drop":
+            keep = ~lost_p.any(axis=(1, 2)) & ~lost_q.any(axis=1)
+            if not keep.any():
+                raise DataError(f"Every one of the {len(keep)} frame(s) holds a non-finite position or orientation"
+                                f"{where}; on_missing='drop' would leave nothing. Expected at least one frame "
+                                "where every joint is tracked.")
+            self.positions = P[keep]
+            self.orientations = None if Q is None else Q[keep]
+            return
+        never = lost_p.all(axis=0).any(axis=1)  # a coordinate of the joint is lost in every frame
+        if Q is not None:  # lost somewhere, and no finite nonzero quaternion anywhere to interpolate from
+            anchors = ~lost_q & (np.abs(np.nan_to_num(Q)).max(axis=2) > 0)
+            never |= lost_q.any(axis=0) & ~anchors.any(axis=0)
+        if never.any():
+            j = int(np.flatnonzero(never)[0])
+            raise DataError(
+                f"Joint {names[j]!r} has no finite value in any of the {self.n_frames} frame(s) (a coordinate of "
+                f"its position, or its orientation){where}: there is nothing to interpolate from. Expected each "
+                "joint tracked in at least one frame: leave that joint out of the recording."
+            )
+        self.positions = _interpolate_missing(P, lost_p)
+        if Q is not None and lost_q.any():
+            self.orientations = _slerp_missing(Q, lost_q)
 
     def _where(self) -> str:
         parts = []
@@ -262,7 +407,7 @@ class MotionRecording:
 
     @property
     def duration(self) -> float:
-        """Length in seconds."""
+        """Length in seconds: ``n_frames / frame_rate``."""
         return self.n_frames / self.frame_rate
 
     def has_marker(self, name: str) -> bool:
@@ -454,9 +599,15 @@ def _load_records(
                     f"{npz_path}: record {rid} has shape {arr.shape}; expected (T, {len(marker_names)}, {n_values}) "
                     f"({len(marker_names)} marker names in {json_path.name})."
                 )
-            if arr.shape[0] == 0 or not np.issubdtype(arr.dtype, np.number) or not np.isfinite(arr).all():
-                raise DataFormatError(f"{npz_path}: record {rid} is empty or holds non-finite values.")
+            if arr.shape[0] == 0 or arr.dtype.kind not in "iuf":
+                raise DataFormatError(f"{npz_path}: record {rid} is empty or not an array of real numbers "
+                                      f"(dtype {arr.dtype}).")
             arr = arr.astype(float)
+            lost = _nonfinite(arr[..., :3], marker_names, "positions") or _nonfinite(arr[..., 3:], marker_names,
+                                                                                   "orientations")
+            if lost:
+                raise DataFormatError(f"{npz_path}: record {rid}: {lost}. Expected finite values: leave frames where "
+                                      "tracking was lost out, or interpolate them, before saving.")
             out.append(MotionRecording(
                 positions=arr[..., :3], marker_names=marker_names, labels=tuple(labels),
                 orientations=arr[..., 3:7] if n_values == 7 else None, frame_rate=frame_rate,
@@ -533,6 +684,7 @@ def _load_choreo(path: str | os.PathLike[str], what: str, sep: str, *, n_values:
     the NPZ is opened. Returns the JSON path, its content, the records read and the skipped.
     """
     _check_on_error(on_error)
+    frame_rate = _check_frame_rate(frame_rate)
     json_path = _resolve_json(Path(path), what)
     meta = _read_json(json_path)
     names_key = f"marker{sep}names"
@@ -620,6 +772,7 @@ def load_choreo1_text(
     DataFormatError
         If a line does not hold ``3 * len(marker_names)`` numbers (file and line named).
     """
+    frame_rate = _check_frame_rate(frame_rate)
     path = Path(path)
     n = 3 * len(marker_names)
     rows = []
@@ -642,8 +795,10 @@ def load_choreo1_text(
     if not rows:
         raise DataFormatError(f"{path}: no frames.")
     arr = np.asarray(rows).reshape(len(rows), len(marker_names), 3)
-    if not np.isfinite(arr).all():
-        raise DataFormatError(f"{path}: non-finite values.")
+    lost = _nonfinite(arr, tuple(marker_names), "positions")
+    if lost:
+        raise DataFormatError(f"{path}: {lost} (frame k is the k-th line of numbers). Expected finite values: leave "
+                              "frames where tracking was lost out, or interpolate them.")
     return MotionRecording(arr, tuple(marker_names), tuple(labels), frame_rate=frame_rate, source=str(path))
 
 
@@ -756,12 +911,7 @@ def _fill_lost_frames(P: np.ndarray, lost: np.ndarray, mode: str) -> np.ndarray:
         return P
     if mode == "drop":
         return P[~lost]
-    t = np.arange(len(P))
-    g = ~lost
-    flat = P.reshape(len(P), -1).copy()
-    for j in range(flat.shape[1]):
-        flat[lost, j] = np.interp(t[lost], t[g], flat[g, j])
-    return flat.reshape(P.shape)
+    return _interpolate_missing(P, lost[:, None, None])
 
 
 def load_msr_action3d(
@@ -802,6 +952,7 @@ def load_msr_action3d(
     _check_on_error(on_error)
     if lost_frames not in ("interpolate", "drop"):
         raise ParameterError(f"lost_frames must be 'interpolate' or 'drop'; got {lost_frames!r}.")
+    frame_rate = _check_frame_rate(frame_rate)
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"MSR Action3D folder not found: {folder}")
@@ -834,8 +985,11 @@ def load_msr_action3d(
                     "'x y z confidence' per frame."
                 )
             P = arr.reshape(-1, 20, 4)[..., :3]
-            if not np.isfinite(P).all():
-                raise DataFormatError(f"{p}: non-finite values.")
+            nonfinite = _nonfinite(P, MSR_JOINTS, "positions")
+            if nonfinite:
+                t, j = np.argwhere(~np.isfinite(P))[0][:2]
+                raise DataFormatError(f"{p}, line {20 * int(t) + int(j) + 1}: {nonfinite}. Expected finite numbers (a "
+                                      "frame where tracking was lost has every joint at 0 0 0).")
             lost = np.all(P == 0, axis=(1, 2))
             if lost.all():  # no motion at all (a13_s09_e02): left out, listed in skipped
                 skipped.append(SkippedRecord(str(p), rid, f"{p}: tracking lost in every frame (all joints zero)."))
@@ -993,9 +1147,7 @@ def load_motion_folder(
     from .._io import read_labels_csv, split_labels
 
     _check_on_error(on_error)
-    if not (isinstance(frame_rate, (int, float)) and not isinstance(frame_rate, bool)
-            and np.isfinite(frame_rate) and frame_rate > 0):
-        raise ParameterError(f"frame_rate must be a finite number > 0; got {frame_rate!r}.")
+    frame_rate = _check_frame_rate(frame_rate)
     want = None if joints is None else list(joints)
     if want is not None and (not want or not all(isinstance(j, str) for j in want)
                              or len({normalize_marker_name(j) for j in want}) != len(want)):
@@ -1044,7 +1196,7 @@ def load_motion_folder(
             skipped.append(SkippedRecord(str(root / rel), Path(rel).with_suffix("").as_posix() if rel else "",
                                          str(exc)))
     ids = _motion_label_ids(l for _, labels, _, _, _ in read for l in labels)
-    recs = [MotionRecording(P, tuple(names or ()), tuple(ids[l] for l in labels), frame_rate=float(frame_rate),
+    recs = [MotionRecording(P, tuple(names or ()), tuple(ids[l] for l in labels), frame_rate=frame_rate,
                             source=str(root / rel), record_id=rid)
             for rel, labels, rid, P, _ in read]
     _warn_skipped(skipped, str(root))

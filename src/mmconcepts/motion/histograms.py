@@ -239,7 +239,12 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
                     f"{min_len}."
                 )
             if not np.isfinite(x).all():
-                raise DataError(f"Recording {i} holds NaN or infinite values.")
+                t, j = np.argwhere(~np.isfinite(x))[0]
+                raise DataError(
+                    f"Recording {i} holds {int((~np.isfinite(x)).sum())} NaN or infinite value(s), the first at "
+                    f"frame {t}, degree of freedom {j}. Expected finite trajectories: repair the motion "
+                    "(MotionRecording(..., on_missing='interpolate' or 'drop')) or leave the recording out."
+                )
         return seqs
 
     # ------------------------------------------------------------------ samples

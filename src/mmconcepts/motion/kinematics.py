@@ -98,7 +98,16 @@ CHOREO2_FRAME_PAIRS: tuple[tuple[str, str], ...] = (
 
 
 def _unit(v: np.ndarray, what: str, rec: MotionRecording) -> np.ndarray:
+    if not np.isfinite(v).all():
+        raise DataError(
+            f"Cannot compute joint angles: {what} is not finite in {int((~np.isfinite(v)).any(axis=-1).sum())} "
+            f"frame(s){rec._where()}. Expected finite positions whose differences do not overflow (metres)."
+        )
     n = np.linalg.norm(v, axis=-1, keepdims=True)
+    over = ~np.isfinite(n)  # the squares overflow: the norm of v / max|v|, scaled back
+    if over.any():
+        s = np.abs(v).max(axis=-1, keepdims=True)
+        n[over] = (s * np.linalg.norm(v / s, axis=-1, keepdims=True))[over]
     if np.any(n < 1e-9):
         raise DataError(
             f"Degenerate skeleton: {what} has zero length in {int(np.sum(n < 1e-9))} frame(s){rec._where()} "
@@ -145,14 +154,24 @@ def joint_angles(recording: MotionRecording, *, vertical: Sequence[float] = (0.0
     Raises
     ------
     DataError
-        If a needed marker is missing (the marker and the file are named) or a segment has
-        zero length.
+        If a needed marker is missing (the marker and the file are named), a segment has
+        zero length, or positions differ by more than floating point holds. The angles of
+        a recording that gives none of these are finite.
     """
-    v = np.asarray(vertical, dtype=float)
-    if v.shape != (3,) or not np.isfinite(v).all() or np.linalg.norm(v) == 0:
-        raise ParameterError(f"vertical must be a nonzero 3-vector; got {vertical!r}.")
+    try:
+        v = np.asarray(vertical, dtype=float)
+    except (TypeError, ValueError):
+        v = np.empty(0)
+    if v.shape != (3,) or not np.isfinite(v).all() or not np.abs(v).max() > 0:
+        raise ParameterError(f"vertical must be a nonzero 3-vector of finite numbers; got {vertical!r}.")
+    v = v / np.abs(v).max()
     v = v / np.linalg.norm(v)
-    rec = recording
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflowing segment is a DataError of _unit
+        return _joint_angles(recording, v)
+
+
+def _joint_angles(rec: MotionRecording, v: np.ndarray) -> np.ndarray:
+    """:func:`joint_angles` with ``v`` the unit vertical."""
     neck = rec.marker("neck")
     lhip, rhip = rec.marker("left_hip"), rec.marker("right_hip")
     pelvis = rec.marker("hip_center") if rec.has_marker("hip_center") else 0.5 * (lhip + rhip)
@@ -224,12 +243,18 @@ def orientation_angles(
         raise ParameterError("pairs must hold at least one (parent, child) pair of marker names.")
     out = []
     for a, b in pairs:
-        qa, qb = recording.orientation(a), recording.orientation(b)
-        for q, n in ((qa, a), (qb, b)):
-            norms = np.linalg.norm(q, axis=1)
-            if np.any(norms < 1e-6):
+        rot = []
+        for n in (a, b):
+            q = recording.orientation(n)
+            if not np.isfinite(q).all():
+                raise DataError(f"Marker {n!r} has a non-finite quaternion in some frame{recording._where()}; "
+                                "expected finite orientations (MotionRecording's on_missing repairs them).")
+            scale = np.abs(q).max(axis=1, keepdims=True)
+            if np.any(scale < 1e-6):
                 raise DataError(f"Marker {n!r} has a zero quaternion in some frame{recording._where()}.")
-        rel = Rotation.from_quat(qa).inv() * Rotation.from_quat(qb)
+            big = ~np.isfinite(np.linalg.norm(q, axis=1))  # the squares overflow: q / max|q|, the same rotation
+            rot.append(Rotation.from_quat(np.where(big[:, None], q / scale, q)))
+        rel = rot[0].inv() * rot[1]
         out.append(rel.as_euler("xyz"))
     return np.concatenate(out, axis=1)
 
