@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import sys
 import textwrap
 from collections.abc import Mapping, Sequence
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -90,6 +92,22 @@ def _positive(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected an int >= 1; got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected an int >= 1; got {value}")
+    return value
+
+
+_BYTE_UNITS = {"": 1, "b": 1, "k": 10**3, "kb": 10**3, "m": 10**6, "mb": 10**6, "g": 10**9, "gb": 10**9,
+               "t": 10**12, "tb": 10**12, "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
+
+
+def _byte_size(text: str) -> int:
+    """An argparse type: a number of bytes, with an optional unit (kB, MB, GB, TB or KiB, MiB, GiB, TiB)."""
+    match = re.fullmatch(r"\s*(\d+(?:\.\d*)?|\.\d+)\s*([a-zA-Z]*)\s*", text)
+    unit = match.group(2).lower() if match else ""
+    if match is None or unit not in _BYTE_UNITS:
+        raise argparse.ArgumentTypeError(f"expected a size such as 500MB, 30GB or 2GiB; got {text!r}")
+    value = int(Fraction(match.group(1)) * _BYTE_UNITS[unit])  # exact: no float rounding or overflow
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a size of at least 1 byte; got {text!r}")
     return value
 
 
@@ -312,6 +330,12 @@ def build_parser() -> argparse.ArgumentParser:
     _data_root_option(q)
     q.add_argument("--url", default=None, help="download from this address instead of the set's own")
     q.add_argument("--sha256", default=None, help="expected SHA-256 of the download (with --url)")
+    q.add_argument("--max-size", metavar="SIZE", type=_byte_size, default=None,
+                   help="refuse an archive that unpacks to more than SIZE, e.g. 500MB, 30GB, 2GiB (default: the "
+                        "set's own bound, else 10GB)")
+    q.add_argument("--max-files", metavar="N", type=_positive, default=None,
+                   help="refuse an archive of more than N files and folders (default: the set's own bound, else "
+                        "100000)")
     q.set_defaults(func=_cmd_data_fetch)
 
     p = sub.add_parser(
@@ -547,7 +571,11 @@ def _cmd_data_fetch(args: argparse.Namespace) -> int:
     root = data_root(args.data_root)
     if root is None:
         raise _UsageError("no data root: pass --data-root DIR or set MMCONCEPTS_DATA_ROOT.")
-    path = fetch_dataset(args.name, root, url=args.url, sha256=args.sha256, progressbar=not args.quiet)
+    import pooch
+
+    pooch.get_logger().setLevel(logging.WARNING if args.quiet else logging.INFO)  # it logs each download at INFO
+    path = fetch_dataset(args.name, root, url=args.url, sha256=args.sha256, progressbar=not args.quiet,
+                         max_unpacked_bytes=args.max_size, max_files=args.max_files)
     print(f"{args.name}: {path}")
     return 0
 

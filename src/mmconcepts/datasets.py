@@ -23,22 +23,28 @@ like the set. Reading every file is the loaders' job (``DatasetInfo.load``).
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import functools
 import importlib
 import json
 import logging
+import lzma
 import os
 import re
 import shutil
 import tarfile
 import tempfile
 import zipfile
-from collections.abc import Callable, Iterable, Mapping
+import zlib
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
+from typing import IO, Any
 
 from ._io import LABELS_HEADER, OLD_LABEL_COLUMNS
+from ._validation import Interval, validate_params
 from .errors import DataError, ParameterError
 
 __all__ = [
@@ -273,7 +279,9 @@ class DatasetInfo:
     """A data set known by name: where it lives under a data root, its layout and provenance.
 
     ``real`` is False for the generic layouts (``audio``, ``motion``, ``images``): they are formats for a
-    user's own data, not published data sets.
+    user's own data, not published data sets. ``max_unpacked_bytes`` and ``max_files`` bound what
+    :func:`fetch_dataset` unpacks for the set (bytes of content, archive entries), set well above what the
+    set holds; None: the defaults of :func:`fetch_dataset`.
     """
 
     name: str
@@ -289,6 +297,8 @@ class DatasetInfo:
     sha256: str | None = None
     real: bool = True
     loader: str = ""  # "module:function" reading the set's folder ("module:f|g": the first that exists)
+    max_unpacked_bytes: int | None = None
+    max_files: int | None = None
     _check: Callable[[Path], str | None] | None = field(default=None, repr=False, compare=False)
     _count: Callable[[Path], int] | None = field(default=None, repr=False, compare=False)
 
@@ -360,6 +370,10 @@ _LIST: tuple[DatasetInfo, ...] = (
         url=_FSDD_URL,
         sha256=_FSDD_SHA256,
         loader="mmconcepts.sound.data:load_fsdd|load_generic_audio",
+        # v1.0.9 unpacks to about 2530 entries and 20 MB (2500 WAVs of about 7 kB, as a copy of 1500 of
+        # them measures); room for later releases (3000 recordings) and a tenfold error in that estimate.
+        max_unpacked_bytes=200_000_000,
+        max_files=10_000,
         _check=_check_fsdd,
         _count=_count_fsdd,
     ),
@@ -410,6 +424,10 @@ _LIST: tuple[DatasetInfo, ...] = (
             "`mmconcepts data fetch eth80 --url URL --sha256 HASH` with a hash you trust"
         ),
         loader="mmconcepts.vision.data:load_eth80",
+        # The cropped-close128 archive: 3280 PNGs of 128x128 (and a mask each in some archives), some
+        # 6600 entries and, at the 14 kB of a 96x96 copy's images scaled to 128x128, about 160 MB.
+        max_unpacked_bytes=2_000_000_000,
+        max_files=20_000,
         _check=_check_eth80,
         _count=_count_eth80,
     ),
@@ -674,33 +692,234 @@ def dataset_status(root: PathLike | None = None) -> list[dict]:
 
 # --------------------------------------------------------------------------- fetching
 
+#: What :func:`fetch_dataset` unpacks at most for a set whose entry declares no bound: 10 GB of content in
+#: 100 000 entries (files and folders). Over ten times the largest set of the registry (ETH-80's archive, some
+#: 6600 entries) and far above its sizes, yet below what fills the disk of a machine that holds the sets:
+#: an archive that unpacks beyond them (a decompression bomb, the wrong file) is refused unless raised.
+_MAX_UNPACKED_BYTES = 10_000_000_000
+_MAX_FILES = 100_000
+#: Space left free on the disk beyond what a download or an unpacked archive needs.
+_FREE_MARGIN = 16 * 2**20
+#: What a file or folder takes on disk beyond its content, at most (one block of a common file system).
+_ENTRY_OVERHEAD = 4096
+#: What an archive holds per entry beyond its content, at most (a tar header, its padding and a long-name
+#: header; zip's headers are smaller), and once (a tar's end blocks in 10 kB records, a zip's end records).
+_ARCHIVE_ENTRY_OVERHEAD = 2048
+_ARCHIVE_OVERHEAD = 2**20
+#: What reading a damaged archive raises: zipfile, tarfile and their decompressors (a gzip or bz2 stream
+#: that is not one raises OSError, an encrypted zip member RuntimeError, an unknown zip method
+#: NotImplementedError).
+_READ_ERRORS = (OSError, EOFError, ValueError, RuntimeError, NotImplementedError, zlib.error, lzma.LZMAError,
+                zipfile.BadZipFile, tarfile.TarError)
 
-def _safe_extract(archive: Path, dest: Path) -> None:
-    """Unpack a tar or zip archive into ``dest``; refuse members outside it or links."""
-    dest.mkdir(parents=True, exist_ok=True)
-    base = dest.resolve()
+
+@dataclass(frozen=True)
+class _Bounds:
+    """What an archive may unpack to, and where each bound comes from (said in messages)."""
+
+    max_bytes: int
+    max_files: int
+    bytes_from: str = "the bound given"
+    files_from: str = "the bound given"
+
+    @property
+    def download(self) -> int:
+        """Bytes an archive within the bounds can take at most."""
+        return self.max_bytes + _ARCHIVE_ENTRY_OVERHEAD * self.max_files + _ARCHIVE_OVERHEAD
+
+    def describe(self) -> str:
+        return (f"{self.max_bytes:,} bytes of content ({self.bytes_from}), "
+                f"{self.max_files:,} entries ({self.files_from})")
+
+
+_RAISE_BYTES = "raise the bound with max_unpacked_bytes=N (--max-size SIZE on the command line)"
+_RAISE_FILES = "raise the bound with max_files=N (--max-files N on the command line)"
+
+
+def _one_line(exc: BaseException) -> str:
+    """``exc``'s message on one line (tarfile's and some network errors' span several)."""
+    return " ".join(str(exc).split())
+
+
+def _cannot_write(path: PathLike, exc: OSError) -> str:
+    return (
+        f"Cannot write {path}: {exc.strerror or _one_line(exc)}. Nothing was kept. Fix: make room on that disk, "
+        f"or fetch into a data root on a disk you can write to (--data-root DIR, data_root=...)."
+    )
+
+
+def _check_free_space(folder: Path, needed: int, what: str) -> None:
+    """Raise DataError when the disk of ``folder`` has less than ``needed`` bytes free plus the margin."""
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:  # cannot tell (some network file systems): the writes themselves will say
+        return
+    if free < needed + _FREE_MARGIN:
+        raise DataError(
+            f"Not enough free space in {folder} to {what}: it needs {needed:,} bytes and {_FREE_MARGIN:,} kept free; "
+            f"the disk has {free:,} bytes free. Nothing was written. Fix: make room on that disk, or fetch into a "
+            f"data root on another disk (--data-root DIR, data_root=...)."
+        )
+
+
+class _Sink:
+    """A binary file that takes at most ``limit`` bytes (more: ``DataError(too_much())``, nothing past the
+    limit written) and names its path in the DataError an OS error while writing becomes."""
+
+    def __init__(self, fh: IO[bytes], path: Path, limit: int, too_much: Callable[[], str]):
+        self.fh, self.path, self.limit, self.too_much = fh, path, limit, too_much
+        self.written = 0
+
+    def write(self, data: bytes) -> int:
+        self.written += len(data)
+        if self.written > self.limit:
+            raise DataError(self.too_much())
+        try:
+            return self.fh.write(data)
+        except OSError as exc:
+            raise DataError(_cannot_write(self.path, exc)) from exc
+
+    def flush(self) -> None:
+        try:
+            self.fh.flush()
+        except OSError as exc:
+            raise DataError(_cannot_write(self.path, exc)) from exc
+
+
+@contextlib.contextmanager
+def _writing(path: Path, limit: int, too_much: Callable[[], str]) -> Iterator[_Sink]:
+    """Open ``path`` for writing as a :class:`_Sink`; an OS error opening or closing it is a DataError naming it."""
+    try:
+        fh = open(path, "wb")
+    except OSError as exc:
+        raise DataError(_cannot_write(path, exc)) from exc
+    try:
+        yield _Sink(fh, path, limit, too_much)
+    finally:
+        try:
+            fh.close()
+        except OSError as exc:  # the last buffered write
+            raise DataError(_cannot_write(path, exc)) from exc
+
+
+@dataclass(frozen=True)
+class _Member:
+    """An archive entry: its name, its declared size (0 for a folder), and how to read its content."""
+
+    name: str
+    size: int
+    is_dir: bool
+    open: Callable[[], IO[bytes]]
+
+
+def _entries(archive: Path, stack: contextlib.ExitStack) -> Iterator[tuple[str, int, bool, Callable[[], IO[bytes]]]]:
+    """(name, declared size, is a folder, opener) of each entry of a zip or tar archive, read lazily.
+
+    Raises DataError for an entry that is a link, a device or a pipe, or for a file that is no archive.
+    """
+    if zipfile.is_zipfile(archive):
+        zf = stack.enter_context(zipfile.ZipFile(archive))
+        for info in zf.infolist():  # a zip member that is a link is unpacked as a file holding its target
+            yield info.filename, info.file_size, info.is_dir(), functools.partial(zf.open, info)
+        return
+    try:
+        tf = stack.enter_context(tarfile.open(archive))
+    except tarfile.TarError as exc:
+        raise DataError(f"{archive.name} is neither a tar nor a zip archive ({_one_line(exc)}).") from exc
+    for t in tf:  # reads one header at a time: the listing stops at the first entry past a bound
+        if not (t.isreg() or t.isdir()):
+            raise DataError(f"{archive.name}: member {t.name!r} is a link, a device or a pipe, not a file or a folder; "
+                            f"refused.")
+        yield t.name, t.size if t.isreg() else 0, t.isdir(), functools.partial(_tar_member, tf, t)
+
+
+def _tar_member(tf: tarfile.TarFile, t: tarfile.TarInfo) -> IO[bytes]:
+    fh = tf.extractfile(t)
+    if fh is None:  # only for entries that are not regular files, which _entries refuses
+        raise tarfile.ReadError(f"{t.name!r} has no content")
+    return fh
+
+
+def _list_members(archive: Path, stack: contextlib.ExitStack, bounds: _Bounds, base: Path) -> list[_Member]:
+    """The archive's entries, checked against ``bounds`` from their declared sizes before anything is written."""
 
     def inside(name: str) -> bool:
         target = (base / name).resolve()
         return target == base or base in target.parents
 
-    if zipfile.is_zipfile(archive):
-        with zipfile.ZipFile(archive) as zf:
-            for m in zf.infolist():
-                if not inside(m.filename):
-                    raise DataError(f"{archive}: member {m.filename!r} would be written outside the folder; refused.")
-            zf.extractall(dest)
-        return
+    members: list[_Member] = []
+    total = 0
+    for name, size, is_dir, opener in _entries(archive, stack):
+        if len(members) == bounds.max_files:
+            raise DataError(
+                f"{archive.name} holds more than {bounds.max_files:,} entries (files and folders), "
+                f"{bounds.files_from}; nothing was unpacked. Fix: if it is the archive you meant, {_RAISE_FILES}."
+            )
+        if not inside(name):
+            raise DataError(f"{archive.name}: member {name!r} would be written outside the folder; refused.")
+        total += size
+        if total > bounds.max_bytes:
+            raise DataError(
+                f"{archive.name} unpacks to {total:,} bytes or more (as its entries declare), more than "
+                f"{bounds.max_bytes:,} bytes, {bounds.bytes_from}; nothing was unpacked (an archive that unpacks to "
+                f"far more than it weighs may be a decompression bomb). Fix: if it is the archive you meant, "
+                f"{_RAISE_BYTES}."
+            )
+        members.append(_Member(name, size, is_dir, opener))
+    return members
+
+
+def _safe_extract(archive: Path, dest: Path, bounds: _Bounds) -> None:
+    """Unpack a tar or zip archive into ``dest``, within bounds.
+
+    Refused before anything is written: members outside ``dest``, links, devices and pipes; more than
+    ``bounds.max_files`` entries or ``bounds.max_bytes`` bytes of content as the archive declares them; less free
+    space than that content needs. While writing, a member is stopped at its declared size (the bound
+    holds for what is written, not only for what is declared). Every error is a DataError: a damaged
+    member (naming it), an OS error (naming the file).
+    """
+    base = dest.resolve()
+    with contextlib.ExitStack() as stack:
+        try:
+            members = _list_members(archive, stack, bounds, base)
+        except DataError:
+            raise
+        except _READ_ERRORS as exc:
+            raise DataError(f"The archive {archive.name} is corrupt: {type(exc).__name__}: {_one_line(exc)}.") from exc
+        try:
+            dest.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise DataError(_cannot_write(dest, exc)) from exc
+        total = sum(m.size for m in members)
+        _check_free_space(dest, total + _ENTRY_OVERHEAD * len(members),
+                          f"unpack {archive.name} ({total:,} bytes in {len(members):,} entries)")
+        for m in members:
+            _write_member(archive, m, base / m.name)
+
+
+def _write_member(archive: Path, m: _Member, target: Path) -> None:
     try:
-        tf = tarfile.open(archive)
-    except tarfile.TarError as exc:
-        raise DataError(f"{archive} is neither a tar nor a zip archive ({exc}).") from exc
-    with tf:
-        members = tf.getmembers()
-        for t in members:
-            if not inside(t.name) or t.issym() or t.islnk() or t.isdev():
-                raise DataError(f"{archive}: member {t.name!r} is a link, a device or outside the folder; refused.")
-        tf.extractall(dest, members=members, filter="data")
+        (target if m.is_dir else target.parent).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DataError(_cannot_write(target, exc)) from exc
+    if m.is_dir:
+        return
+
+    def too_much() -> str:
+        return (f"The archive {archive.name} is corrupt: member {m.name!r} holds more than the {m.size:,} bytes "
+                f"it declares; stopped there, nothing was kept.")
+
+    with _writing(target, m.size, too_much) as sink:
+        try:
+            with m.open() as src:
+                shutil.copyfileobj(src, sink)
+        except DataError:
+            raise
+        except _READ_ERRORS as exc:
+            raise DataError(
+                f"The archive {archive.name} is corrupt: member {m.name!r} cannot be read ({type(exc).__name__}: "
+                f"{_one_line(exc)}); nothing was kept. Its download matched its sha256: the archive itself is damaged."
+            ) from exc
 
 
 def _single_top(folder: Path) -> Path:
@@ -757,6 +976,101 @@ def _hash_mismatch(exc: Exception, expected: str) -> str | None:
     return got[0] if got else "unknown"
 
 
+def _content_length(url: str) -> int | None:
+    """The size a web server announces for ``url`` (a HEAD request), or None when it does not say."""
+    if not url.lower().startswith(("http://", "https://")):
+        return None
+    import requests
+
+    try:
+        response = requests.head(url, allow_redirects=True, timeout=30)
+        length = int(response.headers["content-length"]) if response.status_code == 200 else -1
+    except Exception:  # noqa: BLE001 - only a hint: whatever fails here, the download itself reports
+        return None
+    return length if length >= 0 else None
+
+
+class _BoundedDownloader:
+    """A pooch downloader that writes at most ``bounds.download`` bytes, checked against the size the server
+    announces (and the free space for it) before writing; an OS error while writing names the file."""
+
+    def __init__(self, url: str, *, what: str, bounds: _Bounds, progressbar: bool):
+        import pooch
+
+        self.inner = pooch.downloaders.choose_downloader(url, progressbar=progressbar)  # what retrieve would use
+        self.what, self.bounds = what, bounds
+
+    def _too_large(self, size: str) -> str:
+        return (
+            f"{self.what} is {size}, more than an archive within the bounds ({self.bounds.describe()}) can be; "
+            f"nothing was kept. Fix: if it is the file you meant, {_RAISE_BYTES}, or max_files=N (--max-files N)."
+        )
+
+    def __call__(self, url: str, output_file: str, pooch: Any) -> None:
+        path = Path(output_file)
+        length = _content_length(url)
+        if length is not None:
+            if length > self.bounds.download:
+                raise DataError(self._too_large(f"{length:,} bytes (as the server says)"))
+            _check_free_space(path.parent, length, f"download {url} ({length:,} bytes)")
+        with _writing(path, self.bounds.download,
+                      lambda: self._too_large(f"larger than {self.bounds.download:,} bytes")) as sink:
+            self.inner(url, sink, pooch)
+
+
+def _download(url: str, folder: Path, *, name: str, known: str, bounds: _Bounds, progressbar: bool) -> Path:
+    """Download ``url`` into ``folder`` with pooch, checked against its sha256, ``bounds`` and the free space."""
+    import pooch
+    import requests
+
+    try:
+        downloader = _BoundedDownloader(url, what=f"the download of {name!r} from {url}", bounds=bounds,
+                                        progressbar=progressbar)
+        return Path(pooch.retrieve(url, known_hash=f"sha256:{known}", fname=Path(url.split("?")[0]).name or
+                                   f"{name}.archive", path=folder, downloader=downloader))
+    except DataError:
+        raise
+    except ValueError as exc:
+        got = _hash_mismatch(exc, known)
+        if got is None:
+            raise DataError(f"Cannot fetch {name!r} from {url}: {_one_line(exc)}") from exc
+        raise DataError(
+            f"Download of {name!r} from {url} is corrupt or not the expected file: expected sha256 "
+            f"{known}, got {got}. Nothing was unpacked. Fix: fetch again (a transfer may have been cut); "
+            f"if the hash still differs the archive changed upstream: check it with the data set's "
+            f"provider and pass its published hash with --sha256."
+        ) from exc
+    except requests.RequestException as exc:  # an OSError too: network and HTTP status errors
+        raise DataError(f"Cannot download {name!r} from {url}: {type(exc).__name__}: {_one_line(exc)}") from exc
+    except OSError as exc:
+        if exc.filename:  # a file of the download folder (the file written is named by its _Sink)
+            raise DataError(_cannot_write(exc.filename, exc)) from exc
+        raise DataError(f"Cannot download {name!r} from {url}: {type(exc).__name__}: {_one_line(exc)}") from exc
+    except Exception as exc:  # other protocols' errors (ftplib, paramiko)
+        raise DataError(f"Cannot download {name!r} from {url}: {type(exc).__name__}: {_one_line(exc)}") from exc
+
+
+def _bounds(info: DatasetInfo, max_unpacked_bytes: int | None, max_files: int | None) -> _Bounds:
+    """The bounds of a fetch: those given, else the set's own, else the defaults."""
+
+    def pick(given: int | None, own: int | None, default: int, option: str) -> tuple[int, str]:
+        if given is not None:
+            return given, f"the bound given ({option})"
+        if own is not None:
+            return own, f"the bound of {info.name!r} in the registry"
+        return default, "the default bound"
+
+    n_bytes, bytes_from = pick(max_unpacked_bytes, info.max_unpacked_bytes, _MAX_UNPACKED_BYTES, "max_unpacked_bytes")
+    n_files, files_from = pick(max_files, info.max_files, _MAX_FILES, "max_files")
+    return _Bounds(n_bytes, n_files, bytes_from, files_from)
+
+
+_FETCH_CONSTRAINTS = {
+    "max_unpacked_bytes": [Interval("int", 1, None), None],
+    "max_files": [Interval("int", 1, None), None],
+}
+
+
 def fetch_dataset(
     name: str,
     root: PathLike | None = None,
@@ -764,6 +1078,8 @@ def fetch_dataset(
     url: str | None = None,
     sha256: str | None = None,
     progressbar: bool = False,
+    max_unpacked_bytes: int | None = None,
+    max_files: int | None = None,
 ) -> Path:
     """Download, verify (sha256) and unpack set ``name`` into ``root/<folders[0]>``.
 
@@ -778,6 +1094,12 @@ def fetch_dataset(
         sha256 matched: with no known hash (the set's own, or ``sha256``) nothing is fetched.
     progressbar : bool
         Show pooch's progress bar (needs tqdm).
+    max_unpacked_bytes, max_files : int, optional
+        Bounds on what the archive unpacks to: bytes of content and entries (files and folders).
+        Default: the set's own (``DATASETS[name].max_unpacked_bytes``, ``.max_files``), else 10 GB
+        and 100 000. An archive beyond them is refused from the sizes it declares, before anything
+        is written; a member that holds more than it declares is stopped there. A download larger
+        than an archive within the bounds can be is refused too.
 
     Returns
     -------
@@ -787,16 +1109,21 @@ def fetch_dataset(
 
     Raises
     ------
+    ParameterError
+        A bound that is not an int >= 1; a malformed sha256.
     DataError
         No data root; the set has no public download (the message says how to obtain it);
         no known hash; the download failed or is corrupt (expected and got hashes); the
-        archive does not hold the set's layout; the target folder exists with something else
+        archive is damaged, goes past a bound, or does not hold the set's layout; the disk has
+        not enough free space for the download (when the server gives its size) or for the
+        unpacked content (checked before writing); an OS error while writing (full disk, no
+        permission: the message names the file); the target folder exists with something else
         in it. Nothing half-written is left behind: the set is assembled in a temporary
         folder beside the target and moved in place only once complete and checked.
     """
-    import pooch
-
     info = _info(name)
+    validate_params({"max_unpacked_bytes": max_unpacked_bytes, "max_files": max_files}, _FETCH_CONSTRAINTS,
+                    owner="fetch_dataset")
     root = data_root(root)
     if root is None:
         raise DataError(
@@ -815,6 +1142,7 @@ def fetch_dataset(
     known = known.lower().removeprefix("sha256:")
     if not re.fullmatch(r"[0-9a-f]{64}", known):
         raise ParameterError(f"sha256 must be 64 hexadecimal digits; got {known!r}.")
+    bounds = _bounds(info, max_unpacked_bytes, max_files)
 
     target = root / info.folders[0]
     present, _ = _locate(info, root) if root.is_dir() else (None, None)
@@ -832,31 +1160,15 @@ def fetch_dataset(
             import tqdm  # noqa: F401  (pooch needs it for its progress bar)
         except ImportError:
             progressbar = False
-    root.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".fetch-{info.folders[0]}-", dir=root))
     try:
-        try:
-            archive = pooch.retrieve(
-                url,
-                known_hash=f"sha256:{known}",
-                fname=Path(url.split("?")[0]).name or f"{name}.archive",
-                path=stage / "download",
-                progressbar=progressbar,
-            )
-        except ValueError as exc:
-            got = _hash_mismatch(exc, known)
-            if got is None:
-                raise DataError(f"Cannot fetch {name!r} from {url}: {exc}") from exc
-            raise DataError(
-                f"Download of {name!r} from {url} is corrupt or not the expected file: expected sha256 "
-                f"{known}, got {got}. Nothing was unpacked. Fix: fetch again (a transfer may have been cut); "
-                f"if the hash still differs the archive changed upstream: check it with the data set's "
-                f"provider and pass its published hash with --sha256."
-            ) from exc
-        except Exception as exc:  # requests/urllib/OS errors: network, HTTP status, disk
-            raise DataError(f"Cannot download {name!r} from {url}: {type(exc).__name__}: {exc}") from exc
+        root.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".fetch-{info.folders[0]}-", dir=root))
+    except OSError as exc:
+        raise DataError(_cannot_write(root, exc)) from exc
+    try:
+        archive = _download(url, stage / "download", name=name, known=known, bounds=bounds, progressbar=progressbar)
         unpacked = stage / "unpacked"
-        _safe_extract(Path(archive), unpacked)
+        _safe_extract(archive, unpacked, bounds)
         out = stage / info.folders[0]
         _ARRANGE.get(name, _arrange_default)(unpacked, out)
         problem = info.check(out)
@@ -868,6 +1180,8 @@ def fetch_dataset(
             encoding="utf-8",
         )
         os.replace(out, target)
+    except OSError as exc:  # arranging the set, writing SOURCE.txt, moving it in place
+        raise DataError(_cannot_write(exc.filename or stage, exc)) from exc
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     _LOG.info("data set %r fetched into %s (%d recordings).", name, target, info.count(target))

@@ -307,6 +307,26 @@ def test_data_list_on_the_real_data_root(capsys):
     assert re.search(r"^fsdd +\S+ +1500 ", out, re.M) and re.search(r"^msr-action3d +\S+ +567 ", out, re.M)
 
 
+@pytest.mark.parametrize("text, n_bytes", [("7", 7), ("500MB", 500 * 10**6), ("1.5kB", 1500), ("2GiB", 2 * 2**30),
+                                           (" 3 mb ", 3 * 10**6), (".5G", 5 * 10**8), ("1TiB", 2**40), ("10b", 10)])
+def test_data_fetch_max_size_reads_units(text, n_bytes, monkeypatch, tmp_path):
+    from mmconcepts import datasets
+
+    seen = {}
+    monkeypatch.setattr(datasets, "fetch_dataset", lambda *a, **k: seen.update(k) or tmp_path)
+    assert main(["data", "fetch", "fsdd", "--data-root", str(tmp_path), "--max-size", text, "--max-files", "3"]) == 0
+    assert seen["max_unpacked_bytes"] == n_bytes and seen["max_files"] == 3
+
+
+@pytest.mark.parametrize("args", [["--max-size", "12XB"], ["--max-size", "0"], ["--max-size", "0.1B"],
+                                  ["--max-size", "1e9"], ["--max-size", ""], ["--max-files", "0"],
+                                  ["--max-files", "1.5"]])
+def test_data_fetch_bad_bounds_are_usage_errors(args, tmp_path, capsys):
+    assert main(["data", "fetch", "fsdd", "--data-root", str(tmp_path), *args]) == 2
+    err = capsys.readouterr().err
+    assert ("expected a size" in err or "expected an int >= 1" in err) and "Traceback" not in err
+
+
 def test_data_fetch_usage_errors(tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
     assert main(["data", "fetch", "nosuchset", "--data-root", str(tmp_path)]) == 2

@@ -185,7 +185,12 @@ def test_fuzz_report(args):
                      | _option("--url", st.sampled_from(["http://127.0.0.1:9/x.zip", "", "notaurl", "file:///etc/passwd"])
                                | _TEXT)
                      | _option("--sha256", st.sampled_from(["0" * 64, "sha256:" + "a" * 64, "xyz", "", "A" * 64])
-                               | _TEXT), max_size=4).map(lambda parts: [a for p in parts for a in p]))
+                               | _TEXT)
+                     | _option("--max-size", st.sampled_from(["1", "500MB", "2GiB", "1.5kB", "0", "-1", "0.1B", "1e9",
+                                                              "12XB", "", "GB", " 3 MB ", ".5G", "9" * 400 + "TB"])
+                               | _TEXT)
+                     | _option("--max-files", st.sampled_from(["1", "100000", "0", "-3", "1.5", "", "x"]) | _TEXT),
+                     max_size=4).map(lambda parts: [a for p in parts for a in p]))
 def test_fuzz_data(action, rest):
     rest = [_SANDBOX["data_root"] if a == "data_root" else a for a in rest]
     _fuzz("data", ["data", action, *rest] if action else ["data", *rest])

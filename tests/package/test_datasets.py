@@ -3,17 +3,24 @@
 from __future__ import annotations
 
 import functools
+import gzip
 import hashlib
 import http.server
 import io
 import logging
+import os
 import tarfile
 import threading
+import warnings
 import wave
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _fuzz import assert_typed_or_good, fuzz_settings
+from hypothesis import HealthCheck, given
+from hypothesis import strategies as st
 
 from conftest import DATA_ROOT
 from mmconcepts import datasets as ds
@@ -459,3 +466,397 @@ def test_the_registry_holds_no_copy_of_the_loaders_file_name_patterns():
     patterns = [n.args[0].value for n in ast.walk(tree) if isinstance(n, ast.Call)
                 and getattr(n.func, "attr", "") == "compile" and n.args and isinstance(n.args[0], ast.Constant)]
     assert not [p for p in patterns if any(k in p for k in ("skeleton3D", r"\.wav", r"\.png"))]
+
+
+# --------------------------------------------------------------------------- bounded unpacking
+
+
+MSR_FILE = "a01_s01_e01_skeleton3D.txt"
+
+
+def _zip(members: dict[str, bytes]) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return buf.getvalue()
+
+
+def _serve(server, name: str, data: bytes) -> tuple[str, str]:
+    served, base = server
+    (served / name).write_bytes(data)
+    return f"{base}/{name}", _sha256(data)
+
+
+def test_fetch_refuses_a_zip_bomb_before_reading_any_member(server, tmp_path, no_env_root, monkeypatch):
+    data = _zip({f"top/{MSR_FILE}": b"\0" * 5_000_000})
+    assert len(data) < 20_000  # a small archive declaring 5 MB
+    url, sha = _serve(server, "bomb.zip", data)
+    opened = []
+    real_open = zipfile.ZipFile.open
+    monkeypatch.setattr(zipfile.ZipFile, "open", lambda self, *a, **k: opened.append(a) or real_open(self, *a, **k))
+    root = tmp_path / "root"
+    with pytest.raises(DataError) as err:
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha, max_unpacked_bytes=1_000_000)
+    msg = str(err.value)
+    assert "5,000,000 bytes" in msg and "1,000,000" in msg and "max_unpacked_bytes" in msg and "--max-size" in msg
+    assert opened == []  # refused from the declared sizes: no member was read, nothing written
+    assert _leftovers(root) == []
+    # The same archive under a bound it fits in unpacks.
+    out = ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha, max_unpacked_bytes=5_000_000)
+    assert (out / MSR_FILE).stat().st_size == 5_000_000
+
+
+def test_fetch_refuses_too_many_files(server, tmp_path, no_env_root):
+    data = _tar_gz({f"top/a01_s01_e{i:02d}_skeleton3D.txt": b"1 2 3 4\n" for i in range(30)})
+    url, sha = _serve(server, "many.tar.gz", data)
+    root = tmp_path / "root"
+    with pytest.raises(DataError) as err:
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha, max_files=10)
+    msg = str(err.value)
+    assert "more than 10 entries" in msg and "max_files" in msg and "--max-files" in msg
+    assert _leftovers(root) == []
+    out = ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha, max_files=30)  # no folder entry in the archive
+    assert ds.DATASETS["msr-action3d"].count(out) == 30
+
+
+def test_a_member_declaring_more_than_the_default_bound_is_refused_from_its_header(tmp_path):
+    """A 2 kB tar whose one member declares 20 GB (its data absent): refused by the default bound
+    from the header alone, before the missing data is noticed."""
+    info = tarfile.TarInfo(f"top/{MSR_FILE}")
+    info.size = 20 * 10**9
+    archive = tmp_path / "huge.tar"
+    archive.write_bytes(info.tobuf(format=tarfile.GNU_FORMAT) + b"\0" * 1024)
+    dest = tmp_path / "dest"
+    with pytest.raises(DataError) as err:
+        ds._safe_extract(archive, dest, ds._Bounds(ds._MAX_UNPACKED_BYTES, ds._MAX_FILES))
+    assert "20,000,000,000 bytes" in str(err.value) and f"{ds._MAX_UNPACKED_BYTES:,}" in str(err.value)
+    assert not dest.exists() or not any(dest.iterdir())
+
+
+def test_the_set_s_own_bounds_apply_and_an_option_raises_them(server, tmp_path, no_env_root, monkeypatch):
+    import dataclasses
+    from types import MappingProxyType
+
+    fsdd = ds.DATASETS["fsdd"]
+    assert fsdd.max_files is not None and fsdd.max_unpacked_bytes is not None
+    small = dataclasses.replace(fsdd, max_files=4)
+    monkeypatch.setattr(ds, "DATASETS", MappingProxyType({**ds.DATASETS, "fsdd": small}))
+    data = _fsdd_archive()  # 7 files (no folder entry)
+    url, sha = _serve(server, "v1.0.9.tar.gz", data)
+    root = tmp_path / "root"
+    with pytest.raises(DataError, match="more than 4 entries.*'fsdd'"):
+        ds.fetch_dataset("fsdd", root, url=url, sha256=sha)
+    assert _leftovers(root) == []
+    out = ds.fetch_dataset("fsdd", root, url=url, sha256=sha, max_files=7)
+    assert ds.DATASETS["fsdd"].count(out) == len(FSDD_FILES)
+
+
+def test_the_registry_bounds_hold_the_real_sets_with_room_to_spare():
+    """FSDD and ETH-80 declare bounds well above what their real copies hold (a copy of 1500 of FSDD's
+    2500 recordings and of 1640 of ETH-80's 3280 images at 96 px: the full sets need under twice the files
+    and, at 128 px, under four times the bytes)."""
+    for name in ("fsdd", "eth80"):
+        info = ds.DATASETS[name]
+        assert 0 < info.max_files <= ds._MAX_FILES and 0 < info.max_unpacked_bytes <= ds._MAX_UNPACKED_BYTES
+    if DATA_ROOT is None:
+        pytest.skip("no data root (set MMCONCEPTS_DATA_ROOT or put ../shared/data beside the checkout)")
+    found = ds.find_datasets(DATA_ROOT, names=["fsdd", "eth80"])
+    if len(found) < 2:
+        pytest.skip(f"fsdd or eth80 absent from the data root {DATA_ROOT}")
+    for name, path in found.items():
+        files = [p for p in path.rglob("*") if p.is_file()]
+        n_bytes = sum(p.stat().st_size for p in files)
+        info = ds.DATASETS[name]
+        assert 2 * 2 * len(files) <= info.max_files, name
+        assert 2 * 4 * n_bytes <= info.max_unpacked_bytes, name
+
+
+def test_a_member_holding_more_than_it_declares_is_stopped_while_writing(tmp_path, monkeypatch):
+    """Declared sizes are checked first; a member whose data runs past its declared size (a lying
+    header, a decoder bug) is stopped at that size, not written to the end."""
+    archive = tmp_path / "a.tar"
+    archive.write_bytes(_tar_gz({"top/x.bin": b"0123456789"}))
+    monkeypatch.setattr(tarfile.TarFile, "extractfile", lambda self, member: io.BytesIO(b"\1" * 3_000_000))
+    dest = tmp_path / "dest"
+    with pytest.raises(DataError, match="more than the 10 bytes it declares"):
+        ds._safe_extract(archive, dest, ds._Bounds(10**6, 10))
+    written = dest / "top" / "x.bin"
+    assert not written.exists() or written.stat().st_size <= 10
+
+
+def test_fetch_checks_free_space_before_downloading_and_before_unpacking(server, tmp_path, no_env_root, monkeypatch):
+    import shutil
+    from collections import namedtuple
+
+    usage = namedtuple("usage", "total used free")
+    data = _zip({f"top/{MSR_FILE}": b"\0" * 3_000_000})
+    url, sha = _serve(server, "a.zip", data)
+    root = tmp_path / "root"
+    free = {"bytes": 1000}
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10**12, 0, free["bytes"]))
+    with pytest.raises(DataError) as err:  # the download (its Content-Length) does not fit
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha)
+    assert f"{len(data):,} bytes" in str(err.value) and "1,000 bytes free" in str(err.value)
+    assert _leftovers(root) == []
+    free["bytes"] = ds._FREE_MARGIN + 1_000_000  # the download fits, its 3 MB of content does not
+    with pytest.raises(DataError) as err:
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha)
+    assert "3,000,000 bytes" in str(err.value) and "free" in str(err.value)
+    assert _leftovers(root) == []
+    free["bytes"] = ds._FREE_MARGIN + 4_000_000 + 8192
+    assert ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha) == root / "msr-action3d"
+
+
+def test_a_write_error_while_unpacking_is_a_one_line_cli_error_naming_the_file(server, tmp_path, no_env_root,
+                                                                             monkeypatch, capsys):
+    """A real write error from the kernel (a file size limit: EFBIG, as a full disk gives ENOSPC):
+    `data fetch` prints one line naming the file and exits 1; nothing is left behind."""
+    import resource
+    import signal
+
+    from mmconcepts.cli import main
+
+    url, sha = _serve(server, "a.zip", _zip({f"top/{MSR_FILE}": b"1 2 3 4\n" * 400_000}))  # 3.2 MB, 3 kB zipped
+    root = tmp_path / "root"
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    old = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
+    resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, hard))
+    try:
+        rc = main(["data", "fetch", "msr-action3d", "--data-root", str(root), "--url", url, "--sha256", sha, "-q"])
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+        signal.signal(signal.SIGXFSZ, old)
+    err = capsys.readouterr().err
+    assert rc == 1 and "Traceback" not in err
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    assert f"Cannot write {root}" in err and MSR_FILE in err and "File too large" in err and "corrupt" not in err
+    assert _leftovers(root) == []
+
+
+def test_a_folder_that_cannot_be_written_is_a_data_error_naming_it(server, tmp_path, no_env_root, monkeypatch):
+    import errno
+    import tempfile
+
+    url, sha = _serve(server, "a.zip", _zip({f"top/{MSR_FILE}": b"1 2 3 4\n"}))
+
+    def refuse(*args, dir=None, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied", str(dir))
+
+    monkeypatch.setattr(tempfile, "mkdtemp", refuse)
+    root = tmp_path / "root"
+    with pytest.raises(DataError) as err:
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha)
+    assert str(root) in str(err.value) and "Permission denied" in str(err.value) and "--data-root" in str(err.value)
+
+
+def test_a_disk_full_while_downloading_is_a_data_error_naming_the_file(server, tmp_path, no_env_root, monkeypatch):
+    import errno
+
+    url, sha = _serve(server, "a.zip", _zip({f"top/{MSR_FILE}": b"1 2 3 4\n"}))
+
+    class Full(io.BytesIO):
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    real_open = open
+    def full_open(file, mode="r", *args, **kwargs):
+        return Full() if "w" in mode else real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(ds, "open", full_open, raising=False)
+    root = tmp_path / "root"
+    with pytest.raises(DataError, match="No space left on device") as err:
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha)
+    assert str(root) in str(err.value)
+    assert _leftovers(root) == []
+
+
+def test_a_download_larger_than_any_archive_within_the_bounds_is_refused(server, tmp_path, no_env_root, monkeypatch):
+    data = np.random.default_rng(0).bytes(2_000_000)  # more than 1000 bytes in 2 entries and the archive's 1 MiB
+    url, sha = _serve(server, "big.bin", data)
+    root = tmp_path / "root"
+    with pytest.raises(DataError, match="2,000,000 bytes"):  # from its Content-Length, before downloading
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha, max_unpacked_bytes=1000, max_files=2)
+    assert _leftovers(root) == []
+    monkeypatch.setattr(ds, "_content_length", lambda url: None)  # a server that does not say: stopped midway
+    with pytest.raises(DataError, match="larger than"):
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha, max_unpacked_bytes=1000, max_files=2)
+    assert _leftovers(root) == []
+
+
+def test_a_corrupt_member_is_a_data_error(server, tmp_path, no_env_root):
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
+        zf.writestr(f"top/{MSR_FILE}", b"1 2 3 4\n" * 100)
+    data = bytearray(buf.getvalue())
+    data[data.index(b"1 2 3 4\n") + 3] ^= 0xFF  # its CRC no longer matches (the sha256 is of the damaged file)
+    url, sha = _serve(server, "bad.zip", bytes(data))
+    root = tmp_path / "root"
+    with pytest.raises(DataError, match=f"corrupt.*{MSR_FILE}"):
+        ds.fetch_dataset("msr-action3d", root, url=url, sha256=sha)
+    assert _leftovers(root) == []
+
+
+@pytest.mark.parametrize("kw", [dict(max_unpacked_bytes=0), dict(max_unpacked_bytes=-5), dict(max_files=0),
+                                dict(max_files=1.5), dict(max_unpacked_bytes="1GB"), dict(max_files=True)])
+def test_bounds_must_be_positive_ints(tmp_path, no_env_root, kw):
+    with pytest.raises(ParameterError, match=f"fetch_dataset: {next(iter(kw))} must be an int >= 1"):
+        ds.fetch_dataset("fsdd", tmp_path, **kw)
+    assert _leftovers(tmp_path) == []
+
+
+def test_cli_data_fetch_bounds_options(server, tmp_path, no_env_root, capsys):
+    from mmconcepts.cli import main
+
+    url, sha = _serve(server, "bomb.zip", _zip({f"top/{MSR_FILE}": b"\0" * 5_000_000}))
+    root = tmp_path / "root"
+    args = ["data", "fetch", "msr-action3d", "--data-root", str(root), "--url", url, "--sha256", sha, "-q"]
+    assert main([*args, "--max-size", "1MB"]) == 1
+    err = capsys.readouterr().err
+    assert "more than 1,000,000 bytes" in err and "--max-size" in err and err.count("\n") == 1
+    assert main([*args, "--max-size", "4.9MB"]) == 1 and "4,900,000" in capsys.readouterr().err
+    assert main([*args, "--max-files", "1", "--max-size", "5MB"]) == 0
+    assert (root / "msr-action3d" / MSR_FILE).stat().st_size == 5_000_000
+
+
+# --------------------------------------------------------------------------- fuzz: archives against bounds
+
+
+def _archive_bytes(fmt: str, members: list[tuple[str, bytes | None]]) -> bytes:
+    """``members`` (name, content; None: a folder; b"->target": a symbolic link) as a zip, tar or tar.gz."""
+    buf = io.BytesIO()
+    if fmt == "zip":
+        with warnings.catch_warnings(), zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            warnings.simplefilter("ignore")  # duplicate names are meant
+            for name, data in members:
+                zf.writestr(name.rstrip("/") + "/" if data is None else name, b"" if data is None else data)
+        return buf.getvalue()
+    with tarfile.open(fileobj=buf, mode="w") as tf:
+        for name, data in members:
+            info = tarfile.TarInfo(name)
+            if data is None:
+                info.type = tarfile.DIRTYPE
+                tf.addfile(info)
+            elif data.startswith(b"->"):
+                info.type, info.linkname = tarfile.SYMTYPE, data[2:].decode()
+                tf.addfile(info)
+            else:
+                info.size = len(data)
+                tf.addfile(info, io.BytesIO(data))
+    return gzip.compress(buf.getvalue(), mtime=0) if fmt == "tar.gz" else buf.getvalue()
+
+
+@st.composite
+def _bounded_fetches(draw):
+    """An archive of random entries (MSR skeleton files, other files, folders, now and then a hostile name,
+    a link, a file where a folder goes), bounds around or at random from what it holds, now and then
+    damaged bytes or a write that fails."""
+    members: list[tuple[str, bytes | None]] = [("top/a01_s01_e00_skeleton3D.txt", b"1 2 3 4\n")]
+    for i in range(draw(st.integers(0, 10))):
+        kind = draw(st.sampled_from(["msr"] * 6 + ["other", "other", "dir", "nested", "dup"]))
+        size = draw(st.sampled_from([0, 1, 100, 5_000]) | st.integers(0, 120_000))
+        data = (draw(st.sampled_from([b"\0", b"1 2 3 4\n", b"\xff\x17"])) * size)[:size]
+        if kind == "msr":
+            members.append((f"top/a01_s01_e{i + 1:02d}_skeleton3D.txt", data))
+        elif kind == "other":
+            members.append((f"top/notes{i}.txt", data))
+        elif kind == "dir":
+            members.append((f"top/sub{i}", None))
+        elif kind == "nested":
+            members.append((f"top/sub/deeper{i}/x.bin", data))
+        else:
+            members.append((members[-1][0], data))
+    bad = draw(st.sampled_from([None] * 6 + ["../escape.txt", "top/../../escape.txt", "/abs.txt", "link",
+                                             "clash"]))
+    if bad is not None:
+        entry = {"link": ("top/link", b"->/etc/passwd"), "clash": ("top/sub", b"x")}.get(bad, (bad, b"x"))
+        members.insert(draw(st.integers(0, len(members))), entry)  # clash: a file where a folder goes, or after it
+    fmt = draw(st.sampled_from(["zip", "tar", "tar.gz"]))
+    if fmt == "zip":
+        members = [(n, d) for n, d in members if d is None or not d.startswith(b"->")]
+    raw = _archive_bytes(fmt, members)
+    damage = draw(st.sampled_from([None] * 8 + ["truncate", "flip"]))
+    if damage == "truncate":
+        raw = raw[: draw(st.integers(0, max(len(raw) - 1, 0)))]
+    elif damage == "flip":
+        i = draw(st.integers(0, len(raw) - 1))
+        raw = raw[:i] + bytes([raw[i] ^ draw(st.integers(1, 255))]) + raw[i + 1:]
+    n, content = len(members), sum(len(d) for _, d in members if d is not None)
+    relation = draw(st.sampled_from(["fits"] * 3 + ["too many", "too large", "random"]))
+    if relation == "random":
+        bounds = dict(max_unpacked_bytes=draw(st.integers(1, 400_000)), max_files=draw(st.integers(1, 12)))
+    else:
+        bounds = dict(max_unpacked_bytes=max(content + draw(st.integers(0, 50_000)), 1),
+                      max_files=n + draw(st.integers(0, 5)))
+        if relation == "too many":
+            bounds["max_files"] = n - 1 if n > 1 else bounds["max_files"]
+        elif relation == "too large" and content > 0:
+            bounds["max_unpacked_bytes"] = max(content - draw(st.integers(1, content)), 1)
+    failing_write = draw(st.sampled_from([None] * 8 + [0, 1, 3, 10]))
+    errno_ = draw(st.sampled_from(["ENOSPC", "EACCES", "EROFS", "EIO", "EDQUOT"]))
+    return fmt, members, raw, damage, bounds, failing_write, errno_
+
+
+@pytest.mark.fuzz
+@fuzz_settings(60, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow,
+                                          HealthCheck.data_too_large])
+@given(case=_bounded_fetches())
+def test_fuzz_fetch_within_bounds(server, no_env_root, case):
+    """A fetch of any archive, under any bounds, with or without a failing write, is a one-line DataError
+    with nothing left behind, or the set within the bounds with every file as the archive holds it."""
+    import errno
+    import tempfile
+
+    fmt, members, raw, damage, bounds, failing_write, errno_name = case
+    served, base = server
+    name = f"{_sha256(raw)[:16]}.{fmt}"
+    (served / name).write_bytes(raw)
+    writes = {"n": 0}
+    real_open = open
+
+    class Failing(io.BufferedWriter):
+        def write(self, data):
+            writes["n"] += 1
+            if writes["n"] > failing_write:
+                code = getattr(errno, errno_name)
+                raise OSError(code, os.strerror(code))
+            return super().write(data)
+
+    def faulty_open(file, mode="r", *args, **kwargs):
+        if "w" in mode and failing_write is not None:
+            return Failing(real_open(file, mode.replace("b", "") + "b", buffering=0))
+        return real_open(file, mode, *args, **kwargs)
+
+    import pooch
+
+    log = pooch.get_logger()
+    level = log.level
+    log.setLevel(logging.WARNING)  # not a line per download
+    with tempfile.TemporaryDirectory() as tmp, pytest.MonkeyPatch.context() as mp:
+        root = Path(tmp) / "root"
+        mp.setattr(ds, "open", faulty_open, raising=False)
+
+        def call():
+            try:
+                return ds.fetch_dataset("msr-action3d", root, url=f"{base}/{name}", sha256=_sha256(raw), **bounds)
+            except DataError as exc:
+                assert "\n" not in str(exc), f"a message of several lines: {exc}"
+                assert _leftovers(root) == [], f"left behind after {exc}: {_leftovers(root)}"
+                raise
+
+        def check(out):
+            """Within the bounds; and, from an undamaged archive, every file as the archive holds it."""
+            files = {p.relative_to(out).as_posix(): p.read_bytes() for p in out.rglob("*")
+                     if p.is_file() and p.name != "SOURCE.txt"}
+            within = sum(map(len, files.values())) <= bounds["max_unpacked_bytes"] and len(files) <= bounds["max_files"]
+            if damage is not None:  # a damaged archive may still be a sound one (cut at a member's end)
+                return within and _leftovers(root) == ["msr-action3d"]
+            expected = {n[4:]: d for n, d in members if d is not None and n.startswith("top/") and ".." not in n}
+            declared = sum(len(d) for _, d in members if d is not None)
+            return (within and _leftovers(root) == ["msr-action3d"] and files == expected
+                    and declared <= bounds["max_unpacked_bytes"] and len(members) <= bounds["max_files"])
+
+        try:
+            assert_typed_or_good("datasets.fetch_dataset(archive, bounds)", call, check=check)
+        finally:
+            log.setLevel(level)
