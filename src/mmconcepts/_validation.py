@@ -96,9 +96,13 @@ def check_not_complex(X: Any, name: str = "X") -> None:
     Checked before any conversion to float, which would drop the imaginary part with only a warning;
     an object array holding a complex number is complex too.
     """
-    values = np.asarray(X.data if sp.issparse(X) else X)
-    if np.iscomplexobj(values) or (values.dtype == object and any(
-            isinstance(v, (complex, np.complexfloating)) for v in values.ravel())):
+    if sp.issparse(X):
+        is_complex = X.dtype.kind == "c"
+    else:
+        values = np.asarray(X)
+        is_complex = np.iscomplexobj(values) or (values.dtype == object and any(
+            isinstance(v, (complex, np.complexfloating)) for v in values.ravel()))
+    if is_complex:
         raise DataError(f"Complex data not supported: {name} holds complex numbers; give real nonnegative data "
                         f"(np.abs({name}) for magnitudes, or {name}.real when its imaginary part is zero).")
 

@@ -733,7 +733,7 @@ def test_bad_data(X, match):
         NMF(1).fit(X)
 
 
-@pytest.mark.parametrize("form", ["dense", "sparse", "object"])
+@pytest.mark.parametrize("form", ["dense", "sparse", "dok", "object"])
 @pytest.mark.parametrize("masked", [False, True])
 def test_complex_data_is_refused_with_or_without_a_mask(rng, form, masked):
     """Complex X is refused whether or not a mask comes with it, dense, sparse or one complex number in an
@@ -741,6 +741,8 @@ def test_complex_data_is_refused_with_or_without_a_mask(rng, form, masked):
     X = _positive(rng, 6, 5) + 1j * rng.random((6, 5))
     if form == "sparse":
         X = sp.csr_matrix(X)
+    elif form == "dok":  # a sparse format without a .data array
+        X = sp.dok_array(X)
     elif form == "object":
         X = X.real.astype(object)
         X[2, 3] = 1 + 1j
