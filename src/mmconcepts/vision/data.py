@@ -388,7 +388,9 @@ def load_image_folder(
     on_error : {"raise", "skip"}
         ``"raise"``: a bad row or a missing, corrupt or unreadable image raises
         :class:`DataFormatError` naming the file. ``"skip"``: those images are left out
-        and listed in ``image_set.skipped``; a :class:`RuntimeWarning` says how many.
+        and listed in ``image_set.skipped``; a :class:`RuntimeWarning` says how many. A
+        ``labels.csv`` that ends early (its last row cut short) raises, or loses that row
+        with a :class:`~mmconcepts.errors.DataWarning` counting the rows read.
     name : str, optional
         Set name (default: the folder's name).
 
@@ -408,7 +410,8 @@ def load_image_folder(
             f"{root} has no {LABELS_FILE}; the generic image layout needs one with columns file,labels (and "
             "optionally view and category)."
         )
-    header, rows = read_labels_csv(labels_path, layout="generic image", optional=("view", "category"))
+    header, rows = read_labels_csv(labels_path, layout="generic image", optional=("view", "category"),
+                                   on_error=on_error)
     has_view, has_cat = "view" in header, "category" in header
     images, labels, views, cats = [], [], [], []
     paths: list[Path | None] = []
