@@ -349,13 +349,17 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     Raises
     ------
     DataFormatError
-        If the file is missing, empty, corrupt, not an image, or not a single still image
-        of a supported shape; the message names the file.
+        If the file is missing (a folder, a link to nothing), empty, corrupt, not an image,
+        or not a single still image of a supported shape; the message names the file.
     """
     import imageio.v3 as iio
 
     path = Path(path)
     if not path.is_file():
+        if path.is_dir():
+            raise DataFormatError(f"{path} is a folder, not an image file.")
+        if path.is_symlink():
+            raise DataFormatError(f"{path} links to {os.readlink(path)}, which does not exist.")
         raise DataFormatError(f"Image file {path} not found.")
     if path.stat().st_size == 0:
         raise DataFormatError(f"Image file {path} is empty (0 bytes).")
@@ -488,7 +492,7 @@ def load_eth80(
     found = []
     for p in root.rglob("*"):
         parsed = parse_eth80_name(p.name)
-        if parsed and p.is_file():
+        if parsed:  # a folder or a link to nothing named like an image is kept: reading it raises (or skips) it
             cat, inst, tilt, pan = parsed
             found.append((cat, inst, int(tilt), int(pan), tilt, pan, p))
     if not found:
