@@ -12,7 +12,8 @@ import scipy.sparse as sp
 
 from .errors import DataError, ParameterError
 
-__all__ = ["check_random_state", "check_not_complex", "check_nonnegative_matrix", "check_positive_int", "check_scalar", "check_subset_indices"]
+__all__ = ["check_random_state", "check_not_complex", "check_nonnegative_matrix", "check_positive_int", "check_scalar",
+           "check_subset_indices"]
 
 RandomLike = "int | np.random.Generator | np.random.RandomState | None"
 

@@ -237,8 +237,8 @@ def test_bad_transitions_are_refused():
         MDP(np.full((1, 2, 2), 0.5), discount=1.0)
 
 
-@pytest.mark.parametrize("transitions", [[[["a", 1.0], [0.0, 1.0]]], [[[1.0, 0.0], [0.0]]], [[[1 + 1j, 0.0], [0.0, 1.0]]],
-                                         np.eye(2, dtype=complex)[None]])
+@pytest.mark.parametrize("transitions", [[[["a", 1.0], [0.0, 1.0]]], [[[1.0, 0.0], [0.0]]],
+                                         [[[1 + 1j, 0.0], [0.0, 1.0]]], np.eye(2, dtype=complex)[None]])
 def test_transitions_that_are_not_numbers_are_refused(transitions):
     with pytest.raises(ParameterError, match="transitions must be an array of probabilities"):
         MDP(transitions)

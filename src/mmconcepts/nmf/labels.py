@@ -144,8 +144,9 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         Weight lambda of the label part (see above); a float is used as is.
     threshold : 'cv' or float in (0, 1], default='cv'
         eta (label activations are >= 0, so eta <= 0 would predict every label; a perfectly
-        reconstructed present label scores 1). 'cv' chooses it by ``cv``-fold cross-validation on the training data: each
-        inner fold is fitted once, its validation examples are scored, and l_full is
+        reconstructed present label scores 1). 'cv' chooses it by ``cv``-fold
+        cross-validation on the training data: each inner fold is fitted once, its
+        validation examples are scored, and l_full is
         evaluated on them for every threshold of ``threshold_grid`` at once (each inner
         fit is a full LabelNMF fit of the fold, with its own label weight); the
         threshold with the best l_full pooled over the validation folds is kept (among
