@@ -5,39 +5,84 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import logging
 import os
 import re
 import shutil
 import tempfile
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import DataFormatError, ParameterError
+from .errors import DataFormatError, DataWarning, ParameterError
 
 __all__ = ["check_output_dir", "atomic_dir", "atomic_path", "atomic_write", "folder_lock", "leftover_dirs",
            "read_csv_rows", "read_labels_csv", "split_labels", "LABELS_HEADER", "LABEL_SEPARATOR", "OLD_LABEL_COLUMNS",
            "replace_dir"]
 
 
-def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
+def read_csv_rows(path: Path, *, on_error: str = "raise") -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
     """Header and ``(line number, row)`` pairs of a CSV file, cells stripped.
+
+    A table that ends early, cut short while it was written or copied, is never read in part
+    silently. It ends early when a quoted cell is still open at the end of the file, or when
+    its last row has fewer cells than the header and no line break after it (a complete last
+    row without a line break is read). A row cut after a whole cell cannot be told from a
+    complete one.
+
+    Parameters
+    ----------
+    path : Path
+    on_error : {"raise", "skip"}, default="raise"
+        What a table that ends early does: ``"raise"`` a :class:`DataFormatError`;
+        ``"skip"`` leaves its last row out, with a :class:`~mmconcepts.errors.DataWarning`
+        saying how many rows were read.
 
     Raises
     ------
     DataFormatError
-        If the file cannot be read or decoded, naming it.
+        If the file cannot be read or decoded, or ends early (``on_error="raise"``), naming it.
     """
     try:
         with open(path, encoding="utf-8-sig", newline="") as f:
-            reader = csv.DictReader(f)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            reader.fieldnames = header
-            rows = [(reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None})
-                    for row in reader]
+            text = f.read()
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        reader.fieldnames = header
+        rows, last_cells = [], 0
+        for row in reader:
+            last_cells = sum(v is not None for k, v in row.items() if k is not None)  # missing cells are None
+            rows.append((reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None}))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DataFormatError(f"Cannot read {path}: {exc}.") from exc
+    if rows:
+        why = _cut_short(text, last_cells, len(header))
+        if why:
+            line = rows[-1][0]
+            if on_error == "raise":
+                raise DataFormatError(
+                    f"{path} ends early: its last row, line {line}, {why}, as a file cut short while written or "
+                    f"copied; {len(rows) - 1} complete row(s) before it. Write or copy the file again (or load with "
+                    f"on_error='skip' to keep the complete rows)."
+                )
+            warnings.warn(f"{path} ended early: its last row, line {line}, {why}; it is left out; "
+                          f"{len(rows) - 1} row(s) read.", DataWarning, stacklevel=4)
+            rows = rows[:-1]
     return header, rows
+
+
+def _cut_short(text: str, last_cells: int, n_columns: int) -> str:
+    """How the end of a CSV text shows it was cut short ("" when it does not)."""
+    try:  # the strict reader stops where the lenient one reads an open quoted cell to the end of the file
+        for _ in csv.reader(io.StringIO(text, newline=""), strict=True):
+            pass
+    except csv.Error as exc:
+        if "unexpected end of data" in str(exc):
+            return "has a quoted cell still open at the end of the file"
+    if not text.endswith(("\n", "\r")) and last_cells < n_columns:
+        return f"has {last_cells} of the {n_columns} cells of the header and no line break after it"
+    return ""
 
 
 #: The columns every generic layout's ``labels.csv`` starts with: the file (relative to the folder) and its labels.
@@ -51,7 +96,8 @@ OLD_LABEL_COLUMNS = ("label",)
 
 
 def read_labels_csv(path: Path, *, layout: str, required: tuple[str, ...] = (),
-                    optional: tuple[str, ...] = ()) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
+                    optional: tuple[str, ...] = (),
+                    on_error: str = "raise") -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
     """Header and ``(line number, row)`` pairs of a generic layout's ``labels.csv``.
 
     The header is ``file,labels`` (:data:`LABELS_HEADER`; several labels in a cell separated by
@@ -68,6 +114,8 @@ def read_labels_csv(path: Path, *, layout: str, required: tuple[str, ...] = (),
     required, optional : tuple of str
         The layout's columns after ``file,labels`` that must be there, and those it also reads;
         named in messages.
+    on_error : {"raise", "skip"}, default="raise"
+        What a table that ends early does (:func:`read_csv_rows`).
 
     Returns
     -------
@@ -79,10 +127,11 @@ def read_labels_csv(path: Path, *, layout: str, required: tuple[str, ...] = (),
     Raises
     ------
     DataFormatError
-        If the file cannot be read, or a column of ``file``, ``labels`` and ``required`` is
-        missing (the message names the file, the header found and the one expected).
+        If the file cannot be read or ends early (``on_error="raise"``), or a column of
+        ``file``, ``labels`` and ``required`` is missing (the message names the file, the
+        header found and the one expected).
     """
-    header, rows = read_csv_rows(path)
+    header, rows = read_csv_rows(path, on_error=on_error)
     columns = [*LABELS_HEADER, *required]
     expected = ",".join(columns) + "".join(f"[,{c}]" for c in optional)
     old = next((c for c in OLD_LABEL_COLUMNS if c in header), None)

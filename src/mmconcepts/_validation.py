@@ -12,7 +12,8 @@ import scipy.sparse as sp
 
 from .errors import DataError, ParameterError
 
-__all__ = ["check_random_state", "check_nonnegative_matrix", "check_positive_int", "check_scalar", "check_subset_indices"]
+__all__ = ["check_random_state", "check_not_complex", "check_nonnegative_matrix", "check_positive_int", "check_scalar",
+           "check_subset_indices"]
 
 RandomLike = "int | np.random.Generator | np.random.RandomState | None"
 
@@ -90,6 +91,23 @@ def check_scalar(
     return value
 
 
+def check_not_complex(X: Any, name: str = "X") -> None:
+    """Raise :class:`DataError` if ``X`` (an array or sparse matrix) has a complex dtype.
+
+    Checked before any conversion to float, which would drop the imaginary part with only a warning;
+    an object array holding a complex number is complex too.
+    """
+    if sp.issparse(X):
+        is_complex = X.dtype.kind == "c"
+    else:
+        values = np.asarray(X)
+        is_complex = np.iscomplexobj(values) or (values.dtype == object and any(
+            isinstance(v, (complex, np.complexfloating)) for v in values.ravel()))
+    if is_complex:
+        raise DataError(f"Complex data not supported: {name} holds complex numbers; give real nonnegative data "
+                        f"(np.abs({name}) for magnitudes, or {name}.real when its imaginary part is zero).")
+
+
 def check_nonnegative_matrix(
     X: Any,
     name: str = "X",
@@ -107,8 +125,9 @@ def check_nonnegative_matrix(
     Raises
     ------
     DataError
-        If the matrix is empty, not 2-D, or holds negative, NaN or infinite values.
+        If the matrix is complex, empty, not 2-D, or holds negative, NaN or infinite values.
     """
+    check_not_complex(X, name)
     if sp.issparse(X):
         if not accept_sparse:
             raise DataError(f"{name} must be a dense array here; got a scipy.sparse matrix. Use {name}.toarray().")
@@ -121,8 +140,6 @@ def check_nonnegative_matrix(
         values = X.data
     else:
         X = np.asarray(X)
-        if np.iscomplexobj(X):
-            raise DataError(f"Complex data not supported: {name} holds complex numbers; give real nonnegative data.")
         if X.dtype == object:
             try:  # a TypeError (kept, as scikit-learn's checks expect) names an element that is not a number
                 X = X.astype(np.float64)

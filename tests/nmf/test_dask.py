@@ -373,6 +373,40 @@ def test_broken_chunk_folders(tmp_path, rng):
         nd.load_npz_chunks(folder).compute()
 
 
+def _corrupt(path, how):
+    data = path.read_bytes()
+    if how == "truncated":
+        path.write_bytes(data[: len(data) // 2])
+    elif how == "empty":
+        path.write_bytes(b"")
+    elif how == "garbage":
+        path.write_bytes(b"not an npz file at all" * 10)
+    elif how == "npy":
+        path.unlink()
+        with open(path, "wb") as fh:
+            np.save(fh, np.ones((4, 3)))
+    elif how == "other_key":
+        path.unlink()
+        with open(path, "wb") as fh:
+            np.savez(fh, Y=np.ones((4, 3)))
+    elif how == "folder":
+        path.unlink()
+        path.mkdir()
+
+
+@pytest.mark.parametrize("sparse", [False, True], ids=["dense", "sparse"])
+@pytest.mark.parametrize("how", ["truncated", "empty", "garbage", "npy", "other_key", "folder"])
+def test_a_corrupt_chunk_is_named(tmp_path, rng, sparse, how):
+    """A chunk file cut short, empty, not an npz, without the array or replaced by a folder: a DataFormatError
+    naming the chunk and its file when it is read."""
+    X = rng.random((10, 3))
+    folder = nd.save_npz_chunks(sp.csr_matrix(X) if sparse else X, tmp_path / "x", chunk_rows=4)
+    _corrupt(folder / "chunk-000001.npz", how)
+    Xd = nd.load_npz_chunks(folder)
+    with pytest.raises(DataFormatError, match=r"Cannot read chunk 1 \(.*chunk-000001\.npz\)"):
+        Xd.compute()
+
+
 def test_package_works_without_dask():
     code = (
         "import sys; sys.modules['dask'] = None; sys.modules['dask.array'] = None\n"

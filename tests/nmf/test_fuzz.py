@@ -166,6 +166,83 @@ def test_fuzz_beta_nmf(X, k, beta, solver, update_rule, init, masked, sparseness
     )
 
 
+@st.composite
+def complex_or_real_matrices(draw, max_side: int = 6):
+    """A nonnegative real matrix, or the same values with complex numbers mixed in: a complex array
+    (with a random or a zero imaginary part, the imaginary part only in some cells), a sparse complex
+    matrix, an object array or nested lists holding one complex number among floats. Returns
+    ``(X, is_complex)``."""
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    n, m = draw(st.integers(1, max_side)), draw(st.integers(1, max_side))
+    R = rng.random((n, m)) + 0.01
+    kind = draw(st.sampled_from(["real", "real", "real_sparse", "complex", "zero_imag", "some_imag",
+                                 "sparse_complex", "object", "lists"]))
+    if kind == "real":
+        return R, False
+    if kind == "real_sparse":
+        return sp.csr_matrix(R), False
+    if kind == "complex":
+        return R + 1j * rng.random((n, m)), True
+    if kind == "zero_imag":
+        return R.astype(complex), True
+    if kind == "some_imag":
+        C = R.astype(complex)
+        C[rng.random((n, m)) < 0.3] += 1j
+        return C, True
+    if kind == "sparse_complex":
+        return sp.csr_matrix(R + 1j * rng.random((n, m))), True
+    i, j = rng.integers(n), rng.integers(m)
+    if kind == "object":
+        O = R.astype(object)
+        O[i, j] = complex(R[i, j], 1.0)
+        return O, True
+    rows = R.tolist()  # "lists": Python floats with one complex among them
+    rows[i][j] = complex(rows[i][j], 1.0)
+    return rows, True
+
+
+@fuzz_settings(150, suppress_health_check=list(HealthCheck))
+@given(
+    Xc=complex_or_real_matrices(),
+    masked=st.sampled_from(["dense", "dense", "sparse", "all", None]),
+    entry=st.sampled_from(["beta_nmf", "NMF.fit", "beta_divergence"]),
+    beta=st.sampled_from([1.0, 2.0, 0.5]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_fuzz_complex_masked_input(Xc, masked, entry, beta, seed):
+    """Complex numbers in X, with or without a mask, are refused (a typed error, the imaginary part never
+    dropped); the real matrix beside them fits."""
+    X, is_complex = Xc
+    rng = np.random.default_rng(seed)
+    n, m = np.shape(X) if not sp.issparse(X) else X.shape
+    mask = None
+    if masked is not None:
+        M = np.ones((n, m), bool) if masked == "all" else rng.random((n, m)) < 0.7
+        M.flat[0] = True
+        mask = sp.csr_matrix(M) if masked == "sparse" else M
+    k = min(2, n, m)
+    W, H = rng.random((n, k)) + 0.1, rng.random((k, m)) + 0.1
+
+    def run():
+        if entry == "beta_nmf":
+            res = beta_nmf(X, k, beta_loss=beta, mask=mask, max_iter=5, tol=0, random_state=seed)
+            return res.W, res.H
+        if entry == "NMF.fit":
+            model = NMF(k, beta_loss=beta, max_iter=5, tol=0, random_state=seed).fit(X, mask=mask)
+            return model.components_, model.transform(np.ones((1, m)))
+        return beta_divergence(X, W, H, beta, mask=mask)
+
+    def check(res):
+        if is_complex:  # complex input never gives a result
+            return False
+        if entry == "beta_divergence":
+            return bool(res >= 0)
+        return bool(all((np.asarray(a) >= 0).all() and np.isrealobj(a) for a in res))
+
+    assert_typed_or_good("mmconcepts.nmf[complex or real X, masked]", run, check=check)
+
+
 @fuzz_settings(80, suppress_health_check=list(HealthCheck))
 @given(
     seed=st.integers(0, 2**31 - 1),

@@ -283,6 +283,18 @@ def test_label_weight_balances_the_l1_norms_and_scores_are_in_label_units(rng):
     assert heavy.nmf_.components_.shape == (12, N_FEATURES + N_LABELS)
 
 
+@pytest.mark.parametrize("threshold", [-0.5, 0.0, 1.5])
+def test_a_threshold_outside_0_1_is_refused(rng, threshold):
+    """Label activations are >= 0 and a perfectly reconstructed present label scores 1: a threshold <= 0
+    predicts every label of every example, one above 1 hardly any. Refused, as thresholds of a grid."""
+    X, Y, _ = label_mixtures(rng, 30)
+    with pytest.raises(ParameterError, match=r"threshold must be a real number in \(0, 1\] or one of 'cv'"):
+        LabelNMF(4, threshold=threshold).fit(X, Y)
+    with pytest.raises(ParameterError, match=r"threshold_grid must hold thresholds in \(0, 1\]"):
+        LabelNMF(4, threshold_grid=[0.2, threshold]).fit(X, Y)
+    assert LabelNMF(4, threshold=1.0, max_iter=5, random_state=0).fit(X, Y).threshold_ == 1.0
+
+
 def test_bad_input_raises(rng):
     X, Y, _ = label_mixtures(rng, 30)
     with pytest.raises(DataError, match="binary"):

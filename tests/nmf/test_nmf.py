@@ -733,6 +733,28 @@ def test_bad_data(X, match):
         NMF(1).fit(X)
 
 
+@pytest.mark.parametrize("form", ["dense", "sparse", "dok", "object"])
+@pytest.mark.parametrize("masked", [False, True])
+def test_complex_data_is_refused_with_or_without_a_mask(rng, form, masked):
+    """Complex X is refused whether or not a mask comes with it, dense, sparse or one complex number in an
+    object array (never its imaginary part dropped), by beta_nmf, NMF.fit and beta_divergence alike."""
+    X = _positive(rng, 6, 5) + 1j * rng.random((6, 5))
+    if form == "sparse":
+        X = sp.csr_matrix(X)
+    elif form == "dok":  # a sparse format without a .data array
+        X = sp.dok_array(X)
+    elif form == "object":
+        X = X.real.astype(object)
+        X[2, 3] = 1 + 1j
+    mask = np.ones((6, 5), bool) if masked else None
+    with pytest.raises(DataError, match="Complex data not supported: X holds complex numbers"):
+        beta_nmf(X, 2, mask=mask, max_iter=2)
+    with pytest.raises(DataError, match="Complex data not supported"):
+        NMF(2, max_iter=2).fit(X, mask=mask)
+    with pytest.raises(DataError, match="Complex data not supported"):
+        beta_divergence(X, np.ones((6, 2)), np.ones((2, 5)), 2, mask=mask)
+
+
 @pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")  # short fits on purpose
 def test_bad_parameters(rng):
     X = _positive(rng, 6, 5)

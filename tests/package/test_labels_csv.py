@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from mmconcepts.errors import DataFormatError
+from mmconcepts.errors import DataFormatError, DataWarning
 from mmconcepts.motion.data import load_motion_folder, save_motion_folder
 from mmconcepts.sound.data import load_generic_audio, save_generic_audio
 from mmconcepts.vision.data import load_image_folder
@@ -110,3 +110,56 @@ def test_the_writers_write_the_one_header(tmp_path):
     _images(tmp_path / "i", "file,labels,view")
     out = write_image_folder(load_image_folder(tmp_path / "i"), tmp_path / "i2")
     assert out.read_text().splitlines()[0] == "file,labels,view"
+
+
+def _three_files(root, layout):
+    import imageio.v3 as iio
+
+    for i in range(3):
+        if layout == "audio":
+            (root / f"f{i}.wav").write_bytes(b"RIFF")
+        elif layout == "images":
+            iio.imwrite(root / f"f{i}.png", np.zeros((4, 4), dtype=np.uint8))
+        else:
+            (root / f"f{i}.csv").write_text("hand_x,hand_y,hand_z\n0,0,0\n1,1,1\n")
+
+
+_COMPLETE = {"audio": "file,labels,speaker\nf0.wav,car,s1\nf1.wav,book,s2\nf2.wav,shoe,s3",
+             "images": "file,labels,view\nf0.png,cup,0\nf1.png,ball,1\nf2.png,cup,2",
+             "motion": "file,labels\nf0.csv,wave\nf1.csv,clap\nf2.csv,wave"}
+_CUT = {  # the last row cut short: fewer cells than the header, or a quoted cell left open
+    ("audio", "cells"): "file,labels,speaker\nf0.wav,car,s1\nf1.wav,book,s2\nf2.wav,sh",
+    ("audio", "quote"): 'file,labels,speaker\nf0.wav,car,s1\nf1.wav,book,s2\nf2.wav,shoe,"s',
+    ("images", "cells"): "file,labels,view\nf0.png,cup,0\nf1.png,ball,1\nf2.png,cu",
+    ("images", "quote"): 'file,labels,view\nf0.png,cup,0\nf1.png,ball,1\nf2.png,"cup;\n',
+    ("motion", "cells"): "file,labels\nf0.csv,wave\nf1.csv,clap\nf2.cs",
+    ("motion", "quote"): 'file,labels\nf0.csv,wave\nf1.csv,clap\nf2.csv,"wave;cl',
+}
+_LOADERS = {"audio": lambda root, **kw: load_generic_audio(root, check_audio=False, **kw),
+            "images": load_image_folder, "motion": load_motion_folder}
+
+
+@pytest.mark.parametrize("layout", ["audio", "images", "motion"])
+@pytest.mark.parametrize("cut", ["cells", "quote"])
+def test_a_table_that_ends_early_is_named_or_counted(tmp_path, layout, cut):
+    """A labels.csv cut short (its last row with fewer cells than the header and no line break after it, or a
+    quoted cell still open at the end) is not loaded in part silently: on_error='raise' names the file and the
+    line, on_error='skip' leaves the cut row out with a DataWarning counting the rows read."""
+    _three_files(tmp_path, layout)
+    path = tmp_path / "labels.csv"
+    path.write_text(_CUT[layout, cut])
+    load = _LOADERS[layout]
+    with pytest.raises(DataFormatError, match=rf"{path} ends early: its last row, line 4, "):
+        load(tmp_path)
+    with pytest.warns(DataWarning, match=rf"{path} ended early: its last row, line 4, .* left out; 2 row\(s\) read"):
+        data = load(tmp_path, on_error="skip")
+    assert len(data) == 2
+
+
+@pytest.mark.parametrize("layout", ["audio", "images", "motion"])
+def test_a_complete_last_row_without_a_line_break_is_read(tmp_path, layout):
+    _three_files(tmp_path, layout)
+    (tmp_path / "labels.csv").write_text(_COMPLETE[layout])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(_LOADERS[layout](tmp_path)) == 3

@@ -163,6 +163,29 @@ def test_mfcc_bad_input():
         MFCCConfig(fmax=9000)
 
 
+@pytest.mark.parametrize("peak, dtype", [(1e39, np.float64), (1e30, np.float64), (1e20, np.float64),
+                                         (1e20, np.float32), (2**62, np.int64)])
+def test_mfcc_of_samples_whose_power_overflows_float32_is_refused(peak, dtype):
+    """The front end computes in float32 (as librosa): a sample beyond float32 (1e39), or loud enough for the
+    power spectrum to overflow it, is a DataError naming the peak, never NaN coefficients or librosa's error."""
+    y = tone(300).astype(np.float64)
+    if dtype == np.int64:  # a whole tone of 64-bit PCM at full scale
+        y = (y * 2 * peak).astype(np.int64)
+    else:
+        y = y.astype(dtype)
+        y[1000] = peak
+    with pytest.raises(DataError, match=r"audio samples reach .*divide it by its peak"):
+        mfcc(y)
+
+
+def test_mfcc_of_loud_integer_pcm_is_finite():
+    y = (tone(300) * 32767).astype(np.int16)
+    y[::50] = np.iinfo(np.int16).min
+    assert np.isfinite(mfcc(y)).all()
+    y = (tone(300) * 1e12)  # loud, yet its power spectrum fits float32
+    assert np.isfinite(mfcc(y)).all()
+
+
 # -- windows -----------------------------------------------------------------------------
 def test_sliding_windows_default_shift_is_a_third(rng):
     seq = rng.normal(size=(30, 4))

@@ -237,6 +237,36 @@ def test_bad_transitions_are_refused():
         MDP(np.full((1, 2, 2), 0.5), discount=1.0)
 
 
+@pytest.mark.parametrize("transitions", [[[["a", 1.0], [0.0, 1.0]]], [[[1.0, 0.0], [0.0]]],
+                                         [[[1 + 1j, 0.0], [0.0, 1.0]]], np.eye(2, dtype=complex)[None]])
+def test_transitions_that_are_not_numbers_are_refused(transitions):
+    with pytest.raises(ParameterError, match="transitions must be an array of probabilities"):
+        MDP(transitions)
+
+
+def test_rewards_that_are_not_numbers_are_refused():
+    with pytest.raises(ParameterError, match="rewards must be an array of numbers"):
+        MDP(np.ones((1, 1, 1)), rewards=[["x"]])
+
+
+@pytest.mark.parametrize("solve", [value_iteration, policy_iteration, soft_value_iteration])
+def test_init_of_the_wrong_length_or_not_finite_is_refused(world, solve):
+    r = np.zeros((25, 4))
+    with pytest.raises(ParameterError, match=r"init must have shape \(25,\) or \(n_tasks, 25\).*; got \(24,\)"):
+        solve(world, r, init=np.zeros(24))
+    with pytest.raises(ParameterError, match=r"init must have shape .*; got \(3, 25\)"):
+        solve(world, np.zeros((2, 25, 4)), init=np.zeros((3, 25)))
+    for bad in (np.nan, np.inf, 1e308):
+        init = np.zeros(25)
+        init[3] = bad
+        with pytest.raises(DataError, match="init"):
+            solve(world, r, init=init)
+    with pytest.raises(ParameterError, match="init must be an array of numbers"):
+        solve(world, r, init=["a"] * 25)
+    V, _ = solve(world, np.zeros((2, 25, 4)), init=np.ones(25))  # one start for every task broadcasts
+    assert V.shape == (2, 25) and np.isfinite(V).all()
+
+
 def test_bad_rewards_and_trajectories_are_refused(world):
     with pytest.raises(ParameterError, match="rewards must have shape"):
         value_iteration(world, np.zeros((4, 25)))

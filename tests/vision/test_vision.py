@@ -212,6 +212,31 @@ def test_load_eth80_corrupt_file(tmp_path, eth80):
     assert len(s) == 2 and len(s.skipped) == 1
 
 
+@pytest.mark.parametrize("odd", ["folder", "dangling link", "link to a folder"])
+def test_load_eth80_reports_what_is_named_like_an_image_but_is_no_file(tmp_path, odd):
+    """A folder or a link to nothing named like an ETH-80 image is not passed over in silence: it raises, or
+    is skipped and reported as any unreadable file."""
+    import imageio.v3 as iio
+
+    for name in ("cow1-000-000.png", "cow1-022-000.png"):
+        iio.imwrite(tmp_path / name, np.zeros((6, 6, 3), dtype=np.uint8))
+    bad = tmp_path / "cow1-045-090.png"
+    if odd == "folder":
+        bad.mkdir()
+    elif odd == "dangling link":
+        bad.symlink_to(tmp_path / "gone.png")
+    else:
+        (tmp_path / "sub").mkdir()
+        bad.symlink_to(tmp_path / "sub")
+    what = {"folder": "is a folder", "dangling link": "links to .*gone.png, which does not exist",
+            "link to a folder": "is a folder"}[odd]
+    with pytest.raises(DataFormatError, match=f"cow1-045-090.png {what}"):
+        load_eth80(tmp_path)
+    with pytest.warns(RuntimeWarning, match=r"1 file\(s\) of .* could not be read and were skipped"):
+        s = load_eth80(tmp_path, on_error="skip")
+    assert len(s) == 2 and [Path(k.file).name for k in s.skipped] == ["cow1-045-090.png"]
+
+
 def _extent(mask: np.ndarray) -> tuple[int, int]:
     rr, cc = np.nonzero(mask)
     return rr.max() - rr.min() + 1, cc.max() - cc.min() + 1

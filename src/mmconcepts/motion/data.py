@@ -1159,7 +1159,7 @@ def load_motion_folder(
     if not labels_path.is_file():
         raise DataFormatError(f"{root} has no {MOTION_LABELS_FILE}; the generic motion layout needs one with columns "
                               "file,labels and one CSV file per recording.")
-    _, rows = read_labels_csv(labels_path, layout="generic motion")
+    _, rows = read_labels_csv(labels_path, layout="generic motion", on_error=on_error)
     read: list[tuple[str, tuple[str, ...], str, np.ndarray, str]] = []  # file, labels, record id, positions, where
     skipped: list[SkippedRecord] = []
     names: list[str] | None = want

@@ -47,6 +47,7 @@ import shutil
 import tempfile
 import uuid
 import warnings
+import zipfile
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -250,10 +251,17 @@ def _load_chunk(path: str, rows: int, n_cols: int, dtype: str, sparse: bool, ind
         if sparse:
             out = sp.csr_matrix(sp.load_npz(path))
         else:
-            with np.load(path, allow_pickle=False) as f:
+            loaded = np.load(path, allow_pickle=False)
+            if not isinstance(loaded, np.lib.npyio.NpzFile):
+                raise ValueError("it holds a single array (.npy), not an .npz archive")
+            with loaded as f:
                 out = f["X"]
-    except (OSError, ValueError, KeyError) as exc:
-        raise DataFormatError(f"Cannot read chunk {index} ({path}): {exc}.") from exc
+    # a file cut short or not a zip archive (EOFError, BadZipFile), a .npy where an .npz belongs (TypeError)
+    except (OSError, ValueError, KeyError, EOFError, TypeError, zipfile.BadZipFile) as exc:
+        raise DataFormatError(
+            f"Cannot read chunk {index} ({path}): {type(exc).__name__}: {exc}. The file is damaged or was not "
+            "written by save_npz_chunks; write the folder again."
+        ) from exc
     if out.shape != (rows, n_cols):
         raise DataFormatError(
             f"chunk {index} ({path}) has shape {out.shape}; the manifest says {(rows, n_cols)}."
@@ -278,8 +286,8 @@ def load_npz_chunks(folder: str | os.PathLike[str]):
     Raises
     ------
     DataFormatError
-        No manifest, an unknown format or version, or chunks that disagree with the manifest
-        (when read).
+        No manifest, an unknown format or version, or (when read) a chunk file that is damaged or
+        disagrees with the manifest; the message names the chunk and its file.
     ImportError
         dask is not installed (the ``dask`` extra).
     """

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .._validation import check_nonnegative_matrix
+from .._validation import check_nonnegative_matrix, check_not_complex
 from ..errors import DataError
 
 
@@ -51,6 +51,7 @@ def validate_data(X: Any, mask: Any = None, name: str = "X"):
             if isinstance(exc, DataError):
                 raise
             raise DataError(f"{name} must be a nonnegative matrix of numbers; {exc}") from exc
+    check_not_complex(X if sp.issparse(X) else np.asarray(X), name)
     if sp.issparse(X):
         X = sp.csr_matrix(X, dtype=X.dtype if X.dtype in (np.float32, np.float64) else np.float64, copy=True)
         X.sum_duplicates()

@@ -63,6 +63,12 @@ __all__ = ["DEFAULT_THRESHOLD_GRID", "LabelNMF", "make_svm_baseline"]
 #: label weight.
 DEFAULT_THRESHOLD_GRID = np.round(np.linspace(0.05, 0.95, 37), 4)
 
+#: The thresholds eta that decide something: the activations are >= 0, so eta <= 0 predicts every
+#: label of every example; a perfectly reconstructed present label scores 1.
+_THRESHOLD = Interval("real", 0, 1, closed="right")
+_THRESHOLD_HINT = ("Label activations are >= 0 (eta <= 0 predicts every label) and a perfectly reconstructed "
+                   "present label scores 1; the thesis' thresholds are in (0, 1), 'cv' chooses one.")
+
 
 def _check_label_matrix(Y: Any, n_samples: int | None = None) -> np.ndarray:
     """Y as a float 0/1 array of shape (n_samples, n_labels), or a DataError naming the problem."""
@@ -136,14 +142,16 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         Stopping tolerance of :class:`~mmconcepts.nmf.NMF`.
     label_weight : 'l1' or float > 0, default='l1'
         Weight lambda of the label part (see above); a float is used as is.
-    threshold : 'cv' or float, default='cv'
-        eta. 'cv' chooses it by ``cv``-fold cross-validation on the training data: each
-        inner fold is fitted once, its validation examples are scored, and l_full is
+    threshold : 'cv' or float in (0, 1], default='cv'
+        eta (label activations are >= 0, so eta <= 0 would predict every label; a perfectly
+        reconstructed present label scores 1). 'cv' chooses it by ``cv``-fold
+        cross-validation on the training data: each inner fold is fitted once, its
+        validation examples are scored, and l_full is
         evaluated on them for every threshold of ``threshold_grid`` at once (each inner
         fit is a full LabelNMF fit of the fold, with its own label weight); the
         threshold with the best l_full pooled over the validation folds is kept (among
         ties, the median one, the middle of the plateau of thesis Fig. 3.7).
-    threshold_grid : array-like of float, optional
+    threshold_grid : array-like of float in (0, 1], optional
         Thresholds tried by 'cv'. Default :data:`DEFAULT_THRESHOLD_GRID`,
         0.05 to 0.95 by 0.025.
     cv : int or scikit-learn splitter, default=5
@@ -221,7 +229,7 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         **{name: NMF._parameter_constraints[name] for name in (
             "beta_loss", "max_iter", "tol", "init", "solver", "update_rule", "transform_max_iter", "random_state")},
         "label_weight": [Interval("real", 0, None, closed="neither"), Options("l1")],
-        "threshold": [Interval("real"), Options("cv")],
+        "threshold": [_THRESHOLD, Options("cv")],
         "threshold_grid": ["array-like", None],
         "cv": [Interval("int", 2), HasMethods("split")],
         "n_jobs": [Interval("int"), None],
@@ -282,7 +290,8 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
     # ------------------------------------------------------------------ fitting
     def _check_params(self) -> None:
         validate_params(self, self._parameter_constraints,
-                        hints={"cv": "Give a number of folds or a splitter such as sklearn's KFold."})
+                        hints={"cv": "Give a number of folds or a splitter such as sklearn's KFold.",
+                               "threshold": _THRESHOLD_HINT})
         from ._beta import resolve_beta
 
         if resolve_beta(self.beta_loss) <= 0:
@@ -297,6 +306,10 @@ class LabelNMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, ClassifierMixin, 
         grid = np.asarray(self.threshold_grid, dtype=np.float64).ravel()
         if grid.size == 0 or not np.isfinite(grid).all():
             raise ParameterError(f"threshold_grid must be a non-empty array of finite floats; got {self.threshold_grid!r}.")
+        outside = grid[(grid <= 0) | (grid > 1)]
+        if outside.size:
+            raise ParameterError(f"threshold_grid must hold thresholds in (0, 1]; got {outside.tolist()}. "
+                                 + _THRESHOLD_HINT)
         return np.unique(grid)
 
     def fit(self, X: Any, y: Any) -> LabelNMF:

@@ -344,7 +344,9 @@ def load_generic_audio(
     on_error : {"raise", "skip"}
         ``"raise"``: a bad row, a missing or unreadable audio file, or bad timings raise
         :class:`DataFormatError` naming the file. ``"skip"``: those utterances are left
-        out and listed in ``corpus.skipped``; a :class:`RuntimeWarning` says how many.
+        out and listed in ``corpus.skipped``; a :class:`RuntimeWarning` says how many. A
+        ``labels.csv`` that ends early (its last row cut short) raises, or loses that row
+        with a :class:`~mmconcepts.errors.DataWarning` counting the rows read.
     check_audio : bool, default=True
         Open each audio file's header (finds missing, empty and corrupt files at load
         time, and gives ``Utterance.duration``). False only checks that the file exists.
@@ -367,7 +369,7 @@ def load_generic_audio(
             "file,labels,speaker[,transcription]."
         )
     header, rows = read_labels_csv(labels_path, layout="generic audio", required=("speaker",),
-                                   optional=("transcription",))
+                                   optional=("transcription",), on_error=on_error)
     timings, timing_errors = _read_timings(root)
     skipped: list[SkippedFile] = []
     utts: list[Utterance] = []

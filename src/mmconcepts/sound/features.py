@@ -48,8 +48,9 @@ _MFCC_CONSTRAINTS: dict[str, list] = {
 #: Longest analysis window or hop accepted, in samples (about 17 minutes at 16 kHz).
 _MAX_FRAME_SAMPLES = 2**24
 
-#: Largest sample magnitude accepted: the power spectrum of louder samples overflows.
-_MAX_SAMPLE = 1e100
+#: Largest sample magnitude accepted before the spectrum is computed: the front end computes in
+#: float32 (as librosa), which holds no larger number; the power spectrum is checked after.
+_MAX_SAMPLE = float(np.finfo(np.float32).max)
 
 _WINDOW_CONSTRAINTS: dict[str, list] = {
     "duration_ms": [Interval("real", 0, None, closed="neither")],
@@ -177,11 +178,15 @@ def _check_audio(y: np.ndarray, config: MFCCConfig) -> np.ndarray:
     if not np.all(np.isfinite(y)):
         raise DataError("audio contains NaN or infinite samples.")
     if y.size and float(np.max(np.abs(y))) > _MAX_SAMPLE:
-        raise DataError(
-            f"audio samples reach {float(np.max(np.abs(y))):.3g}: their power spectrum overflows. Audio is expected "
-            "as floats in [-1, 1] (or integer PCM); divide it by its peak."
-        )
+        raise _too_loud(y)
     return y
+
+
+def _too_loud(y: np.ndarray) -> DataError:
+    return DataError(
+        f"audio samples reach {float(np.max(np.abs(y))):.3g}: their power spectrum overflows float32, in which the "
+        "MFCC front end computes. Audio is expected as floats in [-1, 1] (or integer PCM); divide it by its peak."
+    )
 
 
 def log_mel_spectrogram(y: np.ndarray, config: MFCCConfig | None = None) -> np.ndarray:
@@ -214,20 +219,23 @@ def log_mel_spectrogram(y: np.ndarray, config: MFCCConfig | None = None) -> np.n
     with first_use("librosa"):
         librosa = optional_import("librosa", "audio", "the MFCC front end")
 
-        mel = librosa.feature.melspectrogram(
-            y=y.astype(np.float32, copy=False),
-            sr=config.sr,
-            n_fft=config.n_fft,
-            hop_length=config.hop_length,
-            win_length=config.win_length,
-            window=config.window,
-            center=False,
-            power=2.0,
-            n_mels=config.n_mels,
-            fmin=config.fmin,
-            fmax=config.fmax,
-            htk=True,
-        )
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused just below, named
+            mel = librosa.feature.melspectrogram(
+                y=y.astype(np.float32, copy=False),
+                sr=config.sr,
+                n_fft=config.n_fft,
+                hop_length=config.hop_length,
+                win_length=config.win_length,
+                window=config.window,
+                center=False,
+                power=2.0,
+                n_mels=config.n_mels,
+                fmin=config.fmin,
+                fmax=config.fmax,
+                htk=True,
+            )
+        if not np.all(np.isfinite(mel)):  # finite samples, but their power overflows float32
+            raise _too_loud(y)
         log_mel = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=config.top_db)
     return np.ascontiguousarray(log_mel.T, dtype=np.float32)
 

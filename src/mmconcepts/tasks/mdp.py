@@ -103,7 +103,7 @@ class MDP:
     """
 
     def __init__(self, transitions: Any, *, discount: float = 0.9, rewards: Any = None) -> None:
-        P = np.asarray(transitions, dtype=float)
+        P = _float_array(transitions, "transitions", "probabilities P[a, s, s']")
         if P.ndim != 3 or P.shape[1] != P.shape[2] or P.shape[0] < 1 or P.shape[1] < 1:
             raise ParameterError(
                 "transitions must have shape (n_actions, n_states, n_states) with "
@@ -141,13 +141,25 @@ class MDP:
         return f"MDP(n_states={self.n_states}, n_actions={self.n_actions}, discount={self.discount})"
 
 
+def _float_array(value: Any, name: str, what: str) -> np.ndarray:
+    """``value`` as a float array, or a :class:`ParameterError` naming ``name`` (text, ragged rows, complex numbers)."""
+    try:
+        arr = np.asarray(value)
+        if np.iscomplexobj(arr):
+            raise TypeError("it holds complex numbers")
+        return arr.astype(float, copy=False)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be an array of {what} (real numbers, every row the same length); "
+                             f"got {type(value).__name__} that is not: {exc}.") from None
+
+
 def check_rewards(mdp: MDP, rewards: Any, *, allow_batch: bool = True) -> np.ndarray:
     """Return ``rewards`` as a float array of shape (S, A) or (n_tasks, S, A), or raise."""
     if rewards is None:
         if mdp.rewards is None:
             raise ParameterError("no rewards given and the MDP has no default reward; pass rewards=(n_states, n_actions).")
         return mdp.rewards
-    r = np.asarray(rewards, dtype=float)
+    r = _float_array(rewards, "rewards", "numbers")
     ok_shapes = r.shape[-2:] == (mdp.n_states, mdp.n_actions) and (r.ndim == 2 or (allow_batch and r.ndim == 3))
     if not ok_shapes:
         want = "(n_states, n_actions)" + (" or (n_tasks, n_states, n_actions)" if allow_batch else "")
@@ -246,6 +258,24 @@ def q_values(mdp: MDP, values: Any, rewards: Any = None) -> np.ndarray:
     return r + mdp.discount * np.swapaxes(EV, -1, -2)
 
 
+def _check_init(init: Any, batch: tuple[int, ...], S: int, discount: float) -> np.ndarray:
+    """Starting values ``init`` broadcast to ``batch + (S,)``, finite and within the values' range, or raise."""
+    V0 = _float_array(init, "init", "numbers")
+    try:
+        V0 = np.broadcast_to(V0, batch + (S,))
+    except ValueError:
+        raise ParameterError(f"init must have shape ({S},) or (n_tasks, {S}), one start shared by every task or one "
+                             f"per task (the rewards have {batch[0] if batch else 1}); got {V0.shape}.") from None
+    if not np.all(np.isfinite(V0)):
+        raise DataError("init contains NaN or infinite values; give finite starting values (or init=None for zeros).")
+    big = float(np.abs(V0).max()) if V0.size else 0.0
+    if big > _MAX_REWARD:
+        raise DataError(f"init holds values up to {big:.3g}, beyond what float64 holds safely ({_MAX_REWARD:.0e}); "
+                        "values of rewards within the same bound never go there: give init=None or the values of a "
+                        "previous solve.")
+    return V0
+
+
 def _batched_setup(mdp: MDP, rewards: Any, init: Any):
     """Shared start of the batched value and policy iterations.
 
@@ -257,7 +287,7 @@ def _batched_setup(mdp: MDP, rewards: Any, init: Any):
     batch = r.shape[:-2]
     R = r.reshape(-1, S, A)
     T = R.shape[0]
-    V = np.zeros((T, S)) if init is None else np.broadcast_to(np.asarray(init, dtype=float), batch + (S,)).reshape(T, S).copy()
+    V = np.zeros((T, S)) if init is None else _check_init(init, batch, S, mdp.discount).reshape(T, S).copy()
     RT = np.ascontiguousarray(R.transpose(0, 2, 1).reshape(T, A * S))
     return batch, V, _flat(mdp), RT
 
@@ -293,7 +323,11 @@ def value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_it
     ------
     ParameterError
         If ``max_iter < 1`` (zero sweeps would leave no converged values to return; use
-        :func:`q_values` for one Bellman backup) or ``tol <= 0`` (never met).
+        :func:`q_values` for one Bellman backup), ``tol <= 0`` (never met), or ``init`` or
+        ``rewards`` not numbers or of the wrong shape.
+    DataError
+        If ``init`` or ``rewards`` hold NaN or infinite values, or values beyond what float64
+        holds safely (``|init| > 1e300``, rewards whose discounted sums would pass it).
     """
     _check("value_iteration", mdp, tol=tol, max_iter=max_iter, init=init)
     return value_iteration_unchecked(mdp, rewards, tol=tol, max_iter=max_iter, init=init)

@@ -349,13 +349,17 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     Raises
     ------
     DataFormatError
-        If the file is missing, empty, corrupt, not an image, or not a single still image
-        of a supported shape; the message names the file.
+        If the file is missing (a folder, a link to nothing), empty, corrupt, not an image,
+        or not a single still image of a supported shape; the message names the file.
     """
     import imageio.v3 as iio
 
     path = Path(path)
     if not path.is_file():
+        if path.is_dir():
+            raise DataFormatError(f"{path} is a folder, not an image file.")
+        if path.is_symlink():
+            raise DataFormatError(f"{path} links to {os.readlink(path)}, which does not exist.")
         raise DataFormatError(f"Image file {path} not found.")
     if path.stat().st_size == 0:
         raise DataFormatError(f"Image file {path} is empty (0 bytes).")
@@ -388,7 +392,9 @@ def load_image_folder(
     on_error : {"raise", "skip"}
         ``"raise"``: a bad row or a missing, corrupt or unreadable image raises
         :class:`DataFormatError` naming the file. ``"skip"``: those images are left out
-        and listed in ``image_set.skipped``; a :class:`RuntimeWarning` says how many.
+        and listed in ``image_set.skipped``; a :class:`RuntimeWarning` says how many. A
+        ``labels.csv`` that ends early (its last row cut short) raises, or loses that row
+        with a :class:`~mmconcepts.errors.DataWarning` counting the rows read.
     name : str, optional
         Set name (default: the folder's name).
 
@@ -408,7 +414,8 @@ def load_image_folder(
             f"{root} has no {LABELS_FILE}; the generic image layout needs one with columns file,labels (and "
             "optionally view and category)."
         )
-    header, rows = read_labels_csv(labels_path, layout="generic image", optional=("view", "category"))
+    header, rows = read_labels_csv(labels_path, layout="generic image", optional=("view", "category"),
+                                   on_error=on_error)
     has_view, has_cat = "view" in header, "category" in header
     images, labels, views, cats = [], [], [], []
     paths: list[Path | None] = []
@@ -485,7 +492,7 @@ def load_eth80(
     found = []
     for p in root.rglob("*"):
         parsed = parse_eth80_name(p.name)
-        if parsed and p.is_file():
+        if parsed:  # a folder or a link to nothing named like an image is kept: reading it raises (or skips) it
             cat, inst, tilt, pan = parsed
             found.append((cat, inst, int(tilt), int(pan), tilt, pan, p))
     if not found:
