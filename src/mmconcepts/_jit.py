@@ -184,6 +184,9 @@ def _first_in_group() -> bool:
     path = _lock_dir() / f"compile-notice.{getpgrp()}"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return True
+    try:
         os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
         return True
     except FileExistsError:

@@ -210,13 +210,23 @@ def test_a_process_that_compiles_says_so_once(jitmod, notice, capsys):
     assert capsys.readouterr().err == ""  # once per process
 
 
-def test_no_notice_when_the_kernels_come_from_the_cache(jitmod, notice, capsys, monkeypatch):
+def test_without_a_lock_folder_a_process_still_says_it_once(jitmod, notice, capsys, tmp_path, monkeypatch):
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "file"))  # no folder can be made there: no group marker
+    mod, _, _ = jitmod
+    assert mod.outer(1.5) == 4.0 and mod.inner(np.float32(2.0)) == 4.0  # compiled unlocked, twice
+    assert sum(mod.inner.stats.cache_misses.values()) == 2
+    assert capsys.readouterr().err.count(_jit.COMPILE_NOTICE) == 1
+
+
+def test_no_notice_when_the_kernels_come_from_the_cache(jitmod, notice, capsys, monkeypatch, tmp_path):
     mod, src, _ = jitmod
     mod.outer(1.5)
     capsys.readouterr()
     sys.modules.pop("jitmod")
     again = importlib.import_module("jitmod")  # new dispatchers, the same disk cache
-    monkeypatch.setattr(_jit, "_NOTICE_GIVEN", threading.Event())
+    monkeypatch.setattr(_jit, "_NOTICE_GIVEN", threading.Event())  # as a new process of another command
+    monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "other"))
     assert again.outer(1.5) == 4.0
     assert sum(again.outer.stats.cache_hits.values()) == 1  # loaded, not compiled
     assert capsys.readouterr().err == ""
