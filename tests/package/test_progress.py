@@ -74,8 +74,10 @@ def test_an_extractor_shows_a_bar_only_when_verbose_and_gives_the_same_numbers(n
 def test_image_features_count_images_over_worker_processes(capsys):
     """With n_jobs, the bar advances by chunks of images and counts images; the features are the same."""
     ims = make_objects(4, 10, random_state=2)  # 40 images: two chunks
-    make = lambda v: ImageFeatures(("color",), color=ColorHistograms(n_colors=4), random_state=0, n_jobs=2,  # noqa: E731
-                                   verbose=v)
+
+    def make(verbose):
+        return ImageFeatures(("color",), color=ColorHistograms(n_colors=4), random_state=0, n_jobs=2, verbose=verbose)
+
     expected = make(False).fit_transform(ims)
     assert capsys.readouterr().err == ""
     got = make(True).fit_transform(ims)
