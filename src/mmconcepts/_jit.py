@@ -15,6 +15,14 @@ is taken only when a call finds no compiled version of the kernel for its argume
 this process, so calls after the first cost nothing more. It hooks numba's
 ``Dispatcher._compile_for_args`` (what a call runs when no compiled version matches); with a
 numba that does not have it, kernels compile as plain ``numba.njit`` would.
+
+Compiling takes long the first time (a fresh install, an emptied cache), so the first
+process that has to compile says so on stderr, once (:data:`COMPILE_NOTICE`): when numba
+starts compiling (its ``numba:compile`` event) one of these kernels, or librosa's kernels in a
+:func:`first_use` block; never when the code comes from numba's disk cache. The processes of
+one command (a process group: the command, its worker processes) print it once between them,
+through a marker file in the lock folder. Setting ``MMCONCEPTS_QUIET=1``
+(:data:`mmconcepts._progress.QUIET_ENV`, as ``mmconcepts -q`` does) silences it.
 """
 
 from __future__ import annotations
@@ -23,16 +31,29 @@ import contextlib
 import functools
 import hashlib
 import os
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numba as nb
 import threadpoolctl
+from numba.core import event as nb_event
 
 from ._io import folder_lock
+from ._progress import QUIET_ENV
 
-__all__ = ["njit", "lock_file", "first_use", "single_threaded"]
+__all__ = ["COMPILE_NOTICE", "njit", "lock_file", "first_use", "notice_compilation", "single_threaded"]
+
+#: What a process prints on stderr when it starts compiling (once; see the module docstring).
+COMPILE_NOTICE = ("mmconcepts: compiling numerical kernels on their first use (about a minute in all, once per "
+                  "install; later runs load them from numba's cache) ...")
+
+#: How long after a process printed the notice the other processes of its group stay silent (seconds): a
+#: group id is a process id, which the system may give again, much later, to another command.
+GROUP_NOTICE_SECONDS = 3600.0
 
 
 def _lock_dir() -> Path:
@@ -69,7 +90,8 @@ def _shared(dispatcher: Any) -> Any:
             with contextlib.suppress(OSError):  # no writable cache folder: compile unlocked
                 stack.enter_context(folder_lock(path.parent, path.name))
             # numba looks in its disk cache before compiling: filled by whoever held the lock before
-            return compile_for_args(*args, **kws)
+            with _noticing():
+                return compile_for_args(*args, **kws)
 
     dispatcher._compile_for_args = locked
     return dispatcher
@@ -124,8 +146,82 @@ def first_use(name: str) -> Iterator[None]:
     with contextlib.ExitStack() as stack:
         with contextlib.suppress(OSError):  # no writable temporary folder: run unlocked
             stack.enter_context(folder_lock(path.parent, path.name))
-        yield
+        with _noticing():
+            yield
     _FIRST_USES.add(name)
+
+
+_NOTICE_GIVEN = threading.Event()
+_notice_lock = threading.Lock()
+
+
+def notice_compilation() -> None:
+    """Print :data:`COMPILE_NOTICE` on stderr, unless this process or its group already did, or ``MMCONCEPTS_QUIET``.
+
+    Called when numba starts compiling under :func:`njit`'s lock or in a :func:`first_use`
+    block; later calls in the process do nothing.
+    """
+    with _notice_lock:
+        if _NOTICE_GIVEN.is_set():
+            return
+        _NOTICE_GIVEN.set()
+    if os.environ.get(QUIET_ENV, "").strip() not in ("", "0") or not _first_in_group():
+        return
+    with contextlib.suppress(OSError, ValueError, AttributeError):  # no stderr, or a closed one
+        print(COMPILE_NOTICE, file=sys.stderr, flush=True)
+
+
+def _first_in_group() -> bool:
+    """Whether no other process of this one's process group gave the notice in the last :data:`GROUP_NOTICE_SECONDS`.
+
+    The first to create the group's marker file (``compile-notice.<group id>`` in the lock
+    folder) gives it; without a process group (Windows) or a writable lock folder, every
+    process does.
+    """
+    getpgrp = getattr(os, "getpgrp", None)
+    if getpgrp is None:  # pragma: no cover - not POSIX
+        return True
+    path = _lock_dir() / f"compile-notice.{getpgrp()}"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return True
+    try:
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        return True
+    except FileExistsError:
+        try:
+            if time.time() - path.stat().st_mtime < GROUP_NOTICE_SECONDS:
+                return False
+            os.utime(path)  # a marker left by an earlier command of the same group id
+        except OSError:
+            pass
+        return True
+    except OSError:
+        return True
+
+
+class _CompileListener(nb_event.Listener):
+    """Gives the notice when a ``numba:compile`` event starts."""
+
+    def on_start(self, event: Any) -> None:
+        notice_compilation()
+
+    def on_end(self, event: Any) -> None:
+        pass
+
+
+_LISTENER = _CompileListener()
+
+
+@contextlib.contextmanager
+def _noticing() -> Iterator[None]:
+    """Within the block, numba compiling anything in this process gives the notice (:func:`notice_compilation`)."""
+    if _NOTICE_GIVEN.is_set():
+        yield
+        return
+    with nb_event.install_listener("numba:compile", _LISTENER):
+        yield
 
 
 @contextlib.contextmanager

@@ -304,10 +304,11 @@ class HasMethods:
 
 
 class _Named:
-    """A constraint known by name: "boolean", "random_state", "callable", "array-like"."""
+    """A constraint known by name: "boolean", "verbose", "random_state", "callable", "array-like"."""
 
     _DESCRIPTIONS = {
         "boolean": "a bool",
+        "verbose": "a bool or an int >= 0",
         "random_state": "an int >= 0, a numpy Generator or RandomState, or None",
         "callable": "a callable",
         "array-like": "an array-like",
@@ -322,6 +323,9 @@ class _Named:
     def is_satisfied_by(self, value: Any) -> bool:
         if self.name == "boolean":
             return isinstance(value, (bool, np.bool_))
+        if self.name == "verbose":  # scikit-learn's "verbose": a bool, or a level
+            return isinstance(value, (bool, np.bool_)) or (isinstance(value, (numbers.Integral, np.integer))
+                                                            and int(value) >= 0)
         if self.name == "random_state":
             return (value is None or isinstance(value, (np.random.Generator, np.random.RandomState))
                     or (isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, bool)
@@ -378,7 +382,7 @@ def validate_params(params: Any, constraints: Mapping[str, list[Any] | Literal["
     constraints : dict of str to list
         Per parameter, the accepted forms; a value is valid when it satisfies any of them.
         A form is None (the value None), a type (an instance of it), one of the strings
-        "boolean", "random_state", "callable", "array-like", "sparse matrix", or an
+        "boolean", "verbose", "random_state", "callable", "array-like", "sparse matrix", or an
         :class:`Interval`, :class:`Options` or :class:`InstanceOf`. The string "no_validation"
         (instead of a list) skips the parameter.
     owner : str, optional

@@ -21,17 +21,20 @@ not hold its set, a ``--data-root`` that does not exist or holds no known set wi
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import os
 import re
 import sys
 import textwrap
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 from . import __version__
 from ._paths import DEFAULT_RESULTS_DIR
+from ._progress import QUIET_ENV
 
 # mmconcepts.errors (and through it scikit-learn) and the experiments are imported inside
 # the commands, so that `mmconcepts --help` answers at once.
@@ -59,7 +62,7 @@ def _common_flags() -> argparse.ArgumentParser:
     )
     group.add_argument(
         "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-        help="only warnings and errors, no progress bars",
+        help="only warnings and errors: no progress bars, no notice of compiling numerical kernels",
     )
     return parent
 
@@ -383,6 +386,24 @@ def _setup_logging(verbose: int, quiet: bool) -> None:
         root.setLevel(logging.DEBUG)
     else:
         root.setLevel(logging.INFO)
+
+
+@contextlib.contextmanager
+def _quiet_processes(quiet: bool) -> Iterator[None]:
+    """Under ``-q``, :data:`~mmconcepts._progress.QUIET_ENV` set for the command, in this process and in
+    those it starts (worker processes inherit it), then put back as it was."""
+    if not quiet:
+        yield
+        return
+    before = os.environ.get(QUIET_ENV)
+    os.environ[QUIET_ENV] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(QUIET_ENV, None)
+        else:
+            os.environ[QUIET_ENV] = before
 
 
 def _columns(rows: list[list[str]], indent: str = "  ", width: int | None = None) -> str:
@@ -728,7 +749,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.quiet = getattr(args, "quiet", False)
     _setup_logging(args.verbose, args.quiet)
     try:
-        return args.func(args)
+        with _quiet_processes(args.quiet):
+            return args.func(args)
     except _UsageError as exc:
         if args.verbose:
             logger.error("usage error", exc_info=exc.__cause__ or exc)
@@ -743,7 +765,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # output piped into a command that stopped reading (| head)
-        import os
-
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0

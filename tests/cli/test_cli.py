@@ -10,8 +10,9 @@ import sys
 
 import pytest
 
+from mmconcepts._progress import QUIET_ENV
 from mmconcepts.cli import main
-from mmconcepts.experiments import register
+from mmconcepts.experiments import Result, register
 
 
 @pytest.fixture
@@ -77,6 +78,39 @@ def test_run_options_and_rerun_skip(toy, in_tmp, capsys):
     assert "skipped: up to date" not in err  # -q hides info logs ...
     main(["run", "toy-mean", "--full", "--seed", "4", "-o", "out"])
     assert "skipped: up to date" in capsys.readouterr().err  # ... the default shows them
+
+
+@pytest.mark.parametrize(("argv", "terminal", "bar"), [
+    (["run", "toy-mean"], True, True),
+    (["-q", "run", "toy-mean"], True, False),
+    (["run", "toy-mean", "--quiet"], True, False),
+    (["run", "toy-mean"], False, False),
+])
+def test_progress_bars_only_on_a_terminal_and_not_under_quiet(toy, in_tmp, capsys, monkeypatch, argv, terminal, bar):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert ("chunks: " in err and "|" in err) is bar  # the toy's ctx.parallel(..., desc="chunks")
+    assert toy.CALLS == [0]
+
+
+def test_quiet_silences_the_compile_notice_of_the_run_s_processes(toy, in_tmp, monkeypatch):
+    """-q sets MMCONCEPTS_QUIET while the command runs (the processes it starts inherit it), then puts it back."""
+    monkeypatch.delenv(QUIET_ENV, raising=False)
+    seen = []
+
+    def run(config, ctx):
+        seen.append(os.environ.get(QUIET_ENV))
+        return Result(metrics={})
+
+    register(toy.make_experiment("toy-env", run))
+    assert main(["-q", "run", "toy-env"]) == 0
+    assert QUIET_ENV not in os.environ
+    assert main(["run", "toy-env", "--force"]) == 0
+    monkeypatch.setenv(QUIET_ENV, "0")
+    assert main(["--quiet", "run", "toy-env", "--force"]) == 0
+    assert os.environ[QUIET_ENV] == "0"
+    assert seen == ["1", None, "1"]
 
 
 def test_usage_errors_exit_2_with_one_line(toy, in_tmp, capsys):

@@ -393,3 +393,20 @@ def test_msr_mixtures_in_parts_share_no_recording_across_parts():
     assert c.parts is None
     legs = [s[-1] for s in c.sources]
     assert len(set(legs)) < len(legs) / 3  # a leg recording joins several mixtures
+
+
+@pytest.mark.parametrize(("show_progress", "terminal", "bar"), [(True, True, True), (False, True, False),
+                                                                 (True, False, False)])
+def test_generated_choreographies_show_progress_in_an_interactive_run(tmp_path, monkeypatch, capsys,
+                                                                      show_progress, terminal, bar):
+    """The run's ctx.verbose (progress asked for, stderr a terminal) reaches the generator; the data is the same."""
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+    ctx = RunContext(cache_dir=tmp_path, show_progress=show_progress)
+    assert ctx.verbose is bar
+    arrays = common.subset_arrays(ctx, "primitive", streams=common.streams(3), n_records=4)
+    assert ("generated primitive" in capsys.readouterr().err) is bar
+    again = common.subset_arrays(RunContext(cache_dir=tmp_path / "other", show_progress=False), "primitive",
+                                 streams=common.streams(3), n_records=4)
+    assert all(np.array_equal(a, b) for a, b in zip(arrays.angles, again.angles))

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+import threading
 import time
 
 import numba
@@ -17,6 +18,7 @@ import pytest
 
 from mmconcepts import _jit
 from mmconcepts._io import folder_lock
+from mmconcepts._progress import QUIET_ENV
 
 MODULE = textwrap.dedent("""
     from mmconcepts._jit import njit
@@ -186,3 +188,91 @@ def test_the_compile_locks_are_in_the_user_s_cache_folder(tmp_path, monkeypatch)
 
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
     assert _jit._lock_dir() == tmp_path / "cache" / LOCKS / "numba"
+
+
+# --------------------------------------------------------------------------- the notice of compilation
+
+
+@pytest.fixture
+def notice(tmp_path, monkeypatch):
+    """This process has given no notice yet, its group neither (a lock folder of its own), and -q is not set."""
+    monkeypatch.setattr(_jit, "_NOTICE_GIVEN", threading.Event())
+    monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "data"))
+    monkeypatch.delenv(QUIET_ENV, raising=False)
+
+
+def test_a_process_that_compiles_says_so_once(jitmod, notice, capsys):
+    mod, _, _ = jitmod
+    assert mod.outer(1.5) == 4.0  # compiles outer and inner: an empty cache
+    assert capsys.readouterr().err.count(_jit.COMPILE_NOTICE) == 1
+    assert mod.outer(np.float32(1.0)) == 3.0  # compiles again, for float32
+    assert sum(mod.outer.stats.cache_misses.values()) == 2
+    assert capsys.readouterr().err == ""  # once per process
+
+
+def test_without_a_lock_folder_a_process_still_says_it_once(jitmod, notice, capsys, tmp_path, monkeypatch):
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "file"))  # no folder can be made there: no group marker
+    mod, _, _ = jitmod
+    assert mod.outer(1.5) == 4.0 and mod.inner(np.float32(2.0)) == 4.0  # compiled unlocked, twice
+    assert sum(mod.inner.stats.cache_misses.values()) == 2
+    assert capsys.readouterr().err.count(_jit.COMPILE_NOTICE) == 1
+
+
+def test_no_notice_when_the_kernels_come_from_the_cache(jitmod, notice, capsys, monkeypatch, tmp_path):
+    mod, src, _ = jitmod
+    mod.outer(1.5)
+    capsys.readouterr()
+    sys.modules.pop("jitmod")
+    again = importlib.import_module("jitmod")  # new dispatchers, the same disk cache
+    monkeypatch.setattr(_jit, "_NOTICE_GIVEN", threading.Event())  # as a new process of another command
+    monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "other"))
+    assert again.outer(1.5) == 4.0
+    assert sum(again.outer.stats.cache_hits.values()) == 1  # loaded, not compiled
+    assert capsys.readouterr().err == ""
+
+
+def test_no_notice_under_quiet(jitmod, notice, capsys, monkeypatch):
+    monkeypatch.setenv(QUIET_ENV, "1")
+    mod, _, _ = jitmod
+    mod.outer(1.5)
+    assert sum(mod.outer.stats.cache_misses.values()) == 1
+    assert capsys.readouterr().err == ""
+
+
+def test_a_compilation_in_a_first_use_block_gives_the_notice(notice, capsys, monkeypatch):
+    """librosa's kernels, compiled when it is first imported, under first_use."""
+    monkeypatch.setattr(_jit, "_FIRST_USES", set())
+    with _jit.first_use("probe-compile"):
+        assert numba.njit(lambda v: v + 1)(1) == 2
+    assert capsys.readouterr().err.count(_jit.COMPILE_NOTICE) == 1
+    with _jit.first_use("probe-nothing"):
+        pass
+    assert capsys.readouterr().err == ""
+
+
+NOTICE_CHILD = textwrap.dedent("""
+    import sys
+    sys.path.insert(0, sys.argv[1])
+    import jitmod
+    assert jitmod.outer(1.5) == 4.0
+    print(sum(jitmod.outer.stats.cache_misses.values()), flush=True)
+""")
+
+
+@pytest.mark.slow  # three processes compiling
+def test_one_notice_for_the_processes_of_one_command(jitmod, tmp_path):
+    """Processes of one process group (a command and its workers), each compiling with an empty cache of its
+    own, give one notice between them; a process of another group gives its own."""
+    _, src, env = jitmod
+    env = {k: v for k, v in env.items() if k != QUIET_ENV}
+    env["MMCONCEPTS_DATA"] = str(tmp_path / "data")  # the lock folder, with the group's marker
+    errs = []
+    for i, new_group in enumerate((False, False, True)):
+        child = subprocess.run([sys.executable, "-c", NOTICE_CHILD, str(src)], text=True, capture_output=True,
+                               env=dict(env, NUMBA_CACHE_DIR=str(tmp_path / f"numba{i}")),
+                               start_new_session=new_group, timeout=120)
+        assert child.returncode == 0, child.stderr
+        assert child.stdout.split() == ["1"]  # it compiled
+        errs.append(child.stderr.count(_jit.COMPILE_NOTICE))
+    assert errs == [1, 0, 1]

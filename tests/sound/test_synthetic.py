@@ -209,8 +209,23 @@ def test_corpus_is_deterministic_for_a_seed(tiny, tmp_path):
         make_caregiver_corpus(tmp_path / "again", n_utterances_per_speaker=1, n_speakers=1)
 
 
+@needs_both
+@pytest.mark.slow
+def test_verbose_shows_a_bar_and_generates_the_same_corpus(tiny, tmp_path, capsys):
+    capsys.readouterr()
+    loud = make_caregiver_corpus(tmp_path / "loud", n_utterances_per_speaker=6, n_speakers=2, random_state=11,
+                                 verbose=True)
+    err = capsys.readouterr().err
+    assert "generated utterances" in err and "/12 " in err
+    assert loud.transcriptions == tiny.transcriptions and loud.labels == tiny.labels
+    if all(get_engine(n).deterministic for n in ENGINES):
+        assert all(u.path.read_bytes() == v.path.read_bytes() for u, v in zip(tiny, loud))
+    with pytest.raises(ParameterError, match="make_caregiver_corpus: verbose must be a bool or an int >= 0"):
+        make_caregiver_corpus(tmp_path / "bad", n_utterances_per_speaker=1, n_speakers=1, verbose="yes")
+
+
 @needs_piper
-def test_fetch_caregiver_uses_its_cache(tmp_path, monkeypatch):
+def test_fetch_caregiver_uses_its_cache(tmp_path, monkeypatch, capsys):
     calls = []
     real = synthetic._write_corpus
 
@@ -219,8 +234,11 @@ def test_fetch_caregiver_uses_its_cache(tmp_path, monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(synthetic, "_write_corpus", counting)
-    a = fetch_caregiver(tmp_path, n_utterances_per_speaker=2, n_speakers=1, random_state=1)
-    b = fetch_caregiver(tmp_path, n_utterances_per_speaker=2, n_speakers=1, random_state=1)
+    a = fetch_caregiver(tmp_path, n_utterances_per_speaker=2, n_speakers=1, random_state=1, verbose=True)
+    err = capsys.readouterr().err
+    assert "generated utterances" in err and "/2 " in err  # verbose: a bar while generating
+    b = fetch_caregiver(tmp_path, n_utterances_per_speaker=2, n_speakers=1, random_state=1, verbose=True)
+    assert "generated utterances" not in capsys.readouterr().err  # nothing generated, no bar
     assert len(calls) == 1 and len(a) == len(b) == 2
     assert a.root == b.root and a.root.name == f"caregiver-synth-v{synthetic.GENERATOR_VERSION}-s1-n2-seed1"
     assert b.transcriptions == a.transcriptions

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from .._paths import data_home
+from .._progress import progress as progress_bar
 from ..errors import ExperimentError, ParameterError
 from .spec import ExperimentSkipped
 from .workers import WarningsCarried, progress_enabled, workers_end_with_this_process
@@ -50,7 +51,7 @@ class RunContext:
     logger : logging.Logger, optional
         Where to log (default ``logging.getLogger("mmconcepts.experiments")``).
     show_progress : bool, default=True
-        Show progress bars; they are shown only when stderr is a terminal.
+        Show progress bars; they are shown only when stderr is a terminal (:attr:`verbose`).
     client : distributed.Client, optional
         A Dask client: :meth:`parallel` then runs its items on that cluster's workers
         (``workers`` is not used). See :mod:`mmconcepts.engine.cluster`.
@@ -78,8 +79,18 @@ class RunContext:
         self.data = MappingProxyType({str(k): Path(v) for k, v in self.data.items()})
         self.cache_dir = Path(self.cache_dir)
 
+    @property
+    def verbose(self) -> bool:
+        """Whether this run shows progress: :attr:`show_progress` asked for it and stderr is a terminal.
+
+        The ``verbose=`` to give the package's feature extractors and data generators that an
+        experiment calls in this process (a task run by :meth:`parallel` draws no bar of its
+        own: bars from several processes would write over each other).
+        """
+        return progress_enabled(self.show_progress)
+
     def progress(self, iterable: Iterable[_T], *, total: int | None = None, desc: str | None = None) -> Iterable[_T]:
-        """Wrap ``iterable`` in a tqdm progress bar (silent when quiet or not on a terminal).
+        """Wrap ``iterable`` in a tqdm progress bar on stderr when :attr:`verbose` (else return it as it is).
 
         Parameters
         ----------
@@ -89,9 +100,7 @@ class RunContext:
         desc : str, optional
             Label shown before the bar.
         """
-        from tqdm.auto import tqdm
-
-        return tqdm(iterable, total=total, desc=desc, disable=not progress_enabled(self.show_progress), leave=False)
+        return progress_bar(iterable, verbose=self.verbose, total=total, desc=desc)
 
     def parallel(self, fn: Callable[[_T], _R], items: Iterable[_T], *, desc: str | None = None,
                  on_result: Callable[[int, _R], None] | None = None) -> list[_R]:

@@ -72,8 +72,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .._paths import data_home as _data_home
+from .._progress import progress
 from .._store import generated_folder, versioned
-from .._validation import check_random_state
+from .._validation import check_random_state, validate_params
 from ..errors import ParameterError
 from .data import (
     CHOREO1_LIMBS,
@@ -702,28 +703,36 @@ def _check_seed(random_state) -> int:
     return int(random_state)
 
 
+_GENERATOR_CONSTRAINTS: dict[str, list] = {"verbose": ["verbose"]}
+
+
 def write_choreo1(folder: str | os.PathLike[str], subset: str, *, random_state: int = 0,
-                  n_records: int | None = None, params: DancerParams = DancerParams()) -> Path:
+                  n_records: int | None = None, params: DancerParams = DancerParams(),
+                  verbose: bool | int = False) -> Path:
     """Generate a Choreo1 subset and write ``<folder>/<subset>.json`` + NPZ. Returns the JSON path.
 
     Deterministic for a given ``random_state``: record i depends only on (seed, subset, i).
+    ``verbose`` shows a progress bar over the records (see :func:`make_choreo1`).
     """
     seed = _check_seed(random_state)
+    validate_params({"verbose": verbose}, _GENERATOR_CONSTRAINTS, owner="write_choreo1")
     labels = choreo1_label_sets(subset, n_records=n_records, random_state=_record_rng(seed, subset + ":labels", 0))
     body = _dancer_body(seed, params)
     recs = [simulate_choreography(l, random_state=_record_rng(seed, subset, i), params=params, body=body)
-            for i, l in enumerate(labels)]
+            for i, l in enumerate(progress(labels, verbose=verbose, desc=f"generated {subset}", unit="record"))]
     return save_choreo1(recs, folder, subset)
 
 
 def write_choreo2(folder: str | os.PathLike[str], *, random_state: int = 0, n_records: int | None = None,
-                  params: DancerParams = DancerParams(duration=(2.5, 4.5))) -> Path:
+                  params: DancerParams = DancerParams(duration=(2.5, 4.5)), verbose: bool | int = False) -> Path:
     """Generate the Choreo2-like set (10 gestures of Table B.3) and write ``choreo2.json`` + NPZ.
 
     Marker names are written from the observer's point of view, as in the real Choreo2
-    (:ref:`format-choreo2`): the dancer's left hand is written ``right_hand``.
+    (:ref:`format-choreo2`): the dancer's left hand is written ``right_hand``. ``verbose``
+    shows a progress bar over the records (see :func:`make_choreo1`).
     """
     seed = _check_seed(random_state)
+    validate_params({"verbose": verbose}, _GENERATOR_CONSTRAINTS, owner="write_choreo2")
     n = SUBSET_SIZES["choreo2"] if n_records is None else int(n_records)
     if n < 1:
         raise ParameterError(f"n_records must be >= 1; got {n_records}.")
@@ -732,7 +741,7 @@ def write_choreo2(folder: str | os.PathLike[str], *, random_state: int = 0, n_re
     body = _dancer_body(seed, params)
     swap = {m: (m.replace("left", "RIGHT").replace("right", "left").replace("RIGHT", "right")) for m in CHOREO2_MARKERS}
     recs = []
-    for i, lab in enumerate(labels):
+    for i, lab in enumerate(progress(labels, verbose=verbose, desc="generated choreo2", unit="record")):
         r = simulate_choreography((CHOREO2_TO_CHOREO1[lab],), random_state=_record_rng(seed, "choreo2", i),
                                   params=params, body=body, markers=CHOREO2_MARKERS, with_orientations=True)
         recs.append(MotionRecording(r.positions, tuple(swap[m] for m in CHOREO2_MARKERS), (lab,),
@@ -748,7 +757,7 @@ def _generate(home: Path, root: Path, manifest: dict, build: Callable[[Path], ob
 
 
 def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None, random_state: int = 0,
-                 n_records: int | None = None, force: bool = False) -> MotionDataset:
+                 n_records: int | None = None, force: bool = False, verbose: bool | int = False) -> MotionDataset:
     """The synthetic Choreo1 subset, generated once into a cache folder and loaded from it.
 
     Made by the package's cache facility (:func:`mmconcepts._store.generated_folder`): nothing
@@ -768,8 +777,12 @@ def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None
         Fewer (or more) records than the thesis' size, e.g. for quick runs.
     force : bool
         Regenerate even if a complete copy exists.
+    verbose : bool or int, default=False
+        Show a progress bar (tqdm, on stderr) over the records while they are generated; an
+        int above 0 counts as True. The records are the same.
     """
     seed = _check_seed(random_state)
+    validate_params({"verbose": verbose}, _GENERATOR_CONSTRAINTS, owner="make_choreo1")
     if subset not in ("primitive", "mixed_partial", "mixed_full"):
         raise ParameterError(f"subset must be 'primitive', 'mixed_partial' or 'mixed_full'; got {subset!r}.")
     home = _data_home(data_home)
@@ -777,22 +790,24 @@ def make_choreo1(subset: str, *, data_home: str | os.PathLike[str] | None = None
     stem = subset if n_records is None else f"{subset}-n{n}"
     root = home / "choreo1-synthetic" / f"seed{seed}" / stem
     _generate(home, root, {"seed": seed, "subset": subset, "n_records": n},
-              lambda tmp: write_choreo1(tmp, subset, random_state=seed, n_records=n_records), force)
+              lambda tmp: write_choreo1(tmp, subset, random_state=seed, n_records=n_records, verbose=verbose), force)
     ds = load_choreo1(root / f"{subset}.json", frame_rate=FRAME_RATE)
     ds.name = subset
     return ds
 
 
 def make_choreo2(*, data_home: str | os.PathLike[str] | None = None, random_state: int = 0,
-                 n_records: int | None = None, force: bool = False) -> MotionDataset:
+                 n_records: int | None = None, force: bool = False, verbose: bool | int = False) -> MotionDataset:
     """The synthetic Choreo2-like set (1100 records, Table B.3), cached as :func:`make_choreo1`.
 
     Files go to ``<data_home>/choreo2-synthetic/seed<random_state>/{full,n<n_records>}/``.
+    ``verbose`` shows a progress bar over the records while they are generated.
     """
     seed = _check_seed(random_state)
+    validate_params({"verbose": verbose}, _GENERATOR_CONSTRAINTS, owner="make_choreo2")
     home = _data_home(data_home)
     n = SUBSET_SIZES["choreo2"] if n_records is None else int(n_records)
     root = home / "choreo2-synthetic" / f"seed{seed}" / (f"n{n}" if n_records is not None else "full")
     _generate(home, root, {"seed": seed, "subset": "choreo2", "n_records": n},
-              lambda tmp: write_choreo2(tmp, random_state=seed, n_records=n_records), force)
+              lambda tmp: write_choreo2(tmp, random_state=seed, n_records=n_records, verbose=verbose), force)
     return load_choreo2(root / "choreo2.json", frame_rate=FRAME_RATE)

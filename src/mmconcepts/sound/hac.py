@@ -27,6 +27,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
+from .._progress import progress
 from .._validation import Interval, check_random_state, validate_params
 from ..errors import DataError
 from .features import delta
@@ -140,6 +141,9 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
         k-means++ seeding, one initialisation).
     random_state : int, Generator or None
         Seeds the frame subsample and k-means.
+    verbose : bool or int, default=False
+        Show a progress bar (tqdm, on stderr) over the three codebooks :meth:`fit` learns,
+        the slow part of the fit; an int above 0 counts as True. The results are the same.
 
     Attributes
     ----------
@@ -170,6 +174,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
         "max_fit_frames": [Interval("int", 1, None)],
         "max_iter": [Interval("int", 1, None)],
         "random_state": ["random_state"],
+        "verbose": ["verbose"],
     }
     _HINTS = {
         "n_clusters": "Give the codebook sizes of the three streams, e.g. (150, 150, 100) as in the thesis.",
@@ -185,6 +190,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
         max_fit_frames: int = 100_000,
         max_iter: int = 100,
         random_state=None,
+        verbose: bool | int = False,
     ) -> None:
         self.n_clusters = n_clusters
         self.lags = lags
@@ -192,6 +198,7 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.max_fit_frames = max_fit_frames
         self.max_iter = max_iter
         self.random_state = random_state
+        self.verbose = verbose
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
@@ -239,7 +246,8 @@ class HAC(SaveLoadMixin, TransformerMixin, BaseEstimator):
             else slice(None)
         )
         self.codebooks_, self.scales_, self._kmeans = [], [], []
-        for s, k in zip(streams, self.n_clusters):
+        for s, k in progress(zip(streams, self.n_clusters), verbose=self.verbose, total=len(streams),
+                             desc="HAC codebooks", unit="codebook"):
             sample = s[take]
             if sample.shape[0] < k:
                 raise DataError(

@@ -102,8 +102,9 @@ from scipy import signal
 
 from .._io import LABEL_SEPARATOR, atomic_dir
 from .._paths import data_home as _data_home
+from .._progress import progress_chunks
 from .._store import generated_folder, versioned
-from .._validation import check_positive_int, check_random_state
+from .._validation import check_positive_int, check_random_state, validate_params
 from ..errors import ParameterError
 from .audio import resample, write_audio
 from .data import (
@@ -141,6 +142,8 @@ CAREGIVER_KEYWORDS: tuple[str, ...] = (
 SAMPLE_RATE = 16000
 
 _CHUNK = 25  # utterances per parallel task (results do not depend on it)
+
+_GENERATOR_CONSTRAINTS: dict[str, list] = {"verbose": ["verbose"]}
 
 # --------------------------------------------------------------------------- grammar
 
@@ -599,7 +602,7 @@ def make_caregiver_corpus(
     random_state: int = 0,
     n_jobs: int | None = 1,
     overwrite: bool = False,
-    verbose: int = 0,
+    verbose: bool | int = False,
 ) -> SpeechCorpus:
     """Generate a Caregiver-like corpus into ``root`` (generic audio layout) and load it.
 
@@ -627,8 +630,9 @@ def make_caregiver_corpus(
         joblib processes over chunks of 25 utterances (-1: all cores).
     overwrite : bool, default=False
         Replace an existing ``root``.
-    verbose : int, default=0
-        joblib's progress messages.
+    verbose : bool or int, default=False
+        Show a progress bar (tqdm, on stderr) over the utterances as they are generated; an
+        int above 0 counts as True. The corpus is the same.
 
     Returns
     -------
@@ -644,6 +648,7 @@ def make_caregiver_corpus(
     n = check_positive_int(n_utterances_per_speaker, "n_utterances_per_speaker")
     n_spk = _check_n_speakers(n_speakers)
     kws = _check_keywords(keywords)
+    validate_params({"verbose": verbose}, _GENERATOR_CONSTRAINTS, owner="make_caregiver_corpus")
     root = Path(root)
     if root.exists() and not overwrite and (not root.is_dir() or any(root.iterdir())):
         raise ParameterError(f"{root} already exists; remove it or pass overwrite=True.")
@@ -660,7 +665,7 @@ def _check_n_speakers(n_speakers: int) -> int:
 
 
 def _write_corpus(folder: Path, n: int, n_spk: int, kws: tuple[str, ...], keywords_per_utterance: int, seed: int,
-                  n_jobs: int | None, verbose: int) -> None:
+                  n_jobs: int | None, verbose: bool | int) -> None:
     """Write the corpus of :func:`make_caregiver_corpus` into the empty ``folder`` (arguments checked)."""
     from joblib import Parallel, delayed
 
@@ -676,9 +681,10 @@ def _write_corpus(folder: Path, n: int, n_spk: int, kws: tuple[str, ...], keywor
         for c in range(0, n, _CHUNK):
             tasks.append((c, s, prof, items[c: c + _CHUNK]))
     tasks.sort(key=lambda t: (t[0], t[1]))  # interleave speakers: slow and fast engines spread over workers
-    results = Parallel(n_jobs=n_jobs, verbose=verbose)(
-        delayed(_render_chunk)(str(folder), prof, s, seed, items) for _, s, prof, items in tasks
-    )
+    results = progress_chunks(
+        Parallel(n_jobs=n_jobs, return_as="generator")(
+            delayed(_render_chunk)(str(folder), prof, s, seed, items) for _, s, prof, items in tasks),
+        [len(items) for *_, items in tasks], verbose=verbose, desc="generated utterances", unit="utterance")
     by_key = {}
     for (c, s, _, _), res in zip(tasks, results):
         by_key[(s, c)] = res
@@ -714,7 +720,7 @@ def fetch_caregiver(
     random_state: int = 0,
     n_jobs: int | None = 1,
     force: bool = False,
-    verbose: int = 0,
+    verbose: bool | int = False,
 ) -> SpeechCorpus:
     """The synthetic Caregiver-like corpus, generated once into a cache folder and loaded from it.
 
@@ -737,7 +743,8 @@ def fetch_caregiver(
     n_jobs : int or None, default=1
     force : bool, default=False
         Regenerate even if a complete copy exists.
-    verbose : int, default=0
+    verbose : bool or int, default=False
+        Show a progress bar over the utterances while the corpus is generated.
 
     Returns
     -------
@@ -748,6 +755,7 @@ def fetch_caregiver(
     n_spk = _check_n_speakers(n_speakers)
     kpu = check_positive_int(keywords_per_utterance, "keywords_per_utterance")
     kws = _check_keywords(CAREGIVER_KEYWORDS)
+    validate_params({"verbose": verbose}, _GENERATOR_CONSTRAINTS, owner="fetch_caregiver")
     suffix = "" if kpu == 1 else f"-k{kpu}"
     home = _data_home(data_home)
     folder = home / f"caregiver-synth-v{GENERATOR_VERSION}-s{n_spk}-n{n}{suffix}-seed{seed}"

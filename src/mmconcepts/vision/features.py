@@ -79,6 +79,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._optional import optional_import
 from .._persist import SaveLoadMixin
+from .._progress import progress, progress_chunks
 from .._validation import InstanceOf, Interval, Options, is_finite_real, check_random_state, validate_params
 from ..errors import DataError, ParameterError
 from .data import as_rgb_image, check_images
@@ -488,18 +489,21 @@ _BAG_CONSTRAINTS: dict[str, list] = {
     "max_fit_samples": [Interval("int", 1)],
     "n_jobs": [Interval("int"), None],
     "random_state": ["random_state"],
+    "verbose": ["verbose"],
 }
 
 
-def _n_jobs_chunks(images: list[np.ndarray], func, n_jobs, **kwargs) -> list:
-    """Apply ``func(image, **kwargs)`` to every image, in chunks, with joblib."""
+def _n_jobs_chunks(images: list[np.ndarray], func, kwargs: dict, *, n_jobs, verbose) -> list:
+    """Apply ``func(image, **kwargs)`` to every image, in chunks, with joblib (a bar over the images if ``verbose``)."""
+    desc = "image features"
     if n_jobs in (None, 1) or len(images) <= _CHUNK:
-        return [func(im, **kwargs) for im in images]
+        return [func(im, **kwargs) for im in progress(images, verbose=verbose, desc=desc, unit="image")]
     from joblib import Parallel, delayed
 
     chunks = [images[i: i + _CHUNK] for i in range(0, len(images), _CHUNK)]
-    out = Parallel(n_jobs=n_jobs)(delayed(_apply_chunk)(func, ch, kwargs) for ch in chunks)
-    return [x for part in out for x in part]
+    out = Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_apply_chunk)(func, ch, kwargs) for ch in chunks)
+    parts = progress_chunks(out, [len(ch) for ch in chunks], verbose=verbose, desc=desc, unit="image")
+    return [x for part in parts for x in part]
 
 
 def _apply_chunk(func, images, kwargs):
@@ -591,7 +595,7 @@ class _WordBag(SaveLoadMixin, TransformerMixin, BaseEstimator, abc.ABC):
 
     def _extract(self, images: list[np.ndarray]) -> list[LocalFeatures]:
         func, kwargs = self._local_function()
-        return _n_jobs_chunks(images, func, self.n_jobs, **kwargs)
+        return _n_jobs_chunks(images, func, kwargs, n_jobs=self.n_jobs, verbose=self.verbose)
 
     def _fit_locals(self, locals_: Sequence[LocalFeatures], rng: np.random.Generator) -> None:
         vectors = np.concatenate([l.vectors for l in locals_])
@@ -686,6 +690,9 @@ class ColorHistograms(_WordBag):
         Parallel superpixel extraction (joblib); 1 runs in-process.
     random_state : int, Generator or None
         Seeds the subsampling and k-means.
+    verbose : bool or int, default=False
+        Show a progress bar (tqdm, on stderr) over the images whose superpixels are
+        extracted; an int above 0 counts as True. The results are the same.
 
     Attributes
     ----------
@@ -704,7 +711,7 @@ class ColorHistograms(_WordBag):
 
     def __init__(self, *, n_colors: int = 64, n_segments: int = 50, compactness: float = 10.0,
                  normalize: str | None = "l1", max_fit_samples: int = 50000, n_jobs: int | None = 1,
-                 random_state=None) -> None:
+                 random_state=None, verbose: bool | int = False) -> None:
         self.n_colors = n_colors
         self.n_segments = n_segments
         self.compactness = compactness
@@ -712,6 +719,7 @@ class ColorHistograms(_WordBag):
         self.max_fit_samples = max_fit_samples
         self.n_jobs = n_jobs
         self.random_state = random_state
+        self.verbose = verbose
 
     def _n_codewords(self) -> int:
         return int(self.n_colors)
@@ -748,6 +756,9 @@ class KeypointBag(_WordBag):
         At most this many training descriptors fit the codebook.
     n_jobs : int, optional
     random_state : int, Generator or None
+    verbose : bool or int, default=False
+        Show a progress bar (tqdm, on stderr) over the images whose descriptors are
+        computed; an int above 0 counts as True. The results are the same.
 
     Attributes
     ----------
@@ -765,7 +776,7 @@ class KeypointBag(_WordBag):
 
     def __init__(self, *, n_words: int = 256, patch_size: int = 16, step: int = 8, contrast_threshold: float = 0.01,
                  rotation_invariant: bool = True, normalize: str | None = "l1", max_fit_samples: int = 50000,
-                 n_jobs: int | None = 1, random_state=None) -> None:
+                 n_jobs: int | None = 1, random_state=None, verbose: bool | int = False) -> None:
         self.n_words = n_words
         self.patch_size = patch_size
         self.step = step
@@ -775,6 +786,7 @@ class KeypointBag(_WordBag):
         self.max_fit_samples = max_fit_samples
         self.n_jobs = n_jobs
         self.random_state = random_state
+        self.verbose = verbose
 
     def _n_codewords(self) -> int:
         return int(self.n_words)
@@ -799,7 +811,8 @@ class MidFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
     Parameters
     ----------
     base : ColorHistograms or KeypointBag, optional
-        Default ``ColorHistograms()``. Its ``random_state`` seeds the codebook.
+        Default ``ColorHistograms()``. Its ``random_state`` seeds the codebook, and its
+        ``verbose`` shows the progress of the local features' extraction.
     order : {2, 3}, default=2
         Pairs or triplets.
     n_neighbors : int, default=4
@@ -907,7 +920,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         triplets.
     color : ColorHistograms, optional
         Colour parameters (default ``ColorHistograms()``); cloned. Its ``normalize``,
-        ``n_jobs`` and ``random_state`` are replaced by this object's.
+        ``n_jobs``, ``verbose`` and ``random_state`` are replaced by this object's.
     keypoints : KeypointBag, optional
         Keypoint parameters (default ``KeypointBag()``); cloned, as ``color``.
     n_neighbors : int, default=4
@@ -924,6 +937,9 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         a scikit-learn :class:`~sklearn.pipeline.Pipeline` (e.g. before
         :class:`~mmconcepts.nmf.NMF`). :meth:`fit_locals` and :meth:`transform_locals` always
         return the dict.
+    verbose : bool or int, default=False
+        Show a progress bar (tqdm, on stderr) over the images whose local features are
+        extracted (the slow part); an int above 0 counts as True. The results are the same.
 
     Attributes
     ----------
@@ -955,11 +971,13 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         "n_jobs": [Interval("int"), None],
         "random_state": ["random_state"],
         "stack": ["boolean"],
+        "verbose": ["verbose"],
     }
 
     def __init__(self, descriptors: Sequence[str] = THESIS_DESCRIPTORS, *, color: ColorHistograms | None = None,
                  keypoints: KeypointBag | None = None, n_neighbors: int = 4, normalize: str | None = "l1",
-                 n_jobs: int | None = 1, random_state=None, stack: bool = False) -> None:
+                 n_jobs: int | None = 1, random_state=None, stack: bool = False,
+                 verbose: bool | int = False) -> None:
         self.descriptors = descriptors
         self.color = color
         self.keypoints = keypoints
@@ -968,6 +986,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         self.n_jobs = n_jobs
         self.random_state = random_state
         self.stack = stack
+        self.verbose = verbose
 
     def _check_params(self) -> list[str]:
         """Validate the parameters; the descriptor-set names, as a list."""
@@ -977,7 +996,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
     def _extract(self, ims, need_c: bool, need_k: bool, c_est, k_est):
         ckw = c_est._local_function()[1] if need_c else None
         kkw = k_est._local_function()[1] if need_k else None
-        pairs = _n_jobs_chunks(ims, _both, self.n_jobs, color_kw=ckw, kp_kw=kkw)
+        pairs = _n_jobs_chunks(ims, _both, {"color_kw": ckw, "kp_kw": kkw}, n_jobs=self.n_jobs, verbose=self.verbose)
         return [p[0] for p in pairs], [p[1] for p in pairs]
 
     def fit(self, images, y=None) -> ImageFeatures:
@@ -1008,7 +1027,7 @@ class ImageFeatures(SaveLoadMixin, TransformerMixin, BaseEstimator):
         k_est = clone(self.keypoints if self.keypoints is not None else KeypointBag()) if need_k else None
         for est in (c_est, k_est):
             if est is not None:
-                est.set_params(normalize=self.normalize, n_jobs=self.n_jobs)
+                est.set_params(normalize=self.normalize, n_jobs=self.n_jobs, verbose=self.verbose)
                 est._check_params()
         return names, c_est, k_est
 

@@ -197,7 +197,8 @@ def subset_arrays(ctx: RunContext, subset: str, *, streams: Streams, n_records: 
         return msr_subset(ctx.dataset("msr-action3d"), subset, streams=streams, n_records=n_records, n_parts=MSR_PARTS)
     from ...motion.synthetic import make_choreo1
 
-    ds = make_choreo1(subset, data_home=ctx.cache_dir, random_state=streams.seed_for("data"), n_records=n_records)
+    ds = make_choreo1(subset, data_home=ctx.cache_dir, random_state=streams.seed_for("data"), n_records=n_records,
+                      verbose=ctx.verbose)
     angles, Y, ids = motion_arrays(ds)
     return MotionArrays(angles, Y, ids, kind, f"synthetic Choreo1 {subset} ({len(Y)} records, {len(ids)} gestures)")
 

@@ -420,7 +420,8 @@ def label_set_corpus(ctx: RunContext, *, seeds: Streams, speaker_index: int = 0,
     parts = [sub.subset(np.sort(rng.choice(len(sub), n_single, replace=False)))] if n_single else []
     if n_double:
         doubles = fetch_caregiver(ctx.cache_dir, n_utterances_per_speaker=n_double, n_speakers=speaker_index + 1,
-                                  keywords_per_utterance=2, random_state=CORPUS_SEED, n_jobs=ctx.workers)
+                                  keywords_per_utterance=2, random_state=CORPUS_SEED, n_jobs=ctx.workers,
+                                  verbose=ctx.verbose)
         parts.append(doubles.subset(np.flatnonzero(speaker_ids(doubles) == speaker)))
     utts = _concat(parts, "caregiver-synth-1+2")
     Y, keywords = keyword_sets(utts, sorted(set(sub.keywords)))

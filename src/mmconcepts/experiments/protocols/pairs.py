@@ -109,7 +109,8 @@ def load_motion(ctx: RunContext, *, n_motion: int) -> dict:
     else:
         from ...motion.synthetic import make_choreo2
 
-        ds, fn = make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_motion), orientation_angles
+        ds = make_choreo2(data_home=ctx.cache_dir, random_state=0, n_records=n_motion, verbose=ctx.verbose)
+        fn = orientation_angles
     gestures, angles, ids, positions = [], [], [], []
     for rec in ds:
         if len(rec.labels) != 1:

@@ -68,6 +68,7 @@ def load_corpus(ctx: RunContext, *, n_per_speaker: int, n_speakers: int = 4):
         n_speakers=n_speakers,
         random_state=CORPUS_SEED,
         n_jobs=ctx.workers,
+        verbose=ctx.verbose,
     )
 
 
