@@ -4,10 +4,12 @@ Each example writes one damaged record beside good ones (copies of the records i
 ``tests/data/records``) and runs the command line's ``report`` in this process. The damage:
 keys deleted anywhere in the record, values replaced by the wrong type, NaN, infinities,
 huge numbers and strings, HTML and backticks, deeply nested lists, non-UTF-8 bytes spliced
-into the file, the file cut short. The outcome must be a good one: exit code 0, no
-traceback, ``report.html`` and ``report.md`` both written, every good record shown, the
-damaged one either shown or listed under "Records left out" (by file name), and nothing the
-record holds reaching either file as markup.
+into the file, the file cut short, and a list, object or string grown to tens of thousands of
+items or millions of characters (its own content repeated: 20 000 claims, a 3 MB note). The
+outcome must be a good one: exit code 0, no traceback, ``report.html`` and ``report.md`` both
+written and each under :data:`REPORT_BOUND` characters, every good record shown, the damaged
+one either shown or listed under "Records left out" (by file name), and nothing the record
+holds reaching either file as markup.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import io
+import itertools
 import json
 import math
 import re
@@ -31,6 +34,7 @@ from hypothesis import strategies as st
 
 from mmconcepts.cli import main
 from mmconcepts.engine.record import RECORD_KEYS
+from mmconcepts.report._model import MAX_TEXT
 
 pytestmark = pytest.mark.fuzz
 
@@ -63,10 +67,33 @@ def _paths(obj: Any, prefix: tuple = ()) -> list[tuple]:
     return out
 
 
+def _value(obj: Any, path: tuple) -> Any:
+    for key in path:
+        obj = obj[key]
+    return obj
+
+
 def _parent(obj: Any, path: tuple) -> Any:
     for key in path[:-1]:
         obj = obj[key]
     return obj
+
+
+#: The most characters each report file may have: the good records take about 60 000; a damaged record, however
+#: large, shows a bounded part of itself.
+REPORT_BOUND = 4_000_000
+
+
+def _grown(value: Any, n: int) -> Any:
+    """``value`` grown to ``n`` items (a list or object: its own items repeated, keys made unique) or ``n``
+    characters (a string: itself repeated); other values as they are."""
+    if isinstance(value, (list, str)) and value:
+        return (value * (n // len(value) + 1))[:n]
+    if isinstance(value, dict) and value:
+        items = list(value.items())
+        return {key if i < len(items) else f"{key}~{i}": v
+                for i, (key, v) in enumerate(itertools.islice(itertools.cycle(items), n))}
+    return value
 
 
 def _nested(depth: int) -> Any:
@@ -101,10 +128,19 @@ def damaged_records(draw) -> tuple[str, bytes]:
             break
         path = draw(st.sampled_from(paths))
         parent = _parent(record, path)
-        if draw(st.booleans()):
+        edit = draw(st.sampled_from(["delete", "replace", "grow"]))
+        if edit == "delete":
             del parent[path[-1]]
-        else:
+        elif edit == "replace":
             parent[path[-1]] = draw(weird_values)
+        else:  # a list or object grown to 10 000+ items, a string to 2 000 000+ characters (often one of the top)
+            growable = [p for p in paths if isinstance(_value(record, p), (list, dict, str)) and _value(record, p)]
+            top = [p for p in growable if len(p) <= 2]
+            path = draw(st.sampled_from(top if top and draw(st.booleans()) else growable or paths))
+            parent, value = _parent(record, path), _value(record, path)
+            size = draw(st.integers(2 * 10**6, 4 * 10**6) if isinstance(value, str) else st.integers(10**4, 3 * 10**4))
+            parent[path[-1]] = _grown(value, size)
+            break  # (the grown copies share their items: a later edit would change them all)
     if draw(st.integers(0, 9)) == 0:  # not even an object
         record = draw(weird_values)
     try:
@@ -165,13 +201,16 @@ def _good_report(bad_name: str, bad_id: Any, unrecognisable: bool):
         assert code == 0, f"exit code {code}: {output[-2000:]}"
         assert "Traceback" not in output, output[-2000:]
         assert html_text and md, "report.html or report.md not written"
+        assert len(html_text) < REPORT_BOUND and len(md) < REPORT_BOUND, f"reports of {len(html_text)}, {len(md)} chars"
         for exp_id in GOOD.values():
             assert f'id="exp-{exp_id}"' in html_text, f"good record {exp_id} not shown in the HTML"
             assert f"`{exp_id}`" in md, f"good record {exp_id} not shown in the Markdown"
         left_out = html_text.split('id="records-left-out"', 1)
         listed = len(left_out) == 2 and f"<td>{_esc(bad_name)}</td>" in left_out[1].split("</table>", 1)[0]
         # (a lone surrogate is written as "?")
-        shown = isinstance(bad_id, str) and bad_id and _esc(bad_id.encode("utf-8", "replace").decode()) in html_text
+        # (an id longer than the report shows is cut)
+        shown = isinstance(bad_id, str) and bad_id and _esc(
+            bad_id[:MAX_TEXT].encode("utf-8", "replace").decode()) in html_text
         if not unrecognisable:
             assert listed or shown, "the damaged record is neither listed nor shown"
         parser = _Balanced()

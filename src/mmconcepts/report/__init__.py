@@ -53,6 +53,16 @@ def write_report(
     ------
     ExperimentError
         If ``results_dir`` is not an existing folder.
+
+    Notes
+    -----
+    The work is bounded whatever a record holds (a record edited by hand can hold 100 000
+    claims or a 10 MB string): a string is shown up to 8 000 characters (a note, message or
+    traceback up to 20 000; a traceback keeps its end), a list up to 1 000 items (claims,
+    metrics, tables, rows, notes, cards...; a table up to 100 columns) and a record up to about
+    1 000 000 characters in all, each cut saying how much it left out (``… (N more
+    characters)``, ``9000 more claims not shown``); a file larger than 32 MB is listed under
+    "Records left out" unread. No record an experiment writes comes near these limits.
     """
     results_dir = Path(results_dir)
     if not results_dir.is_dir():

@@ -1,14 +1,26 @@
-"""Read result records and turn them into what both report formats show (internal)."""
+"""Read result records and turn them into what both report formats show (internal).
+
+What a record shows is bounded, whatever it holds (a record edited by hand can hold 100 000
+claims or a 10 MB string): each string is cut at :data:`MAX_TEXT` characters (notes, messages
+and tracebacks at :data:`MAX_PROSE`), each list at :data:`MAX_ITEMS` items (a table at
+:data:`MAX_COLUMNS` columns), and all the strings of one record together at
+:data:`MAX_RECORD_TEXT` characters; the report says what it left out (``… (N more
+characters)``, ``N more claims not shown``). A record file larger than :data:`MAX_RECORD_BYTES`
+is listed under "Records left out" unread. The work is linear in the size of the records, and a
+record renders to a few megabytes at most. No record an experiment writes comes near a limit.
+"""
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import math
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Collection, Iterator, Sequence
+from typing import Any, TypeVar
 
 from .._fingerprint import code_fingerprint
 from ..errors import ExperimentError
@@ -18,8 +30,86 @@ from ..engine.verdicts import TALLY_KINDS, redecide, tally_claims, verdict_words
 
 logger = logging.getLogger("mmconcepts.report")
 
+#: The most characters of one string of a record shown in a table cell, a heading or a list item (a claim's
+#: text, rule or test, a metric's name, a table cell, a warning, a caption); the rest is left out and counted
+#: (``… (N more characters)``). The longest such string a run writes is a claim's test (about 1 400 characters).
+MAX_TEXT = 8_000
+
+#: The most characters of a note, a table's note, a failure message or a traceback shown (a traceback keeps its
+#: end, where the error is: ``(N characters before) …``). The longest a run writes is a traceback (about 3 000).
+MAX_PROSE = 20_000
+
+#: The most items of one list of a record shown: claims, metrics, tables, a table's rows, notes, warnings,
+#: configuration entries, figures, data sets, concept cards, a card's labels and files, a claim's comparisons.
+#: The longest list a run writes is 151 metrics.
+MAX_ITEMS = 1_000
+
+#: The most columns of one table shown (a run writes at most 14).
+MAX_COLUMNS = 100
+
+#: The most characters all the strings of one record shown add up to, each counted with :data:`MARKUP` more for
+#: the markup around it (so that many empty cells are bounded too): once they are spent, the items of every list
+#: still to come are left out and counted. A run's record counts 35 000 at most.
+MAX_RECORD_TEXT = 1_000_000
+
+#: What each string shown counts for its markup (a table cell, a list item) against :data:`MAX_RECORD_TEXT`.
+MARKUP = 20
+
+#: The largest record file read, in bytes; a larger one is listed under "Records left out" (a run writes at most
+#: about 100 kB).
+MAX_RECORD_BYTES = 32 * 2**20
+
 STATUS_LABELS = {"ok": "ran", "failed": "FAILED", "skipped": "skipped"}
 VARIANT_LABELS = {"real": "real data", "synthetic": "generated data"}
+
+
+def clip(text: str, limit: int, *, tail: bool = False) -> str:
+    """``text`` cut to ``limit`` characters, saying how many were left out.
+
+    ``… (N more characters)`` follows the first ``limit`` characters; with ``tail``, the last ``limit`` are kept
+    after ``(N characters before) …``.
+    """
+    if len(text) <= limit:
+        return text
+    if tail:
+        return f"({len(text) - limit} characters before) … {text[len(text) - limit:]}"
+    return f"{text[:limit]} … ({len(text) - limit} more characters)"
+
+
+_T = TypeVar("_T")
+
+
+class _Shown:
+    """What one record shows within the report's bounds: strings cut (:func:`clip`), lists cut at
+    :data:`MAX_ITEMS` items, every string charged to the record's :data:`MAX_RECORD_TEXT`; what is left out
+    of each list counted in :attr:`omitted` (``{"claims": 9000}``)."""
+
+    def __init__(self) -> None:
+        self.left = MAX_RECORD_TEXT
+        self.omitted: dict[str, int] = {}
+
+    def text(self, value: Any, *, prose: bool = False, tail: bool = False) -> str:
+        """``str(value)`` cut at :data:`MAX_TEXT` (:data:`MAX_PROSE` for ``prose``), charged to the budget."""
+        shown = clip(value if isinstance(value, str) else str(value), MAX_PROSE if prose else MAX_TEXT, tail=tail)
+        self.left -= len(shown) + MARKUP
+        return shown
+
+    def leave_out(self, what: str, n: int) -> None:
+        """Count ``n`` more items of ``what`` left out."""
+        if n > 0:
+            self.omitted[what] = self.omitted.get(what, 0) + n
+
+    def items(self, what: str, items: Collection[_T], *, limit: int | None = None) -> Iterator[_T]:
+        """The items of ``items`` while fewer than ``limit`` (:data:`MAX_ITEMS`) are taken and the budget lasts;
+        the others counted under ``what``."""
+        limit = MAX_ITEMS if limit is None else limit
+        taken = 0
+        for item in items:
+            if taken >= limit or self.left <= 0:
+                break
+            taken += 1
+            yield item
+        self.leave_out(what, len(items) - taken)
 
 
 def format_number(value: Any) -> str:
@@ -113,9 +203,14 @@ def _signed(value: Any) -> str:
     return f"+{text}" if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else text
 
 
+def _more(items: Sequence[Any], what: str) -> list[str]:
+    """``["N more <what>"]`` for the items of ``items`` past :data:`MAX_ITEMS` (none within it)."""
+    return [f"{len(items) - MAX_ITEMS} more {what}"] if len(items) > MAX_ITEMS else []
+
+
 def _test_text(tests: Sequence[Any]) -> str:
     parts = []
-    for t in tests:
+    for t in itertools.islice(tests, MAX_ITEMS):
         if not isinstance(t, dict):
             continue
         comparison = str(t.get("comparison", ""))
@@ -127,7 +222,7 @@ def _test_text(tests: Sequence[Any]) -> str:
             parts.append(f"{comparison}: margin {_signed(t.get('margin'))} ({t['note']})")
         else:
             parts.append(f"{comparison}: margin {_signed(t.get('margin'))}")
-    return "; ".join(parts)
+    return "; ".join(parts + _more(tests, "comparisons"))
 
 
 def claim_test(claim: ClaimRecord) -> str:
@@ -142,9 +237,9 @@ def claim_test(claim: ClaimRecord) -> str:
             text += f" [{format_number(ri[0])}, {format_number(ri[1])}]"
         return text
     if claim.settings:
-        return " | ".join(f"{s.get('label', '')}: {s.get('verdict', '')}"
-                          + (f" ({_test_text(s.get('tests') or [])})" if s.get("tests") else "")
-                          for s in claim.settings)
+        return " | ".join([f"{s.get('label', '')}: {s.get('verdict', '')}"
+                           + (f" ({_test_text(s.get('tests') or [])})" if s.get("tests") else "")
+                           for s in itertools.islice(claim.settings, MAX_ITEMS)] + _more(claim.settings, "settings"))
     return _test_text(claim.tests)
 
 
@@ -172,34 +267,52 @@ class CardView:
     motions: list[MediaView]
 
 
-def _media(items: Any, results_dir: Path) -> list[MediaView]:
+#: How the report names what a card lists beyond the limits.
+_CARD_ITEMS = "labels and files of concept cards"
+
+
+def _is_file(path: Path) -> bool:
+    """Whether ``path`` is a file (False, not an error, for a name the system refuses: too long, a NUL byte)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def _usable(item: Any) -> bool:
+    """Whether a card's entry is a dict with a relative path inside the results folder."""
+    path = item.get("path") if isinstance(item, dict) else None
+    return isinstance(path, str) and bool(path) and not Path(path).is_absolute() and ".." not in Path(path).parts
+
+
+def _media(items: Any, results_dir: Path, shown: _Shown) -> list[MediaView]:
     """The files a card lists, in the order listed; entries without a usable relative path are left out."""
     out = []
-    for item in items if isinstance(items, list) else []:
-        path = item.get("path") if isinstance(item, dict) else None
-        if not isinstance(path, str) or not path or Path(path).is_absolute() or ".." in Path(path).parts:
-            continue
+    for item in shown.items(_CARD_ITEMS, [x for x in items if _usable(x)] if isinstance(items, list) else []):
+        path = shown.text(item["path"])
         seconds = item.get("seconds")
         size = [item.get(k) for k in ("width", "height")]
-        out.append(MediaView(path=path, exists=(results_dir / path).is_file(), caption=str(item.get("caption") or ""),
+        out.append(MediaView(path=path, exists=_is_file(results_dir / path),
+                             caption=shown.text(item.get("caption") or ""),
                              seconds=f"{seconds:.2f} s" if isinstance(seconds, (int, float)) else "",
                              width=size[0] if isinstance(size[0], int) else 0,
                              height=size[1] if isinstance(size[1], int) else 0))
     return out
 
 
-def explorer_cards(explorer: Any, results_dir: Path) -> list[CardView]:
+def explorer_cards(explorer: Any, results_dir: Path, shown: _Shown) -> list[CardView]:
     """The cards of a record's ``explorer`` entry (a malformed card is left out; a missing file is marked)."""
-    cards = explorer.get("cards") if isinstance(explorer, dict) else None
+    listed = explorer.get("cards") if isinstance(explorer, dict) else None
+    cards = [c for c in listed if isinstance(c, dict)] if isinstance(listed, list) else []
     out = []
-    for card in cards if isinstance(cards, list) else []:
-        if not isinstance(card, dict):
-            continue
-        labels = [(str(lab.get("label", "")), f"{100 * lab['share']:.0f} %" if isinstance(lab.get("share"), (int, float))
-                   else "") for lab in card.get("labels") or [] if isinstance(lab, dict)]
-        out.append(CardView(title=str(card.get("title") or "concept"), note=str(card.get("note") or ""), labels=labels,
-                            clips=_media(card.get("clips"), results_dir), images=_media(card.get("images"), results_dir),
-                            motions=_media(card.get("motions"), results_dir)))
+    for card in shown.items("concept cards", cards):
+        labels = [(shown.text(lab.get("label", "")), f"{100 * lab['share']:.0f} %"
+                   if isinstance(lab.get("share"), (int, float)) else "")
+                  for lab in shown.items(_CARD_ITEMS, [x for x in card.get("labels") or [] if isinstance(x, dict)])]
+        out.append(CardView(title=shown.text(card.get("title") or "concept"), note=shown.text(card.get("note") or ""),
+                            labels=labels, clips=_media(card.get("clips"), results_dir, shown),
+                            images=_media(card.get("images"), results_dir, shown),
+                            motions=_media(card.get("motions"), results_dir, shown)))
     return out
 
 
@@ -233,6 +346,11 @@ class ExperimentView:
     seed: str = ""
     cards: list[CardView] = field(default_factory=list)  # the concept explorer
     explorer_note: str = ""
+    omitted: dict[str, int] = field(default_factory=dict)  # what the record holds past the report's limits
+
+    def left_out(self, *whats: str) -> str:
+        """``9000 more claims, 7 more notes``: what of ``whats`` (default: everything) the report leaves out."""
+        return ", ".join(f"{n} more {what}" for what, n in self.omitted.items() if n and (not whats or what in whats))
 
     @property
     def status_label(self) -> str:
@@ -302,17 +420,15 @@ class ExperimentGroup:
         there only when the thesis has a number for one of the metrics.
         """
         reference: dict[str, str] = {}
-        names: list[str] = []
+        seen: dict[str, None] = {}  # the names in order of appearance (a dict: a list's `in` is linear)
         spreads: list[dict[str, str]] = []
         for view in self.views:
             spreads.append({name: ours for name, ours, _ in view.metrics})
             for name, _ours, thesis in view.metrics:
-                if name not in names:
-                    names.append(name)
+                seen.setdefault(name)
                 if thesis and name not in reference:
                     reference[name] = thesis
-        shown = set(names)
-        names = [n for n in names if not (n.endswith(SPREAD_SUFFIX) and n[: -len(SPREAD_SUFFIX)] in shown)]
+        names = [n for n in seen if not (n.endswith(SPREAD_SUFFIX) and n[: -len(SPREAD_SUFFIX)] in seen)]
 
         def cell(view: ExperimentView, spread: dict[str, str], name: str) -> str:
             value, sd = view.values.get(name, ""), spread.get(name + SPREAD_SUFFIX, "")
@@ -342,31 +458,31 @@ class ExperimentGroup:
         return columns, rows
 
 
-def _claims(record: ResultRecord) -> list[ClaimView]:
+def _claims(record: ResultRecord, shown: _Shown) -> list[ClaimView]:
     """The claims as the record stores them (the verdicts were decided when the record was made).
 
     Each stored verdict is checked against the record's own numbers: one that they do not give (a record edited by
     hand) is shown with what they give, and logged; a claim that cannot be checked is shown with why.
     """
     views = []
-    for claim in record.claims:
+    for claim in shown.items("claims", record.claims):
         ok = record.status == "ok"
         view = ClaimView(
-            text=str(claim.text), rule=str(claim.rule), kind=str(claim.kind or "unclassified"),
-            source=str(claim.source or ""), verdict=str(claim.verdict) if ok else "not evaluated",
-            basis=str(claim.basis or ""), scope=str(claim.scope or ""), detail=str(claim.detail or ""),
-            test=claim_test(claim) if ok else "")
+            text=shown.text(claim.text), rule=shown.text(claim.rule), kind=shown.text(claim.kind or "unclassified"),
+            source=shown.text(claim.source or ""), verdict=shown.text(claim.verdict) if ok else "not evaluated",
+            basis=shown.text(claim.basis or ""), scope=shown.text(claim.scope or ""),
+            detail=shown.text(claim.detail or ""), test=shown.text(claim_test(claim)) if ok else "")
         if ok and view.kind != "unclassified":
             try:
                 again = redecide(claim, metrics=record.metrics, samples=record.samples, reference=record.reference,
                                  units=record.sample_units, unit_kinds=record.units)
             except (ExperimentError, TypeError, ValueError, KeyError) as exc:
-                view.detail = f"cannot be checked: {str(exc).splitlines()[0]}"
+                view.detail = shown.text(f"cannot be checked: {(str(exc).splitlines() or [''])[0]}")
                 view.verdict = "not evaluated"
             else:
                 if again != view.verdict:
-                    logger.warning("%s: claim %r is stored as %r but the record's numbers give %r", record.experiment,
-                                   claim.text, view.verdict, again)
+                    logger.warning("%s: claim %r is stored as %r but the record's numbers give %r",
+                                   str(record.experiment)[:200], view.text[:200], view.verdict, again)
                     view.detail = f"stored as {view.verdict}; the record's numbers give {again}"
                     view.verdict = again
         views.append(view)
@@ -390,64 +506,95 @@ def _check_shown_fields(record: ResultRecord) -> None:
             raise ExperimentError(f"its {key} must be a string; got {value!r:.60}")
 
 
+def _table_view(name: Any, table: Any, shown: _Shown) -> dict[str, Any]:
+    """One table as the report shows it: its rows cut at :data:`MAX_ITEMS`, its columns at :data:`MAX_COLUMNS`
+    (``left_out`` says how many more there are: ``7 more rows, 2 more columns``)."""
+    width = max([len(table.columns)] + [len(row) for row in table.rows])
+    rows = [[shown.text(format_cell(c)) for c in itertools.islice(row, MAX_COLUMNS)]
+            for row in shown.items("rows", table.rows)]
+    shown.leave_out("columns", width - MAX_COLUMNS)
+    return {"name": shown.text(name), "title": shown.text(table.title or name),
+            "columns": [shown.text(c) for c in itertools.islice(table.columns, MAX_COLUMNS)], "rows": rows,
+            "note": shown.text(table.note or "", prose=True),
+            "left_out": ", ".join(f"{n} more {what}" for what, n in (("rows", len(table.rows) - len(rows)),
+                                                                     ("columns", width - MAX_COLUMNS)) if n > 0)}
+
+
 def build_view(record: ResultRecord, results_dir: Path, source: Path) -> ExperimentView:
-    """Turn one result record into an :class:`ExperimentView`."""
+    """Turn one result record into an :class:`ExperimentView`, within the report's bounds (see the module)."""
     _check_shown_fields(record)
+    shown = _Shown()
     metrics, reference, data, intervals = record.metrics, record.reference, record.data, record.intervals
-    rows = [(name, format_number(value), format_number(reference.get(name))) for name, value in metrics.items()]
-    rows += [(name, "", format_number(value)) for name, value in reference.items() if name not in metrics]
-    figures = [(str(name), str(rel), (results_dir / str(rel)).is_file()) for name, rel in record.figures.items()]
-    config = [(str(k), format_cell(v)) for k, v in record.config.items()]
-    values = {name: _with_interval(value, intervals.get(name)) for name, value in metrics.items()}
+    text = shown.text
+    # the fields shown whatever the budget, charged first
+    exp_id, title = text(record.experiment), text(record.title or record.experiment)
+    thesis_ref = text(record.thesis_ref or "")
+    status, variant = text(record.status), text(record.variant or ("real" if data else "synthetic"))
+    message = None if record.message is None else text(record.message, prose=True)
+    traceback = None if record.traceback is None else text(record.traceback, prose=True, tail=True)
+    preset, code, seed = text(record.preset), text(record.code or ""), text(format_cell(record.seed))
+    explorer_note = text(record.explorer.get("note") or "", prose=True)
     run_info = [
-        ("data", VARIANT_LABELS.get(str(record.variant), str(record.variant))),
-        ("preset", str(record.preset)),
-        ("seed", format_cell(record.seed)),
+        ("data", VARIANT_LABELS.get(record.variant, variant if record.variant else "")),
+        ("preset", preset),
+        ("seed", seed),
         ("run time", format_duration(record.elapsed_s)),
-        ("started at", str(record.started_at)),
-        ("mmconcepts version", str(record.version)),
-        ("code fingerprint", str(record.code or "")),
-        ("python", str(record.python)),
-        ("platform", str(record.platform)),
+        ("started at", text(record.started_at)),
+        ("mmconcepts version", text(record.version)),
+        ("code fingerprint", code),
+        ("python", text(record.python)),
+        ("platform", text(record.platform)),
     ]
-    run_info += [(f"data: {name}", str(path)) for name, path in data.items()]
-    tables = [
-        {
-            "name": str(name),
-            "title": str(table.title or name),
-            "columns": [str(c) for c in table.columns],
-            "rows": [[format_cell(c) for c in row] for row in table.rows],
-            "note": str(table.note or ""),
-        }
-        for name, table in record.tables.items()
-    ]
+    claims = _claims(record, shown)
+    # the metrics first, then the thesis' numbers that have no metric
+    names = list(metrics) + [name for name in reference if name not in metrics]
+    rows, values = [], {}
+    for name in shown.items("metrics", names):
+        label = text(name)
+        if name in metrics:
+            rows.append((label, format_number(metrics[name]), format_number(reference.get(name))))
+            values[label] = _with_interval(metrics[name], intervals.get(name))
+        else:
+            rows.append((label, "", format_number(reference[name])))
+    tables = [_table_view(name, table, shown) for name, table in shown.items("tables", record.tables.items())]
+    figures = []
+    for name, rel in shown.items("figures", record.figures.items()):
+        path = text(rel)
+        figures.append((text(name), path, _is_file(results_dir / path)))
+    notes = [text(n, prose=True) for n in shown.items("notes", record.notes)]
+    warnings = [text(w) for w in shown.items("warnings", record.warnings)]
+    config = [(text(k), text(format_cell(v))) for k, v in shown.items("configuration entries", record.config.items())]
+    data_sets = [(text(k), text(v)) for k, v in shown.items("data sets", data.items())]
+    run_info += [(f"data: {name}", path) for name, path in data_sets]
+    cards = explorer_cards(record.explorer, results_dir, shown)
     return ExperimentView(
-        id=str(record.experiment),
-        title=str(record.title or record.experiment),
-        thesis_ref=str(record.thesis_ref or ""),
-        status=str(record.status),
-        message=record.message,
-        traceback=record.traceback,
+        id=exp_id,
+        title=title,
+        thesis_ref=thesis_ref,
+        status=status,
+        message=message,
+        traceback=traceback,
         metrics=rows,
         tables=tables,
         figures=figures,
-        claims=_claims(record),
+        claims=claims,
         config=config,
         run_info=run_info,
-        notes=[str(n) for n in record.notes],
+        notes=notes,
         source=source.name,
         elapsed=format_duration(record.elapsed_s),
-        extra_keys=sorted(str(k) for k in record.extra),
-        variant=str(record.variant or ("real" if data else "synthetic")),
-        data=[(str(k), str(v)) for k, v in data.items()],
+        extra_keys=sorted(str(k)[:MAX_TEXT] for k in itertools.islice(record.extra, MAX_ITEMS)),  # not shown
+        variant=variant,
+        data=data_sets,
         values=values,
-        warnings=[str(w) for w in record.warnings],
+        warnings=warnings,
         stale=record.code != code_fingerprint(),
-        preset=str(record.preset),
-        code=str(record.code or ""),
-        seed=format_cell(record.seed),
-        cards=explorer_cards(record.explorer, results_dir),
-        explorer_note=str(record.explorer.get("note") or ""),
+        preset=preset,
+        code=code,
+        seed=seed,
+        cards=cards,
+        explorer_note=explorer_note,
+        omitted=shown.omitted,
     )
 
 
@@ -463,18 +610,52 @@ def _looks_like_a_record(raw: bytes) -> bool:
     return any(key in content for key in RECORD_KEYS)
 
 
+class _TooLarge(Exception):
+    """A record file larger than :data:`MAX_RECORD_BYTES`."""
+
+
+def _read(path: Path) -> bytes:
+    """The bytes of ``path``, at most :data:`MAX_RECORD_BYTES` + 1 of them (more: a file too large to show).
+
+    Raises
+    ------
+    OSError
+        If it cannot be read, or is a pipe or a device (whose reading might never end).
+    """
+    info = path.stat()
+    if not stat.S_ISREG(info.st_mode) and not stat.S_ISDIR(info.st_mode):  # a directory: the error of open() below
+        raise OSError("not a regular file (a pipe or a device)")
+    with path.open("rb") as fh:
+        # read(n) makes room for n bytes first: ask for what the file holds, then for what it grew by, if anything
+        chunks = [fh.read(min(info.st_size, MAX_RECORD_BYTES) + 1)]
+        size = len(chunks[0])
+        while chunks[-1] and size <= MAX_RECORD_BYTES:
+            chunks.append(fh.read(min(2**20, MAX_RECORD_BYTES + 1 - size)))
+            size += len(chunks[-1])
+    return chunks[0] if len(chunks) == 1 else b"".join(chunks)
+
+
 def collect(results_dir: Path, problems: list[tuple[str, str]] | None = None) -> list[ExperimentView]:
     """Read every result record of ``results_dir``, sorted by experiment id (real data first).
 
     A record that cannot be read or shown (truncated, edited by hand) does not stop the
     others: it is logged and, when ``problems`` is given, appended to it as
-    ``(file name, reason)``. JSON files that are not result records are ignored (logged).
+    ``(file name, reason)``, as is a file larger than :data:`MAX_RECORD_BYTES` that starts like a
+    record. JSON files that are not result records are ignored (logged).
     """
     views = []
     for path in sorted(results_dir.glob("*.json")):
         try:
-            raw = path.read_bytes()
+            raw = _read(path)
+            if len(raw) > MAX_RECORD_BYTES:
+                if not any(key in raw[:65536] for key in (b'"schema_version"', b'"experiment"')):
+                    logger.info("ignoring %s: larger than %d bytes and not a result record", path, MAX_RECORD_BYTES)
+                    continue
+                raise _TooLarge(f"larger than the report reads (more than {MAX_RECORD_BYTES} bytes; an experiment "
+                                "writes records of a few hundred kB at most): not shown; open the file itself")
             record = ResultRecord.from_json(raw.decode("utf-8"))  # strict: json.loads(bytes) lets surrogates in
+        except _TooLarge as exc:
+            reason = str(exc)
         except OSError as exc:
             reason = f"cannot be read ({exc.strerror or exc})"
         except UnicodeDecodeError as exc:
@@ -492,6 +673,7 @@ def collect(results_dir: Path, problems: list[tuple[str, str]] | None = None) ->
                 continue
             except Exception as exc:  # noqa: BLE001 -- a record edited by hand must not take the report down
                 reason = f"a result record that cannot be shown ({type(exc).__name__}: {exc})"
+        reason = clip(reason, MAX_TEXT)  # an exception can quote a huge value
         logger.warning("%s: left out of the report: %s", path, reason)
         if problems is not None:
             problems.append((path.name, reason))
@@ -595,13 +777,16 @@ class _Anchors:
 
     def __init__(self, reserved: Sequence[str] = ()) -> None:
         self.used: set[str] = set(reserved)
+        self.last: dict[str, int] = {}  # base -> the last n tried (ids are never freed: no smaller n is free)
 
     def make(self, base: str) -> str:
-        anchor, n = base, 1
+        n = self.last.get(base, 1)
+        anchor = base if n == 1 else f"{base}-{n}"
         while anchor in self.used:
             n += 1
             anchor = f"{base}-{n}"
         self.used.add(anchor)
+        self.last[base] = n
         return anchor
 
 
@@ -661,8 +846,11 @@ def variant_summaries(views: "list[ExperimentView]") -> list[tuple[str, str]]:
             others = ", ".join(f"{n} {label}" for label, n in (
                 ("failed", sum(v.status == "failed" for v in runs)), ("skipped", sum(v.status == "skipped" for v in runs)))
                 if n)
+            left = sum(v.omitted.get("claims", 0) for v in ran)
             lines.append((VARIANT_LABELS[variant], f"{len(ran)} run(s) ran" + (f" ({others})" if others else "")
-                          + (f"; {counts}" if counts else "; no claims")))
+                          + (f"; {counts}" if counts else "; no claims")
+                          + (f"; {left} more claims past the report's limits neither shown nor counted" if left
+                             else "")))
     return lines
 
 

@@ -138,6 +138,8 @@ def _run(view: ExperimentView, plan: Plan) -> str:
     if view.data:
         out.append("<ul>" + "".join(f"<li>data set <code>{_e(n)}</code>: <code>{_e(p)}</code></li>"
                                     for n, p in view.data) + "</ul>")
+    if view.omitted:
+        out.append(_left_out(view))
     if view.status == "failed":
         message = view.message or ""
         if "\n" in message:
@@ -152,6 +154,9 @@ def _run(view: ExperimentView, plan: Plan) -> str:
         anchor = plan.table[(id(view), j)]
         out.append(_heading(4, f"Table: {table['title']}", anchor))
         out.append(_table(table["columns"], table["rows"]))
+        if table.get("left_out"):
+            out.append(f'<p class="note">{_e(table["left_out"])} not shown; see the record '
+                       f"<code>{_e(view.source)}</code>.</p>")
         if table["note"]:
             out.append(f'<p class="note">{_e(table["note"])}</p>')
     for j, (name, rel, exists) in enumerate(view.figures):
@@ -181,6 +186,15 @@ def _run(view: ExperimentView, plan: Plan) -> str:
     out.append(f'<p class="note">Record: <code>{_e(view.source)}</code></p></details>')
     out.append("</section>")
     return "\n".join(out)
+
+
+def _left_out(view: ExperimentView, *whats: str) -> str:
+    """What of ``whats`` (default: everything) the record holds past the report's limits, as a note ('' if none)."""
+    left = view.left_out(*whats)
+    if not left:
+        return ""
+    where = f"On {_e(view.data_label)}: " if whats else "Past the report's limits, "
+    return f'<p class="note">{where}{_e(left)} not shown; see the record <code>{_e(view.source)}</code>.</p>'
 
 
 def _missing(what: str, media: MediaView) -> str:
@@ -262,10 +276,12 @@ def _section(g: ExperimentGroup, plan: Plan) -> str:
                        + "".join(f'<td class="test">{_e(c)}</td>' for c in row[4 + n:]) + "</tr>")
         out.append("</tbody></table></div>")
         out.append('<p class="note">Each verdict is what the interval in its test column says (95 %, two-sided).</p>')
+    out.extend(filter(None, (_left_out(view, "claims") for view in g.views)))
     columns, rows = g.metric_rows()
     if rows:
         out.append("<h3>Numbers: the thesis' and ours, on each data</h3>")
         out.append(_table(columns, rows, caption="95 % interval in brackets where there are folds or seeds"))
+    out.extend(filter(None, (_left_out(view, "metrics") for view in g.views)))
     out.extend(_run(view, plan) for view in g.views)
     out.append('<p class="back"><a href="#summary">↑ back to the summary</a></p>')
     out.append("</div></details></section>")

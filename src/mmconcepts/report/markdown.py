@@ -75,6 +75,8 @@ def _run(view: ExperimentView, plan: Plan) -> list[str]:
     out = [_anchor(plan.run[id(view)]), f"### On {_text(view.data_label)}", "", meta, ""]
     if view.data:
         out += [f"- data set {_code(name)}: {_code(path)}" for name, path in view.data] + [""]
+    if view.omitted:
+        out += [_left_out(view), ""]
     if view.status == "failed":
         out += [f"**Failed:** {_text(view.message or '')}", ""]
         if view.traceback:
@@ -84,6 +86,8 @@ def _run(view: ExperimentView, plan: Plan) -> list[str]:
     for j, table in enumerate(view.tables):
         out += [_anchor(plan.table[(id(view), j)]), f"#### Table: {_text(table['title'])}", ""]
         out += _table(table["columns"], table["rows"])
+        if table.get("left_out"):
+            out += [f"*{_text(table['left_out'])} not shown; see the record {_code(view.source)}.*", ""]
         if table["note"]:
             out += [f"*{_text(table['note'])}*", ""]
     for j, (name, rel, exists) in enumerate(view.figures):
@@ -103,6 +107,15 @@ def _run(view: ExperimentView, plan: Plan) -> list[str]:
     out += ["#### Run", ""] + _table(["", ""], [list(r) for r in view.run_info])
     out += [f"Record: {_code(view.source)}", ""]
     return out
+
+
+def _left_out(view: ExperimentView, *whats: str) -> str:
+    """What of ``whats`` (default: everything) the record holds past the report's limits, as a note ('' if none)."""
+    left = view.left_out(*whats)
+    if not left:
+        return ""
+    where = f"On {_text(view.data_label)}: " if whats else "Past the report's limits, "
+    return f"*{where}{left} not shown; see the record {_code(view.source)}.*"
 
 
 def _files(what: str, media: list[MediaView]) -> str:
@@ -134,10 +147,12 @@ def _section(g: ExperimentGroup, plan: Plan) -> list[str]:
         cells = [[_anchor(plan.claim[(id(g), i)])] + row for i, row in enumerate(rows)]
         out += ["### Claims", "", "Each verdict is what the interval in its test column says (95 %, two-sided; see "
                 "the README, *What a verdict means*).", ""] + _table(["#", *columns], cells, raw=1)
+    out += [line for view in g.views if view.omitted.get("claims") for line in (_left_out(view, "claims"), "")]
     columns, rows = g.metric_rows()
     if rows:
         out += ["### Numbers: the thesis' and ours, on each data (95 % interval where there are folds or seeds)", ""]
         out += _table(columns, rows)
+    out += [line for view in g.views if view.omitted.get("metrics") for line in (_left_out(view, "metrics"), "")]
     for view in g.views:
         out += _run(view, plan)
     out += ["[↑ back to the summary](#summary)", ""]

@@ -145,6 +145,10 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
             "units per decided comparison); a magnitude is our number divided by the thesis', with its interval. "
             "The report (`report.html` of the same folder) has the numbers and intervals behind each verdict.", ""]
     out += ["## Tallies", ""] + _tallies(ran)
+    left = [f"- `{v.id}` ({VARIANT_LABELS[v.variant]}): {v.left_out('claims')} past the report's limits, neither "
+            f"shown nor counted; see the record `{v.source}`." for v in ran if v.omitted.get("claims")]
+    if left:
+        out += ["Records with more claims than the page shows:", ""] + left + [""]
     labels = [VARIANT_LABELS[v] for v in variants]
     for kind, heading, what in KIND_SECTIONS:
         table: dict[tuple[str, str], list[str]] = {}
