@@ -177,6 +177,44 @@ def test_nndsvd_start_from_dask_svd(rng):
         beta_nmf(to_dask(X), M + 1, init="nndsvd")
 
 
+def _blocks(rng):
+    """Three diagonal blocks over the chunks, of decreasing weight: NNDSVD's two components miss the third."""
+    from scipy.linalg import block_diag
+
+    return block_diag(rng.random((60, 10)) + 1.0, rng.random((30, 5)) + 0.5, rng.random((10, 2)) + 0.2)
+
+
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+def test_nndsvd_start_from_dask_reaches_every_cell(rng, beta):
+    """As in memory: NNDSVD's zeros that leave W @ H zero where X > 0 are filled, so the KL objective is finite."""
+    X = _blocks(rng)
+    start = beta_nmf(to_dask(X), 2, init="nndsvd", beta_loss=beta, random_state=0, max_iter=0)
+    assert ((start.W.compute() @ start.H)[X > 0] > 0).all()
+    res = beta_nmf(to_dask(X), 2, init="nndsvd", beta_loss=beta, random_state=0, max_iter=20, tol=0, loss_every=1)
+    assert np.isfinite(res.loss_history).all() and res.loss_history[-1] < res.loss_history[0]
+
+
+@pytest.mark.parametrize("case", ["W row", "H column", "fixed H", "W zero"])
+def test_a_given_start_the_fit_cannot_leave_is_refused_as_in_memory(rng, case):
+    X = _blocks(rng)
+    W, H = rng.random((N, 2)) + 0.1, rng.random((2, M)) + 0.1
+    kw = dict(beta_loss=1.0, max_iter=5)
+    if case == "W row":
+        W[70] = 0.0  # in the last chunk (its rows start at 64)
+    elif case == "H column":
+        H[:, 12] = 0.0
+    elif case == "fixed H":
+        H[:, 12] = 0.0
+        kw["update_H"] = False
+    else:
+        W[:] = 0.0
+    with pytest.raises(DataError) as mem:
+        beta_nmf(X, 2, W=W, H=H, **kw)
+    with pytest.raises(DataError) as dist:
+        beta_nmf(to_dask(X), 2, W=W, H=H, **kw)
+    assert str(dist.value) == str(mem.value)
+
+
 # ------------------------------------------------------------------------------ the estimator
 
 

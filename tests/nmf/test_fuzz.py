@@ -243,6 +243,109 @@ def test_fuzz_complex_masked_input(Xc, masked, entry, beta, seed):
     assert_typed_or_good("mmconcepts.nmf[complex or real X, masked]", run, check=check)
 
 
+#: Ways a given starting factor goes wrong: zeros (a row of W, a column of H, a random pattern, all of
+#: it), special values, tiny values, wrong shapes and types.
+START_KINDS = ["ok", "zero_row_W", "zero_col_H", "pattern", "pattern", "all_zero_W", "all_zero_H", "nan", "inf",
+               "negative", "tiny", "shape_W", "shape_H", "1d", "sparse_W", "int", "float32", "list"]
+
+
+@st.composite
+def starts(draw):
+    """Data and a start for it: block-diagonal data, whose NNDSVD start is zero on whole blocks, and
+    either an SVD start or given factors (``START_KINDS``)."""
+    from scipy.linalg import block_diag
+
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    n_blocks = draw(st.integers(1, 4))
+    blocks = []
+    for b in range(n_blocks):  # decreasing weights: the SVD's leading vectors live on the first blocks
+        size = (draw(st.integers(1, 4)), draw(st.integers(1, 4)))
+        weight = 10.0 ** -draw(st.integers(0, 2)) / (b + 1)
+        blocks.append(rng.random(size) * weight + 0.1 * weight)
+    # X's positive values (and the products of the "tiny" starts) stay above float32's eps, where the
+    # updates clip W @ H and lose their monotonicity when it goes below: a matter of the updates, not
+    # of the start
+    X = block_diag(*blocks) + draw(st.sampled_from([0.0, 0.0, 1e-3]))
+    if draw(st.booleans()):
+        X = X[rng.permutation(X.shape[0])][:, rng.permutation(X.shape[1])]
+    n, m = X.shape
+    k = draw(st.integers(1, min(n, m) + 1))
+    init = draw(st.sampled_from(["nndsvd", "nndsvd", "nndsvda", "nndsvdar", "custom", "custom", "custom"]))
+    W = H = None
+    kind = "ok"
+    if init == "custom":
+        kind = draw(st.sampled_from(START_KINDS))
+        W, H = rng.random((n, k)) + 0.1, rng.random((k, m)) + 0.1
+        if kind == "zero_row_W":
+            W[rng.integers(n)] = 0.0
+        elif kind == "zero_col_H":
+            H[:, rng.integers(m)] = 0.0
+        elif kind == "pattern":
+            W[rng.random(W.shape) < 0.5] = 0.0
+            H[rng.random(H.shape) < 0.5] = 0.0
+        elif kind == "all_zero_W":
+            W[:] = 0.0
+        elif kind == "all_zero_H":
+            H[:] = 0.0
+        elif kind in ("nan", "inf", "negative"):
+            W[rng.integers(n), rng.integers(k)] = {"nan": np.nan, "inf": np.inf, "negative": -1.0}[kind]
+        elif kind == "tiny":  # products about 1e-6: small, not zero
+            W, H = W * 1e-3, H * 1e-3
+        elif kind == "shape_W":
+            W = W[:, :-1] if k > 1 else W[:-1]
+        elif kind == "shape_H":
+            H = H[:-1] if k > 1 else H[:, :-1]
+        elif kind == "1d":
+            W = W.ravel()
+        elif kind == "sparse_W":
+            W = sp.csr_matrix(W)
+        elif kind == "int":
+            W, H = (W * 3).astype(int), (H * 3).astype(int)
+        elif kind == "float32":
+            W, H = W.astype(np.float32), H.astype(np.float32)
+        elif kind == "list":
+            W, H = W.tolist(), H.tolist()
+    if draw(st.booleans()):
+        X = sp.csr_matrix(X)
+    return X, k, init, W, H, kind
+
+
+@fuzz_settings(200, suppress_health_check=list(HealthCheck))
+@given(start=starts(), beta=st.sampled_from([0.0, 0.5, 1.0, 1.5, 2.0]), solver=st.sampled_from(["mu", "mu", "pg"]),
+       update_H=st.sampled_from([True, True, False]), masked=st.booleans(), seed=st.integers(0, 2**31 - 1))
+def test_fuzz_beta_nmf_starts(start, beta, solver, update_H, masked, seed):
+    """Starts a fit cannot leave: an SVD start or given factors whose zeros leave W @ H zero where X > 0.
+    A good result: a start whose W @ H is positive at every positive observed cell of X (an SVD start),
+    or a given one whose zeros that product misses are kept (beta > 1); then a fit whose objective is
+    finite for beta <= 1 and never rises."""
+    X, k, init, W, H, kind = start
+    rng = np.random.default_rng(seed)
+    mask = None
+    if masked:
+        mask = rng.random(X.shape) < 0.8
+        mask.flat[0] = True
+    kw = dict(beta_loss=beta, solver=solver, init=init, W=W, H=H, update_H=update_H if init == "custom" else True,
+              mask=mask, tol=0, loss_every=1, random_state=seed)
+
+    def check(fits):
+        start, res = fits
+        n, m = X.shape
+        if not _nmf_check(res, n, m, k, monotone=True, rel=1e-4, atol=_rounding(X, beta)):
+            return False
+        if not (np.isfinite(res.W).all() and np.isfinite(res.H).all()):
+            return False
+        if beta <= 1 and not np.isfinite(res.loss_history[-1]):
+            return False
+        if init != "custom":  # the SVD start reaches every positive observed cell
+            Xd = X.toarray() if sp.issparse(X) else X
+            positive = (Xd > 0) if mask is None else (Xd > 0) & mask
+            return bool(((start.W @ start.H)[positive] > 0).all())
+        return True
+
+    assert_typed_or_good("mmconcepts.nmf.beta_nmf[starts]",
+                         lambda: (beta_nmf(X, k, max_iter=0, **kw), beta_nmf(X, k, max_iter=15, **kw)), check=check)
+
+
 @fuzz_settings(80, suppress_health_check=list(HealthCheck))
 @given(
     seed=st.integers(0, 2**31 - 1),

@@ -647,6 +647,169 @@ def test_inits(rng, init):
     np.testing.assert_array_equal(model.components_, again.components_)
 
 
+def _blocks(rng, beta):
+    """Three diagonal blocks of decreasing weight. With two components NNDSVD's factors are zero on
+    the third block (rows 14-18, columns 11-14), which W @ H then misses entirely. For beta <= 0,
+    3e-7 everywhere makes X positive; NNDSVD's threshold still zeroes the third block."""
+    from scipy.linalg import block_diag
+
+    X = block_diag(rng.random((8, 6)) + 1.0, rng.random((6, 5)) + 0.5, rng.random((5, 4)) + 0.2)
+    return X + 3e-7 if beta <= 0 else X
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.5, 1.0, 1.5, 2.0])
+def test_nndsvd_start_leaves_no_cell_of_x_out_of_reach(rng, beta):
+    """A zero of W or H never moves under the multiplicative updates: NNDSVD's zeros on the third
+    block left W @ H zero there for the whole fit (an infinite objective for beta <= 1, cells never
+    fitted for beta > 1). The start fills them, and the objective is finite and decreases."""
+    X = _blocks(rng, beta)
+    res = beta_nmf(X, 2, beta_loss=beta, init="nndsvd", max_iter=100, tol=0, loss_every=1, random_state=0)
+    hist = res.loss_history
+    assert np.isfinite(hist).all(), hist[:3]
+    assert np.all(np.diff(hist) <= 1e-10 * hist[0])
+    assert hist[-1] < 0.95 * hist[0]
+    assert ((res.W @ res.H)[X > 0] > 0).all()
+
+
+def test_nndsvd_is_sklearns_with_the_unreachable_rows_and_columns_filled(rng):
+    """Known answer: scikit-learn's NNDSVD (same randomized SVD, same seed), whose zeros are kept except
+    in the rows of W and columns of H of the cells W @ H would miss, filled with the mean of X."""
+    from sklearn.decomposition._nmf import _initialize_nmf
+
+    from mmconcepts.nmf._init import initialize
+
+    seed = int(np.random.default_rng(0).integers(0, 2**31 - 1))  # the seed initialize draws from its stream
+    _, _, lowrank = _lowrank(rng)
+    for X, rows, cols in ((_blocks(rng, 1.0), slice(14, 19), slice(11, 15)), (lowrank, slice(0, 0), slice(0, 0))):
+        W_sk, H_sk = _initialize_nmf(X, 2, init="nndsvd", eps=1e-6, random_state=seed)
+        W, H = initialize(X, 2, "nndsvd", np.random.default_rng(0))
+        keep_r = np.ones(X.shape[0], bool)
+        keep_r[rows] = False
+        keep_c = np.ones(X.shape[1], bool)
+        keep_c[cols] = False
+        np.testing.assert_allclose(W[keep_r], W_sk[keep_r], rtol=1e-10, atol=0)
+        np.testing.assert_allclose(H[:, keep_c], H_sk[:, keep_c], rtol=1e-10, atol=0)
+        assert (W_sk[keep_r] == 0).any() or X is lowrank  # zeros elsewhere are kept
+        assert (W_sk[rows] == 0).all() and (H_sk[:, cols] == 0).all()
+        np.testing.assert_array_equal(W[rows], X.mean())
+        np.testing.assert_array_equal(H[:, cols], X.mean())
+
+
+def _custom_start(rng, zero):
+    X = _positive(rng, 6, 5)
+    W, H = rng.random((6, 2)) + 0.1, rng.random((2, 5)) + 0.1
+    if zero == "W row":
+        W[3] = 0.0
+        cell, named = (3, 0), "row 3 of W is all zero"
+    elif zero == "H column":
+        H[:, 4] = 0.0
+        cell, named = (0, 4), "column 4 of H is all zero"
+    else:  # W[2] and H[:, 1] share no nonzero component
+        W[2] = [1.0, 0.0]
+        H[:, 1] = [0.0, 1.0]
+        cell, named = (2, 1), "row 2 of W and column 1 of H have no nonzero component in common"
+    return X, W, H, cell, named
+
+
+@pytest.mark.parametrize("zero", ["W row", "H column", "cell"])
+@pytest.mark.parametrize("beta", [0.0, 0.5, 1.0, 1.5, 2.0])
+def test_a_given_start_that_leaves_w_h_zero_where_x_is_not(rng, beta, zero):
+    """beta <= 1: the objective would be infinite for the whole fit: refused, naming the first cell.
+    beta > 1: a given zero is a support the updates keep (finite objective): fitted, the zeros kept.
+    Masking the cells out, or the projected gradient (which moves zeros), lifts the refusal."""
+    X, W, H, (i, j), named = _custom_start(rng, zero)
+    fit = dict(beta_loss=beta, init="custom", max_iter=30, tol=0, loss_every=1)
+    if beta <= 1:
+        with pytest.raises(DataError, match=rf"W @ H is zero at \d+ cells? where X > 0 \(the first: sample {i}, "
+                                            rf"feature {j}\): {named}"):
+            beta_nmf(X, 2, W=W, H=H, **fit)
+        unreached = (W > 0).astype(float) @ (H > 0).astype(float) == 0
+        res = beta_nmf(X, 2, W=W, H=H, mask=~unreached, **fit)
+        assert np.isfinite(res.loss_history).all() and res.loss_history[-1] < res.loss_history[0]
+        res = beta_nmf(X, 2, W=W, H=H, solver="pg", **fit)
+        assert np.isfinite(res.loss_history[-1]) and ((res.W @ res.H)[X > 0] > 0).all()
+    else:
+        res = beta_nmf(X, 2, W=W, H=H, **fit)
+        assert np.isfinite(res.loss_history).all() and np.all(np.diff(res.loss_history) <= 1e-12)
+        assert (res.W @ res.H)[i, j] == 0 and ((W == 0) <= (res.W == 0)).all()
+
+
+def test_the_projected_gradient_refuses_a_start_that_stops_both_of_its_steps(rng):
+    """A zero row of W makes H's step infinite whatever it does, a zero column of H makes W's: with both,
+    neither factor moves and the KL objective stays infinite; with one of them, the other step repairs it."""
+    X, W, H, _, _ = _custom_start(rng, "W row")
+    H[:, 4] = 0.0
+    with pytest.raises(DataError, match=r"sample 3, feature 0\): row 3 of W is all zero\. As the projected gradient"):
+        beta_nmf(X, 2, W=W, H=H, beta_loss=1.0, solver="pg", max_iter=5)
+    res = beta_nmf(X, 2, W=W, H=H, beta_loss=2.0, solver="pg", max_iter=5, tol=0)
+    assert np.isfinite(res.loss_history).all()
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0, 2.0])
+def test_a_fixed_dictionary_with_a_zero_column_where_x_is_not(rng, beta):
+    X, W, H, _, _ = _custom_start(rng, "H column")
+    if beta <= 1:
+        for solver in ("mu", "pg"):  # a fixed zero column stays zero whatever the solver
+            with pytest.raises(DataError, match=r"column 4 of H is all zero.*update_H=False"):
+                beta_nmf(X, 2, H=H, update_H=False, beta_loss=beta, solver=solver, max_iter=5)
+    else:
+        res = beta_nmf(X, 2, H=H, update_H=False, beta_loss=beta, max_iter=5, tol=0)
+        assert np.isfinite(res.loss_history).all()
+
+
+@pytest.mark.parametrize("beta", [0.5, 2.0])
+def test_a_given_factor_that_is_all_zero_is_refused(rng, beta):
+    """As scikit-learn: an all-zero start is no start (the multiplicative updates would keep it zero)."""
+    X, W, H, _, _ = _custom_start(rng, "W row")
+    with pytest.raises(DataError, match=r"^init='custom': W is all zero"):
+        beta_nmf(X, 2, W=np.zeros_like(W), H=H, beta_loss=beta, init="custom")
+    with pytest.raises(DataError, match=r"^init='custom': H is all zero"):
+        beta_nmf(X, 2, W=W + 1, H=np.zeros_like(H), beta_loss=beta, init="custom")
+
+
+@pytest.mark.parametrize("bad, match", [
+    ("nan", r"W contains 1 NaN"), ("inf", r"W contains 1 NaN or infinite"), ("negative", r"Negative values .* W"),
+    ("shape", r"W must have shape \(6, 2\)"), ("k", r"H must have shape \(2, 5\)"), ("1d", r"W must be 2-D"),
+    ("sparse", r"W must be a dense array"), ("text", r"W must hold numbers"),
+])
+def test_a_given_start_that_is_not_a_pair_of_factors_is_refused(rng, bad, match):
+    X, W, H, _, _ = _custom_start(rng, "cell")
+    W = W.copy()
+    if bad == "nan":
+        W[0, 0] = np.nan
+    elif bad == "inf":
+        W[0, 0] = np.inf
+    elif bad == "negative":
+        W[0, 0] = -1.0
+    elif bad == "shape":
+        W = W[:-1]
+    elif bad == "k":
+        H = np.vstack([H, H])
+    elif bad == "1d":
+        W = W.ravel()
+    elif bad == "sparse":
+        W = sp.csr_matrix(W)
+    elif bad == "text":
+        W = np.full(W.shape, "a")
+    with pytest.raises(DataError, match=match):
+        beta_nmf(X, 2, W=W, H=H, init="custom", beta_loss=2.0)
+
+
+def test_an_infinite_objective_is_named_not_blamed_on_tol():
+    """The fit below ends with an infinite KL objective (a cell of 6e-319 whose reconstruction
+    underflows to 0): the warning says so and names the cell, rather than asking for more iterations."""
+    rng = np.random.default_rng(3)
+    X = rng.random((30, 12)) * (rng.random((30, 12)) < 0.5)
+    X[:, -1] = 0.0
+    X[0, -1] = 6e-319
+    with pytest.warns(ConvergenceWarning) as record:
+        res = beta_nmf(X, 3, beta_loss=1, init="random", random_state=0, max_iter=60, tol=1e-4)
+    assert np.isinf(res.loss_history[-1])
+    message = str(record[0].message)
+    assert "infinite objective" in message and "sample 0, feature 11" in message and "6e-319" in message
+    assert "increase max_iter" not in message
+
+
 def test_convergence_warning_and_tol(rng):
     X = _positive(rng)
     with pytest.warns(ConvergenceWarning):

@@ -135,6 +135,29 @@ def sum_power_lowrank(W: np.ndarray, Ht: np.ndarray, power: float, mask=None) ->
     return total
 
 
+def zero_product_cells(X, W: np.ndarray, Ht: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the cells where X > 0 and W @ Ht.T is exactly 0, in row-major order.
+
+    X is dense or sparse (never densified; the product is taken at its stored entries only) and
+    zero where it is not observed (``validate_data``); W is (n, k), Ht (m, k), of one dtype.
+    """
+    if sp.issparse(X):
+        Xc = sp.csr_matrix(X)
+        W, Ht = np.ascontiguousarray(W), np.ascontiguousarray(Ht)
+        Y = lowrank_at_nonzeros(Xc.indptr, Xc.indices, W, Ht, np.empty(Xc.nnz, dtype=W.dtype))
+        hit = (Xc.data > 0) & (Y == 0)
+        rows = np.repeat(np.arange(Xc.shape[0]), np.diff(Xc.indptr))[hit]
+        cols = Xc.indices[hit].astype(np.intp)
+        order = np.lexsort((cols, rows))
+        return rows[order], cols[order]
+    found_r, found_c = [np.zeros(0, dtype=np.intp)], [np.zeros(0, dtype=np.intp)]
+    for rows in dense_blocks(W.shape[0], Ht.shape[0]):
+        r, c = np.nonzero((X[rows] > 0) & (W[rows] @ Ht.T == 0))
+        found_r.append(r + rows.start)
+        found_c.append(c)
+    return np.concatenate(found_r), np.concatenate(found_c)
+
+
 def check_beta_zeros(X, beta: float, mask=None, name: str = "X") -> None:
     """Raise :class:`DataError` when beta <= 0 and an observed cell of X is zero."""
     if beta > 0:

@@ -62,6 +62,7 @@ from ..errors import ConvergenceWarning, DataError, DataFormatError, ParameterEr
 from ._beta import check_beta_zeros, mm_exponent
 from ._problem import Problem, Side
 from ._data import check_factor, check_mask, is_dask_array, validate_data
+from ._init import Unreachable, check_factor_not_zero, refuse_unreachable
 from ._updates import (
     BETA_NMF_CONSTRAINTS,
     NMFResult,
@@ -73,6 +74,7 @@ from ._updates import (
     mu_update,
     resolve_penalties,
     scale_penalties,
+    stopped_message,
 )
 
 __all__ = [
@@ -820,12 +822,7 @@ def beta_nmf_dask(
         if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)
     if tol > 0 and not converged and max_iter > 0:
-        warnings.warn(
-            f"beta_nmf stopped at max_iter={max_iter} before the objective settled (tol={tol:g}); "
-            "increase max_iter or tol.",
-            ConvergenceWarning,
-            stacklevel=3,
-        )
+        warnings.warn(stopped_message(max_iter, tol, hist[-1]), ConvergenceWarning, stacklevel=3)
     extra = {"divergence": divergence, "n_chunks": len(specs), "bytes_per_iteration": _traffic_bytes(final, Ht, specs)}
     return NMFResult(W_out, np.ascontiguousarray(Ht.T), n_iter, np.asarray(hist), np.asarray(its, dtype=int),
                      converged, extra)
@@ -849,13 +846,16 @@ def _start(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, upda
             W_refs = store.put(np.full((b.stop - b.start, k), value, dtype=dtype) for b in specs)
         else:
             W_refs = _given_w(store, W, specs, n, k, dtype, scale_W, dask)
+        _check_given_start(x_blocks, m_blocks, specs, W_refs, Hs, beta, scale, W is not None, True, dask)
         return W_refs, np.ascontiguousarray(Hs.T)
     if init == "custom" or (init is None and W is not None and H is not None):
         if W is None or H is None:
             raise ParameterError("init='custom' needs both W and H.")
         Hs = check_factor(H, (k, m), "H", dtype)
         Hs /= dtype.type(scale_H)
-        return _given_w(store, W, specs, n, k, dtype, scale_W, dask), np.ascontiguousarray(Hs.T)
+        W_refs = _given_w(store, W, specs, n, k, dtype, scale_W, dask)
+        _check_given_start(x_blocks, m_blocks, specs, W_refs, Hs, beta, scale, True, False, dask)
+        return W_refs, np.ascontiguousarray(Hs.T)
     if init is None:
         init = "nndsvda" if k <= min(n, m) else "random"
     rng = check_random_state(random_state)
@@ -866,6 +866,32 @@ def _start(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, upda
                            for b in specs)
         return W_refs, np.ascontiguousarray(Hs.T)
     return _nndsvd(store, x_blocks, m_blocks, specs, n, m, k, dtype, beta, init, scale, x_mean, rng, dask)
+
+
+def _unreachable_chunk(x, m, spec: _ChunkSpec, beta: float, scale: float, w, H: np.ndarray,
+                       find: bool = True) -> tuple[bool, Unreachable]:
+    """Whether the chunk's rows of W hold a nonzero, and (``find``) the cells of X > 0 the start (W, H) leaves
+    at zero there (``Unreachable.of``)."""
+    W = _load_w(w)
+    prep = _prepare(x, m, spec, beta, scale) if find else None
+    if prep is None:
+        return bool(np.any(W)), Unreachable()
+    return bool(np.any(W)), Unreachable.of(prep[0], W, H, row_offset=spec.start)
+
+
+def _check_given_start(x_blocks, m_blocks, specs, W_refs, Hs: np.ndarray, beta: float, scale: float, w_given: bool,
+                       fixed_H: bool, dask) -> None:
+    """beta_nmf's check of a given start (``check_given_start``), one pass over the chunks with the W chunks."""
+    source = "with update_H=False" if fixed_H else "init='custom'"
+    if not fixed_H:
+        check_factor_not_zero(Hs, "H", source)
+    if not w_given and beta > 1:
+        return
+    parts = dask.compute(*[dask.delayed(_unreachable_chunk)(x, mb, s, beta, scale, w, Hs, beta <= 1)
+                           for x, mb, s, w in zip(x_blocks, m_blocks, specs, W_refs)])
+    if w_given and not any(p[0] for p in parts):
+        check_factor_not_zero(np.zeros(1), "W", source)
+    refuse_unreachable(Unreachable.merge([p[1] for p in parts]), beta, frozen=(True, True), fixed_H=fixed_H)
 
 
 def _given_w(store: _WStore, W: Any, specs, n: int, k: int, dtype, scale_W: float, dask) -> list:
@@ -937,19 +963,30 @@ def _nndsvd(store: _WStore, x_blocks, m_blocks, specs, n, m, k, dtype, beta, ini
             coef[j], sign[j] = 0.0, 1.0
     Hs[Hs < eps] = 0
 
+    unreached = []  # nndsvd: the cells of X > 0 its zeros leave out of W @ H, chunk by chunk (see initialize)
+
     def chunks() -> Iterator[np.ndarray]:
         for c in range(len(specs)):  # in row order: nndsvdar's draws are those of one W in memory
             Uc = np.asarray(U.blocks[c].compute())
             Wc = np.where(sign == 0, np.abs(Uc), np.maximum(sign * Uc, 0)) * coef
             Wc[Wc < eps] = 0
-            if init == "nndsvda":
+            if init == "nndsvd":
+                found = dask.compute(dask.delayed(_unreachable_chunk)(x_blocks[c], m_blocks[c], specs[c], beta,
+                                                                      scale, Wc, Hs))[0][1]
+                unreached.append(found)
+                rows = found.rows - specs[c].start
+                Wc[rows] = np.where(Wc[rows] == 0, x_mean, Wc[rows])
+            elif init == "nndsvda":
                 Wc[Wc == 0] = x_mean
             elif init == "nndsvdar":
                 Wc[Wc == 0] = np.abs(x_mean * rng.standard_normal(int((Wc == 0).sum())) / 100)
             yield Wc.astype(dtype, copy=False)
 
     W_refs = store.put(chunks())
-    if init == "nndsvda":
+    if init == "nndsvd":
+        cols = Unreachable.merge(unreached).cols
+        Hs[:, cols] = np.where(Hs[:, cols] == 0, x_mean, Hs[:, cols])
+    elif init == "nndsvda":
         Hs[Hs == 0] = x_mean
     elif init == "nndsvdar":
         Hs[Hs == 0] = np.abs(x_mean * rng.standard_normal(int((Hs == 0).sum())) / 100)

@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from .._validation import check_random_state, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
 from ._beta import check_beta_zeros, mm_exponent, resolve_beta
-from ._init import initialize
+from ._init import check_given_start, initialize
 from ._data import check_factor, is_dask_array, validate_data
 from ._problem import Problem, Side
 from ._updates import (
@@ -26,9 +26,11 @@ from ._updates import (
     constant_coefficients,
     data_scale,
     in_units_of_X,
+    infinite_objective_cause,
     mu_update,
     resolve_penalties,
     scale_penalties,
+    stopped_message,
 )
 from .sparseness import l1_for_sparseness, project_hoyer
 
@@ -238,9 +240,16 @@ def beta_nmf(
         1 <= beta <= 2.
     init : {'random', 'nndsvd', 'nndsvda', 'nndsvdar', 'custom'}, optional
         Default: 'nndsvda' if n_components <= min(X.shape), else 'random'; 'custom'
-        (or giving W and H) starts from W and H.
+        (or giving W and H) starts from W and H. 'nndsvd' keeps the zeros of NNDSVD except
+        those that leave W @ H zero at an observed cell of X > 0: the multiplicative updates
+        never move a zero, so such a cell would never be fitted (for beta <= 1 its divergence,
+        and the objective, would stay infinite); in their rows of W and columns of H, zeros
+        are filled with the mean of X, as 'nndsvda' fills them all.
     W, H : ndarray, optional
         Starting factors (copied). With ``update_H=False``, H is required and kept fixed.
+        Their zeros stay zero under the multiplicative updates (a support the fit keeps). A
+        factor that is all zero is refused, and so, for beta <= 1, is a start whose zeros leave
+        W @ H zero at an observed cell of X > 0 for the whole fit (its divergence is infinite).
     update_H : bool, default=True
         False fits only W with the dictionary H fixed.
     mask : {array-like of bool, sparse matrix, dask.array.Array} of shape (n_samples, n_features), optional
@@ -301,10 +310,18 @@ def beta_nmf(
         Negative, NaN or infinite values in observed cells, empty input, a mask or
         factor of the wrong shape, zeros with beta <= 0; an X whose objective float64
         cannot hold (e.g. Frobenius at 1e300); subnormal values next to ordinary ones with
-        beta <= 1; Hoyer-projected starting factors with an infinite objective (beta <= 1).
+        beta <= 1; Hoyer-projected starting factors with an infinite objective (beta <= 1); given
+        starting factors that are all zero, or (beta <= 1) whose zeros leave W @ H zero where X > 0
+        for the whole fit, naming the first such cell.
     ParameterError
         An unknown solver, init or update rule, or a value out of range; for a dask X,
         ``solver='pg'`` or Hoyer constraints.
+
+    Warns
+    -----
+    ConvergenceWarning
+        When ``tol`` > 0 is not met in ``max_iter`` iterations; when the objective is then
+        infinite, the warning says why (the first cell where X > 0 and W @ H is 0) instead.
     """
     validate_params(
         dict(n_components=n_components, beta_loss=beta_loss, solver=solver, update_rule=update_rule, init=init,
@@ -343,7 +360,12 @@ def beta_nmf(
     rescaled = scale != 1.0 or scale_H != 1.0
     if scale != 1.0:
         X = X / scale if sp.issparse(X) else np.divide(X, dtype.type(scale))
+    given = not update_H or init == "custom" or (init is None and W is not None and H is not None)
     W, H = _starting_factors(X, mask, k, init, W, H, update_H, (scale_W, scale_H), random_state)
+    if given:  # the zeros of a factor updated multiplicatively, or of a fixed H, stay zero
+        frozen = (solver == "mu" and sparseness_W is None,
+                  not update_H or (solver == "mu" and sparseness_H is None))
+        check_given_start(X, W, H, beta, frozen=frozen, fixed_H=not update_H)
 
     pen_W, pen_H = resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
     if rescaled:
@@ -360,17 +382,14 @@ def beta_nmf(
     shrink = _EmptyColumns.of(problem) if (update_H and solver == "mu" and hoyer == (None, None)) else None
     W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every, shrink)
     check_fit_in_range(X, beta, W, Ht, hist)
+    stopped = tol > 0 and not converged and max_iter > 0
+    cause = infinite_objective_cause(X, W, Ht, beta, scale) if stopped and not np.isfinite(hist[-1]) else None
     if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
         hist = in_units_of_X(hist, scale, beta)
         W = W * dtype.type(scale_W)
         Ht = Ht * dtype.type(scale_H)
-    if tol > 0 and not converged and max_iter > 0:
-        warnings.warn(
-            f"beta_nmf stopped at max_iter={max_iter} before the objective settled (tol={tol:g}); "
-            "increase max_iter or tol.",
-            ConvergenceWarning,
-            stacklevel=2,
-        )
+    if stopped:
+        warnings.warn(stopped_message(max_iter, tol, hist[-1], cause), ConvergenceWarning, stacklevel=2)
     return NMFResult(W, np.ascontiguousarray(Ht.T), n_iter, hist, its, converged)
 
 

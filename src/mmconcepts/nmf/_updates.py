@@ -17,14 +17,14 @@ import scipy.sparse as sp
 
 from .._validation import Interval, Options
 from ..errors import DataError
-from ._beta import EPSILON, BetaLoss
+from ._beta import EPSILON, BetaLoss, zero_product_cells
 from ._init import INITS
 from ._problem import Side
 
 
 __all__ = ["BETA_NMF_CONSTRAINTS", "NMFResult", "Penalty", "SOLVERS", "UPDATE_RULES", "check_fit_in_range",
-           "check_objective_range", "constant_coefficients", "data_scale", "in_units_of_X", "mu_update",
-           "resolve_penalties", "scale_penalties"]
+           "check_objective_range", "constant_coefficients", "data_scale", "in_units_of_X",
+           "infinite_objective_cause", "mu_update", "resolve_penalties", "scale_penalties", "stopped_message"]
 
 
 SOLVERS = ("mu", "pg")
@@ -185,6 +185,42 @@ def check_fit_in_range(X, beta: float, W: np.ndarray, Ht: np.ndarray, hist) -> N
                  f"(below {tiny:.3g} times its largest), and with beta_loss={beta:g} <= 1 their divergence terms "
                  "overflow. Set them to 0 (beta > 0) or use beta_loss > 1.")
     raise DataError(f"the fit left the range of {values.dtype}: its factors are not finite.{cause}")
+
+
+def infinite_objective_cause(X, W: np.ndarray, Ht: np.ndarray, beta: float, scale: float = 1.0) -> str:
+    """Why the objective of (W, Ht) on X (the fit's X, X's units times 1 / ``scale``) is not finite, in words.
+
+    Names the first cell where X > 0 and W @ H is 0 (with beta <= 1 its divergence is infinite),
+    else says that the objective overflowed.
+    """
+    values = X.data if sp.issparse(X) else X
+    dtype = values.dtype
+    rows, cols = zero_product_cells(X, W, Ht) if beta <= 1 else (np.zeros(0), np.zeros(0))
+    if rows.size == 0:
+        return (f"it exceeds the range of {dtype} (X spans more than that range, or W @ H overflows). Rescale X, "
+                "or use a beta_loss closer to 1.")
+    i, j = int(rows[0]), int(cols[0])
+    x = float(X[i, j])
+    where = (f"W @ H is 0 at {rows.size} cell{'s' if rows.size > 1 else ''} where X > 0 (the first: sample {i}, "
+             f"feature {j}, where X = {x * scale:.3g}), and the beta={beta:g} divergence is infinite there (beta <= 1)")
+    if x < np.finfo(dtype).tiny:
+        return (f"{where}: X's value there is subnormal, and its reconstruction underflows to 0. Set such values "
+                "of X to 0, or use beta_loss > 1.")
+    return (f"{where}: a zero of W or H never moves under the multiplicative updates. Start from factors whose "
+            "product is positive wherever X is (init='nndsvda'), or use beta_loss > 1.")
+
+
+def stopped_message(max_iter: int, tol: float, objective: float, cause: str | None = None) -> str:
+    """The ConvergenceWarning of a fit that ran ``max_iter`` iterations without meeting ``tol``.
+
+    An objective that is not finite cannot show progress, whatever ``tol``: the message then says
+    why it is not finite (``cause``) rather than asking for more iterations.
+    """
+    if np.isfinite(objective):
+        return (f"beta_nmf stopped at max_iter={max_iter} before the objective settled (tol={tol:g}); "
+                "increase max_iter or tol.")
+    return (f"beta_nmf stopped at max_iter={max_iter} with an infinite objective, whose progress tol={tol:g} cannot "
+            f"measure: {cause or 'W @ H is 0 where X > 0 (beta <= 1), or the objective overflowed'}")
 
 
 def scale_penalties(pen_W: Penalty, pen_H: Penalty, scale: float, scale_W: float, scale_H: float, beta: float):
