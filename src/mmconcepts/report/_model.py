@@ -233,11 +233,14 @@ class ExperimentView:
     seed: str = ""
     cards: list[CardView] = field(default_factory=list)  # the concept explorer
     explorer_note: str = ""
+    digest_ok: bool | None = True  # False: edited after it was written; None: a record without a digest (older)
 
     @property
     def status_label(self) -> str:
-        label = STATUS_LABELS.get(self.status, self.status)
-        return f"{label} (older code)" if self.stale else label
+        label = STATUS_LABELS.get(self.status, self.status) + (" (older code)" if self.stale else "")
+        if self.digest_ok is None:
+            return f"{label} (unverified: no digest)"
+        return label if self.digest_ok else f"{label} (edited after it was written: it does not match its digest)"
 
     @property
     def n_claims(self) -> int:
@@ -448,6 +451,7 @@ def build_view(record: ResultRecord, results_dir: Path, source: Path) -> Experim
         seed=format_cell(record.seed),
         cards=explorer_cards(record.explorer, results_dir),
         explorer_note=str(record.explorer.get("note") or ""),
+        digest_ok=record.digest_ok,
     )
 
 
