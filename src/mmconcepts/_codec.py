@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import abc
 import importlib
+import io
 import json
 import math
 import os
@@ -60,7 +61,7 @@ import numpy as np
 from ._io import atomic_path
 from .errors import DataFormatError, ParameterError
 
-__all__ = ["CorruptFile", "HEADER", "MARK", "Stateful", "decode", "encode", "read_npz", "write_npz"]
+__all__ = ["CorruptFile", "HEADER", "MARK", "Stateful", "decode", "encode", "npz_bytes", "read_npz", "write_npz"]
 
 #: The key naming the kind of a structure node that is not plain JSON.
 MARK = "__mmconcepts__"
@@ -318,6 +319,12 @@ def decode(structure: Any, arrays: Mapping[str, Any]) -> Any:
 # --------------------------------------------------------------------------- files
 
 
+def _members(header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    if HEADER in arrays:
+        raise ParameterError(f"an array cannot be named {HEADER!r}: the header is stored under that name.")
+    return {HEADER: np.array(json.dumps(dict(header), allow_nan=False)), **arrays}
+
+
 def write_npz(path: str | os.PathLike[str], header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
     """Write ``header`` (JSON, the member :data:`HEADER`) and ``arrays`` to the archive ``path``, atomically.
 
@@ -329,14 +336,25 @@ def write_npz(path: str | os.PathLike[str], header: Mapping[str, Any], arrays: M
     ParameterError
         If an array is named :data:`HEADER`.
     """
-    if HEADER in arrays:
-        raise ParameterError(f"an array cannot be named {HEADER!r}: the header is stored under that name.")
-    text = json.dumps(dict(header), allow_nan=False)
+    members = _members(header, arrays)
     with atomic_path(path, suffix=".tmp.npz") as tmp:
         with open(tmp, "wb") as fh:
-            np.savez(fh, allow_pickle=False, **{HEADER: np.array(text)}, **arrays)
+            np.savez(fh, allow_pickle=False, **members)
             fh.flush()
             os.fsync(fh.fileno())
+
+
+def npz_bytes(header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> bytes:
+    """The bytes of the archive :func:`write_npz` writes for ``header`` and ``arrays`` (for a file written later).
+
+    Raises
+    ------
+    ParameterError
+        If an array is named :data:`HEADER`.
+    """
+    buf = io.BytesIO()
+    np.savez(buf, allow_pickle=False, **_members(header, arrays))
+    return buf.getvalue()
 
 
 def read_npz(path: str | os.PathLike[str]) -> tuple[dict[str, Any], Any]:

@@ -303,16 +303,18 @@ def folder_lock(folder: str | os.PathLike[str], name: str = ".lock") -> Iterator
         os.close(fd)  # releases the lock
 
 
-def check_output_dir(output: str | os.PathLike[str]) -> Path:
+def check_output_dir(output: str | os.PathLike[str], *, room: int = 0) -> Path:
     """Check, before any work, that results can be written to the folder ``output``.
 
     The folder need not exist yet (it is created when the first result is written), but the
-    nearest existing folder on its path must be a folder in which a file can be created.
+    nearest existing folder on its path must be a folder in which a file can be created, on a
+    disk with at least ``room`` bytes free (not checked where the free space cannot be told).
 
     Raises
     ------
     ParameterError
-        If ``output`` is empty, names a file (or a path through a file), or cannot be written.
+        If ``output`` is empty, names a file (or a path through a file), cannot be written, or
+        its disk has less than ``room`` bytes free.
     """
     if not str(output).strip():
         raise ParameterError("output must name a results folder; got an empty name. Pass e.g. --output results.")
@@ -331,4 +333,13 @@ def check_output_dir(output: str | os.PathLike[str]) -> Path:
             f"output folder {path} cannot be written ({exc.strerror or exc} in {probe}). "
             "Pass --output a folder you can write to."
         ) from exc
+    try:
+        free = shutil.disk_usage(probe).free if room > 0 else None
+    except OSError:  # cannot tell (some network file systems): the writes themselves will say
+        free = None
+    if free is not None and free < room:
+        raise ParameterError(
+            f"output folder {path} has not enough free space to write results: {free:,} bytes free on its disk, at "
+            f"least {room:,} needed. Fix: make room on that disk, or pass --output a folder on another disk."
+        )
     return path

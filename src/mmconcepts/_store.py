@@ -58,12 +58,12 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from ._codec import MARK, CorruptFile, decode, encode, read_npz, write_npz
+from ._codec import MARK, CorruptFile, decode, encode, npz_bytes, read_npz, write_npz
 from ._fingerprint import code_fingerprint
 from ._io import atomic_dir, atomic_write, folder_lock, leftover_dirs
 from .errors import ParameterError
 
-__all__ = ["ENTRY_FORMAT", "KEY_SCHEME", "LOCKS", "MANIFEST", "MISSING", "cache_key", "generated_folder",
+__all__ = ["ENTRY_FORMAT", "KEY_SCHEME", "LOCKS", "MANIFEST", "MISSING", "cache_key", "entry_bytes", "generated_folder",
            "read_entry", "remove_stale_temporaries", "store_lock", "versioned", "write_entry"]
 
 #: Named in every key and manifest; raised when the scheme changes, which makes everything again.
@@ -229,6 +229,12 @@ def generated_folder(root: str | os.PathLike[str], manifest: Mapping[str, Any], 
 # --------------------------------------------------------------------------- entries
 
 
+def _entry(value: Any, key: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    arrays: dict[str, Any] = {}
+    structure = encode(value, arrays, where="result")
+    return {"format": ENTRY_FORMAT, "key": key, "value": structure}, arrays
+
+
 def write_entry(path: str | os.PathLike[str], value: Any, key: str) -> None:
     """Write ``value`` to the entry file ``path`` (atomically), recording ``key`` in it.
 
@@ -237,9 +243,18 @@ def write_entry(path: str | os.PathLike[str], value: Any, key: str) -> None:
     ParameterError
         If ``value`` holds something the codec does not store (see :mod:`mmconcepts._codec`).
     """
-    arrays: dict[str, Any] = {}
-    structure = encode(value, arrays, where="result")
-    write_npz(path, {"format": ENTRY_FORMAT, "key": key, "value": structure}, arrays)
+    write_npz(path, *_entry(value, key))
+
+
+def entry_bytes(value: Any, key: str) -> bytes:
+    """The bytes of the entry file :func:`write_entry` writes (for a file written later, read by :func:`read_entry`).
+
+    Raises
+    ------
+    ParameterError
+        If ``value`` holds something the codec does not store.
+    """
+    return npz_bytes(*_entry(value, key))
 
 
 def read_entry(path: str | os.PathLike[str], key: str) -> Any:

@@ -63,7 +63,7 @@ def sandbox(tmp_path_factory):
 
     def no_compute(exp, config, ctx, record, target):
         record.status, record.message = "skipped", "not run by the fuzz test"
-        return None
+        return None, {}
 
     def no_download(*args, **kwargs):
         raise ConnectionError("no network in the fuzz test")

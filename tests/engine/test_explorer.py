@@ -132,7 +132,7 @@ def test_a_run_writes_its_explorer_and_its_record_lists_it(toy, tmp_path):
     assert len(files) == 3 + 2 + 1 + 1 + 1 + 1 and all((tmp_path / f).is_file() for f in files)
     assert {p.name for p in (tmp_path / "toy-concepts" / EXPLORER_DIR).iterdir()} == {f.split("/")[-1] for f in files}
     on_disk = json.loads((tmp_path / "toy-concepts.json").read_text())
-    assert on_disk["schema_version"] == 4 and on_disk["explorer"] == record.explorer
+    assert on_disk["schema_version"] == 5 and on_disk["explorer"] == record.explorer
     assert load_record(tmp_path / "toy-concepts.json").explorer == record.explorer
     # up to date while its files are there; a missing file makes it run again
     run_experiment("toy-concepts", output=tmp_path, progress=False)

@@ -30,7 +30,8 @@ def test_records_written_by_the_runner_round_trip_byte_for_byte(toy, tmp_path):
     assert ResultRecord.from_dict(dict(record)).to_json() == text  # the mapping view reads back too
     assert list(json.loads(text)) == list(RECORD_KEYS) == list(record.to_dict())
     assert load_record(path).to_json() == text
-    assert record.schema_version == SCHEMA_VERSION == 4
+    assert record.schema_version == SCHEMA_VERSION == 5
+    assert record.digest_ok is True and json.loads(text)["digest"] == record.digest
     assert [c.kind for c in record.claims] == ["thesis", "ours", "magnitude"]
 
 
@@ -124,7 +125,7 @@ def test_known_answer_json():
                             "ratio_interval": None, "settings": [], "detail": "", "support": None}]
     assert d["tables"] == {"t": {"title": "cap", "columns": ["k", "v"], "rows": [[1, None]], "note": ""}}
     text = record.to_json()
-    assert text.startswith('{\n  "schema_version": 4,\n  "experiment": "x-1",\n  "title": "T",\n') and text.endswith("}\n")
+    assert text.startswith('{\n  "schema_version": 5,\n  "experiment": "x-1",\n  "title": "T",\n') and text.endswith("}\n")
     assert '"b": null' in text and "NaN" not in text
     back = ResultRecord.from_json(text)
     assert math.isnan(back.metrics["b"]) and back.metrics["a"] == 0.5
@@ -136,7 +137,7 @@ def test_known_answer_json():
     ("not json", "not valid JSON"),
     ("[1, 2]", "not a result record"),
     ('{"experiment": "x", "status": "ok"}', "not a result record"),
-    ('{"schema_version": 5, "experiment": "x", "status": "ok"}', "schema version 5"),
+    ('{"schema_version": 6, "experiment": "x", "status": "ok"}', "schema version 6"),
     ('{"schema_version": 4, "experiment": "x", "status": "ok", "explorer": [1]}', "explorer of a result record"),
     ('{"schema_version": true, "experiment": "x", "status": "ok"}', "schema version True"),
     ('{"schema_version": 2, "experiment": "x", "status": "ok", "metrics": [1]}', "metrics"),
@@ -240,3 +241,88 @@ def test_a_metric_too_big_for_a_float_is_an_experiment_error():
 
     with pytest.raises(ExperimentError, match="OverflowError"):
         ResultRecord.from_dict({"schema_version": 2, "experiment": "x", "status": "ok", "metrics": {"a": 10**400}})
+
+
+# --------------------------------------------------------------------------- the digest of the computed content
+
+
+def _sha256_of_content(d):
+    """The digest computed here from the JSON dict, independently of the package: SHA-256 of the canonical JSON
+    (sorted keys, no spaces, ASCII) of every key but the digest and the clock."""
+    import hashlib
+
+    content = {k: v for k, v in d.items() if k not in ("digest", "elapsed_s", "started_at")}
+    return hashlib.sha256(json.dumps(content, sort_keys=True, separators=(",", ":"), ensure_ascii=True,
+                                     allow_nan=False).encode("ascii")).hexdigest()
+
+
+def _hand_record(**kw):
+    return ResultRecord(experiment="x-1", status="ok", preset="quick", config={"seed": 0}, seed=0,
+                        metrics={"a": 0.5, "b": math.nan}, samples={"a": [0.25, 0.75]},
+                        claims=[ClaimRecord(text="a is positive", rule="a > 0", kind="ours", holds=True,
+                                            verdict="holds", basis="reported numbers")],
+                        tables={"t": Table("cap", ["k", "v"], [[1, 2.5]])}, elapsed_s=1.5,
+                        started_at="2026-01-01T00:00:00+00:00", **kw)
+
+
+def test_the_digest_is_the_sha256_of_the_computed_content():
+    record = _hand_record()
+    d = json.loads(record.to_json())
+    assert d["digest"] == record.digest == _sha256_of_content(d)
+    assert list(d)[-1] == "digest"
+
+
+@pytest.mark.parametrize("edit", [
+    lambda r: r.metrics.update(a=0.6),
+    lambda r: r.samples["a"].append(1.0),
+    lambda r: setattr(r.claims[0], "verdict", "fails"),
+    lambda r: setattr(r.claims[0], "text", "a is negative"),
+    lambda r: r.tables["t"].rows[0].__setitem__(1, 3.5),
+    lambda r: r.config.update(seed=1),
+    lambda r: setattr(r, "status", "failed"),
+    lambda r: r.intervals.update(a=[0.1, 0.9]),
+])
+def test_the_digest_changes_with_any_computed_number_verdict_or_claim(edit):
+    record = _hand_record()
+    before = record.digest
+    edit(record)
+    assert record.digest != before
+
+
+def test_the_digest_leaves_out_the_clock():
+    record = _hand_record()
+    before = record.digest
+    record.elapsed_s, record.started_at = 99.0, "2030-01-01T00:00:00+00:00"
+    assert record.digest == before
+
+
+@pytest.mark.parametrize("edit, ok", [
+    (lambda d: None, True),
+    (lambda d: d.update(elapsed_s=7.0, started_at="yesterday"), True),  # the clock is not digested
+    (lambda d: d["metrics"].update(a=0.6), False),
+    (lambda d: d["metrics"].update(b=math.inf), False),  # a metric not measured made infinite
+    (lambda d: d["metrics"].update(b=math.nan), True),  # NaN is how null is read back: the same content
+    (lambda d: d["claims"][0].update(verdict="fails"), False),
+    (lambda d: d["claims"][0].pop("support"), False),  # a key removed, even one read back with its default
+    (lambda d: d.update(extra_key=1), False),
+    (lambda d: d.pop("digest"), False),  # schema 5 without a digest
+    (lambda d: d.update(digest=None), False),
+    (lambda d: d.update(digest=12), False),
+    (lambda d: d.update(digest="0" * 64), False),
+    (lambda d: d.update(schema_version=4) or d.pop("digest"), None),  # an older record: no digest to check
+    (lambda d: d.update(schema_version=4), False),  # a digest that does not match, whatever the schema
+])
+def test_a_record_read_back_says_whether_its_digest_matches(edit, ok):
+    d = json.loads(_hand_record().to_json())
+    edit(d)
+    assert ResultRecord.from_json(json.dumps(d)).digest_ok is ok
+
+
+def test_a_record_made_in_memory_has_a_matching_digest():
+    assert _hand_record().digest_ok is True
+    assert ResultRecord.from_dict(dict(_hand_record())).digest_ok is True  # the mapping view carries the digest
+
+
+def test_records_of_older_schemas_have_no_digest_to_check():
+    for name in ["ch2-nmf-recovery.json", "ch3-combinations.schema1.json"]:
+        assert load_record(RECORDS / name).digest_ok is None

@@ -84,6 +84,22 @@ def test_a_new_present_is_drawn_and_listed_in_the_record(toy_redraw, tmp_path):
     assert sorted(record.figures) == ["curve", "end"] and (tmp_path / "toy-redraw" / "end.png").is_file()
 
 
+
+def test_an_edited_record_is_not_redrawn_into_a_matching_digest(toy_redraw, tmp_path):
+    import json
+
+    from mmconcepts.engine import load_record
+
+    run_experiment("toy-redraw", output=tmp_path, progress=False)
+    path = tmp_path / "toy-redraw.json"
+    record = json.loads(path.read_text())
+    record["metrics"]["end"] = 2.0
+    path.write_text(json.dumps(record))
+    unregister("toy-redraw")
+    register(_declare(_present_two))  # a redraw would rewrite the record (another figure)
+    assert redraw_figures(tmp_path) == {}
+    assert load_record(path).digest_ok is False and path.read_text() == json.dumps(record)
+
 def test_records_without_kept_data_are_left_alone_and_damage_is_an_error(toy_redraw, tmp_path):
     run_experiment("toy-redraw", output=tmp_path, progress=False)
     kept = tmp_path / "toy-redraw" / FIGURE_DATA

@@ -279,7 +279,7 @@ def test_markdown_shows_hand_edited_fields_verbatim(results):
     (results / "edited.json").write_text(json.dumps(edited))
     md = write_report(results)[1].read_text()
     assert "<script>" not in md and "<i>" not in md.replace("```toy``x<i>```", "")
-    assert "status: **&lt;script&gt;alert(1)&lt;/script&gt;**" in md
+    assert "status: **&lt;script&gt;alert(1)&lt;/script&gt; (edited after it was written" in md
     # code spans whose fence is longer than any backtick run inside (CommonMark), so the text stays verbatim
     assert "```toy``x<i>``` · thesis:" in md
     assert "- data set ``a`b``: `/p<a>th`" in md
@@ -578,3 +578,20 @@ def test_a_spread_is_shown_beside_its_value_and_not_as_a_row(toy, tmp_path):
     assert "| acc_std |" not in md  # no row of its own
     assert "| lone_std |   | 0.3 |" in md  # a _std metric without its base stays a row
     assert "0.8, sd 0.05" in html and ">acc_std<" not in html
+
+
+def test_report_marks_a_record_whose_digest_does_not_match(toy, tmp_path):
+    run_experiment("toy-mean", output=tmp_path, progress=False)
+    html_path, md_path = write_report(tmp_path)
+    assert "edited after it was written" not in md_path.read_text()
+    path = tmp_path / "toy-mean.json"
+    record = json.loads(path.read_text())
+    record["claims"][1]["verdict"] = "holds"  # edited into a verdict
+    path.write_text(json.dumps(record))
+    html_path, md_path = write_report(tmp_path)
+    md, html_text = md_path.read_text(), html_path.read_text()
+    assert "status: **ran (edited after it was written: it does not match its digest)**" in md
+    assert "ran (edited after it was written: it does not match its digest)" in " ".join(_parse(html_text).text)
+    record["schema_version"], _ = 4, record.pop("digest")  # made to look older: no digest to check
+    path.write_text(json.dumps(record))
+    assert "status: **ran (unverified: no digest)**" in write_report(tmp_path)[1].read_text()

@@ -23,10 +23,10 @@ The modules, from the bottom up: ``rule_syntax``/``rules`` (the claim language),
 ``verdicts`` (a claim decided once, when its record is made), ``spec``, ``context``,
 ``streams``, ``experiment``, ``config``, ``splits``, ``explorer`` (what an experiment declares and uses),
 ``codec``/``cache`` (the no-pickle disk caches), ``workers``/``cluster`` (processes, Dask),
-``registry``, ``record``/``outputs``/``media``/``data`` (records and their files, the explorer's
-files, the data plan),
-``runner`` (one experiment), ``lanes``/``batch`` (many), ``compare`` (two runs' records),
-``redraw`` (figures again, without recomputing).
+``registry``, ``record``/``digest``/``outputs``/``media``/``data`` (records, the digest of their content,
+their files, the explorer's files, the data plan), ``runfiles`` (a run's files under its record's lock, all
+or nothing, kept when they cannot be written), ``runner`` (one experiment), ``lanes``/``batch`` (many),
+``compare`` (two runs' records), ``redraw`` (figures again, without recomputing).
 See ``docs/architecture.rst`` for the picture and the import rules.
 """
 

@@ -17,7 +17,8 @@ from .experiment import PRESETS, SMOKE, Experiment
 from .cluster import parse_scheduler, scheduler_client
 from .data import DataPlan, make_data_plan
 from .outputs import record_path
-from .runner import clear_results, config_and_preset, new_record, plan_target, remove_secondary_record, run_experiment
+from .runfiles import RESULTS_ROOM, remove_secondary_record
+from .runner import clear_results, config_and_preset, new_record, plan_target, run_experiment
 from .record import ResultRecord
 from .registry import all_experiments, get
 
@@ -106,7 +107,7 @@ def reproduce(
         raise ParameterError(f"concurrent must be an int >= 1 (experiments run at the same time); got {concurrent!r}.")
     if isinstance(scheduler, str):
         parse_scheduler(scheduler)
-    check_output_dir(output)
+    check_output_dir(output, room=RESULTS_ROOM)
     plan = make_data_plan(experiments, data, data_root, data_plan)
     runs: list[tuple[Experiment, str]] = []
     for exp in experiments:

@@ -2,7 +2,8 @@
 
 :func:`write_explorer` writes them to ``<output>/<id>/explorer/`` (one folder, built beside and
 moved into place, so a record never lists half-written files) and returns the record's
-``explorer`` entry: clips as mono 16-bit PCM WAV (the standard library's :mod:`wave`),
+``explorer`` entry (:func:`render_explorer` gives the entry and the files' bytes, for the runner,
+which writes a run's files all at once): clips as mono 16-bit PCM WAV (the standard library's :mod:`wave`),
 thumbnails as PNG (Pillow, which matplotlib needs), motions as animated SVG (SMIL, plain text:
 a stick figure frame by frame, or angle curves under a moving cursor), every path relative to
 the results folder.
@@ -20,7 +21,7 @@ import numpy as np
 from .._io import atomic_dir
 from .explorer import AudioClip, Explorer, MotionClip, Thumbnail
 
-__all__ = ["EXPLORER_DIR", "write_explorer", "explorer_files", "wav_bytes", "png_bytes", "svg_text"]
+__all__ = ["EXPLORER_DIR", "render_explorer", "write_explorer", "explorer_files", "wav_bytes", "png_bytes", "svg_text"]
 
 #: The folder beside a record's figures that holds its explorer's files.
 EXPLORER_DIR = "explorer"
@@ -101,6 +102,43 @@ def svg_text(motion: MotionClip) -> str:
             f'<rect width="100%" height="100%" fill="#fff"/>{body}</svg>\n')
 
 
+def render_explorer(explorer: Explorer | None, fig_dir_name: str) -> tuple[dict[str, Any], dict[str, bytes]]:
+    """The explorer's record entry and its files, as :func:`write_explorer` writes them to ``<fig_dir>/explorer/``.
+
+    Returns
+    -------
+    entry : dict
+        As :func:`write_explorer` returns it (``{}`` without an explorer).
+    files : dict of str to bytes
+        Each file's content by its name in the explorer folder (``card-1-clip-1.wav``).
+    """
+    if explorer is None:
+        return {}, {}
+    rel = f"{fig_dir_name}/{EXPLORER_DIR}"
+    cards, files = [], {}
+    for c, card in enumerate(explorer.cards, start=1):
+        entry: dict[str, Any] = {"title": card.title, "note": card.note,
+                                 "labels": [{"label": lab, "share": share} for lab, share in card.labels],
+                                 "clips": [], "images": [], "motions": []}
+        for m, clip in enumerate(card.clips, start=1):
+            name = f"card-{c}-clip-{m}.wav"
+            files[name] = wav_bytes(clip)
+            entry["clips"].append({"path": f"{rel}/{name}", "seconds": round(clip.seconds, 4),
+                                   "sample_rate": clip.sample_rate, "caption": clip.caption})
+        for m, image in enumerate(card.images, start=1):
+            name = f"card-{c}-image-{m}.png"
+            files[name] = png_bytes(image)
+            entry["images"].append({"path": f"{rel}/{name}", "width": int(image.pixels.shape[1]),
+                                    "height": int(image.pixels.shape[0]), "caption": image.caption})
+        for m, motion in enumerate(card.motions, start=1):
+            name = f"card-{c}-motion-{m}.svg"
+            files[name] = svg_text(motion).encode("utf-8")
+            entry["motions"].append({"path": f"{rel}/{name}", "frames": motion.n_frames,
+                                     "seconds": round(motion.seconds, 4), "caption": motion.caption})
+        cards.append(entry)
+    return {"note": explorer.note, "cards": cards}, files
+
+
 def write_explorer(explorer: Explorer | None, fig_dir: Path) -> dict[str, Any]:
     """Write the explorer's files to ``<fig_dir>/explorer/`` (one folder, atomically); return its record entry.
 
@@ -113,32 +151,12 @@ def write_explorer(explorer: Explorer | None, fig_dir: Path) -> dict[str, Any]:
         "caption"}]``) and ``motions`` (``[{"path", "frames", "seconds", "caption"}]``), every path
         relative to the results folder (``<id>/explorer/card-1-clip-1.wav``).
     """
-    if explorer is None:
-        return {}
-    rel = f"{fig_dir.name}/{EXPLORER_DIR}"
-    cards = []
-    with atomic_dir(fig_dir / EXPLORER_DIR) as tmp:
-        for c, card in enumerate(explorer.cards, start=1):
-            entry: dict[str, Any] = {"title": card.title, "note": card.note,
-                                     "labels": [{"label": lab, "share": share} for lab, share in card.labels],
-                                     "clips": [], "images": [], "motions": []}
-            for m, clip in enumerate(card.clips, start=1):
-                name = f"card-{c}-clip-{m}.wav"
-                (tmp / name).write_bytes(wav_bytes(clip))
-                entry["clips"].append({"path": f"{rel}/{name}", "seconds": round(clip.seconds, 4),
-                                       "sample_rate": clip.sample_rate, "caption": clip.caption})
-            for m, image in enumerate(card.images, start=1):
-                name = f"card-{c}-image-{m}.png"
-                (tmp / name).write_bytes(png_bytes(image))
-                entry["images"].append({"path": f"{rel}/{name}", "width": int(image.pixels.shape[1]),
-                                        "height": int(image.pixels.shape[0]), "caption": image.caption})
-            for m, motion in enumerate(card.motions, start=1):
-                name = f"card-{c}-motion-{m}.svg"
-                (tmp / name).write_text(svg_text(motion), encoding="utf-8")
-                entry["motions"].append({"path": f"{rel}/{name}", "frames": motion.n_frames,
-                                         "seconds": round(motion.seconds, 4), "caption": motion.caption})
-            cards.append(entry)
-    return {"note": explorer.note, "cards": cards}
+    entry, files = render_explorer(explorer, fig_dir.name)
+    if explorer is not None:
+        with atomic_dir(fig_dir / EXPLORER_DIR) as tmp:
+            for name, data in files.items():
+                (tmp / name).write_bytes(data)
+    return entry
 
 
 def explorer_files(entry: Any) -> list[str]:

@@ -3,9 +3,9 @@ written and stale ones removed (everything written atomically).
 
 Run experiments, write their results as JSON + PNG, skip what is up to date.
 
-A result record is a JSON object with a stable schema (``schema_version`` 4)::
+A result record is a JSON object with a stable schema (``schema_version`` 5)::
 
-    schema_version  4
+    schema_version  5
     experiment      id                       title, thesis_ref
     status          "ok" | "failed" | "skipped"
     message         why it failed or was skipped (null when ok)
@@ -52,6 +52,9 @@ A result record is a JSON object with a stable schema (``schema_version`` 4)::
                     of ... could not be read and were skipped ..."), so that the report
                     records what a loader skipped
     elapsed_s, started_at (ISO 8601, UTC), python, platform
+    digest          the SHA-256 of every key above but elapsed_s and started_at, as canonical JSON
+                    (:mod:`.digest`): a record whose content does not match it was edited after it
+                    was written, and is computed again rather than reused (the report marks it)
 
 The record of an experiment's default run is ``<output>/<id>.json`` (on the real sets
 when any is found, else on generated data); when real sets were found, its run on
@@ -61,7 +64,8 @@ is written atomically (a temporary file in the same folder, then :func:`os.repla
 explorer's folder built beside and moved into place), figures and explorer first, so a JSON
 file on disk always describes complete results. Records of schemas 1 and 2 (before variants,
 verdicts and claim kinds) are still read: their claims are of kind "unclassified"; records of
-schema 3 (before the explorer) are read without one.
+schema 3 (before the explorer) are read without one; records of schema 4 and older have no digest
+(nothing to check: they are read, but computed again rather than reused).
 
 In Python a record is a :class:`~mmconcepts.engine.record.ResultRecord`, whose
 ``to_json``/``from_json`` write and read this JSON (and which reads like its JSON dict:
@@ -84,7 +88,8 @@ from .media import EXPLORER_DIR, explorer_files
 from .record import SCHEMA_VERSION, ResultRecord
 
 
-__all__ = ["FIGURE_DATA", "load_record", "record_path", "up_to_date", "save_figures", "close_figures", "remove_stale_figures"]
+__all__ = ["FIGURE_DATA", "load_record", "record_path", "same_run", "up_to_date", "figure_png", "save_figures", "close_figures",
+           "remove_stale_figures"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
@@ -127,15 +132,24 @@ def record_path(output: str | os.PathLike[str], exp_id: str, *, secondary: bool 
     return Path(output) / (f"{exp_id}.synthetic.json" if secondary else f"{exp_id}.json")
 
 
-def up_to_date(existing: ResultRecord | None, fresh: ResultRecord, output: Path) -> bool:
-    if existing is None or existing.status != "ok":
+def same_run(existing: ResultRecord, fresh: ResultRecord) -> bool:
+    """Whether ``existing`` is a successful record, as it was written (its digest matches), of the run ``fresh``
+    describes: the same schema, experiment, config, code, data, preset and variant."""
+    if existing.status != "ok" or existing.digest_ok is not True:
         return False
     if existing.schema_version != SCHEMA_VERSION or existing.experiment != fresh.experiment:
         return False
-    for key in ("config", "code", "data", "data_signature", "preset", "variant"):
-        if getattr(existing, key) != getattr(fresh, key):
-            return False
-    return all((output / rel).is_file() for rel in [*existing.figures.values(), *explorer_files(existing.explorer)])
+    return all(getattr(existing, key) == getattr(fresh, key)
+               for key in ("config", "code", "data", "data_signature", "preset", "variant"))
+
+
+def up_to_date(existing: ResultRecord | None, fresh: ResultRecord, output: Path) -> bool:
+    """Whether ``existing`` can stand for the run ``fresh`` describes (:func:`same_run`) and its files are in
+    ``output``."""
+    if existing is None or not same_run(existing, fresh):
+        return False
+    files = [*existing.figures.values(), *explorer_files(existing.explorer)]
+    return all(isinstance(rel, str) and (output / rel).is_file() for rel in files)
 
 
 def close_figures(figures: Mapping[str, Any]) -> None:
@@ -169,12 +183,17 @@ def remove_stale_figures(fig_dir: Path, keep: Iterable[str]) -> None:
         pass
 
 
+def figure_png(fig: Any) -> bytes:
+    """The figure as the PNG file the runner writes (100 dpi, tight bounding box)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    return buf.getvalue()
+
+
 def save_figures(figures: Mapping[str, Any], fig_dir: Path) -> dict[str, str]:
     """Write each figure as ``<fig_dir>/<name>.png`` (atomically); return name -> path relative to the output."""
     saved = {}
     for name, fig in figures.items():
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-        atomic_write(fig_dir / f"{name}.png", buf.getvalue())
+        atomic_write(fig_dir / f"{name}.png", figure_png(fig))
         saved[name] = f"{fig_dir.name}/{name}.png"
     return saved

@@ -5,7 +5,9 @@
 the README, "Where things go"): :meth:`ResultRecord.to_json` writes exactly that JSON and
 :meth:`ResultRecord.from_json` reads it back, also from records of schema version 1 or
 without the keys added since (they get their defaults). Metrics are floats in memory, NaN
-for a metric that could not be measured, and ``null`` in the JSON.
+for a metric that could not be measured, and ``null`` in the JSON. The JSON ends with the
+digest of its content (:mod:`mmconcepts.engine.digest`); a record read back says whether its
+content still matches it (:attr:`ResultRecord.digest_ok`).
 
 A record also reads like the JSON object it writes: ``record["metrics"]``,
 ``record.get("variant")`` and ``dict(record)`` give the plain values (claims and tables as
@@ -28,12 +30,15 @@ from typing import Any
 import numpy as np
 
 from ..errors import ExperimentError
+from .digest import content_digest, digest_matches
 from .spec import Table
 
 __all__ = ["SCHEMA_VERSION", "RECORD_KEYS", "ClaimRecord", "ResultRecord", "to_jsonable"]
 
 #: Version of the result-record schema written by :func:`run_experiment`.
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
+#: The first schema version whose records hold a digest.
+FIRST_DIGESTED = 5
 
 #: Keys present in every result record, whatever its status, in the order they are written.
 RECORD_KEYS = (
@@ -70,6 +75,7 @@ RECORD_KEYS = (
     "started_at",
     "python",
     "platform",
+    "digest",
 )
 
 #: The keys without which a JSON object is not a result record.
@@ -225,7 +231,7 @@ class ClaimRecord:
 
 @dataclass(kw_only=True)
 class ResultRecord(Mapping[str, Any]):
-    """The record of one experiment run (schema version 4).
+    """The record of one experiment run (schema version 5).
 
     Its fields are the keys of the JSON record, in the order written (:data:`RECORD_KEYS`);
     the runner's module docstring and the README describe each. Read-only mapping access
@@ -244,8 +250,13 @@ class ResultRecord(Mapping[str, Any]):
     explorer : dict
         ``{}``, or the concept explorer's ``{"note", "cards"}`` with the relative paths of its
         files (:func:`mmconcepts.engine.media.write_explorer`).
+    digest_ok : bool or None, default=True
+        For a record read back: whether its content matches the digest it holds (False: it was
+        changed after it was written); None for a record of a schema before digests (4 and
+        older), which has none. True for a record made in memory. Not part of the JSON.
     (others)
-        As in the JSON; see :data:`RECORD_KEYS`.
+        As in the JSON; see :data:`RECORD_KEYS`. ``digest`` is not a field: it is computed
+        from the content (:attr:`digest`).
     """
 
     schema_version: int = SCHEMA_VERSION
@@ -281,6 +292,12 @@ class ResultRecord(Mapping[str, Any]):
     started_at: str = ""
     python: str = ""
     platform: str = ""
+    digest_ok: bool | None = field(default=True, compare=False)
+
+    @property
+    def digest(self) -> str:
+        """The digest of the record's content as it is now (:func:`mmconcepts.engine.digest.content_digest`)."""
+        return str(self.to_dict()["digest"])
 
     # ------------------------------------------------------------------ mapping view (the JSON values)
 
@@ -309,7 +326,9 @@ class ResultRecord(Mapping[str, Any]):
         ExperimentError
             If a value cannot be represented in JSON (the message says where).
         """
-        return {key: to_jsonable(self[key], where=key) for key in RECORD_KEYS}
+        out = {key: to_jsonable(self[key], where=key) for key in RECORD_KEYS if key != "digest"}
+        out["digest"] = content_digest(out)
+        return out
 
     def to_json(self) -> str:
         """The JSON text written to ``<id>.json`` (strict JSON: no NaN or Infinity tokens)."""
@@ -322,7 +341,8 @@ class ResultRecord(Mapping[str, Any]):
         Keys missing from older records get their defaults: no intervals, samples, sample
         units, warnings or explorer (before schema 4); the variant ``"real"`` when the record names real data, else
         ``"synthetic"``; no code fingerprint; a claim without a verdict gets that of its
-        ``holds``. Unknown keys are ignored.
+        ``holds``. Unknown keys are ignored, but count in the check of the digest, which sets
+        :attr:`digest_ok`.
 
         Raises
         ------
@@ -350,17 +370,16 @@ class ResultRecord(Mapping[str, Any]):
         try:
             metric_values = {str(k): math.nan if v is None else float(v) for k, v in metrics.items()}
             table_values = {str(name): Table.from_dict(t) for name, t in tables.items()}
-        except (TypeError, ValueError, KeyError, OverflowError) as exc:
+        except (TypeError, ValueError, KeyError, OverflowError, AttributeError) as exc:
             raise ExperimentError(f"malformed metrics or tables in a result record ({type(exc).__name__}: "
                                   f"{exc}).") from exc
-        fields: dict[str, Any] = {key: d[key] for key in RECORD_KEYS if key in d}
-        fields.update(metrics=metric_values, tables=table_values,
-                      claims=[ClaimRecord.from_dict(c) for c in claims])
+        fields: dict[str, Any] = {key: d[key] for key in RECORD_KEYS if key in d and key != "digest"}
+        fields.update(metrics=metric_values, tables=table_values, claims=[ClaimRecord.from_dict(c) for c in claims],
+                      digest_ok=digest_matches(d, version, FIRST_DIGESTED))
         if "variant" not in d:  # schema 1: before variants
             fields["variant"] = "real" if d.get("data") else "synthetic"
         for key in ("config", "data", "data_signature", "intervals", "samples", "sample_units", "units", "split_groups",
-                    "reference",
-                    "figures", "explorer", "notes", "extra", "warnings"):
+                    "reference", "figures", "explorer", "notes", "extra", "warnings"):
             if key in fields and fields[key] is None:  # null where a dict or list belongs: empty
                 del fields[key]
         return cls(**fields)

@@ -20,7 +20,7 @@ from typing import Any
 
 from .._io import atomic_write
 from .._codec import CorruptFile
-from .._store import MISSING, read_entry, write_entry
+from .._store import MISSING, entry_bytes, read_entry
 from ..errors import ExperimentError, ParameterError
 from .experiment import Experiment
 from .media import EXPLORER_DIR
@@ -30,13 +30,14 @@ from .registry import get
 from .spec import Result, Table
 from .uncertainty import SampleUnit
 
-__all__ = ["store_figure_data", "redraw_figures"]
+__all__ = ["figure_data_bytes", "redraw_figures"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
 
-def store_figure_data(result: Result, fig_dir: Path, exp_id: str) -> bool:
-    """Keep what ``present`` draws ``result`` from in ``<fig_dir>/figure_data.npz``; False if it cannot be kept.
+def figure_data_bytes(result: Result, exp_id: str) -> bytes | None:
+    """The file ``<fig_dir>/figure_data.npz`` that keeps what ``present`` draws ``result`` from; None if it cannot
+    be kept.
 
     A result whose ``figure_data`` holds something the codec does not store (an object of
     another library, a set) is not kept: its figures can then only be drawn by running it.
@@ -53,12 +54,10 @@ def store_figure_data(result: Result, fig_dir: Path, exp_id: str) -> bool:
         "figure_data": result.figure_data,
     }
     try:
-        write_entry(fig_dir / FIGURE_DATA, value, exp_id)
+        return entry_bytes(value, exp_id)
     except ParameterError as exc:
         logger.info("%s: its figures cannot be redrawn without running it (%s)", exp_id, exc)
-        (fig_dir / FIGURE_DATA).unlink(missing_ok=True)
-        return False
-    return True
+        return None
 
 
 def _result(kept: Mapping[str, Any]) -> Result:
@@ -109,7 +108,8 @@ def redraw_figures(output: str | os.PathLike[str], ids: Sequence[str] | None = N
     dict of str to list of str
         Record file name -> the figures drawn (the record's ``figures`` rewritten when
         ``present`` now draws others); records without kept figure data (older runs, failed
-        or skipped ones, experiments without ``present``) are left as they are and not listed.
+        or skipped ones, experiments without ``present``) and records edited after they were
+        written (their digest does not match) are left as they are and not listed.
 
     Raises
     ------
@@ -123,6 +123,10 @@ def redraw_figures(output: str | os.PathLike[str], ids: Sequence[str] | None = N
     for path in sorted(folder.glob("*.json")):
         record = load_record(path)
         if record is None or record.status != "ok" or (ids and record.experiment not in ids):
+            continue
+        if record.digest_ok is False:  # rewritten here, an edited record would get a digest of its edits
+            logger.warning("%s: not redrawn: its content does not match its digest (it was edited after it was "
+                           "written); run %s again", path, record.experiment)
             continue
         fig_dir = path.with_suffix("")
         try:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 from .. import __version__
 from .._fingerprint import code_fingerprint
-from .._io import atomic_write, check_output_dir
+from .._io import check_output_dir
 from .._paths import DEFAULT_RESULTS_DIR, data_home
 from ..errors import ExperimentError, MissingExtraError, ParameterError
 from .experiment import PRESETS, SMOKE, Experiment, check_seed
@@ -30,19 +30,11 @@ from .context import RunContext
 from .workers import workers_end_with_this_process
 from .cluster import parse_scheduler, scheduler_client
 from .data import VARIANTS, DataPlan, PlanEntry, data_signature, make_data_plan
-from .outputs import (
-    FIGURE_DATA,
-    close_figures,
-    load_record,
-    record_path,
-    remove_stale_figures,
-    save_figures,
-    up_to_date,
-)
-from .media import EXPLORER_DIR, write_explorer
+from .outputs import close_figures, record_path
 from .record import ClaimRecord, ResultRecord, to_jsonable
-from .redraw import store_figure_data
 from .registry import get
+from .runfiles import (RESULTS_ROOM, current_record, record_lock, remove_secondary_record, render_files, restore_kept,
+                       write_record)
 from .uncertainty import metric_interval
 from .verdicts import decide_claim, pending_claim
 
@@ -50,7 +42,7 @@ if TYPE_CHECKING:
     from _typeshed import DataclassInstance
 
 __all__ = ["CUSTOM_PRESET", "run_experiment", "plan_run", "config_and_preset", "plan_target", "RunTarget", "new_record",
-           "current_record", "remove_secondary_record", "write_record", "clear_results"]
+           "clear_results"]
 
 logger = logging.getLogger("mmconcepts.experiments")
 
@@ -205,12 +197,15 @@ def clear_results(record: ResultRecord) -> None:
         {"label": s["label"], "rule": s["rule"]} for s in c.settings]) for c in record.claims]
 
 
-def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord, target: RunTarget) -> Exception | None:
-    """Run the experiment and fill ``record`` (status, numbers, verdicts, figures written).
+def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord,
+             target: RunTarget) -> tuple[Exception | None, dict[str, bytes]]:
+    """Run the experiment and fill ``record`` (status, numbers, verdicts, the figures it will write).
 
-    Returns the experiment's error when it failed (the record says so), else None.
+    Returns the experiment's error when it failed (the record says so), else None, and the run's files as bytes
+    (:func:`~mmconcepts.engine.runfiles.render_files`; nothing is written here).
     """
     result: Any = None
+    files: dict[str, bytes] = {}
     try:
         if target.cannot_run is not None:
             raise ExperimentSkipped(target.cannot_run)
@@ -219,10 +214,7 @@ def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord
             raise ExperimentError(f"{exp.id}: run() must return a Result; got {type(result).__name__}.")
         result.validate()
         _record_result(record, exp, result)
-        record.figures = save_figures(result.figures, target.fig_dir)
-        record.explorer = write_explorer(result.explorer, target.fig_dir)
-        if exp.present is not None and result.figures:
-            store_figure_data(result, target.fig_dir, exp.id)
+        files = render_files(exp, result, record, target.fig_dir.name)
     except (ExperimentSkipped, MissingExtraError) as exc:  # a missing optional extra: skipped, naming the extra
         why = "needs an optional extra that is not installed: " if isinstance(exc, MissingExtraError) else ""
         record.status, record.message = "skipped", f"{why}{exc}"
@@ -231,13 +223,13 @@ def _execute(exp: Experiment, config: Any, ctx: RunContext, record: ResultRecord
         record.status, record.message = "failed", f"{type(exc).__name__}: {exc}"
         record.traceback = traceback.format_exc()
         logger.error("%s: failed: %s", exp.id, record.message)
-        return exc
+        return exc, {}
     finally:
         if isinstance(result, Result):
             close_figures(result.figures)
         if record.status != "ok":
             clear_results(record)
-    return None
+    return None, (files if record.status == "ok" else {})
 
 
 def run_experiment(
@@ -260,8 +252,12 @@ def run_experiment(
     """Run one experiment and write its record (see the module docstring) and figures.
 
     If the record file already holds a successful result for the same config, code
-    fingerprint, data, variant and preset, it is returned without recomputing (unless
-    ``force``).
+    fingerprint, data, variant and preset, as it was written (its digest matches), it is
+    returned without recomputing (unless ``force``). The run holds its record's lock from
+    that look until its record is written, so that a second run of the same experiment into
+    the same folder waits and returns the first's record; see
+    :mod:`mmconcepts.engine.runfiles`, which also says what happens when the files cannot
+    be written.
 
     Parameters
     ----------
@@ -323,35 +319,40 @@ def run_experiment(
         On an unknown id, a bad preset, config, variant or data argument (a ``data_root``
         given that is no folder; a :class:`ParameterError` for a config of another class, a
         preset and a config both given, or a data plan with ``data`` or ``data_root``; for an
-        output folder that is a file or cannot be written, checked before any work), or (with
-        ``raise_errors``) the experiment's own error.
+        output folder that is a file, cannot be written or whose disk has less than
+        :data:`~mmconcepts.engine.runfiles.RESULTS_ROOM` bytes free, checked before any work),
+        when the run's files cannot be written (whatever ``raise_errors``; what it computed is
+        kept for the next run), or (with ``raise_errors``) the experiment's own error.
     """
     exp = _resolve(exp_or_id)
     config, preset, target, output = plan_run(exp, preset, config, seed, output, variant, scheduler, data=data,
                                               data_root=data_root, data_plan=data_plan)
     record = new_record(exp, preset, config, target)
-    if not force and (existing := current_record(target, record, output)) is not None:
-        logger.info("%s (%s data): skipped: up to date (%s)", exp.id, target.variant, target.json_path)
-        return existing
-    if target.cannot_run is not None and variant != "auto":
-        # an explicitly asked variant that cannot run here: say so, but never overwrite a record
-        logger.warning("%s: skipped: %s", exp.id, target.cannot_run)
-        record.status, record.message = "skipped", target.cannot_run
-        return record
-    output.mkdir(parents=True, exist_ok=True)
-    if target.variant == "synthetic" and not target.secondary:  # it supersedes an older run on generated data
-        remove_secondary_record(output, exp.id)
-    logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
-    ctx = RunContext(workers=workers, data=target.data, cache_dir=data_home(), show_progress=progress,
-                     logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"), datasets=tuple(exp.datasets))
-    t0 = time.perf_counter()
-    # every joblib call of the run (RunContext.parallel's and the library's own n_jobs) under one
-    # config: loky keeps the same worker processes from one to the next instead of starting new ones
-    with scheduler_client(scheduler) as client, workers_end_with_this_process():
-        ctx.client = client
-        error = _execute(exp, config, ctx, record, target)
-    record.elapsed_s = round(time.perf_counter() - t0, 3)
-    write_record(record, target)
+    with record_lock(target.json_path):  # a second run of it into this folder waits here, then reuses the record
+        if not force and (existing := current_record(target.json_path, record, output)) is not None:
+            logger.info("%s (%s data): skipped: up to date (%s)", exp.id, target.variant, target.json_path)
+            return existing
+        if target.cannot_run is not None and variant != "auto":
+            # an explicitly asked variant that cannot run here: say so, but never overwrite a record
+            logger.warning("%s: skipped: %s", exp.id, target.cannot_run)
+            record.status, record.message = "skipped", target.cannot_run
+            return record
+        output.mkdir(parents=True, exist_ok=True)
+        if target.variant == "synthetic" and not target.secondary:  # it supersedes an older run on generated data
+            remove_secondary_record(output, exp.id)
+        if not force and (kept := restore_kept(target.json_path, record, data_home())) is not None:
+            return kept
+        logger.info("%s: running on %s data (%s preset, seed %s)", exp.id, target.variant, preset, config.seed)
+        ctx = RunContext(workers=workers, data=target.data, cache_dir=data_home(), show_progress=progress,
+                         logger=logging.getLogger(f"mmconcepts.experiments.{exp.id}"), datasets=tuple(exp.datasets))
+        t0 = time.perf_counter()
+        # every joblib call of the run (RunContext.parallel's and the library's own n_jobs) under one
+        # config: loky keeps the same worker processes from one to the next instead of starting new ones
+        with scheduler_client(scheduler) as client, workers_end_with_this_process():
+            ctx.client = client
+            error, files = _execute(exp, config, ctx, record, target)
+        record.elapsed_s = round(time.perf_counter() - t0, 3)
+        write_record(record, files, target.json_path, data_home())
     if error is not None and raise_errors:
         raise error
     return record
@@ -370,31 +371,5 @@ def plan_run(exp: Experiment, preset: str | None, config: Any, seed: int | None,
     if isinstance(scheduler, str):
         parse_scheduler(scheduler)  # a malformed address fails before any work
     plan = make_data_plan([exp], data, data_root, data_plan)
-    out = check_output_dir(output)  # before any work: a file or an unwritable folder fails now
+    out = check_output_dir(output, room=RESULTS_ROOM)  # before any work: a file, an unwritable or full folder
     return config, preset_name, plan_target(exp, variant, plan.entry(exp), out), out
-
-
-def current_record(target: RunTarget, fresh: ResultRecord, output: Path) -> ResultRecord | None:
-    """The record on disk for ``target`` when it is up to date with ``fresh`` (same config, code, data), else None."""
-    if not target.json_path.exists():
-        return None
-    existing = load_record(target.json_path)
-    return existing if existing is not None and up_to_date(existing, fresh, output) else None
-
-
-def remove_secondary_record(output: str | os.PathLike[str], exp_id: str) -> None:
-    """Delete ``exp_id``'s record on generated data beside a real-data run (and its figures), if there is one."""
-    stale = record_path(output, exp_id, secondary=True)
-    if stale.exists():
-        stale.unlink()
-        remove_stale_figures(stale.with_suffix(""), ())
-
-
-def write_record(record: ResultRecord, target: RunTarget) -> None:
-    """Write ``record`` atomically (its figures and explorer are written first) and remove the files it no longer has."""
-    atomic_write(target.json_path, record.to_json().encode("utf-8"))
-    figures = [Path(p).name for p in record.figures.values()]
-    kept = [*figures, FIGURE_DATA] if record.status == "ok" and figures else figures
-    remove_stale_figures(target.fig_dir, kept + ([EXPLORER_DIR] if record.explorer else []))
-    if record.status == "ok":
-        logger.info("%s: done in %.1f s, wrote %s", record.experiment, record.elapsed_s, target.json_path)

@@ -347,6 +347,7 @@ class ExperimentView:
     cards: list[CardView] = field(default_factory=list)  # the concept explorer
     explorer_note: str = ""
     omitted: dict[str, int] = field(default_factory=dict)  # what the record holds past the report's limits
+    digest_ok: bool | None = True  # False: edited after it was written; None: a record without a digest (older)
 
     def left_out(self, *whats: str) -> str:
         """``9000 more claims, 7 more notes``: what of ``whats`` (default: everything) the report leaves out."""
@@ -354,8 +355,10 @@ class ExperimentView:
 
     @property
     def status_label(self) -> str:
-        label = STATUS_LABELS.get(self.status, self.status)
-        return f"{label} (older code)" if self.stale else label
+        label = STATUS_LABELS.get(self.status, self.status) + (" (older code)" if self.stale else "")
+        if self.digest_ok is None:
+            return f"{label} (unverified: no digest)"
+        return label if self.digest_ok else f"{label} (edited after it was written: it does not match its digest)"
 
     @property
     def n_claims(self) -> int:
@@ -595,6 +598,7 @@ def build_view(record: ResultRecord, results_dir: Path, source: Path) -> Experim
         cards=cards,
         explorer_note=explorer_note,
         omitted=shown.omitted,
+        digest_ok=record.digest_ok,
     )
 
 
