@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from mmconcepts.cli import main
+from mmconcepts.engine.digest import content_digest
 from mmconcepts.errors import ExperimentError
 from mmconcepts.experiments import all_experiments, reproduce
 from mmconcepts.report.verdict_page import GENERATED_MARK, TALLIES_END, TALLIES_START, verdict_page
@@ -62,10 +63,15 @@ def test_the_page_refuses_records_of_other_code_or_mixed_runs(toy, tmp_path):
     record = json.loads(path.read_text())
     record["code"] = "0000000000000000"
     path.write_text(json.dumps(record))
+    with pytest.raises(ExperimentError, match="do not match their digest"):  # an edited record is never a page
+        verdict_page(tmp_path)
+    record["digest"] = content_digest(record)  # as the other code would have written it
+    path.write_text(json.dumps(record))
     with pytest.raises(ExperimentError, match="other code"):
         verdict_page(tmp_path)
     assert "not the code of this page's commit" in verdict_page(tmp_path, allow_stale=True)
     other = dict(record, experiment="toy-other", preset="full")
+    other["digest"] = content_digest(other)
     (tmp_path / "toy-other.json").write_text(json.dumps(other))
     with pytest.raises(ExperimentError, match="mix presets"):
         verdict_page(tmp_path, allow_stale=True)

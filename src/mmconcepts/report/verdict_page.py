@@ -111,7 +111,8 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
     ------
     ExperimentError
         If the folder holds no record that ran, records of several presets or code
-        fingerprints, or (without ``allow_stale``) records of other code than the installed.
+        fingerprints, records edited after they were written (their digest does not match), or (without
+        ``allow_stale``) records of other code than the installed.
     """
     results_dir = _results_folder(results_dir)
     views = collect(results_dir)
@@ -124,6 +125,10 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
         raise ExperimentError(f"the records of {str(results_dir)!r} mix presets ({', '.join(presets)}) or code "
                               f"({', '.join(c or 'none' for c in codes)}); a page describes one run of one code: "
                               "rerun `mmconcepts reproduce --force` into an empty folder.")
+    edited = sorted(v.source for v in ran if v.digest_ok is False)
+    if edited:
+        raise ExperimentError(f"the records {', '.join(edited)} of {str(results_dir)!r} do not match their digest (edited "
+                              "after they were written): a verdict page is made of computed records only; rerun them.")
     current = code_fingerprint()
     stale = codes[0] != current
     if stale and not allow_stale:
