@@ -1025,3 +1025,175 @@ def test_rescale_features_refuses_a_bad_factor_or_an_unfitted_model(rng):
     for bad in (0.0, -1.0, np.inf, np.nan):
         with pytest.raises(ParameterError, match="positive finite"):
             model.rescale_features(slice(None), bad)
+
+
+# --------------------------------------------------------------------------- coefficients to convergence
+def _nnls_rows(X, H, mask=None, l2=0.0):
+    """The exact coefficients for beta = 2 (scipy's NNLS, one row at a time): an outside answer.
+
+    An L2 penalty l2 |w|^2 / 2 is the same least squares with sqrt(l2) I below H.T and zeros below x."""
+    from scipy.optimize import nnls
+
+    X = X.toarray() if sp.issparse(X) else X
+    k = H.shape[0]
+    out = np.empty((X.shape[0], k))
+    for i, x in enumerate(X):
+        cols = np.ones(X.shape[1], bool) if mask is None else mask[i]
+        A = np.vstack([H[:, cols].T, np.sqrt(l2) * np.eye(k)])
+        out[i] = nnls(A, np.concatenate([x[cols], np.zeros(k)]), maxiter=50 * k)[0]
+    return out
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("case", ["dense", "sparse", "mask", "features", "l2", "sparse-mask"])
+def test_frobenius_transform_is_the_exact_nonnegative_least_squares(rng, case):
+    """With H fixed, beta = 2 is nonnegative least squares per row: transform matches scipy's NNLS.
+
+    Multiplicative updates alone leave the coefficients percents from it (asserted, so that the
+    test shows the difference the solution to convergence makes)."""
+    X = rng.random((60, 25)) ** 2
+    model = NMF(6, random_state=0, alpha_W=0.01 if case == "l2" else 0.0, max_iter=300).fit(X)
+    H = model.components_
+    mask = rng.random(X.shape) < 0.7 if "mask" in case else None
+    Xin = sp.csr_matrix(X) if "sparse" in case else X
+    if case == "features":
+        cols = np.arange(3, 20)
+        W, want = model.transform(X[:, cols], features=cols), _nnls_rows(X[:, cols], H[:, cols])
+    else:
+        W = model.transform(Xin, mask=mask)
+        want = _nnls_rows(X, H, mask, l2=X.shape[1] * model.alpha_W)
+    np.testing.assert_allclose(W, want, rtol=0, atol=1e-7 * want.max())
+    mu_only = beta_nmf(X if mask is None else X * mask, 6, H=H, update_H=False, mask=mask, max_iter=200,
+                       alpha_W=model.alpha_W) if case != "features" else None
+    if mu_only is not None:
+        assert np.abs(mu_only.W - want).max() > 1e-3 * want.max()
+
+
+def _row_minimum(x, H, observed, beta):
+    """The coefficients of one row by scipy's L-BFGS-B on (w >= 0), for 1 <= beta <= 2: an outside answer.
+
+    The objective drops the terms that do not depend on w: y - x log y (beta = 1), and
+    y^beta / beta - x y^(beta-1) / (beta - 1) otherwise; its gradient is H (y^(beta-1) - x y^(beta-2))."""
+    from scipy.optimize import minimize
+
+    Hc, xc = H[:, observed], x[observed]
+
+    def f(w):
+        y = np.maximum(w @ Hc, 1e-300)
+        if beta == 1.0:
+            value = np.sum(y - xc * np.log(y))
+        else:
+            value = np.sum(y**beta / beta - xc * y ** (beta - 1) / (beta - 1))
+        return float(value), Hc @ (y ** (beta - 1) - xc * y ** (beta - 2))
+
+    res = minimize(f, np.full(H.shape[0], xc.mean() / Hc.mean() / H.shape[0]), jac=True, method="L-BFGS-B",
+                   bounds=[(0, None)] * H.shape[0], options=dict(ftol=1e-15, gtol=1e-12, maxiter=20000))
+    return res.x
+
+
+@pytest.mark.parametrize("beta, case", [(1.0, "dense"), (1.0, "sparse"), (1.0, "mask"), (1.0, "float32"),
+                                        (1.5, "dense"), (1.5, "mask")])
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_transform_is_the_minimum_scipy_finds(rng, beta, case):
+    X = rng.gamma(1.0, 1.0, (30, 20))
+    X[rng.random(X.shape) < 0.2] = 0.0  # zeros: the sparse path only visits the stored values
+    model = NMF(4, beta_loss=beta, random_state=0, max_iter=300).fit(X)
+    H = model.components_
+    mask = rng.random(X.shape) < 0.7 if case == "mask" else None
+    Xin = {"sparse": sp.csr_matrix(X), "float32": X.astype(np.float32)}.get(case, X)
+    W = model.transform(Xin, mask=mask)
+    assert W.dtype == (np.float32 if case == "float32" else np.float64)
+    want = np.array([_row_minimum(x, H, np.ones(X.shape[1], bool) if mask is None else mask[i], beta)
+                     for i, x in enumerate(X)])
+    np.testing.assert_allclose(W, want, rtol=0, atol=(1e-4 if case == "float32" else 1e-6) * want.max())
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("beta", [1.0, 1.5, 2.0])
+def test_coefficients_scale_with_the_data_and_against_the_dictionary(rng, beta):
+    """Homogeneity: the coefficients of c X are c times those of X, and those of X for the dictionary
+    d H are 1 / d times; at 2 ** +-40 the solver works on rescaled data (exact powers of two)."""
+    X = rng.gamma(1.0, 1.0, (20, 12))
+    model = NMF(3, beta_loss=beta, random_state=0, max_iter=100).fit(X)
+    W = model.transform(X)
+    for c in [2.0**40, 2.0**-40]:
+        np.testing.assert_allclose(model.transform(c * X), c * W, rtol=1e-7, atol=1e-9 * c * W.max())
+    model.components_ = model.components_ * 2.0**40
+    np.testing.assert_allclose(model.transform(X), W / 2.0**40, rtol=1e-7, atol=1e-9 * W.max() / 2.0**40)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_coefficients_with_an_l2_penalty_scale_with_the_data(rng):
+    """beta = 2 with an L2 penalty on W: both terms scale as c^2, so the coefficients of c X are c times
+    those of X, the penalty brought to the rescaled problem's units (and not the same without it)."""
+    X = rng.gamma(1.0, 1.0, (20, 12))
+    model = NMF(3, random_state=0, max_iter=100, alpha_W=0.05).fit(X)
+    W = model.transform(X)
+    c = 2.0**40
+    np.testing.assert_allclose(model.transform(c * X), c * W, rtol=1e-7, atol=1e-9 * c * W.max())
+    assert np.abs(NMF(3, random_state=0, max_iter=100).fit(X).transform(X) - W).max() > 1e-3 * W.max()
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("beta", [1.0, 1.5, 2.0])
+@pytest.mark.parametrize("sparse", [False, True])
+def test_newton_steps_converge_in_a_few_steps_from_the_updates(rng, beta, sparse):
+    """Quadratic convergence once the zero coefficients are found: a handful of steps from the
+    updates' coefficients (a wrong Hessian still descends, but needs many more)."""
+    from mmconcepts.nmf._coefficients import solve_coefficients
+
+    X = rng.gamma(0.5, 1.0, (80, 40))
+    model = NMF(6, beta_loss=beta, random_state=0, max_iter=200).fit(X)
+    start = beta_nmf(X, 6, H=model.components_, update_H=False, beta_loss=beta, max_iter=200).W
+    W, converged = solve_coefficients(sp.csr_matrix(X) if sparse else X, model.components_, start, beta, max_iter=8)
+    assert converged
+    np.testing.assert_allclose(W, model.transform(X), rtol=0, atol=1e-6 * W.max())
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_more_atoms_than_the_features_tell_apart_keep_the_updates(rng):
+    """A dictionary of 6 atoms seen through 4 features: the coefficients' minimisers form a set, and
+    transform gives the updates' point of it (as beta_nmf with the dictionary fixed)."""
+    X = rng.gamma(1.0, 1.0, (20, 10))
+    model = NMF(6, random_state=0, max_iter=50).fit(X)
+    cols = [0, 3, 5, 8]
+    want = beta_nmf(X[:, cols], 6, H=model.components_[:, cols], update_H=False, max_iter=50).W
+    np.testing.assert_array_equal(model.transform(X[:, cols], features=cols), want)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+def test_fit_transform_returns_the_coefficients_transform_gives(rng, beta):
+    """fit_transform(X) is fit(X).transform(X): the fit's last W, solved to convergence for the final
+    dictionary, is the minimiser transform reaches from its flat start; and it explains X at
+    least as well as the fit's own W."""
+    X = rng.gamma(1.0, 1.0, (50, 30))
+    model = NMF(5, beta_loss=beta, random_state=0, max_iter=100)
+    W = model.fit_transform(X)
+    np.testing.assert_allclose(W, model.transform(X), rtol=0, atol=1e-7 * W.max())
+    own = beta_nmf(X, 5, beta_loss=beta, random_state=0, max_iter=100).W
+    assert beta_divergence(X, W, model.components_, beta) <= beta_divergence(X, own, model.components_, beta)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_outside_the_convex_betas_transform_is_the_multiplicative_updates(rng):
+    """For beta outside [1, 2] (a problem in W that need not be convex) and with Hoyer constraints on W,
+    transform is the multiplicative updates alone, as beta_nmf with the dictionary fixed."""
+    X = rng.gamma(1.0, 1.0, (20, 10)) + 0.1
+    for kw in [dict(beta_loss=0.5), dict(beta_loss=2.5), dict(sparseness_W=0.3)]:
+        model = NMF(3, random_state=0, max_iter=50, **kw).fit(X)
+        want = beta_nmf(X, 3, H=model.components_, update_H=False, max_iter=50,
+                        **{k: v for k, v in model._solver_kwargs().items()})
+        np.testing.assert_array_equal(model.transform(X), want.W)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_coefficients_that_do_not_converge_warn(rng, monkeypatch):
+    import mmconcepts.nmf._estimator as est
+
+    X = rng.gamma(1.0, 1.0, (20, 10))
+    model = NMF(3, beta_loss=1, random_state=0, max_iter=20).fit(X)
+    solve = est.solve_coefficients
+    monkeypatch.setattr(est, "solve_coefficients", lambda *a, **kw: solve(*a, **{**kw, "max_iter": 1}))
+    with pytest.warns(ConvergenceWarning, match="projected Newton steps did not converge"):
+        model.transform(X)

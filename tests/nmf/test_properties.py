@@ -9,6 +9,8 @@ defaults, overridden by the owner's NMF parameters, overridden by the explicit o
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -16,6 +18,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from mmconcepts.nmf import NMF, LabelNMF, beta_nmf, hoyer_sparseness, project_hoyer
+from mmconcepts.nmf._beta import resolve_beta
+from mmconcepts.nmf._coefficients import determined_rows
 from mmconcepts.nmf.sparseness import l1_for_sparseness
 
 pytestmark = pytest.mark.property
@@ -145,3 +149,36 @@ def test_every_label_nmf_parameter_value_reaches_the_nmf_it_builds(data):
     assert {name: got[name] for name in values} == values
     assert {k: v for k, v in got.items() if k not in values} == {k: v for k, v in NMF().get_params().items()
                                                                     if k not in values}
+
+
+# ----------------------------------------------------------------------------- transform and fit_transform
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    n=st.integers(2, 100),
+    m=st.integers(2, 50),
+    k=st.one_of(st.none(), st.integers(1, 8)),
+    beta=st.sampled_from(["frobenius", 1.0, 1.5, 2.0]),
+    zeros=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_fit_transform_is_fit_then_transform(n, m, k, beta, zeros, seed):
+    """The scikit-learn contract, for random data of any shape: fit_transform(X) equals
+    fit(X).transform(X) to 1e-6 of W's scale wherever the problem in W has one minimiser
+    (1 <= beta <= 2: it is convex, and both reach it), which is every row of data without zeros
+    and with no more atoms than features."""
+    rng = np.random.default_rng(seed)
+    X = rng.gamma(0.5, 1.0, (n, m))
+    if zeros:
+        X[rng.random((n, m)) < 0.5] = 0.0
+    model = NMF(k, beta_loss=beta, random_state=int(rng.integers(2**31)), max_iter=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the fit's own ConvergenceWarning at max_iter
+        W = model.fit_transform(X)
+        again = model.fit(X).transform(X)
+    H = model.components_
+    live = H.sum(axis=0) > 0
+    one = determined_rows(X[:, live], H[:, live], resolve_beta(beta))
+    assert one.all() or zeros or (k or 0) > m  # more atoms than features: a set of minimisers
+    assert np.abs(W - again)[one].max(initial=0.0) <= 1e-6 * max(np.abs(W).max(), 1e-12)

@@ -60,6 +60,7 @@ from .._io import atomic_path, replace_dir
 from .._validation import check_nonnegative_matrix, check_random_state
 from ..errors import ConvergenceWarning, DataError, DataFormatError, ParameterError
 from ._beta import check_beta_zeros, mm_exponent
+from ._coefficients import solve_coefficients
 from ._problem import Problem, Side
 from ._data import check_factor, check_mask, is_dask_array, validate_data
 from ._init import Unreachable, check_factor_not_zero, refuse_unreachable
@@ -85,6 +86,7 @@ __all__ = [
     "is_dask_array",
     "load_npz_chunks",
     "save_npz_chunks",
+    "solve_coefficients_dask",
 ]
 
 #: The ``format`` field of the manifest of a folder of ``.npz`` chunks, and its version.
@@ -826,6 +828,40 @@ def beta_nmf_dask(
     extra = {"divergence": divergence, "n_chunks": len(specs), "bytes_per_iteration": _traffic_bytes(final, Ht, specs)}
     return NMFResult(W_out, np.ascontiguousarray(Ht.T), n_iter, np.asarray(hist), np.asarray(its, dtype=int),
                      converged, extra)
+
+
+def solve_coefficients_dask(X: Any, W: Any, H: np.ndarray, beta: float, *, mask: Any = None,
+                            penalty: Penalty | None = None, columns: np.ndarray | None = None) -> Any:
+    """:func:`~mmconcepts.nmf._coefficients.solve_coefficients` of a dask array X, chunk by chunk (lazy).
+
+    Given the dictionary, the rows are independent problems: each row chunk of W (a dask array
+    with X's row chunks) is solved against its rows of X where they live, with the in-memory
+    steps, and the result is a dask array with X's row chunks. ``columns`` keeps only those
+    columns of each chunk (H has only them).
+    """
+    dask = _require_dask("transform of a dask array")
+    import dask.array as da
+    from dask.highlevelgraph import HighLevelGraph
+
+    bounds = _chunk_bounds(X)
+    m_blocks = _mask_blocks(mask, X, bounds, dask)
+    specs = [_ChunkSpec(i, a, b, columns) for i, (a, b) in enumerate(bounds)]
+    parts = [dask.delayed(_solve_chunk)(x, mb, w, s, H, beta, penalty)
+             for x, mb, w, s in zip(X.to_delayed().ravel(), m_blocks, W.to_delayed().ravel(), specs)]
+    name = "nmf-W-solved-" + uuid.uuid4().hex  # built by hand: da.concatenate would drop empty chunks
+    layer: dict[Any, Any] = {(name, i, 0): (_same, p.key) for i, p in enumerate(parts)}
+    graph = HighLevelGraph.from_collections(name, layer, dependencies=parts)
+    return da.Array(graph, name, chunks=(tuple(b - a for a, b in bounds), (H.shape[0],)), dtype=W.dtype,
+                    meta=np.empty((0, 0), dtype=W.dtype))
+
+
+def _solve_chunk(x: Any, m: Any, w: Any, spec: _ChunkSpec, H: np.ndarray, beta: float, penalty: Penalty | None):
+    w = np.asarray(w)
+    prepared = _prepare(x, m, spec, beta)
+    if prepared is None:
+        return w
+    Xv, Mv = prepared
+    return solve_coefficients(Xv, H, w, beta, mask=Mv, penalty=penalty)[0]
 
 
 def _traffic_bytes(final: _Partial, Ht: np.ndarray, specs: Sequence[_ChunkSpec]) -> int:

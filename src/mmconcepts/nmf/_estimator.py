@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from typing import Any, Literal, cast
 
 import numpy as np
@@ -11,8 +12,9 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._persist import SaveLoadMixin
 from .._validation import Interval, check_random_state, validate_params
-from ..errors import DataError, ParameterError
+from ..errors import ConvergenceWarning, DataError, ParameterError
 from ._beta import EPSILON, check_beta_zeros, mm_exponent, resolve_beta
+from ._coefficients import solve_coefficients, solves_coefficients
 from ._init import initialize
 from ._problem import Problem
 from ._data import is_dask_array, validate_data
@@ -63,6 +65,25 @@ def resolve_features(features: Any, n_features: int, name: str = "features") -> 
     if idx.size == 0:
         raise ParameterError(f"{name} selects no feature; select at least one.")
     return idx
+
+
+def _live_features(H: np.ndarray) -> np.ndarray | None:
+    """The columns of H where some atom is nonzero, or None when that is all of them (or none).
+
+    The other columns carry no information on the coefficients: their loss D(x | 0) does not
+    depend on them (and is infinite for beta <= 1 when x > 0, which would void the stopping
+    rule). Leaving them out leaves the minimiser unchanged.
+    """
+    live = H.sum(axis=0) > 0
+    return None if live.all() or not live.any() else np.flatnonzero(live)
+
+
+def _live_columns(H: np.ndarray, X: Any, mask: Any):
+    """(H, X, mask) restricted to :func:`_live_features`."""
+    cols = _live_features(H)
+    if cols is None:
+        return H, X, mask
+    return H[:, cols], X[:, cols], None if mask is None else mask[:, cols]
 
 
 def _broadcast_row(a: np.ndarray) -> np.ndarray | None:
@@ -149,6 +170,16 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
     :meth:`fit` and :meth:`transform`, and transforms and reconstructions restricted to a
     subset of features (e.g. from motion features only, to reconstruct labels).
 
+    The coefficients of :meth:`transform` minimise the objective in W with the dictionary
+    fixed, one problem per row. For 1 <= beta <= 2 it is convex: the multiplicative updates
+    (``transform_max_iter`` of them, or fewer by ``tol``) start a projected Newton method that
+    solves it to convergence (Bertsekas 1982), and :meth:`fit_transform` returns the fit's
+    last W solved so for the final dictionary, so that ``fit_transform(X)`` is
+    ``fit(X).transform(X)``. Multiplicative updates alone stop percents away from that
+    minimum, more where coefficients are zero at it. For other betas, where the problem in W
+    need not be convex, and under ``sparseness_W``, the coefficients are the multiplicative
+    updates' (or the Hoyer steps'), as in the thesis.
+
     A ``dask.array`` X of row chunks (dense or scipy.sparse chunks) is fitted by the
     distributed solver (see :func:`~mmconcepts.nmf.beta_nmf`): :meth:`fit_transform` and
     :meth:`transform` return a dask array with X's row chunks (W stays in the cluster),
@@ -174,7 +205,8 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
     forget_factor : float in [0, 1], default=0.7
         :meth:`partial_fit`: weight of the statistics of earlier batches (1 keeps them all).
     transform_max_iter : int, optional
-        Iterations of :meth:`transform` (default: ``max_iter``).
+        Multiplicative updates of :meth:`transform` (default: ``max_iter``); for
+        1 <= beta <= 2 they start the Newton steps that solve the coefficients.
     loss_every : int, default=10
         The objective is evaluated (and recorded) every this many iterations.
     random_state : int, numpy.random.Generator or None
@@ -187,7 +219,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
     n_iter_ : int
         Iterations of the last fit (or partial_fit call).
     reconstruction_err_ : float
-        sqrt(2 * D_beta(X | WH)) at the end of the fit, as scikit-learn.
+        sqrt(2 * D_beta(X | WH)) at the fit's last iterate, as scikit-learn.
     loss_history_ : ndarray
         Objective at the iterations in ``loss_iterations_``.
     loss_iterations_ : ndarray of int
@@ -374,6 +406,9 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
     def fit_transform(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> np.ndarray:
         """Learn the dictionary and return the coefficients W of X, shape (n_samples, n_components).
 
+        For 1 <= beta <= 2 (without ``sparseness_W``), W is the fit's last W solved to
+        convergence for the final dictionary, as :meth:`transform` solves it:
+        ``fit_transform(X)`` is ``fit(X).transform(X)`` up to that solution's tolerance.
         W is a dask array with X's row chunks when X is a dask array.
         """
         validate_params(self, self._parameter_constraints)
@@ -399,7 +434,16 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
         self.n_steps_ = 0
         self._stats = None
-        return res.W
+        if not self._solves_coefficients():
+            return res.W
+        # The coefficients of the final dictionary, solved as transform solves them (from the fit's W):
+        # fit_transform(X) is fit(X).transform(X) up to the tolerance of the solution.
+        if is_dask_array(X):
+            columns = _live_features(res.H)
+            return self._solve_coefficients_dask(X, mask, res.H if columns is None else res.H[:, columns], res.W,
+                                                 columns)
+        H, Xv, maskv = _live_columns(res.H, *validate_data(X, mask))
+        return self._solve_coefficients(Xv, maskv, H, res.W)
 
     def _set_fitted(self, H: np.ndarray, X: Any) -> None:
         self.components_ = H
@@ -591,6 +635,24 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         -------
         W : ndarray or dask.array.Array of shape (n_samples, n_components)
             A dask array with X's row chunks when X is one.
+
+        Notes
+        -----
+        Each row's coefficients minimise its objective with the dictionary fixed,
+
+        .. math:: \\min_{w \\ge 0} \\sum_j m_j\\, d_\\beta(x_j | (wH)_j) + \\text{penalties on } w
+
+        For 1 <= beta <= 2 the problem is convex; the multiplicative updates (thesis eq. 2.16,
+        from a flat start, ``transform_max_iter`` at most) are followed by projected Newton
+        steps with an Armijo search along the projection arc (Bertsekas 1982) until each row
+        meets the optimality conditions, to about 1e-7 of its largest coefficient (far less
+        once the convergence is quadratic). This is done where the minimiser is unique: the
+        atoms that the selected features see are linearly independent and each row observes
+        at least as many features as there are such atoms (or ``alpha_W`` sets an L2
+        penalty); there the result does not depend on the start. Elsewhere (e.g. more atoms
+        than features) the minimisers form a set, and the updates' coefficients are kept. For
+        other betas, and with ``sparseness_W``, the coefficients are those of the updates
+        alone.
         """
         check_is_fitted(self)
         idx = resolve_features(features, self.n_features_in_)
@@ -603,26 +665,43 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             raise DataError(
                 f"X has {Xv.shape[1]} columns but features selects {idx.size}; give X only the selected columns."
             )
-        H = self.components_[:, idx].astype(Xv.dtype, copy=False)
-        # Columns where every atom is zero carry no information on the coefficients: their
-        # loss D(x | 0) does not depend on them (and is infinite for beta <= 1 when x > 0,
-        # which would void the stopping rule). Dropping them leaves the minimiser unchanged.
-        live = H.sum(axis=0) > 0
-        if not live.all() and live.any():
-            H = H[:, live]
-            Xv = Xv[:, live] if sp.issparse(Xv) else Xv[:, live]
-            maskv = None if maskv is None else maskv[:, live]
+        H, Xv, maskv = _live_columns(self.components_[:, idx].astype(Xv.dtype, copy=False), Xv, maskv)
         max_iter = self.transform_max_iter if self.transform_max_iter is not None else self.max_iter
-        res = beta_nmf(
-            Xv,
-            self.components_.shape[0],
-            H=H,
-            update_H=False,
-            mask=maskv,
-            max_iter=max_iter,
-            **self._solver_kwargs(),
-        )
-        return res.W
+        solves = self._solves_coefficients()
+        with warnings.catch_warnings():
+            if solves:  # the updates only start the Newton steps: their stopping early is no concern
+                warnings.simplefilter("ignore", ConvergenceWarning)
+            res = beta_nmf(
+                Xv,
+                self.components_.shape[0],
+                H=H,
+                update_H=False,
+                mask=maskv,
+                max_iter=max_iter,
+                **self._solver_kwargs(),
+            )
+        return self._solve_coefficients(Xv, maskv, H, res.W) if solves else res.W
+
+    def _solves_coefficients(self) -> bool:
+        """Whether the coefficients are solved to convergence: a convex problem per row, no Hoyer constraint."""
+        return self.sparseness_W is None and solves_coefficients(resolve_beta(self.beta_loss))
+
+    def _coefficient_penalty(self, n_features: int):
+        """The penalty on W of a transform on ``n_features`` columns (scikit-learn's scaling, as beta_nmf's)."""
+        return resolve_penalties(self.alpha_W, self.alpha_H, self.l1_ratio, 1, n_features)[0]
+
+    def _solve_coefficients(self, X: Any, mask: Any, H: np.ndarray, W: np.ndarray) -> np.ndarray:
+        """W solved to convergence from the start W, for the fixed H (columns of X already selected)."""
+        W, converged = solve_coefficients(X, H, W, resolve_beta(self.beta_loss), mask=mask,
+                                          penalty=self._coefficient_penalty(H.shape[1]))
+        if not converged:
+            warnings.warn(
+                "the coefficients' projected Newton steps did not converge; they are the last iterate. "
+                "Check X and the dictionary for values at the edge of the float range.",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
+        return W
 
     def _transform_dask(self, X: Any, idx: np.ndarray, all_features: bool, mask: Any) -> Any:
         """transform() of a dask array of row chunks: the same steps, chunk by chunk (nmf/_dask.py)."""
@@ -642,16 +721,26 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
                 f"X has {X.shape[1]} columns but features selects {idx.size}; give X only the selected columns."
             )
         H = self.components_[:, idx]
-        live = H.sum(axis=0) > 0  # as in memory: columns where every atom is zero carry no information
-        columns = None
-        if not live.all() and live.any():
-            H, columns = H[:, live], np.flatnonzero(live)
+        columns = _live_features(H)  # as in memory
+        if columns is not None:
+            H = H[:, columns]
         max_iter = self.transform_max_iter if self.transform_max_iter is not None else self.max_iter
         kwargs = self._solver_kwargs()
         beta = resolve_beta(kwargs.pop("beta_loss"))
-        res = beta_nmf_dask(X, self.components_.shape[0], beta=beta, H=H, update_H=False, mask=mask,
-                            max_iter=int(max_iter), columns=columns, **kwargs)
-        return res.W
+        solves = self._solves_coefficients()
+        with warnings.catch_warnings():
+            if solves:  # as in memory: the updates only start the Newton steps
+                warnings.simplefilter("ignore", ConvergenceWarning)
+            res = beta_nmf_dask(X, self.components_.shape[0], beta=beta, H=H, update_H=False, mask=mask,
+                                max_iter=int(max_iter), columns=columns, **kwargs)
+        return self._solve_coefficients_dask(X, mask, H, res.W, columns) if solves else res.W
+
+    def _solve_coefficients_dask(self, X: Any, mask: Any, H: np.ndarray, W: Any, columns: np.ndarray | None) -> Any:
+        """:meth:`_solve_coefficients` of a dask array, chunk by chunk (lazy; nmf/_dask.py)."""
+        from ._dask import solve_coefficients_dask
+
+        return solve_coefficients_dask(X, W, H, resolve_beta(self.beta_loss), mask=mask, columns=columns,
+                                       penalty=self._coefficient_penalty(H.shape[1]))
 
     def inverse_transform(self, W: Any, *, features: Any = None) -> np.ndarray:
         """Reconstruction W @ H, restricted to the selected features when given.
