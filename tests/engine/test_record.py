@@ -51,13 +51,13 @@ def test_schema_2_records_read_with_unclassified_claims(name):
     assert again.to_json() == record.to_json()
 
 
-#: Records of schema 3 (before the concept explorer): the smoke records kept by the golden-record test.
-GOLDEN = Path(__file__).resolve().parents[1] / "golden"
+#: Records of schema 3 (before the concept explorer): two smoke records of the golden set as that schema wrote them.
+SCHEMA_3 = Path(__file__).resolve().parents[1] / "data" / "records" / "schema-3"
 
 
 @pytest.mark.parametrize("name", ["ch6-concepts.json", "ch7-online.json"])
 def test_schema_3_records_read_without_an_explorer(name):
-    text = (GOLDEN / name).read_text(encoding="utf-8")
+    text = (SCHEMA_3 / name).read_text(encoding="utf-8")
     old = json.loads(text)
     assert old["schema_version"] == 3 and "explorer" not in old
     record = ResultRecord.from_json(text)
