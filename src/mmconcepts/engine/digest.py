@@ -20,6 +20,8 @@ __all__ = ["UNDIGESTED", "content_digest", "digest_matches"]
 
 #: The keys of a record its digest leaves out: the digest, and when the run started and how long it took.
 UNDIGESTED = ("digest", "elapsed_s", "started_at")
+#: Characters of the canonical JSON encoded to bytes at a time.
+_SLICE = 1 << 20
 
 
 def content_digest(record: Mapping[str, Any]) -> str:
@@ -41,8 +43,13 @@ def content_digest(record: Mapping[str, Any]) -> str:
     metrics = content.get("metrics")
     if isinstance(metrics, Mapping):
         content["metrics"] = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in metrics.items()}
-    text = json.dumps(content, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
-    return hashlib.sha256(text.encode("ascii")).hexdigest()
+    # the canonical JSON, hashed piece by piece: a huge record is never held twice more as one text and its bytes
+    encoder = json.JSONEncoder(sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    digest = hashlib.sha256()
+    for piece in encoder.iterencode(content):
+        for start in range(0, len(piece), _SLICE):
+            digest.update(piece[start:start + _SLICE].encode("ascii"))
+    return digest.hexdigest()
 
 
 def digest_matches(record: Mapping[str, Any], schema_version: int, first_digested: int) -> bool | None:
