@@ -19,6 +19,7 @@ constraints. SIAM Journal on Control and Optimization, 20(2), 221-246.
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Iterator
 
 import numpy as np
@@ -44,7 +45,7 @@ def solves_coefficients(beta: float) -> bool:
     return 1.0 <= beta <= 2.0
 
 
-class _Rows:
+class _Rows(abc.ABC):
     """The objective of each row, its gradient and Hessian in w, for rows of W (float64)."""
 
     def __init__(self, Ht: np.ndarray, beta: float, penalty: Penalty):
@@ -60,12 +61,13 @@ class _Rows:
             f = f + 0.5 * pen.l2 * np.einsum("ij,ij->i", W, W)
         return f
 
+    @abc.abstractmethod
     def _divergence(self, rows: np.ndarray, W: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """The divergence of each of ``rows`` (W holds their coefficients), without penalties."""
 
+    @abc.abstractmethod
     def derivatives(self, rows: np.ndarray, W: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
         """Blocks (part, g, Hs) over ``rows``, penalties included: ``part`` indexes ``rows``; Hs is (rows, k, k)."""
-        raise NotImplementedError
 
     def _penalised(self, W, g, Hs):
         pen = self.penalty
