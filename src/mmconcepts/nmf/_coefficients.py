@@ -30,7 +30,7 @@ from ._updates import Penalty, data_scale, scale_penalties
 
 __all__ = ["determined_rows", "solve_coefficients", "solves_coefficients"]
 
-#: Sufficient decrease of the Armijo rule, and the step halvings tried before a multiplicative update instead.
+#: Sufficient decrease of the Armijo rule, and the step halvings tried before the ridge grows.
 _SIGMA, _HALVINGS = 1e-4, 30
 #: The smallest ridge added to the free coefficients' Hessian, relative to its largest diagonal entry: a
 #: singular restriction stays solvable, a regular one keeps its Newton step to about 1e-14 times its condition
@@ -393,25 +393,13 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             f_all[rows[p[ok]]] = ft[ok]
             todo = todo[~ok]
             alpha[todo] *= 0.5
+        # no decrease along the arc even at the largest ridge: stationary up to rounding
+        r = rows[pending[todo]]
+        done[pending[todo][ridge_all[r] >= 1.0]] = True
         # Levenberg-Marquardt: a row whose full step was taken trusts Newton more, one that needed halvings less
         r = rows[pending]
         ridge_all[r] = np.where(alpha == 1.0, np.maximum(ridge_all[r] / 10.0, _RIDGE), ridge_all[r])
         ridge_all[r] = np.where(alpha < 0.125, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
-        if todo.size:
-            # No decrease along the arc: a multiplicative update instead (thesis eq. 2.16, gamma = 1, which does
-            # not increase the objective for 1 <= beta <= 2 without an L2 penalty; taken only where it does not).
-            # Where a product is near 0 at an x > 0, Newton steps climb back by a constant factor each and the
-            # objective cannot tell them apart; the update's factor num / den is there as large as the gradient.
-            p = pending[todo]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                factor = np.where(den[p] > 0, (den[p] - g[p]) / den[p], 1.0)
-            trial = Wr[p] * factor
-            ft = model.objective(rows[p], trial)
-            moved = np.isfinite(ft) & (ft <= f[p])
-            W[rows[p[moved]]] = trial[moved]
-            f_all[rows[p[moved]]] = ft[moved]
-            # nothing lowers it even so, at the largest ridge: stationary up to rounding
-            done[p[~(moved & (ft < f[p])) & (ridge_all[rows[p]] >= 1.0)]] = True
         rows = rows[~done]
     return W, rows.size == 0
 
