@@ -1045,7 +1045,7 @@ def _nnls_rows(X, H, mask=None, l2=0.0):
 
 
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
-@pytest.mark.parametrize("case", ["dense", "sparse", "mask", "features", "l2", "sparse-mask"])
+@pytest.mark.parametrize("case", ["dense", "sparse", "mask", "features", "l2", "sparse-mask", "mask-k+1"])
 def test_frobenius_transform_is_the_exact_nonnegative_least_squares(rng, case):
     """With H fixed, beta = 2 is nonnegative least squares per row: transform matches scipy's NNLS.
 
@@ -1053,8 +1053,12 @@ def test_frobenius_transform_is_the_exact_nonnegative_least_squares(rng, case):
     test shows the difference the solution to convergence makes)."""
     X = rng.random((60, 25)) ** 2
     model = NMF(6, random_state=0, alpha_W=0.01 if case == "l2" else 0.0, max_iter=300).fit(X)
+    if "sparse" in case:
+        X[-2:] = 0.0  # empty last rows of a CSR matrix
     H = model.components_
     mask = rng.random(X.shape) < 0.7 if "mask" in case else None
+    if case == "mask-k+1":  # each row observes one feature more than there are atoms: still one minimiser
+        mask = np.argsort(rng.random(X.shape), axis=1) < 7
     Xin = sp.csr_matrix(X) if "sparse" in case else X
     if case == "features":
         cols = np.arange(3, 20)
@@ -1098,6 +1102,7 @@ def test_transform_is_the_minimum_scipy_finds(rng, beta, case):
     X = rng.gamma(1.0, 1.0, (30, 20))
     X[rng.random(X.shape) < 0.2] = 0.0  # zeros: the sparse path only visits the stored values
     model = NMF(4, beta_loss=beta, random_state=0, max_iter=300).fit(X)
+    X[-2:] = 0.0  # rows without a value (the last rows of a CSR matrix): their coefficients are 0
     H = model.components_
     mask = rng.random(X.shape) < 0.7 if case == "mask" else None
     Xin = {"sparse": sp.csr_matrix(X), "float32": X.astype(np.float32)}.get(case, X)
@@ -1132,6 +1137,10 @@ def test_coefficients_with_an_l2_penalty_scale_with_the_data(rng):
     c = 2.0**40
     np.testing.assert_allclose(model.transform(c * X), c * W, rtol=1e-7, atol=1e-9 * c * W.max())
     assert np.abs(NMF(3, random_state=0, max_iter=100).fit(X).transform(X) - W).max() > 1e-3 * W.max()
+    # a dictionary at 2 ** -30 is rescaled for the solver, and the penalty with it: scipy's NNLS, as given
+    model.components_ = model.components_ * 2.0**-30
+    want = _nnls_rows(X, model.components_, l2=X.shape[1] * model.alpha_W)
+    np.testing.assert_allclose(model.transform(X), want, rtol=0, atol=1e-7 * want.max())
 
 
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
@@ -1148,6 +1157,24 @@ def test_newton_steps_converge_in_a_few_steps_from_the_updates(rng, beta, sparse
     W, converged = solve_coefficients(sp.csr_matrix(X) if sparse else X, model.components_, start, beta, max_iter=8)
     assert converged
     np.testing.assert_allclose(W, model.transform(X), rtol=0, atol=1e-6 * W.max())
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("beta", [1.0, 1.5, 2.0])
+@pytest.mark.parametrize("start", ["flat", "1000 times", "1/1000 times", "random"])
+def test_newton_steps_reach_the_minimum_from_any_start(rng, beta, start):
+    """The Armijo search along the projection arc makes the steps converge from far starts too (full
+    Newton steps alone do not, e.g. for beta = 1.5 from 1000 times the minimum)."""
+    from mmconcepts.nmf._coefficients import solve_coefficients
+
+    X = rng.gamma(0.5, 1.0, (80, 40))
+    model = NMF(6, beta_loss=beta, random_state=0, max_iter=200).fit(X)
+    want = model.transform(X)
+    W0 = {"flat": np.full_like(want, want.mean()), "1000 times": 1000 * want + 1, "1/1000 times": 1e-3 * want + 1e-6,
+          "random": 10 * rng.random(want.shape)}[start]
+    W, converged = solve_coefficients(X, model.components_, W0, beta)
+    assert converged
+    np.testing.assert_allclose(W, want, rtol=0, atol=1e-7 * want.max())
 
 
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")

@@ -10,8 +10,14 @@ which is convex for 1 <= beta <= 2 (the second derivative of d_beta(x | y) in y,
 approach a coefficient that is zero at the optimum no faster than geometrically, at a rate
 that can be close to one: from a flat start, a few hundred of them leave the coefficients
 percents from the optimum. The projected Newton method of Bertsekas (1982) identifies the
-zero coefficients in a few steps and then converges quadratically. It is written by hand: scipy's ``nnls`` solves beta = 2
-only, without a mask, one row at a time, and no maintained library solves the other betas.
+zero coefficients in a few steps and then converges quadratically; an Armijo search along the
+projection arc and a Levenberg-Marquardt ridge make it converge from any start. It is written
+by hand: scipy's ``nnls`` solves beta = 2 only, without a mask, one row at a time, and no
+maintained library solves the other betas.
+
+Rows whose minimiser is not unique (:func:`determined_rows`) keep their start. For
+1 < beta < 2 the curvature is infinite where a product vanishes at an x = 0: the steps can stop
+short there (about 1e-3 of the largest coefficient on random data with zeros).
 
 Bertsekas, D. P. (1982). Projected Newton methods for optimization problems with simple
 constraints. SIAM Journal on Control and Optimization, 20(2), 221-246.
@@ -31,8 +37,29 @@ from ._updates import Penalty, data_scale, scale_penalties
 
 __all__ = ["determined_rows", "solve_coefficients", "solves_coefficients"]
 
-#: Sufficient decrease of the Armijo rule, and the step halvings tried before a row is called stationary.
+#: Sufficient decrease of the Armijo rule, and the step halvings tried before the ridge grows.
 _SIGMA, _HALVINGS = 1e-4, 30
+#: The smallest ridge added to the free coefficients' Hessian, relative to its largest diagonal entry: a
+#: singular restriction stays solvable, a regular one keeps its Newton step to about 1e-14 times its condition
+#: number. A row whose step needs many halvings gets a larger ridge (Levenberg-Marquardt), up to 1, where the
+#: step is its gradient scaled by its curvature: directions of no curvature (beta = 1, zero x) stay bounded.
+_RIDGE = 1e-14
+#: Below this ridge a step is a Newton step: a row optimal to the tolerance takes full ones, whose length
+#: measures its distance to the optimum.
+_NEWTON_RIDGE = 1e-6
+#: The floor of the product where the derivatives take its negative powers with x > 0 (x y^(beta-2),
+#: x y^(beta-3)): the multiplicative updates clip it at float32's epsilon, which changes the problem where a
+#: product is that small; here the gradient is the objective's own down to this floor, where its terms still
+#: fit in float64 (x / y < 1e106 for the x <= 2^20 of the rescaled data), so that it agrees with the
+#: objective the line search reads. The curvature's term without x, (beta - 1) y^(beta-2) for
+#: 1 < beta < 2, infinite at y = 0 where the objective is finite, takes the product clipped at float32's
+#: epsilon as the updates do: it is only the Newton steps' model.
+_FLOOR = 1e-100
+#: The most a step may divide a product where x > 0 (beta < 2). The derivative there is -inf at y = 0, so the
+#: optimum has y > 0; but the objective stays finite (1 < beta < 2) or grows only as x log(1 / y) (beta = 1),
+#: so a projected step that zeroes the only atoms reaching such a cell can lower it, and Newton steps then
+#: climb back from y near 0 only by a constant factor each. The line search refuses such steps.
+_COLLAPSE = 1e-3
 #: Floats in the temporaries of one block of rows.
 _BLOCK_CELLS = 1 << 22
 #: Bertsekas' epsilon: a coefficient within this fraction of its row's largest (and within one scaled
@@ -51,9 +78,13 @@ class _Rows(abc.ABC):
     def __init__(self, Ht: np.ndarray, beta: float, penalty: Penalty):
         self.Ht, self.beta, self.penalty = Ht, beta, penalty
 
-    def objective(self, rows: np.ndarray, W: np.ndarray) -> np.ndarray:
-        """The objective of each of ``rows`` (W holds their coefficients), penalties included."""
-        f = self._divergence(rows, W)
+    def objective(self, rows: np.ndarray, W: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+        """The objective of each of ``rows`` (W holds their coefficients), penalties included.
+
+        With ``start`` (the coefficients a step leaves, beta < 2), a row where the step divides a
+        product by more than :data:`_COLLAPSE` where x > 0 reads infinite (see there).
+        """
+        f = self._divergence(rows, W, start)
         pen = self.penalty
         if pen.l1:
             f = f + pen.l1 * W.sum(axis=1)
@@ -62,21 +93,26 @@ class _Rows(abc.ABC):
         return f
 
     @abc.abstractmethod
-    def _divergence(self, rows: np.ndarray, W: np.ndarray) -> np.ndarray:
+    def _divergence(self, rows: np.ndarray, W: np.ndarray, start: np.ndarray | None) -> np.ndarray:
         """The divergence of each of ``rows`` (W holds their coefficients), without penalties."""
 
     @abc.abstractmethod
-    def derivatives(self, rows: np.ndarray, W: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
-        """Blocks (part, g, Hs) over ``rows``, penalties included: ``part`` indexes ``rows``; Hs is (rows, k, k)."""
+    def derivatives(self, rows: np.ndarray, W: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray,
+                                                                               np.ndarray]]:
+        """Blocks (part, g, den, Hs) over ``rows``, penalties included: ``part`` indexes ``rows``.
 
-    def _penalised(self, W, g, Hs):
+        ``den`` is the positive part of the gradient g = den - num (the denominator of the
+        multiplicative update, thesis eq. 2.16); Hs is (rows, k, k).
+        """
+
+    def _penalised(self, W, num, den, Hs):
         pen = self.penalty
         if pen.l1:
-            g = g + pen.l1
+            den = den + pen.l1
         if pen.l2:
-            g = g + pen.l2 * W
+            den = den + pen.l2 * W
             Hs = Hs + pen.l2 * np.eye(W.shape[1])
-        return g, Hs
+        return den - num, den, Hs
 
     def _row_blocks(self, n_rows: int, cells_per_row: int) -> Iterator[slice]:
         step = max(1, _BLOCK_CELLS // max(1, cells_per_row))
@@ -84,25 +120,43 @@ class _Rows(abc.ABC):
             yield slice(start, min(n_rows, start + step))
 
 
+def _row_sums(A: sp.csr_matrix, values: np.ndarray) -> np.ndarray:
+    """The sum over each row of A of ``values``, one per stored entry of A."""
+    return np.bincount(np.repeat(np.arange(A.shape[0]), np.diff(A.indptr)), weights=values, minlength=A.shape[0])
+
+
 class _Quadratic(_Rows):
-    """beta = 2, every cell observed: f = |x|^2 / 2 - w . b + w G w / 2 with G = H H^T, b = H x."""
+    """beta = 2, every cell observed: the gradient G w - b with G = H H^T, b = H x, and one Hessian G.
+
+    The objective is summed from the residuals (at X's stored values and, for a sparse X, the rest
+    through G), not as |x|^2 / 2 - w . b + w G w / 2, whose cancellation would hide the last
+    decreases of a row that W H fits exactly.
+    """
 
     def __init__(self, X, Ht, penalty):
         super().__init__(Ht, 2.0, penalty)
+        self.X = sp.csr_matrix(X, dtype=np.float64) if sp.issparse(X) else X
         self.G = Ht.T @ Ht
         self.B = np.asarray(X @ Ht, dtype=np.float64)
-        sq = X.multiply(X).sum(axis=1) if sp.issparse(X) else np.einsum("ij,ij->i", X, X)
-        self.half_sq = 0.5 * np.asarray(sq, dtype=np.float64).ravel()
 
-    def _divergence(self, rows, W):
-        return self.half_sq[rows] + np.einsum("ij,ij->i", W, 0.5 * (W @ self.G) - self.B[rows])
+    def _divergence(self, rows, W, start):
+        if not sp.issparse(self.X):
+            f = np.empty(len(rows))
+            for part in self._row_blocks(len(rows), self.Ht.shape[0]):
+                R = np.asarray(self.X[rows[part]], dtype=np.float64) - W[part] @ self.Ht.T
+                f[part] = 0.5 * np.einsum("ij,ij->i", R, R)
+            return f
+        sub = self.X if len(rows) == self.X.shape[0] else self.X[rows]
+        y = lowrank_at_nonzeros(sub.indptr, sub.indices, W, self.Ht, np.empty(sub.nnz))
+        # (x - y)^2 at the stored values, y^2 elsewhere: w G w minus the stored cells' y^2
+        return 0.5 * (_row_sums(sub, (sub.data - y) ** 2 - y**2) + np.einsum("ij,ij->i", W, W @ self.G))
 
     def derivatives(self, rows, W):
-        g = W @ self.G - self.B[rows]
+        den, num = W @ self.G, self.B[rows]
         k = W.shape[1]
         for part in self._row_blocks(len(rows), k * k):
             Hs = np.broadcast_to(self.G, (part.stop - part.start, k, k))
-            yield (part, *self._penalised(W[part], g[part], Hs))
+            yield (part, *self._penalised(W[part], num[part], den[part], Hs))
 
 
 class _SparseKL(_Rows):
@@ -118,20 +172,21 @@ class _SparseKL(_Rows):
         y = lowrank_at_nonzeros(sub.indptr, sub.indices, W, self.Ht, np.empty(sub.nnz))
         return sub, y
 
-    def _divergence(self, rows, W):
+    def _divergence(self, rows, W, start):
         sub, y = self._at_nonzeros(rows, W)
         x = sub.data
         with np.errstate(divide="ignore", invalid="ignore"):
             terms = np.where(x > 0, x * np.log(np.where(x > 0, x, 1.0) / y), 0.0) - x
-        per_row = np.add.reduceat(terms, sub.indptr[:-1]) if sub.nnz else np.zeros(sub.shape[0])
-        per_row[np.diff(sub.indptr) == 0] = 0.0  # reduceat gives the next row's first value for an empty row
-        return per_row + W @ self.colsum
+        if start is not None:
+            terms = np.where((x > 0) & (y < _COLLAPSE * self._at_nonzeros(rows, start)[1]), np.inf, terms)
+        return _row_sums(sub, terms) + W @ self.colsum
 
     def derivatives(self, rows, W):
         sub, y = self._at_nonzeros(rows, W)
-        yc = np.maximum(y, EPSILON)
+        yc = np.maximum(y, _FLOOR)
         ratio = sp.csr_matrix((sub.data / yc, sub.indices, sub.indptr), shape=sub.shape)
-        g = self.colsum - np.asarray(ratio @ self.Ht)
+        num = np.asarray(ratio @ self.Ht)
+        den = np.broadcast_to(self.colsum, num.shape)
         c = np.sqrt(sub.data) / yc  # x / y^2 = c^2
         k = W.shape[1]
         for part in self._row_blocks(len(rows), k * k):
@@ -140,7 +195,7 @@ class _SparseKL(_Rows):
                 lo, hi = sub.indptr[r], sub.indptr[r + 1]
                 A = self.Ht[sub.indices[lo:hi]] * c[lo:hi, None]
                 np.matmul(A.T, A, out=Hs[i])
-            yield (part, *self._penalised(W[part], g[part], Hs))
+            yield (part, *self._penalised(W[part], num[part], den[part], Hs))
 
 
 class _Dense(_Rows):
@@ -164,12 +219,15 @@ class _Dense(_Rows):
             M = np.asarray(M, dtype=np.float64)
         return np.asarray(X, dtype=np.float64), M
 
-    def _divergence(self, rows, W):
+    def _divergence(self, rows, W, start):
         f = np.empty(len(rows))
         for part in self._row_blocks(len(rows), self.Ht.shape[0]):
             X, M = self._block(rows[part])
+            Y = W[part] @ self.Ht.T
             with np.errstate(over="ignore"):
-                d = elementwise_beta_divergence(X, W[part] @ self.Ht.T, self.beta)
+                d = elementwise_beta_divergence(X, Y, self.beta)
+            if start is not None and self.beta < 2.0:
+                d = np.where((X > 0) & (Y < _COLLAPSE * (start[part] @ self.Ht.T)), np.inf, d)
             if M is not None:
                 d = np.where(M > 0, d * M, 0.0)
             f[part] = d.sum(axis=1)
@@ -181,23 +239,24 @@ class _Dense(_Rows):
             X, M = self._block(rows[part])
             Wp = W[part]
             Y = Wp @ self.Ht.T
-            Yc = np.maximum(Y, EPSILON) if beta < 2.0 else Y
+            # d_beta(x | y)' = y^(beta-1) - x y^(beta-2): the denominator's and the numerator's terms
             if beta == 2.0:
-                grad_y, curv = Yc - X, np.ones_like(Yc)
+                den_y, num_y, curv = Y, X, np.ones_like(Y)
             elif beta == 1.0:
-                grad_y, curv = 1.0 - X / Yc, X / (Yc * Yc)
+                Yf = np.maximum(Y, _FLOOR)
+                den_y, num_y = np.ones_like(Y), X / Yf
+                curv = num_y / Yf
             else:
-                grad_y = Yc ** (beta - 1.0) - X * Yc ** (beta - 2.0)
-                curv = (beta - 1.0) * Yc ** (beta - 2.0) + (2.0 - beta) * X * Yc ** (beta - 3.0)
+                Yf, Yc = np.maximum(Y, _FLOOR), np.maximum(Y, EPSILON)
+                den_y, num_y = np.maximum(Y, 0.0) ** (beta - 1.0), X * Yf ** (beta - 2.0)
+                curv = (beta - 1.0) * Yc ** (beta - 2.0) + (2.0 - beta) * X * Yf ** (beta - 3.0)
             if M is not None:
-                grad_y *= M
-                curv *= M
-            g = grad_y @ self.Ht
+                den_y, num_y, curv = den_y * M, num_y * M, curv * M
             upper = curv @ self.outer
             Hs = np.empty((len(Wp), k, k))
             Hs[:, self.iu[0], self.iu[1]] = upper
             Hs[:, self.iu[1], self.iu[0]] = upper
-            yield (part, *self._penalised(Wp, g, Hs))
+            yield (part, *self._penalised(Wp, num_y @ self.Ht, den_y @ self.Ht, Hs))
 
 
 def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
@@ -208,41 +267,46 @@ def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
     return _Dense(X, Ht, beta, penalty, mask)
 
 
-def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, gtol: float):
-    """g, the projected Newton direction d, the active coefficients, and the rows already optimal.
+def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float, ridge: np.ndarray):
+    """g, den, the projected Newton direction d, the active coefficients, and the rows optimal to ``tol``.
 
     Active (Bertsekas 1982): a coefficient at (or within eps of) zero whose gradient pushes it
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
-    of the problem restricted to them. A row whose scaled projected gradient is at most ``gtol``
-    times its largest coefficient satisfies the optimality conditions (up to the conditioning
-    of its Hessian): it is done, and no system is solved for it.
+    of the problem restricted to them, with ``ridge`` (one per row, relative to the largest
+    curvature) on the diagonal. Optimality is read in the multiplicative update's terms: with
+    g = den - num, the ratio num / den (the update's factor) must be at most 1 + ``tol``, and at
+    least 1 - ``tol`` where w is more than ``tol`` times the row's largest coefficient (the
+    Karush-Kuhn-Tucker conditions, free of units).
     """
     n, k = W.shape
-    g, d = np.empty((n, k)), np.zeros((n, k))
+    g, den_all, d = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
     active = np.empty((n, k), dtype=bool)
-    done = np.empty(n, dtype=bool)
+    optimal = np.empty(n, dtype=bool)
     tiny = np.finfo(np.float64).tiny
-    for part, gp, Hs in model.derivatives(rows, W):
+    for part, gp, den, Hs in model.derivatives(rows, W):
         Wp = W[part]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            excess = np.where(den > 0, gp / den, np.where(gp == 0, 0.0, np.sign(gp) * np.inf))
+        # pushed up: excess < 0 is a violation at any w; pushed down: only where w is not negligible
+        size = np.maximum(Wp.max(axis=1, keepdims=True), tiny)
+        down = np.minimum(np.maximum(excess, 0.0), Wp / size)
+        optimal[part] = np.maximum(np.maximum(-excess, 0.0), down).max(axis=1) <= tol
         diag = np.einsum("ijj->ij", Hs)
-        scale = np.maximum(diag.max(axis=1, keepdims=True), tiny)
-        safe = np.maximum(diag, 1e-10 * scale)
-        # a row without curvature (every observed x zero under beta = 1) has infinite scaled steps: to zero
-        with np.errstate(over="ignore"):
-            moved = np.abs(Wp - np.maximum(Wp - gp / safe, 0.0)).max(axis=1)
-        size = np.maximum(Wp.max(axis=1), tiny)
-        ok = moved <= gtol * size
-        eps = np.minimum(_EPS_CAP * size, moved)[:, None]
-        act = (Wp <= eps) & (gp > 0)
-        g[part], active[part], done[part] = gp, act, ok
-        todo = np.flatnonzero(~ok)
-        if todo.size:
-            d[part.start + todo] = _restricted_newton(Hs[todo], gp[todo], act[todo], safe[todo], scale[todo])
-    return g, d, active, done
+        scale = diag.max(axis=1, keepdims=True)
+        scale = np.where(scale > 0, scale, 1.0)
+        safe = np.maximum(diag, _RIDGE * scale)
+        moved = np.abs(Wp - np.maximum(Wp - gp / safe, 0.0)).max(axis=1)
+        eps = np.minimum(_EPS_CAP * np.maximum(Wp.max(axis=1), tiny), moved)[:, None]
+        # held at zero: near it and pushed down, or pushed down without curvature (the objective is linear in
+        # it: under beta = 1, an atom that sees only zero x)
+        act = ((Wp <= eps) | (diag == 0)) & (gp > 0)
+        g[part], den_all[part], active[part] = gp, den, act
+        d[part] = _restricted_newton(Hs, gp, act, safe, ridge[part, None] * scale)
+    return g, den_all, d, active, optimal
 
 
 def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
-                       scale: np.ndarray) -> np.ndarray:
+                       ridge: np.ndarray) -> np.ndarray:
     """Each row's step: the Newton step of its free coefficients, the curvature-scaled gradient of the active ones.
 
     The free coefficients are moved first (a stable sort keeps their order), and only the
@@ -252,8 +316,7 @@ def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.
     r, k = g.shape
     n_free = k - act.sum(axis=1)
     f = int(n_free.max())
-    with np.errstate(over="ignore"):
-        d = g / safe  # the active coefficients' step (and every coefficient's when none is free)
+    d = g / safe  # the active coefficients' step (and every coefficient's when none is free)
     if f == 0:
         return d
     order = np.argsort(act, axis=1, kind="stable")[:, :f]  # each row's free coefficients first
@@ -261,9 +324,8 @@ def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.
     free = np.arange(f) < n_free[:, None]  # the leading block holds some active ones in rows with fewer free
     sub *= free[:, :, None] & free[:, None, :]
     idx = np.arange(f)
-    # free coefficients: a small ridge keeps a singular restriction (more atoms than the row can tell
-    # apart) solvable; active ones: their own curvature
-    sub[:, idx, idx] += np.where(free, 1e-10 * scale, np.take_along_axis(safe, order, axis=1))
+    # free coefficients: the ridge; active ones: their own curvature
+    sub[:, idx, idx] += np.where(free, ridge, np.take_along_axis(safe, order, axis=1))
     step = np.linalg.solve(sub, np.take_along_axis(g, order, axis=1)[:, :, None])[:, :, 0]
     np.put_along_axis(d, order, step, axis=1)
     return d
@@ -301,22 +363,27 @@ def determined_rows(X, H: np.ndarray, beta: float, *, mask=None, penalty: Penalt
 
 
 def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int,
-                    xtol: float) -> tuple[np.ndarray, bool]:
-    """Projected Newton steps with an Armijo search along the projection arc, each row until it is done."""
+                    tol: float) -> tuple[np.ndarray, bool]:
+    """Projected Newton steps with an Armijo search along the projection arc, each row until it is optimal."""
     f_all = np.empty(W.shape[0])
     f_all[rows] = model.objective(rows, W[rows])
+    ridge_all = np.full(W.shape[0], _RIDGE)
     for _ in range(max_iter):
         if rows.size == 0:
             return W, True
-        Wr, f = W[rows], f_all[rows]
-        g, d, active, done = _newton_directions(model, rows, Wr, 1e-3 * xtol)
-        full = np.maximum(Wr - d, 0.0)
-        size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr).max(axis=1))
-        # a full step this small is (to second order) the distance to the optimum: take it and stop
-        small = ~done & (np.abs(full - Wr).max(axis=1) <= xtol * size)
-        W[rows[small]] = full[small]
-        done |= small
-        pending = np.flatnonzero(~done)
+        Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
+        g, den, d, active, optimal = _newton_directions(model, rows, Wr, tol, ridge)
+        # Optimal to tol (where the objective no longer resolves the decreases the line search needs): full
+        # Newton steps, converging quadratically; done when one moves no coefficient by more than tol times the
+        # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance).
+        newton = optimal & (ridge <= _NEWTON_RIDGE)
+        full = np.maximum(Wr[newton] - d[newton], 0.0)
+        size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr[newton]).max(axis=1))
+        W[rows[newton]] = full
+        f_all[rows[newton]] = model.objective(rows[newton], full)
+        done = np.zeros(rows.size, dtype=bool)
+        done[np.flatnonzero(newton)[np.abs(full - Wr[newton]).max(axis=1) <= tol * size]] = True
+        pending = np.flatnonzero(~newton)
         alpha = np.ones(pending.size)
         todo = np.arange(pending.size)
         for _ in range(_HALVINGS):
@@ -324,22 +391,30 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
                 break
             p = pending[todo]
             trial = np.maximum(Wr[p] - alpha[todo, None] * d[p], 0.0)
-            ft = model.objective(rows[p], trial)
+            ft = model.objective(rows[p], trial, Wr[p])
             # Armijo along the projection arc: the decrease the gradient predicts from the free coefficients'
             # Newton step and the active ones' actual move
             predicted = np.where(active[p], g[p] * (Wr[p] - trial), alpha[todo, None] * g[p] * d[p]).sum(axis=1)
-            ok = np.isfinite(ft) & (f[p] - ft >= _SIGMA * predicted)
+            # from an infinite objective (beta = 1, a cell whose product underflowed to 0), any finite one is progress
+            with np.errstate(invalid="ignore"):
+                ok = np.isfinite(ft) & (~np.isfinite(f[p]) | (f[p] - ft >= _SIGMA * predicted))
             W[rows[p[ok]]] = trial[ok]
             f_all[rows[p[ok]]] = ft[ok]
             todo = todo[~ok]
             alpha[todo] *= 0.5
-        done[pending[todo]] = True  # no decrease along the projection arc: stationary up to rounding
+        # no decrease along the arc even at the largest ridge: stationary up to rounding
+        r = rows[pending[todo]]
+        done[pending[todo][ridge_all[r] >= 1.0]] = True
+        # Levenberg-Marquardt: a row whose full step was taken trusts Newton more, one that needed halvings less
+        r = rows[pending]
+        ridge_all[r] = np.where(alpha == 1.0, np.maximum(ridge_all[r] / 10.0, _RIDGE), ridge_all[r])
+        ridge_all[r] = np.where(alpha < 0.125, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
         rows = rows[~done]
     return W, rows.size == 0
 
 
 def solve_coefficients(X, H: np.ndarray, W: np.ndarray, beta: float, *, mask=None, penalty: Penalty | None = None,
-                       max_iter: int = 100, xtol: float = 1e-7) -> tuple[np.ndarray, bool]:
+                       max_iter: int = 100, tol: float = 1e-7) -> tuple[np.ndarray, bool]:
     """The coefficients W >= 0 minimising the penalised beta-divergence of X to W @ H, from W.
 
     Only the rows with one minimiser (:func:`determined_rows`) are solved; the others keep
@@ -359,8 +434,12 @@ def solve_coefficients(X, H: np.ndarray, W: np.ndarray, beta: float, *, mask=Non
     penalty : Penalty, optional
         L1 and L2 penalties on W (the resolved ``alpha_W``).
     max_iter : int, default=100
-        Newton steps at most; a row stops when its full step changes none of its
-        coefficients by more than ``xtol`` times its largest one.
+        Newton steps at most.
+    tol : float, default=1e-7
+        Optimality: the factor of the multiplicative update, num / den with g = den - num, is at
+        most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the row's
+        largest coefficient. From there a row takes full Newton steps, and stops after one that
+        moves no coefficient by more than ``tol`` times its largest.
 
     Returns
     -------
@@ -371,7 +450,7 @@ def solve_coefficients(X, H: np.ndarray, W: np.ndarray, beta: float, *, mask=Non
     penalty = penalty or Penalty()
     dtype = W.dtype
     # Homogeneity, d(c x | c y) = c^beta d(x | y): the problem on X / a and H / b (powers of two, exact) has the
-    # solution W b / a, and data at any scale meets the clipping of the product at EPSILON as data near 1 does.
+    # solution W b / a, and data at any scale is solved as data near 1 is.
     a = data_scale(X, beta)
     b = data_scale(H, beta)
     if a != 1.0:
@@ -382,5 +461,5 @@ def solve_coefficients(X, H: np.ndarray, W: np.ndarray, beta: float, *, mask=Non
     W0 = np.array(W, dtype=np.float64) * (b / a)
     model = _rows_model(X, Ht, beta, penalty, mask)
     rows = np.flatnonzero(determined_rows(X, H, beta, mask=mask, penalty=penalty))
-    out, converged = _project_newton(model, W0, rows, max_iter, xtol)
+    out, converged = _project_newton(model, W0, rows, max_iter, tol)
     return (out * (a / b)).astype(dtype, copy=False), converged

@@ -649,10 +649,11 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         once the convergence is quadratic). This is done where the minimiser is unique: the
         atoms that the selected features see are linearly independent and each row observes
         at least as many features as there are such atoms (or ``alpha_W`` sets an L2
-        penalty); there the result does not depend on the start. Elsewhere (e.g. more atoms
-        than features) the minimisers form a set, and the updates' coefficients are kept. For
-        other betas, and with ``sparseness_W``, the coefficients are those of the updates
-        alone.
+        penalty); there the result does not depend on the start (for 1 < beta < 2 with zeros
+        in X, whose curvature is infinite where a product vanishes, up to about 1e-3). Elsewhere
+        (e.g. more atoms than features) the minimisers form a set, and the updates'
+        coefficients are kept. For other betas, and with ``sparseness_W``, the coefficients are
+        those of the updates alone.
         """
         check_is_fitted(self)
         idx = resolve_features(features, self.n_features_in_)
