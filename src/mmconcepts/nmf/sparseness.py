@@ -131,6 +131,9 @@ def project_hoyer(x: np.ndarray, l1: float, l2: float) -> np.ndarray:
             return np.where(zero, 0.0, l1)
         midpoint = np.where(zero, 0.0, l1 / n_free)
         w = v - midpoint
+        # w sums to zero up to rounding; a large step (v near the midpoint) would scale that rounding into the
+        # sum, so the free entries are re-centred
+        w[~zero] -= w[~zero].mean()
         a = float(w @ w)
         b = 2.0 * float(w @ v)
         c = float(v @ v) - l2sq
