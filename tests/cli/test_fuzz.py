@@ -142,7 +142,8 @@ def _empty_path(argv):
     return argv[:1] == ["report"] and "" in argv[1:] and argv[argv.index("", 1) - 1] not in ("--bogus",)
 
 
-def _fuzz(name, argv):
+def assert_cli_typed_or_good(name, argv):
+    """The command ends with a typed error (SystemExit) or a good result: exit 0, some output, no empty path."""
     def check(result):
         code, stdout, stderr = result
         return code == 0 and bool(stdout.strip() or stderr.strip()) and not _empty_path(argv)
@@ -159,7 +160,7 @@ _SETTINGS = dict(suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter
        before=st.booleans())
 def test_fuzz_run(exp_id, options, before):
     argv = ["run", *options, exp_id] if before else ["run", exp_id, *options]
-    _fuzz("run", argv)
+    assert_cli_typed_or_good("run", argv)
 
 
 @fuzz_settings(80, **_SETTINGS)
@@ -169,13 +170,13 @@ def test_fuzz_run(exp_id, options, before):
 def test_fuzz_reproduce(options):
     if "--only" not in options or "--help" in options:  # the full reproduce is long even without computing
         options = [*options, "--only", "ch3-threshold"]
-    _fuzz("reproduce", ["reproduce", *options])
+    assert_cli_typed_or_good("reproduce", ["reproduce", *options])
 
 
 @fuzz_settings(100, **_SETTINGS)
 @given(args=st.lists(_paths() | _TEXT | st.sampled_from(["-q", "-v", "--help", "--bogus"]), max_size=3))
 def test_fuzz_report(args):
-    _fuzz("report", ["report", *args])
+    assert_cli_typed_or_good("report", ["report", *args])
 
 
 @fuzz_settings(100, **_SETTINGS)
@@ -193,7 +194,7 @@ def test_fuzz_report(args):
                      max_size=4).map(lambda parts: [a for p in parts for a in p]))
 def test_fuzz_data(action, rest):
     rest = [_SANDBOX["data_root"] if a == "data_root" else a for a in rest]
-    _fuzz("data", ["data", action, *rest] if action else ["data", *rest])
+    assert_cli_typed_or_good("data", ["data", action, *rest] if action else ["data", *rest])
 
 
 @fuzz_settings(100, **_SETTINGS)
@@ -207,7 +208,7 @@ def test_fuzz_cache(action, rest, sandbox):
     # only the sandbox's folders are ever cleared: the cache, the fuzz folders, or a path that is no folder
     names = {"cache": str(sandbox / "cache"), "empty": "", **_SANDBOX}
     rest = [names.get(a, a) if i and rest[i - 1] == "--cache-dir" else a for i, a in enumerate(rest)]
-    _fuzz("cache", ["cache", action, *rest] if action else ["cache", *rest])
+    assert_cli_typed_or_good("cache", ["cache", action, *rest] if action else ["cache", *rest])
 
 
 @fuzz_settings(100, **_SETTINGS)
@@ -216,7 +217,7 @@ def test_fuzz_cache(action, rest, sandbox):
 def test_fuzz_top_level(argv):
     if argv and argv[0] == "reproduce" and "--help" not in argv and "-h" not in argv:
         argv = [*argv, "--only", "ch3-threshold"]
-    _fuzz("top level", argv)
+    assert_cli_typed_or_good("top level", argv)
 
 
 def test_the_cache_and_the_current_folder_are_the_sandbox(sandbox):

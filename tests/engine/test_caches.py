@@ -329,7 +329,7 @@ def _identity_value(x):
     return x
 
 
-def _same(a, b, where="value"):
+def assert_same(a, b, where="value"):
     """``a`` and ``b`` are the same: types, dtypes, shapes and bits (NaN payloads and -0.0 included)."""
     assert type(a) is type(b), (where, type(a), type(b))
     if isinstance(a, np.ndarray) and a.dtype == object:  # strings: compared as such (tobytes gives addresses)
@@ -343,11 +343,11 @@ def _same(a, b, where="value"):
     elif isinstance(a, dict):
         assert list(a) == list(b), where
         for k in a:
-            _same(a[k], b[k], f"{where}[{k!r}]")
+            assert_same(a[k], b[k], f"{where}[{k!r}]")
     elif isinstance(a, (list, tuple)):
         assert len(a) == len(b), where
         for i, (x, y) in enumerate(zip(a, b)):
-            _same(x, y, f"{where}[{i}]")
+            assert_same(x, y, f"{where}[{i}]")
     else:
         assert a == b, (where, a, b)
 
@@ -400,10 +400,10 @@ def test_round_trip_is_exact(value):
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(tmp) / "e.npz"
         _store.write_entry(path, value, "k")
-        _same(value, _store.read_entry(path, "k"))
+        assert_same(value, _store.read_entry(path, "k"))
         arrays = {}
         structure = _codec.encode(value, arrays)
-        _same(value, _codec.decode(json.loads(json.dumps(structure, allow_nan=False)), arrays))
+        assert_same(value, _codec.decode(json.loads(json.dumps(structure, allow_nan=False)), arrays))
 
 
 def test_a_hit_returns_what_the_miss_returned(tmp_path):
@@ -416,8 +416,8 @@ def test_a_hit_returns_what_the_miss_returned(tmp_path):
     miss = cached(value)
     hit = cached(value)
     assert _computed == ["identity"]  # the second call was read back
-    _same(value, miss)
-    _same(miss, hit)
+    assert_same(value, miss)
+    assert_same(miss, hit)
     assert type(hit[1][0]) is LocalFeatures
 
 

@@ -206,7 +206,8 @@ def _check_folder(out, ids):
     assert not [p for p in out.iterdir() if p.name.startswith(".") and p.name.endswith(".tmp")]
 
 
-def _both(tmp_path, env, out, force, slow_a=None, delay_b=0.0):
+def assert_both_end_well(tmp_path, env, out, force, slow_a=None, delay_b=0.0):
+    """Runs a and b into one folder (b started `delay_b` s later): both exit 0, the folder holds both records."""
     env_a = dict(env, FAULT_SLOW_REPORT=str(slow_a)) if slow_a else env
     procs = [_start(env_a, "reproduce", "--only", "fault-a", "-o", str(out), "-q", *force)]
     time.sleep(delay_b)
@@ -227,10 +228,10 @@ def test_two_runs_into_one_folder(tmp_path):
     """Two ``reproduce`` runs write records and the report of one folder at once; nothing is torn or lost."""
     env, log = _setup(tmp_path, n_calls=3, seconds=0.3)
     out = tmp_path / "out"
-    _both(tmp_path, env, out, ())  # started together, they end together
+    assert_both_end_well(tmp_path, env, out, ())  # started together, they end together
     # run a reads the records and writes its report 4 s later; b's report (both records) comes in
     # between: a must not then replace it with its own (without b)
-    _both(tmp_path, env, tmp_path / "out2", (), slow_a=4.0, delay_b=2.0)
+    assert_both_end_well(tmp_path, env, tmp_path / "out2", (), slow_a=4.0, delay_b=2.0)
 
 
 def test_folder_lock_makes_a_second_holder_wait(tmp_path):
