@@ -1224,3 +1224,44 @@ def test_coefficients_that_do_not_converge_warn(rng, monkeypatch):
     monkeypatch.setattr(est, "solve_coefficients", lambda *a, **kw: solve(*a, **{**kw, "max_iter": 1}))
     with pytest.warns(ConvergenceWarning, match="projected Newton steps did not converge"):
         model.transform(X)
+
+
+def test_under_the_i_divergence_a_row_with_fewer_positive_values_than_atoms_has_no_single_minimiser():
+    """beta = 1: a cell with x = 0 adds (w H)_j, linear in w, so it gives no curvature: a row needs as many
+    observed cells with x > 0 as there are atoms (here 3 atoms, independent); beta = 2 counts observed cells."""
+    from mmconcepts.nmf._coefficients import determined_rows
+    from mmconcepts.nmf._updates import Penalty
+
+    H = np.array([[1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 1.0]])
+    X = np.array([[1.0, 2.0, 3.0, 0.0],    # 3 positive values: one minimiser
+                  [1.0, 2.0, 0.0, 0.0],    # 2: a set under beta = 1
+                  [0.0, 0.0, 0.0, 5.0]])   # 1
+    assert determined_rows(X, H, 1.0).tolist() == [True, False, False]
+    assert determined_rows(sp.csr_matrix(X), H, 1.0).tolist() == [True, False, False]
+    assert determined_rows(X, H, 2.0).tolist() == [True, True, True]
+    mask = np.array([[True, True, False, True]] * 3)  # the third row's one positive value stays observed
+    assert determined_rows(X, H, 1.0, mask=mask).tolist() == [False, False, False]
+    assert determined_rows(X, H, 2.0, mask=mask).tolist() == [True, True, True]
+    assert determined_rows(X, H, 1.0, penalty=Penalty(l2=0.1)).all()  # an L2 penalty: strictly convex
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_fit_does_not_solve_the_coefficients_fit_transform_does(rng, monkeypatch):
+    """fit learns the dictionary only: the training coefficients, solved for the final dictionary, are
+    fit_transform's (and MultimodalNMF's); fit's components are fit_transform's."""
+    import mmconcepts.nmf._estimator as est
+    from mmconcepts.multimodal import MultimodalNMF
+
+    X = rng.gamma(1.0, 1.0, (30, 12))
+    calls = []
+    solve = est.solve_coefficients
+    monkeypatch.setattr(est, "solve_coefficients", lambda *a, **kw: calls.append(1) or solve(*a, **kw))
+    a = NMF(4, beta_loss=1, random_state=0, max_iter=30).fit(X)
+    mm = MultimodalNMF(4, max_iter=30, random_state=0).fit({"a": X[:, :6], "b": X[:, 6:]})
+    assert calls == []
+    b = NMF(4, beta_loss=1, random_state=0, max_iter=30)
+    b.fit_transform(X)
+    MultimodalNMF(4, max_iter=30, random_state=0).fit_transform({"a": X[:, :6], "b": X[:, 6:]})
+    assert len(calls) == 2
+    np.testing.assert_array_equal(a.components_, b.components_)
+    assert mm.components_.shape == (4, 12)

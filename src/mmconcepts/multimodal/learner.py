@@ -388,7 +388,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         -------
         self
         """
-        self.fit_transform(X)
+        self._fit(X, transform=False)
         return self
 
     def fit_transform(self, X: Mapping[str, Any], y: Any = None) -> np.ndarray:
@@ -398,6 +398,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         -------
         ndarray of shape (n_samples, n_components)
         """
+        return self._fit(X, transform=True)
+
+    def _fit(self, X: Mapping[str, Any], *, transform: bool) -> Any:
+        """Fit; with ``transform``, return the training examples' coefficients solved for the final dictionary."""
         validate_params(self, self._parameter_constraints, hints=self._hints)
         split, width = self._by_modality(X, fitting=True)
         mods = self._check_modalities(split)
@@ -411,7 +415,7 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
         n_features = {name: int(Xm.shape[1]) for name, Xm in mods.items()}
         stacked, _ = self._stack(mods, names, n_features, scales)
         nmf = self._nmf()
-        W = nmf.fit_transform(stacked)
+        W = nmf.fit_transform(stacked) if transform else nmf.fit(stacked)
         self.modalities_, self.n_features_, self.scales_ = names, n_features, scales
         self.nmf_ = nmf
         self.components_ = nmf.components_

@@ -60,6 +60,9 @@ _FLOOR = 1e-100
 #: so a projected step that zeroes the only atoms reaching such a cell can lower it, and Newton steps then
 #: climb back from y near 0 only by a constant factor each. The line search refuses such steps.
 _COLLAPSE = 1e-3
+#: The relative decrease of a row's objective below which its rounding (a sum of terms each exact to about 1e-16)
+#: may hide it: a step that predicts no more is not searched further.
+_RESOLUTION = 1e-13
 #: Floats in the temporaries of one block of rows.
 _BLOCK_CELLS = 1 << 22
 #: Bertsekas' epsilon: a coefficient within this fraction of its row's largest (and within one scaled
@@ -338,7 +341,8 @@ def determined_rows(X, H: np.ndarray, beta: float, *, mask=None, penalty: Penalt
     that are not all zero; the others' coefficients do not enter the objective) must be
     linearly independent, to within a condition number of 1e6, and each row must observe at
     least as many cells as there are such atoms (the objective depends on w only through the
-    observed cells of w H). Elsewhere (more atoms than the features can tell apart, as with a
+    observed cells of w H); under the I-divergence (beta = 1), as many observed cells where
+    x > 0, since a cell where x = 0 adds (w H)_j, linear in w, to the objective. Elsewhere (more atoms than the features can tell apart, as with a
     dictionary of 150 atoms seen through 3 features) the minimisers form a set, and the
     updates' coefficients are kept as one of its points.
     """
@@ -356,10 +360,21 @@ def determined_rows(X, H: np.ndarray, beta: float, *, mask=None, penalty: Penalt
     eig = np.linalg.eigvalsh(seen @ seen.T)
     if not eig[0] > 1e-12 * eig[-1]:
         return np.zeros(n, dtype=bool)
+    if beta == 1.0:  # a cell with x = 0 adds (w H)_j, linear in w: no curvature
+        observed = X if mask is None else (X.multiply(mask) if sp.issparse(X) else np.where(mask, X, 0.0))
+        return _count_per_row(observed) >= k
     if mask is None:
         return np.ones(n, dtype=bool)
-    counts = sp.csr_matrix(mask, dtype=bool).getnnz(axis=1) if sp.issparse(mask) else np.count_nonzero(mask, axis=1)
-    return np.asarray(counts).ravel() >= k
+    return _count_per_row(mask) >= k
+
+
+def _count_per_row(A) -> np.ndarray:
+    """The nonzero entries of each row of A (dense or sparse)."""
+    if sp.issparse(A):
+        A = sp.csr_matrix(A)
+        A.eliminate_zeros()
+        return np.diff(A.indptr)
+    return np.count_nonzero(A, axis=1)
 
 
 def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int,
@@ -386,6 +401,7 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         pending = np.flatnonzero(~newton)
         alpha = np.ones(pending.size)
         todo = np.arange(pending.size)
+        stuck = np.zeros(pending.size, dtype=bool)
         for _ in range(_HALVINGS):
             if todo.size == 0:
                 break
@@ -398,10 +414,16 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             # from an infinite objective (beta = 1, a cell whose product underflowed to 0), any finite one is progress
             with np.errstate(invalid="ignore"):
                 ok = np.isfinite(ft) & (~np.isfinite(f[p]) | (f[p] - ft >= _SIGMA * predicted))
+                # a decrease the objective's rounding hides: halving further only makes it smaller
+                hidden = ~ok & np.isfinite(f[p]) & (predicted <= _RESOLUTION * np.abs(f[p]))
             W[rows[p[ok]]] = trial[ok]
             f_all[rows[p[ok]]] = ft[ok]
-            todo = todo[~ok]
+            stuck[todo[hidden]] = True
+            todo = todo[~ok & ~hidden]
             alpha[todo] *= 0.5
+        # a hidden decrease: a failed search, as one that ran out of halvings
+        alpha[stuck] = 0.0
+        todo = np.union1d(todo, np.flatnonzero(stuck))
         # no decrease along the arc even at the largest ridge: stationary up to rounding
         r = rows[pending[todo]]
         done[pending[todo][ridge_all[r] >= 1.0]] = True

@@ -400,7 +400,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         -------
         self
         """
-        self.fit_transform(X, mask=mask, W=W, H=H)
+        self._fit(X, mask, W, H)
         return self
 
     def fit_transform(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> np.ndarray:
@@ -411,6 +411,21 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         ``fit_transform(X)`` is ``fit(X).transform(X)`` up to that solution's tolerance.
         W is a dask array with X's row chunks when X is a dask array.
         """
+        res = self._fit(X, mask, W, H)
+        if not self._solves_coefficients():
+            return res.W
+        # The coefficients of the final dictionary, solved as transform solves them (from the fit's W):
+        # fit_transform(X) is fit(X).transform(X) up to the tolerance of the solution.
+        if is_dask_array(X):
+            columns = _live_features(res.H)
+            return self._solve_coefficients_dask(X, mask, res.H if columns is None else res.H[:, columns], res.W,
+                                                 columns)
+        H, Xv, maskv = _live_columns(res.H, *validate_data(X, mask))
+        return self._solve_coefficients(Xv, maskv, H, res.W)
+
+    def _fit(self, X: Any, mask: Any, W: Any, H: Any) -> Any:
+        """The multiplicative updates (or the other solvers) from the start; sets the fitted attributes and
+        returns the solver's result (its W is the updates' last iterate, not solved for the final dictionary)."""
         validate_params(self, self._parameter_constraints)
         res = beta_nmf(  # a dask array goes to the distributed solver (nmf/_dask.py); W is then a dask array
             X,
@@ -434,16 +449,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
             self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
         self.n_steps_ = 0
         self._stats = None
-        if not self._solves_coefficients():
-            return res.W
-        # The coefficients of the final dictionary, solved as transform solves them (from the fit's W):
-        # fit_transform(X) is fit(X).transform(X) up to the tolerance of the solution.
-        if is_dask_array(X):
-            columns = _live_features(res.H)
-            return self._solve_coefficients_dask(X, mask, res.H if columns is None else res.H[:, columns], res.W,
-                                                 columns)
-        H, Xv, maskv = _live_columns(res.H, *validate_data(X, mask))
-        return self._solve_coefficients(Xv, maskv, H, res.W)
+        return res
 
     def _set_fitted(self, H: np.ndarray, X: Any) -> None:
         self.components_ = H
@@ -648,8 +654,8 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         meets the optimality conditions, to about 1e-7 of its largest coefficient (far less
         once the convergence is quadratic). This is done where the minimiser is unique: the
         atoms that the selected features see are linearly independent and each row observes
-        at least as many features as there are such atoms (or ``alpha_W`` sets an L2
-        penalty); there the result does not depend on the start (for 1 < beta < 2 with zeros
+        at least as many features as there are such atoms, for beta = 1 as many with x > 0
+        (or ``alpha_W`` sets an L2 penalty); there the result does not depend on the start (for 1 < beta < 2 with zeros
         in X, whose curvature is infinite where a product vanishes, up to about 1e-3). Elsewhere
         (e.g. more atoms than features) the minimisers form a set, and the updates'
         coefficients are kept. For other betas, and with ``sparseness_W``, the coefficients are
