@@ -276,3 +276,42 @@ def test_one_notice_for_the_processes_of_one_command(jitmod, tmp_path):
         assert child.stdout.split() == ["1"]  # it compiled
         errs.append(child.stderr.count(_jit.COMPILE_NOTICE))
     assert errs == [1, 0, 1]
+
+
+RUN_COUNTING_COMPILATIONS = textwrap.dedent("""
+    import sys
+    from numba.core import event
+
+    compiled = []
+
+    class Count(event.Listener):
+        def on_start(self, ev):
+            compiled.append(1)
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", Count())
+    from mmconcepts.cli import main
+
+    code = main(["run", "ch2-nmf-recovery", "--smoke", "--variant", "synthetic", "-q", "-o", sys.argv[1]])
+    print(len(compiled), code)
+""")
+
+
+@pytest.mark.slow  # two processes run an experiment, the first compiling its kernels
+def test_a_second_process_never_compiles(tmp_path):
+    """The first `mmconcepts run` with an empty numba cache compiles the kernels it calls and writes them to the
+    cache; a second process (the experiment's own caches emptied, so it computes again) loads them all and
+    compiles nothing."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), MMCONCEPTS_QUIET="1")
+    counts = []
+    for i in range(2):
+        env["MMCONCEPTS_DATA"] = str(tmp_path / f"data{i}")
+        child = subprocess.run([sys.executable, "-c", RUN_COUNTING_COMPILATIONS, str(tmp_path / f"out{i}")],
+                               env=env, text=True, capture_output=True, timeout=600)
+        assert child.returncode == 0, child.stderr
+        compiled, code = child.stdout.split()[-2:]
+        assert code in ("0", "None"), child.stdout
+        counts.append(int(compiled))
+    assert counts[0] > 0 and counts[1] == 0, counts
