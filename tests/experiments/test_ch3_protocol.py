@@ -474,3 +474,24 @@ def test_leave_one_out_and_unseen_combinations_share_the_folds_of_one_example(rn
                            "learners": ("nmf_frobenius",), "params": args["params"], "single": False,
                            "seed": common.streams(0).seed_for("learner", alone[0])})
     np.testing.assert_array_equal(direct["nmf_frobenius"]["scores"], loo[alone[0]]["nmf_frobenius"]["scores"])
+
+
+def test_nmf_label_sets_are_the_learners_predictions(rng):
+    """A fold's NMF label sets are LabelNMF.predict of its test examples (read from the activations)."""
+    from mmconcepts.motion import MotionHistograms
+    from mmconcepts.nmf import LabelNMF
+
+    angles, Y = _fold_data(rng, n=20)
+    train, test = np.arange(14), np.arange(14, 20)
+    task = {"angles": angles, "Y": Y, "train": train, "test": test, "learners": ("nmf_kl",),
+            "features": {"data": "joint", "method": "kde", "n_bins": 4, "delay": 1},
+            "params": {"n_components": 4, "max_iter": 15, "inner_cv": 2}, "seed": 3, "single": False}
+    out = common._fold(task)["nmf_kl"]
+    X = MotionHistograms(**task["features"], random_state=3).fit([angles[i] for i in train]).transform(angles)
+    keep = Y[train].sum(axis=0) > 0
+    model = LabelNMF(4, beta_loss=1.0, max_iter=15, cv=2, random_state=3).fit(X[train], Y[train][:, keep])
+    pred = model.predict(X[test])
+    assert 0 < pred.sum() < pred.size  # some labels above the threshold, some below: not vacuous
+    np.testing.assert_array_equal(out["pred"][:, keep], pred)
+    assert not out["pred"][:, ~keep].any()
+    np.testing.assert_array_equal(out["scores"][:, keep], model.label_activations(X[test]))

@@ -642,7 +642,8 @@ def _learner_result(name: str, X: np.ndarray, task: dict) -> dict[str, Any]:
         scores = np.full((len(test), L), -1e9)
         scores[:, keep] = s
         pred = np.zeros((len(test), L), dtype=np.int64)
-        pred[:, keep] = model.predict(Xte)
+        # LabelNMF.predict is its activations at the threshold: read from s, not transformed again
+        pred[:, keep] = (s >= model.threshold_).astype(np.int64) if name.startswith("nmf_") else model.predict(Xte)
         res["scores"], res["pred"] = scores, pred
         if name.startswith("nmf_"):
             res["threshold"] = float(model.threshold_)
