@@ -59,7 +59,7 @@ def _counting(monkeypatch, module, name):
     return calls
 
 
-# --------------------------------------------------------------------------- chapter 3: one entry per fold
+# --------------------------------------------------------------------------- chapter 3: one entry per learner and fold
 def _ch3_args(rng):
     angles = [rng.normal(size=(20, 3)) + (i % 2) for i in range(12)]
     Y = np.eye(2)[np.arange(12) % 2]
@@ -79,15 +79,17 @@ def _same_folds(a, b):
 def test_ch3_folds_reused_for_the_same_code_recomputed_for_another(rng, tmp_path, monkeypatch):
     angles, Y, splits, args = _ch3_args(rng)
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
-    calls = _counting(monkeypatch, ch3, "_fold")
+    calls = _counting(monkeypatch, ch3, "_histograms")
+    fits = _counting(monkeypatch, ch3, "_learner_result")
     first = ch3.evaluate_folds(ctx, angles, Y, splits, **args)
-    assert len(calls) == 3 and len(_entries(tmp_path / "ch3-folds")) == 3
+    # the histograms once per fold, each learner once per fold, one entry per learner and fold
+    assert len(calls) == 3 and len(fits) == 6 and len(_entries(tmp_path / "ch3-folds")) == 6
     again = ch3.evaluate_folds(ctx, angles, Y, splits, **args)
-    assert len(calls) == 3  # same data, parameters and code: all read back
+    assert len(calls) == 3 and len(fits) == 6  # same data, parameters and code: all read back
     _same_folds(first, again)
     monkeypatch.setattr(ch3, "code_fingerprint", lambda: "another code")
     other = ch3.evaluate_folds(ctx, angles, Y, splits, **args)
-    assert len(calls) == 6 and len(_entries(tmp_path / "ch3-folds")) == 6
+    assert len(calls) == 6 and len(_entries(tmp_path / "ch3-folds")) == 12
     _same_folds(first, other)
     # any parameter is part of the key: a changed learner parameter recomputes
     ch3.evaluate_folds(ctx, angles, Y, splits, **dict(args, streams=ch3.streams(1)))
@@ -100,11 +102,12 @@ def test_ch3_torn_fold_is_recomputed(rng, tmp_path, monkeypatch):
     first = ch3.evaluate_folds(ctx, angles, Y, splits, **args)
     entries = _entries(tmp_path / "ch3-folds")
     _tear(entries[1])
-    calls = _counting(monkeypatch, ch3, "_fold")
+    calls = _counting(monkeypatch, ch3, "_histograms")
+    fits = _counting(monkeypatch, ch3, "_learner_result")
     again = ch3.evaluate_folds(ctx, angles, Y, splits, **args)
-    assert len(calls) == 1  # only the torn fold
+    assert len(calls) == 1 and len(fits) == 1  # only the torn learner of one fold
     _same_folds(first, again)
-    assert ch3.evaluate_folds(ctx, angles, Y, splits, **args) and len(calls) == 1  # and it was written again
+    assert ch3.evaluate_folds(ctx, angles, Y, splits, **args) and len(fits) == 1  # and it was written again
 
 
 def test_ch3_folds_cached_by_worker_processes(rng, tmp_path):
@@ -112,7 +115,7 @@ def test_ch3_folds_cached_by_worker_processes(rng, tmp_path):
     angles, Y, splits, args = _ch3_args(rng)
     pooled = ch3.evaluate_folds(RunContext(workers=2, cache_dir=tmp_path / "a", show_progress=False), angles, Y,
                                 splits, **args)
-    assert len(_entries(tmp_path / "a" / "ch3-folds")) == 3
+    assert len(_entries(tmp_path / "a" / "ch3-folds")) == 6
     serial = ch3.evaluate_folds(RunContext(workers=1, cache_dir=tmp_path / "b", show_progress=False), angles, Y,
                                 splits, **args)
     _same_folds(pooled, serial)

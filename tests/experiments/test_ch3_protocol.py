@@ -103,21 +103,21 @@ def test_an_interrupted_evaluation_keeps_the_folds_it_finished(rng, tmp_path, mo
     splits = common.kfold_splits(12, 4, seed=0)
     args = dict(features={"data": "joint", "method": "kde", "n_bins": 5, "delay": 1}, learners=("chance",),
                 params={}, streams=common.streams(0), single=True)
-    real_fold, calls = common._fold, []
+    real_hist, calls = common._histograms, []
 
     def stop_at_third(task):
         calls.append(1)
         if len(calls) == 3:
             raise KeyboardInterrupt
-        return real_fold(task)
+        return real_hist(task)
 
-    monkeypatch.setattr(common, "_fold", stop_at_third)
+    monkeypatch.setattr(common, "_histograms", stop_at_third)
     ctx = RunContext(workers=1, cache_dir=tmp_path, show_progress=False)
     with pytest.raises(KeyboardInterrupt):
         common.evaluate_folds(ctx, angles, Y, splits, **args)
     assert len(list((tmp_path / "ch3-folds").rglob("*.npz"))) == 2
     calls.clear()
-    monkeypatch.setattr(common, "_fold", lambda task: (calls.append(1), real_fold(task))[1])
+    monkeypatch.setattr(common, "_histograms", lambda task: (calls.append(1), real_hist(task))[1])
     resumed = common.evaluate_folds(ctx, angles, Y, splits, **args)
     assert len(calls) == 2 and len(resumed) == 4
     fresh = common.evaluate_folds(RunContext(workers=1, cache_dir=tmp_path / "b", show_progress=False), angles, Y,
@@ -410,3 +410,88 @@ def test_generated_choreographies_show_progress_in_an_interactive_run(tmp_path, 
     again = common.subset_arrays(RunContext(cache_dir=tmp_path / "other", show_progress=False), "primitive",
                                  streams=common.streams(3), n_records=4)
     assert all(np.array_equal(a, b) for a, b in zip(arrays.angles, again.angles))
+
+
+# ---------------------------------------------------------------------------- fold seeds and shared fits
+def test_fold_seeds_leave_one_out_by_example_others_by_index():
+    streams = common.streams(0)
+    n = 9
+    loo = common.kfold_splits(n, None, seed=0)
+    assert common.fold_seeds(streams, loo, n) == [streams.seed_for("learner", i) for i in range(n)]
+    kfold = common.kfold_splits(n, 3, seed=0)
+    assert common.fold_seeds(streams, kfold, n) == [streams.seed_for("learner", i) for i in range(3)]
+    # a list mixing folds of one left-out example with others: the former by their example, the latter apart
+    mixed = [(np.arange(1, n), np.array([0])), (np.r_[0, 4:n], np.arange(1, 4)), (np.arange(n - 1), np.array([n - 1]))]
+    seeds = common.fold_seeds(streams, mixed, n)
+    assert seeds == [streams.seed_for("learner", 0), streams.seed_for("learner", 1, 1),
+                     streams.seed_for("learner", n - 1)]
+    assert len(set(seeds)) == 3
+    # a test set of one example that does not train on all the others is not a leave-one-out fold
+    partial = [(np.arange(2, n), np.array([0])), (np.arange(3, n), np.array([1]))]
+    assert common.fold_seeds(streams, partial, n) == [streams.seed_for("learner", i) for i in range(2)]
+
+
+def _fold_data(rng, n=14, L=5):
+    Y = np.zeros((n, L))
+    for row in Y:
+        row[rng.choice(L, 2, replace=False)] = 1
+    Y[:4] = Y[4:8]  # these combinations shown at least twice
+    angles = [rng.normal(size=(25, 3)) + Y[i, :3] for i in range(n)]
+    return angles, Y
+
+
+def test_leave_one_out_and_unseen_combinations_share_the_folds_of_one_example(rng, tmp_path, monkeypatch):
+    """Leave-one-combination-out reads the leave-one-out fits of the examples whose combination is theirs
+    alone, and computes only its other folds; a learner asked for again is read back, whatever the others."""
+    from mmconcepts.experiments import RunContext
+
+    angles, Y = _fold_data(rng)
+    n = len(Y)
+    ctx = RunContext(cache_dir=tmp_path, show_progress=False)
+    args = dict(features={"data": "joint", "method": "kde", "n_bins": 4, "delay": 1},
+                params={"n_components": 4, "max_iter": 10, "inner_cv": 2}, streams=common.streams(0))
+    fits: list[str] = []
+    real = common._learner_result
+    monkeypatch.setattr(common, "_learner_result", lambda name, X, task: (fits.append(name), real(name, X, task))[1])
+    loo = common.evaluate_folds(ctx, angles, Y, common.kfold_splits(n, None, 0), learners=("nmf_frobenius", "chance"),
+                                **args)
+    assert len(fits) == 2 * n
+    unseen = common.unseen_combination_splits(Y, None, seed=0)
+    alone = [int(te[0]) for tr, te in unseen if len(te) == 1]
+    assert 0 < len(alone) < len(unseen)  # the test is not vacuous
+    fits.clear()
+    folds = common.evaluate_folds(ctx, angles, Y, unseen, learners=("nmf_frobenius", "svm"), **args)
+    # svm on every fold; NMF only on the folds of several examples
+    assert sorted(fits) == sorted(["svm"] * len(unseen) + ["nmf_frobenius"] * (len(unseen) - len(alone)))
+    for f in folds:
+        if len(f["test"]) == 1:
+            j = int(f["test"][0])
+            np.testing.assert_array_equal(f["nmf_frobenius"]["scores"], loo[j]["nmf_frobenius"]["scores"])
+        assert list(f) == ["test", "nmf_frobenius", "svm"]
+    # the same fold computed directly, without the cache: the same numbers
+    tr, te = common.kfold_splits(n, None, 0)[alone[0]]
+    direct = common._fold({"angles": angles, "Y": Y, "train": tr, "test": te, "features": args["features"],
+                           "learners": ("nmf_frobenius",), "params": args["params"], "single": False,
+                           "seed": common.streams(0).seed_for("learner", alone[0])})
+    np.testing.assert_array_equal(direct["nmf_frobenius"]["scores"], loo[alone[0]]["nmf_frobenius"]["scores"])
+
+
+def test_nmf_label_sets_are_the_learners_predictions(rng):
+    """A fold's NMF label sets are LabelNMF.predict of its test examples (read from the activations)."""
+    from mmconcepts.motion import MotionHistograms
+    from mmconcepts.nmf import LabelNMF
+
+    angles, Y = _fold_data(rng, n=20)
+    train, test = np.arange(14), np.arange(14, 20)
+    task = {"angles": angles, "Y": Y, "train": train, "test": test, "learners": ("nmf_kl",),
+            "features": {"data": "joint", "method": "kde", "n_bins": 4, "delay": 1},
+            "params": {"n_components": 4, "max_iter": 15, "inner_cv": 2}, "seed": 3, "single": False}
+    out = common._fold(task)["nmf_kl"]
+    X = MotionHistograms(**task["features"], random_state=3).fit([angles[i] for i in train]).transform(angles)
+    keep = Y[train].sum(axis=0) > 0
+    model = LabelNMF(4, beta_loss=1.0, max_iter=15, cv=2, random_state=3).fit(X[train], Y[train][:, keep])
+    pred = model.predict(X[test])
+    assert 0 < pred.sum() < pred.size  # some labels above the threshold, some below: not vacuous
+    np.testing.assert_array_equal(out["pred"][:, keep], pred)
+    assert not out["pred"][:, ~keep].any()
+    np.testing.assert_array_equal(out["scores"][:, keep], model.label_activations(X[test]))

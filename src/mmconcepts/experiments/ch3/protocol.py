@@ -28,12 +28,16 @@ Thesis section 3.3. What the experiments have in common:
   out the mixtures whose combination its test part shows.
 - :func:`evaluate_folds` runs one fold per task through ``ctx.parallel``: histograms
   (grids / codebooks) are fitted on the fold's training recordings only, then each learner
-  is fitted on the training examples and scores the test examples. Fold results are cached
-  on disk, one entry per fold written as the fold ends (the disk cache of :meth:`RunContext.memory <mmconcepts.engine.context.RunContext.memory>` under
+  is fitted on the training examples and scores the test examples. Results are cached on
+  disk, one entry per learner and fold written as the learner ends (the disk cache of
+  :meth:`RunContext.memory <mmconcepts.engine.context.RunContext.memory>` under
   ``ctx.cache_dir/ch3-folds``), under a hash of everything they depend on (data, split,
-  features, learner parameters, seed, :func:`~mmconcepts._fingerprint.code_fingerprint`),
+  features, learner and its parameters, seed, :func:`~mmconcepts._fingerprint.code_fingerprint`),
   so experiments sharing a protocol (Table 3.2, Fig. 3.7, Fig. 3.8) fit each fold once, an
-  interrupted run resumes from the folds it finished, and a change of code recomputes.
+  interrupted run resumes from the fits it finished, and a change of code recomputes. A
+  fold's seed depends on what it leaves out (:func:`fold_seeds`): leave-one-out and
+  leave-one-combination-out share the folds that leave out one example alone (a
+  combination shown by one example only), fitted once for both (Tables 3.2 and 3.3).
 - :func:`pooled_scores` gathers the test scores of all folds (each example is tested exactly
   once) and computes l_full / l_given_number / l_single over all examples, which for
   leave-one-out is the thesis' "averaged over all possible test sets"; :func:`fold_samples`
@@ -53,9 +57,11 @@ a random tie-break).
 
 from __future__ import annotations
 
+import contextlib
 import time
 import warnings
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, overload
@@ -85,6 +91,7 @@ __all__ = [
     "evaluate_folds",
     "example_splits",
     "fold_samples",
+    "fold_seeds",
     "fold_unit",
     "fold_thresholds",
     "kfold_splits",
@@ -585,68 +592,125 @@ def _learner(name: str, params: dict, seed: int, features: dict | None = None):
     raise ParameterError(f"unknown learner {name!r}")
 
 
-def _fold(task: dict) -> dict:
-    """Fit features and learners on one training fold; score its test examples."""
+@contextlib.contextmanager
+def _fold_context() -> Iterator[None]:
+    """One BLAS thread (the folds run in parallel processes); capped NMF iterations are the protocol
+    (``max_iter``): their ConvergenceWarning is expected, others (the SVMs' among them) are shown."""
     from threadpoolctl import threadpool_limits
 
-    angles, Y, train, test = task["angles"], task["Y"], task["train"], task["test"]
-    single = task["single"]
-    seed = task["seed"]
-    out: dict[str, Any] = {"test": test}
     with threadpool_limits(1), warnings.catch_warnings():
-        # capped NMF iterations are the protocol (max_iter): their ConvergenceWarning is expected;
-        # others (the SVMs' among them) are shown
         warnings.simplefilter("ignore", ConvergenceWarning)
+        yield
+
+
+def _histograms(task: dict) -> np.ndarray:
+    """The histograms (n, n_features) of every example, grids or codebooks fitted on the fold's training examples."""
+    angles, train = task["angles"], task["train"]
+    hist = MotionHistograms(**task["features"], random_state=task["seed"]).fit([angles[i] for i in train])
+    return hist.transform(angles)
+
+
+def _learner_result(name: str, X: np.ndarray, task: dict) -> dict[str, Any]:
+    """Fit learner ``name`` on the fold's training rows of ``X``; its ``scores`` (and ``pred``, ``threshold``) on the
+    test rows, and the ``seconds`` it took."""
+    Y, train, test, seed = task["Y"], task["train"], task["test"], task["seed"]
+    t0 = time.perf_counter()
+    Xtr, Xte, Ytr = X[train], X[test], Y[train]
+    L = Y.shape[1]
+    res: dict[str, Any] = {}
+    if name == "chance":
+        freq = Ytr.mean(axis=0)
+        rng = np.random.default_rng(seed)
+        res["scores"] = np.tile(freq, (len(test), 1)) + 1e-9 * rng.random((len(test), L))
+        common = Counter(tuple(r) for r in Ytr.astype(int)).most_common(1)[0][0]
+        res["pred"] = np.tile(np.array(common), (len(test), 1))
+    elif task["single"]:
+        y_tr = np.argmax(Ytr, axis=1)
+        model = _learner(name, task["params"], seed, task["features"])
+        model.fit(Xtr, y_tr)
+        s = model.decision_function(Xte)
+        if s.ndim == 1:
+            s = np.column_stack([-s, s])
+        scores = np.full((len(test), L), -1e9)
+        scores[:, model.classes_] = s
+        res["scores"] = scores
+    else:
+        model = _learner(name, task["params"], seed, task["features"])
+        keep = Ytr.sum(axis=0) > 0  # labels absent from training cannot be learnt
+        model.fit(Xtr, Ytr[:, keep])
+        s = model.label_activations(Xte) if name.startswith("nmf_") else model.decision_function(Xte)
+        scores = np.full((len(test), L), -1e9)
+        scores[:, keep] = s
+        pred = np.zeros((len(test), L), dtype=np.int64)
+        # LabelNMF.predict is its activations at the threshold: read from s, not transformed again
+        pred[:, keep] = (s >= model.threshold_).astype(np.int64) if name.startswith("nmf_") else model.predict(Xte)
+        res["scores"], res["pred"] = scores, pred
+        if name.startswith("nmf_"):
+            res["threshold"] = float(model.threshold_)
+    res["seconds"] = time.perf_counter() - t0
+    return res
+
+
+def _fold(task: dict) -> dict:
+    """Fit features and learners on one training fold; score its test examples (what :func:`evaluate_folds` gives
+    per fold, with ``feature_seconds``)."""
+    out: dict[str, Any] = {"test": task["test"]}
+    with _fold_context():
         t0 = time.perf_counter()
-        hist = MotionHistograms(**task["features"], random_state=seed).fit([angles[i] for i in train])
-        X = hist.transform(angles)
+        X = _histograms(task)
         out["feature_seconds"] = time.perf_counter() - t0
-        Xtr, Xte, Ytr = X[train], X[test], Y[train]
-        L = Y.shape[1]
         for name in task["learners"]:
-            t0 = time.perf_counter()
-            res: dict[str, Any] = {}
-            if name == "chance":
-                freq = Ytr.mean(axis=0)
-                rng = np.random.default_rng(seed)
-                res["scores"] = np.tile(freq, (len(test), 1)) + 1e-9 * rng.random((len(test), L))
-                common = Counter(tuple(r) for r in Ytr.astype(int)).most_common(1)[0][0]
-                res["pred"] = np.tile(np.array(common), (len(test), 1))
-            elif single:
-                y_tr = np.argmax(Ytr, axis=1)
-                model = _learner(name, task["params"], seed, task["features"])
-                model.fit(Xtr, y_tr)
-                s = model.decision_function(Xte)
-                if s.ndim == 1:
-                    s = np.column_stack([-s, s])
-                scores = np.full((len(test), L), -1e9)
-                scores[:, model.classes_] = s
-                res["scores"] = scores
-            else:
-                model = _learner(name, task["params"], seed, task["features"])
-                keep = Ytr.sum(axis=0) > 0  # labels absent from training cannot be learnt
-                model.fit(Xtr, Ytr[:, keep])
-                s = model.label_activations(Xte) if name.startswith("nmf_") else model.decision_function(Xte)
-                scores = np.full((len(test), L), -1e9)
-                scores[:, keep] = s
-                pred = np.zeros((len(test), L), dtype=np.int64)
-                pred[:, keep] = model.predict(Xte)
-                res["scores"], res["pred"] = scores, pred
-                if name.startswith("nmf_"):
-                    res["threshold"] = float(model.threshold_)
-            res["seconds"] = time.perf_counter() - t0
-            out[name] = res
+            out[name] = _learner_result(name, X, task)
     return out
 
 
-def _cached_fold(task: dict, key: tuple, code: str) -> dict:
-    """:func:`_fold`, cached on disk by :func:`evaluate_folds` (``task`` is not hashed).
+def _cached_learner(task: dict, key: tuple, code: str) -> dict:
+    """:func:`_learner_result` of ``task["learner"]`` on ``task["X"]``, cached on disk by :func:`evaluate_folds`
+    (``task`` is not hashed).
 
-    ``key`` stands for everything ``task`` holds (a digest of the data, the split, the
-    features, learners and their parameters, the fold's seed), ``code`` is the package's
+    ``key`` stands for everything the result depends on (a digest of the data, the split, the
+    features, the learner and its parameters, the fold's seed), ``code`` is the package's
     :func:`~mmconcepts._fingerprint.code_fingerprint`.
     """
-    return _fold(task)
+    return _learner_result(task["learner"], task["X"], task)
+
+
+def _fold_entries(item: tuple) -> dict[str, dict]:
+    """The learners of one fold that the cache lacks: the histograms once, then each learner, whose entry is
+    written as soon as it ends. ``item`` is ``(cached, task, {learner: key}, code)``."""
+    cached, task, keys, code = item
+    with _fold_context():
+        X = _histograms(task)
+        return {name: cached.compute(dict(task, X=X, learner=name), key, code) for name, key in keys.items()}
+
+
+def fold_seeds(streams: Streams, splits, n: int) -> list[int]:
+    """The *learner* seed of each fold (its histogram codebooks and learners).
+
+    A fold that leaves one example out (its test set is example ``j``, its training set all the
+    others) draws ``streams.seed_for("learner", j)``: every protocol that leaves ``j`` out
+    alone (leave-one-out, and leave-one-combination-out for a combination shown by ``j`` only)
+    has the same fold, fitted once (:func:`evaluate_folds` caches it). Fold ``i`` of any other
+    kind draws ``streams.seed_for("learner", i)``, or ``streams.seed_for("learner", i, 1)`` when
+    the splits also hold folds of one left-out example, so that no two folds share a seed.
+    Under leave-one-out fold ``i`` leaves example ``i`` out: both rules give the same seeds.
+
+    Parameters
+    ----------
+    streams : Streams
+    splits : list of (train, test) index arrays
+    n : int
+        The number of examples.
+
+    Returns
+    -------
+    list of int, one per fold
+    """
+    alone = [len(te) == 1 and len(tr) == n - 1 for tr, te in splits]
+    mixed = any(alone) and not all(alone)
+    return [streams.seed_for("learner", int(np.asarray(te)[0])) if one
+            else streams.seed_for("learner", i, 1) if mixed else streams.seed_for("learner", i)
+            for i, ((_, te), one) in enumerate(zip(splits, alone))]
 
 
 @overload
@@ -664,7 +728,16 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
 def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, splits, *,
                    features: dict | list[dict] | tuple[dict, ...], learners: tuple[str, ...], params: dict,
                    streams: Streams, single: bool = False, desc: str = "folds") -> list[dict] | list[list[dict]]:
-    """Evaluate every split (in parallel over ``ctx.workers``), reusing cached folds.
+    """Evaluate every split (in parallel over ``ctx.workers``), reusing cached learners.
+
+    Each learner's result on a fold is one cache entry (the disk cache of
+    :meth:`RunContext.memory <mmconcepts.engine.context.RunContext.memory>` under
+    ``ctx.cache_dir/ch3-folds``), keyed on the data, the fold's training and test examples, the
+    histogram parameters, the learner and its parameters, the fold's seed (:func:`fold_seeds`)
+    and the code: experiments that ask for the same learner on the same fold (the same
+    protocol; or leave-one-out and leave-one-combination-out leaving out the same single
+    example) fit it once, whichever other learners they ask for. A fold's histograms are
+    computed once for the learners it lacks.
 
     Parameters
     ----------
@@ -677,7 +750,7 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     params : ``n_components``, ``max_iter``, ``inner_cv`` of the NMF learners
     streams : Streams
         The run's streams: each fold's histogram codebooks and learners are seeded by its
-        *learner* stream and the fold index (``streams.seed_for("learner", i)``).
+        *learner* stream (:func:`fold_seeds`).
     single : single-label data (1-D fit, l_single)
 
     Returns
@@ -689,22 +762,39 @@ def evaluate_folds(ctx: RunContext, angles: list[np.ndarray], Y: np.ndarray, spl
     feature_list: list[dict] = list(features) if isinstance(features, (list, tuple)) else [features]
     fp = array_digest([*angles, Y])
     code = code_fingerprint()
-    memo = ctx.memory("ch3-folds").cache(_cached_fold, ignore=["task"])
-    calls = []
+    memo = ctx.memory("ch3-folds").cache(_cached_learner, ignore=["task"])
+    seeds = fold_seeds(streams, splits, len(Y))
+    nmf_params = sorted(params.items())
+    folds: list[dict] = []
+    todo: list[tuple] = []
     for feats in feature_list:
         # Every histogram parameter, defaults included, so a changed default is a new key.
         hist_params = sorted(MotionHistograms(**feats).get_params().items())
-        for i, (tr, te) in enumerate(splits):
-            fold_seed = streams.seed_for("learner", i)
+        for (tr, te), fold_seed in zip(splits, seeds):
             task = {"angles": angles, "Y": Y, "train": np.asarray(tr), "test": np.asarray(te), "features": feats,
-                    "learners": tuple(learners), "params": params, "seed": fold_seed, "single": single}
-            key = (fp, hist_params, tuple(learners), sorted(params.items()), single, task["train"], task["test"],
-                   fold_seed)
-            calls.append((task, key, code))
-    # Each fold's entry is written by the process that computed it as soon as the fold ends,
-    # so an interrupted run resumes from the folds it finished.
-    done = ctx.parallel_cached(memo, calls, desc=desc)
-    results = [done[j * len(splits):(j + 1) * len(splits)] for j in range(len(feature_list))]
+                    "params": params, "seed": fold_seed, "single": single}
+            fold: dict[str, Any] = {"test": task["test"]}
+            missing = {}
+            for name in learners:
+                key = (fp, hist_params, name, nmf_params if name.startswith("nmf_") else [], single, task["train"],
+                       task["test"], fold_seed)
+                found, value = memo.lookup(task, key, code)
+                if found:
+                    fold[name] = value
+                else:
+                    missing[name] = key
+            if missing:
+                todo.append((len(folds), (memo, task, missing, code)))
+            folds.append(fold)
+    # Each learner's entry is written by the process that computed it as soon as it ends,
+    # so an interrupted run resumes from the fits it finished.
+    done = ctx.parallel(_fold_entries, [item for _, item in todo], desc=desc)
+    for (j, _), computed in zip(todo, done):
+        folds[j].update(computed)
+    for fold in folds:  # the learners in the order asked
+        order = {name: fold.pop(name) for name in learners}
+        fold.update(order)
+    results = [folds[j * len(splits):(j + 1) * len(splits)] for j in range(len(feature_list))]
     if not many:
         return results[0]
     return results

@@ -215,7 +215,7 @@ def _fold(task: dict) -> dict:
         S = np.zeros(Yte.shape)
         S[:, seen] = model.label_activations(Xte)
         P = np.zeros(Yte.shape, dtype=np.int64)
-        P[:, seen] = model.predict(Xte)
+        P[:, seen] = S[:, seen] >= model.threshold_  # LabelNMF.predict, from the activations already computed
 
         tags = [tuple(keywords[j] for j in np.flatnonzero(Y[i])) for i in tr]
         voter = common.make_voter(task["voting"], [win_seqs[i] for i in tr], seed=seed)

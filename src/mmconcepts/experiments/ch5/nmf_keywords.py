@@ -155,7 +155,8 @@ def _fold(task: dict) -> dict:
         threshold = dict(threshold="cv", cv=cfg["threshold_cv"]) if with_threshold else dict(threshold=0.5)
         cmodel = LabelNMF(cfg["n_components"], **threshold, **nmf).fit(Ctr[:, ckeep], Y[ctr])
         S = cmodel.label_activations(Cte[:, ckeep])
-        P = cmodel.predict(Cte[:, ckeep]) if with_threshold else None
+        # LabelNMF.predict is its activations at the threshold: read from S, not transformed again
+        P = (S >= cmodel.threshold_).astype(np.int64) if with_threshold else None
         cvoter = common.make_voter(task["voting"], [c_win[i] for i in ctr], seed=seed)
         cvoter.partial_fit([c_win[i] for i in ctr], [tuple(keywords[j] for j in np.flatnonzero(Y[i])) for i in ctr])
         V = cvoter.decision_function([c_win[i] for i in cte])

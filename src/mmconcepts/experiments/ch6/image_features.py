@@ -107,9 +107,11 @@ def _repeat(task: dict) -> dict:
             I = F[name][idx]
             I = I[:, common.seen_columns(I[tr])]
             model = MultimodalNMF(task["k"], max_iter=task["n_iter"], random_state=learner[2])
-            W = model.fit_transform({"sound": S[tr], "image": I[tr]})
+            data = {"sound": S[tr], "image": I[tr]}
             if task["explorer"] and name == "all":  # the concept explorer's learner
-                out["coefficients"] = W
+                out["coefficients"] = model.fit_transform(data)
+            else:  # only the dictionary is used: no coefficients of the training examples
+                model.fit(data)
             X = {"sound": S, "image": I}
             H = {(m, part): model.transform({m: X[m][rows]}) for m in X for part, rows in (("test", te), ("ref", ref))}
             for key, (tm, rm) in (("i2s", ("image", "sound")), ("s2i", ("sound", "image"))):

@@ -124,9 +124,11 @@ def _repeat(task: dict) -> dict:
 
         def fit(train: str, k: int) -> MultimodalNMF:
             model = MultimodalNMF(k, max_iter=task["n_iter"], random_state=learner[2])
-            W = model.fit_transform({NAMES[m]: X[m][tr] for m in train})
+            data = {NAMES[m]: X[m][tr] for m in train}
             if task["explorer"] and train == "SMI" and k == task["k"]:  # the concept explorer's learner
-                explorer["coefficients"] = W
+                explorer["coefficients"] = model.fit_transform(data)
+            else:  # only the dictionary is used: no coefficients of the training examples
+                model.fit(data)
             return model
 
         explorer: dict = {}
