@@ -252,19 +252,62 @@ def test_transform_stopping_rule_matches(rng):
 
 
 def test_local_cluster_equals_in_memory(rng):
-    """A LocalCluster of two single-threaded workers (threads, 127.0.0.1): the same fit."""
+    """A LocalCluster of two single-threaded workers (threads, 127.0.0.1): the same fit, bit for bit the fit of the
+    synchronous scheduler (the sums go in chunk order whichever worker runs a chunk), each chunk's tasks on one
+    worker, contiguous rows per worker."""
     distributed = pytest.importorskip("distributed")
     X, mask, W0, H0 = make_data(rng, True, 1.0, True)
-    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0, loss_every=4)
     r_mem = beta_nmf(X, K, mask=mask, **kw)
+    r_sync = beta_nmf(to_dask(X), K, mask=to_dask(mask), **kw)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1", protocol="tcp://",
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         Xd = client.persist(to_dask(X))
         Md = client.persist(to_dask(mask))
-        with dask.config.set(scheduler=client):
+        with dask.config.set(scheduler=client), distributed.get_task_stream(client) as stream:
             r_dask = beta_nmf(Xd, K, mask=Md, **kw)
             W = r_dask.W.compute()
+        workers = sorted(client.nthreads())
     assert rel(W, r_mem.W) < RTOL and rel(r_dask.H, r_mem.H) < RTOL
+    assert np.array_equal(W, r_sync.W.compute()) and np.array_equal(r_dask.H, r_sync.H)
+    assert np.array_equal(r_dask.loss_history, r_sync.loss_history)
+    ran = {}
+    for task in stream.data:
+        name = task["key"] if isinstance(task["key"], str) else task["key"][0]
+        if "-fit-" in name:
+            ran.setdefault(int(name.rsplit("-", 1)[1]), set()).add(task["worker"])
+    assert sorted(ran) == [0, 1, 2, 3] and all(len(w) == 1 for w in ran.values())
+    # ROW_CHUNKS = (23, 40, 1, 36): the middle of chunk 1 (row 43) is in the first half of the 100 rows
+    assert [ran[c].pop() for c in range(4)] == [workers[0], workers[0], workers[1], workers[1]]
+
+
+@pytest.mark.parametrize("tol, checks", [(0.0, [0, 5, 10, 12]), (0.05, [0, 5, 10])], ids=["to_max_iter", "stops"])
+def test_one_graph_per_evaluation_of_the_objective(rng, monkeypatch, tol, checks):
+    """The iterations between two evaluations of the objective go to the scheduler as one graph: one submission
+    per batch (iteration 0, then up to each multiple of loss_every, then max_iter), not one per iteration; a fit
+    that stops at a check returns that check's (W, H), not the iteration the batch computed past it."""
+    X, _, W0, H0 = make_data(rng, True, 1.0, False)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=12, tol=tol, loss_every=5)
+    r_mem = beta_nmf(X, K, **kw)
+    submitted = []
+    persist, loop = dask.persist, nd._fit_loop_in_memory
+
+    def counting_loop(*args, **kwargs):
+        def counting_persist(*collections, **kw):
+            submitted.append(len(collections))
+            return persist(*collections, **kw)
+
+        monkeypatch.setattr(dask, "persist", counting_persist)
+        try:
+            return loop(*args, **kwargs)
+        finally:
+            monkeypatch.setattr(dask, "persist", persist)
+
+    monkeypatch.setattr(nd, "_fit_loop_in_memory", counting_loop)
+    r_dask = beta_nmf(to_dask(X), K, **kw)
+    assert_same_fit(r_mem, r_dask)
+    assert list(r_mem.loss_iterations) == checks and r_mem.converged == (tol > 0)
+    assert len(submitted) == len(checks)
 
 
 def test_hstack_row_chunks_for_modalities(rng):

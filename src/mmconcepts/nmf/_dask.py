@@ -13,26 +13,33 @@ So each iteration is one pass over the chunks: a task per chunk, run where the c
 updates its W_c with exactly the in-memory update (:func:`mmconcepts.nmf._updates.mu_update` on
 the chunk's :class:`~mmconcepts.nmf._problem.Problem`), and returns its (N_c, D_c), two
 n_features x k arrays (D_c is a k-vector for the I-divergence and a k x k Gram matrix for the
-Frobenius loss without a mask, as in memory); the sums are reduced in a tree, and H is updated
-on the client. W never leaves the workers (or the disk); H and the sums are the only traffic,
-k x n_features per chunk and per iteration. The objective of iteration i is computed in the
-pass of iteration i + 1 (one extra pass after the last), so the stopping rule and the iterates
-are those of :func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of the sums.
+Frobenius loss without a mask, as in memory); the sums are reduced in a tree in chunk order
+(the same sums whichever worker runs which chunk), and the task at its root updates H on the
+worker that holds the sums; the next iteration's chunk tasks fetch the new H from there. The
+objective of (W, H) is computed by the chunk tasks of the pass that updates them, and the
+iterations from one evaluation of the objective to the next (every ``loss_every``) make one
+graph, submitted at once: the client reads only the objectives, so the stopping rule and the
+iterates are those of :func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of
+the sums. W never leaves the workers; H and the sums are the only traffic, at most
+k x n_features per chunk and per iteration. On a ``distributed`` cluster, each chunk's tasks
+run on one worker for the whole fit, the chunks cut into contiguous runs of rows of about the
+same size, one per worker (the first sums of the tree are then mostly within a worker).
 
 Memory
 ------
 ``beta_nmf`` of a dask array keeps, in the cluster's memory and for the whole fit, each chunk's
 validated rows (with their CSR transpose when sparse, as the in-memory solver does) and its rows
-of W: about twice the nonzeros of X plus n_samples x k, spread over the workers. The client
-holds H and the sums (a few n_features x k arrays).
+of W: about twice the nonzeros of X plus n_samples x k, spread over the workers; W twice at the
+end of each batch when ``tol > 0`` (the W of the evaluated iteration, the answer if the rule stops
+there, beside the next one). The client holds H at the end only.
 
 Out of core
 -----------
 A matrix too large for memory is stored as a folder of ``.npz`` row chunks (the layout of
 :func:`save_npz_chunks`) and read lazily by :func:`load_npz_chunks`;
 :func:`beta_nmf_out_of_core` fits it with W kept on disk between passes (one ``.npy`` file per
-chunk) and writes the final W to a folder of the same layout, chunk by chunk, only once the fit
-has succeeded.
+chunk), one pass per iteration with H updated by the client from the sums, and writes the final
+W to a folder of the same layout, chunk by chunk, only once the fit has succeeded.
 
 Written by hand: no maintained library computes beta-divergence NMF on Dask (dask-ml has no NMF).
 dask is imported lazily: the rest of :mod:`mmconcepts.nmf` works without it.
@@ -40,8 +47,10 @@ dask is imported lazily: the rest of :mod:`mmconcepts.nmf` works without it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import operator
 import os
 import shutil
 import tempfile
@@ -663,18 +672,65 @@ def _tree(parts: list, dask, split_every: int):
 
 
 # ---------------------------------------------------------------------------------------------
+# Which worker holds which chunk (a distributed cluster)
+
+
+def _chunk_workers(specs: Sequence[_ChunkSpec], n: int) -> list[str] | None:
+    """The worker each chunk's rows stay on, on the distributed cluster dask computes with; None on another scheduler.
+
+    Contiguous rows per worker (each chunk goes by the middle of its rows): balanced by rows, and
+    the chunks summed together first in the tree are mostly on one worker.
+    """
+    import dask
+
+    client = getattr(dask.base.get_scheduler(), "__self__", None)
+    try:
+        from distributed import Client
+    except ImportError:  # pragma: no cover - distributed comes with the dask extra
+        return None
+    if not isinstance(client, Client):
+        return None
+    workers = sorted(client.nthreads())
+    if not workers:
+        return None
+    return [workers[min(len(workers) - 1, (s.start + s.stop) * len(workers) // (2 * max(n, 1)))] for s in specs]
+
+
+def _persist_placed(dask, refs: Sequence[Any], workers: list[str] | None) -> list[Any]:
+    """``dask.persist`` of one delayed value per chunk, each computed and kept on its chunk's worker.
+
+    The restriction is loose: if that worker leaves, the scheduler runs the task elsewhere.
+    """
+    refs = list(refs)
+    if workers is None:
+        return list(dask.persist(*refs))
+    with _placed(dask, {r.key: w for r, w in zip(refs, workers)}, workers):
+        return list(dask.persist(*refs))
+
+
+def _placed(dask, where: dict, workers: list[str] | None):
+    """The annotation that sends the tasks of ``where`` (key: worker) to their worker, the others anywhere."""
+    if workers is None:
+        return contextlib.nullcontext()
+    anywhere = sorted(set(workers))
+    return dask.annotate(workers=lambda key: [where[key]] if key in where else anywhere, allow_other_workers=True)
+
+
+# ---------------------------------------------------------------------------------------------
 # Where the W chunks live between passes
 
 
 class _WStore:
     """W chunks between passes: persisted in the cluster's memory (``folder=None``) or ``.npy`` files."""
 
-    def __init__(self, dask, n_chunks: int, folder: Path | None, in_flight: int = 2):
+    def __init__(self, dask, n_chunks: int, folder: Path | None, in_flight: int = 2,
+                 workers: list[str] | None = None):
         self.dask = dask
         self.n_chunks = n_chunks
         self.folder = folder
         self.in_flight = max(1, int(in_flight))
         self.buffer = 0
+        self.workers = workers  # the worker of each chunk (in memory, on a distributed cluster)
 
     def path(self, c: int, buffer: int | None = None) -> str | None:
         if self.folder is None:
@@ -699,7 +755,7 @@ class _WStore:
                     W = W.compute()
                 refs.append(_store_w(np.asarray(W), self.path(c)))
         if self.folder is None:
-            refs = list(self.dask.persist(*refs))
+            refs = _persist_placed(self.dask, refs, self.workers)
         return refs
 
 
@@ -744,7 +800,9 @@ def beta_nmf_dask(
     chunks at a time; ``split_every`` is the fan-in of the tree that sums the chunks' statistics.
 
     Without ``w_folder``, each chunk's prepared rows (and their CSR transpose when sparse, as the
-    in-memory solver keeps) are persisted in the cluster's memory for the whole fit, with W.
+    in-memory solver keeps) are persisted in the cluster's memory for the whole fit, with W, and
+    the iterations between two evaluations of the objective run as one graph, H updated on a
+    worker (see the module's docstring).
     """
     dask = _require_dask("beta_nmf of a dask array")
     check_row_chunks(X, "X")
@@ -793,7 +851,7 @@ def beta_nmf_dask(
         w_folder.parent.mkdir(parents=True, exist_ok=True)
         folder = Path(tempfile.mkdtemp(prefix=f".{w_folder.name}.work-", dir=w_folder.parent))
     try:
-        store = _WStore(dask, len(specs), folder, in_flight)
+        store = _WStore(dask, len(specs), folder, in_flight, None if folder is not None else _chunk_workers(specs, n))
         W_refs, Ht = _start(store, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
                             scale, scale_W, scale_H, x_mean, random_state, dask)
         pen_W, pen_H = resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
@@ -805,7 +863,7 @@ def beta_nmf_dask(
         # built once and kept in the cluster's memory; out of core, it is rebuilt from the file in every pass.
         sources = [dask.delayed(_make_problem)(x, mb, s, beta, scale) for x, mb, s in zip(x_blocks, m_blocks, specs)]
         if folder is None:
-            sources = list(dask.persist(*sources))
+            sources = _persist_placed(dask, sources, store.workers)
         loop = _fit_loop if update_H else _transform_loop
         W_refs, Ht, n_iter, hist, its, converged, final = loop(
             store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every, dask,
@@ -1103,7 +1161,154 @@ class _Stopping:
 
 def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
               dask, check_scale):
-    """W and H updates, one pass per iteration; the objective of iteration i comes with the pass of i + 1."""
+    """W and H updates: in batches of iterations in the cluster's memory, pass by pass on disk."""
+    loop = _fit_loop_in_memory if store.folder is None else _fit_loop_on_disk
+    return loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every, dask,
+                check_scale)
+
+
+def _checks(max_iter: int, loss_every: int) -> list[int]:
+    """The iterations whose objective the stopping rule reads (as :func:`mmconcepts.nmf._solver._iterate`)."""
+    return sorted({0, *range(loss_every, max_iter + 1, loss_every), max_iter})
+
+
+def _record_check(i: int, f: float, hist: list, its: list, stop: _Stopping | None, tol: float, rule: _Rule,
+                  check_scale: float | None) -> tuple[_Stopping, bool]:
+    """Append the objective of iteration i; returns the stopping rule (made at i = 0) and whether it stops at i."""
+    hist.append(f)
+    its.append(i)
+    if i == 0:
+        if check_scale is not None:
+            check_objective_range(f, check_scale, rule.beta)
+        return _Stopping(f, tol), False
+    stop = cast(_Stopping, stop)
+    return stop, stop.converged(f)
+
+
+def _h_step(total: _Partial, Ht: np.ndarray, rule: _Rule, pen_H: Penalty) -> np.ndarray:
+    """The dictionary update from the chunks' summed numerator and denominator: the in-memory side-1 update."""
+    num = np.array(total.num, copy=True)  # mu_update divides in place: never into a task's result
+    summed = cast(Side, _Summed(num, _full_den(total.den, Ht)))
+    return mu_update(summed, Ht.copy(), cast(np.ndarray, None), rule.beta, rule.gamma, pen_H)  # no W: summed
+
+
+def _check_part(total: _Partial, Ht: np.ndarray, pen_H: Penalty) -> tuple[float, _Partial]:
+    """The objective of a pass's (W, H) and its summary without the sums (what the client reads of a check)."""
+    return _objective(total, Ht, pen_H), _Partial(div=total.div, pen=total.pen, finite=total.finite,
+                                                  update_bytes=total.nbytes())
+
+
+class _IterationGraph:
+    """The tasks of one iteration over the chunks, laid out once per fit and named anew for each iteration.
+
+    Iteration t reads the keys of W^t (one per chunk) and of H^t, and defines, for each chunk c,
+    ``fit-t-c`` (:func:`_fit_chunk` on the chunk's persisted :class:`Problem`), its two outputs
+    ``w-{t+1}-c`` (the new W_c, when updating) and ``part-t-c``; the parts summed in a tree of
+    fan-in ``split_every`` in chunk order (so the sums, and the iterates, do not depend on which
+    worker runs which chunk); ``H-{t+1}`` (:func:`_h_step` on the worker that holds the root sum,
+    fetched from there by the next iteration's chunk tasks); and, when evaluating, ``check-t``
+    (:func:`_check_part`). Several iterations chained this way make one graph: the client sees
+    only the checks.
+    """
+
+    def __init__(self, name: str, source_keys: list, specs: Sequence[_ChunkSpec], rule: _Rule, pen_H: Penalty,
+                 split_every: int):
+        self.name = name
+        self.sources = source_keys
+        self.specs = list(specs)
+        self.rule = rule
+        self.pen_H = pen_H
+        levels, groups = [], list(range(len(self.specs)))
+        while len(groups) > 1:  # the tree's shape: at each level, the groups of split_every nodes summed together
+            level = [list(range(a, min(a + split_every, len(groups)))) for a in range(0, len(groups), split_every)]
+            levels.append(level)
+            groups = list(range(len(level)))
+        self.levels = levels
+
+    def key(self, what: str, t: int, c: int | None = None) -> str:
+        return f"{self.name}-{what}-{t}" if c is None else f"{self.name}-{what}-{t}-{c}"
+
+    def layer(self, t: int, w_keys: Sequence[Any], h_key: Any, evaluate: bool, update: bool) -> dict:
+        """The tasks of iteration t (see the class)."""
+        key = self.key
+        out: dict[Any, Any] = {}
+        parts = []
+        for c, (src, spec, w) in enumerate(zip(self.sources, self.specs, w_keys)):
+            fit = key("fit", t, c)
+            out[fit] = (_fit_chunk, src, w, h_key, self.rule, spec, evaluate, update, None)
+            out[key("part", t, c)] = (operator.getitem, fit, 1)
+            parts.append(key("part", t, c))
+            if update:
+                out[key("w", t + 1, c)] = (operator.getitem, fit, 0)
+        for d, level in enumerate(self.levels):
+            parts_next = []
+            for g, members in enumerate(level):
+                out[key(f"sum{d}", t, g)] = (_sum_partials, *[parts[j] for j in members])
+                parts_next.append(key(f"sum{d}", t, g))
+            parts = parts_next
+        if update:
+            out[key("H", t + 1)] = (_h_step, parts[0], h_key, self.rule, self.pen_H)
+        if evaluate:
+            out[key("check", t)] = (_check_part, parts[0], h_key, self.pen_H)
+        return out
+
+
+def _fit_loop_in_memory(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
+                        dask, check_scale):
+    """W and H updates in the cluster's memory, one graph per batch of iterations, H updated on a worker.
+
+    A batch runs the iterations after a check up to the next one (the first batch is iteration 0
+    alone, whose objective is checked against the data's range before anything else runs): the
+    client submits it, keeps W and H of its last iteration (and of the check, when the stopping
+    rule may stop there) persisted in the cluster, and reads back the check's objective only. The
+    iterates and the objectives are those of the pass-by-pass loop.
+    """
+    from dask.delayed import Delayed
+    from dask.highlevelgraph import HighLevelGraph
+
+    graph = _IterationGraph(f"nmf-{uuid.uuid4().hex}", [s.key for s in sources], specs, rule, pen_H, split_every)
+    H_ref = dask.delayed(Ht, name=graph.key("H", 0), traverse=False)
+    checks = _checks(max_iter, loss_every)
+    hist: list[float] = []
+    its: list[int] = []
+    stop: _Stopping | None = None
+    converged = False
+    update_bytes = 0
+    start = 0
+    for q in checks:
+        inputs = [*sources, *W_refs, H_ref]
+        layer: dict[Any, Any] = {}
+        w_keys, h_key = [w.key for w in W_refs], H_ref.key
+        for t in range(start, q + 1):
+            layer.update(graph.layer(t, w_keys, h_key, evaluate=t == q, update=t < max_iter))
+            if t < q:
+                w_keys, h_key = [graph.key("w", t + 1, c) for c in range(len(specs))], graph.key("H", t + 1)
+        name = graph.key("batch", q)
+        hlg = HighLevelGraph.from_collections(name, layer, dependencies=inputs)
+        keep = [*w_keys, h_key] if (q == max_iter or (tol > 0 and q > 0)) else []  # W^q, H^q: the answer if it stops
+        ahead = [*[graph.key("w", q + 1, c) for c in range(len(specs))], graph.key("H", q + 1)] if q < max_iter else []
+        where = {graph.key("fit", t, c): w for t in range(start, q + 1) for c, w in enumerate(store.workers or ())}
+        with _placed(dask, where, store.workers):
+            persisted = dask.persist(*[Delayed(k, hlg, layer=name) for k in [*keep, *ahead, graph.key("check", q)]])
+        del inputs, W_refs, H_ref, hlg, layer
+        f, part = dask.compute(persisted[-1])[0]
+        stop, converged = _record_check(q, f, hist, its, stop, tol, rule, check_scale)
+        update_bytes = part.update_bytes or update_bytes
+        if converged or q == max_iter:
+            *W_refs, H_ref = persisted[:len(keep)]
+            break
+        *W_refs, H_ref = persisted[len(keep):-1]
+        del persisted
+        start = q + 1
+    part.update_bytes = update_bytes
+    Ht = np.asarray(dask.compute(H_ref)[0])
+    return W_refs, Ht, q, hist, its, converged, part
+
+
+def _fit_loop_on_disk(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
+                      dask, check_scale):
+    """W and H updates, one pass per iteration, H updated on the client; the objective of iteration i comes with
+    the pass of i + 1."""
     hist: list[float] = []
     its: list[int] = []
     stop: _Stopping | None = None
@@ -1118,23 +1323,12 @@ def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, los
             new_refs, part, _ = _objective_pass(store, sources, specs, W_refs, Ht, rule, check, True, split_every,
                                                 dask)
         if check:
-            f = _objective(part, Ht, pen_H)
-            hist.append(f)
-            its.append(i)
-            if i == 0:
-                stop = _Stopping(f, tol)
-                if check_scale is not None:
-                    check_objective_range(f, check_scale, rule.beta)
-            elif cast(_Stopping, stop).converged(f):
-                converged = True
+            stop, converged = _record_check(i, _objective(part, Ht, pen_H), hist, its, stop, tol, rule, check_scale)
             final = part
         if converged or i == max_iter:
             break
         update_bytes = part.nbytes()
-        num = cast(np.ndarray, part.num)
-        Ht_new = mu_update(cast(Side, _Summed(num, _full_den(part.den, Ht))), Ht.copy(), None, rule.beta,
-                           rule.gamma, pen_H)
-        W_refs, Ht = new_refs, Ht_new
+        W_refs, Ht = new_refs, _h_step(part, Ht, rule, pen_H)
         i += 1
     final.update_bytes = update_bytes
     return W_refs, Ht, i, hist, its, converged, final
@@ -1158,23 +1352,15 @@ def _transform_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, to
                  for src, w, s in zip(sources, W_refs, specs)]
         W_refs, (part0, part) = _run_pass(store, tasks, 2, True, split_every, dask)
         if first:
-            f0 = _objective(part0, Ht, pen_H)
-            hist.append(f0)
-            its.append(0)
-            stop = _Stopping(f0, tol)
-            if check_scale is not None:
-                check_objective_range(f0, check_scale, rule.beta)
+            stop, _ = _record_check(0, _objective(part0, Ht, pen_H), hist, its, stop, tol, rule, check_scale)
             if c == 0:  # max_iter == 0
                 final = part0
                 final.finite = part.finite
                 break
-        f = _objective(part, Ht, pen_H)
-        hist.append(f)
-        its.append(c)
+        stop, converged = _record_check(c, _objective(part, Ht, pen_H), hist, its, stop, tol, rule, check_scale)
         done = c
         final = part
-        if cast(_Stopping, stop).converged(f):
-            converged = True
+        if converged:
             break
     final.update_bytes = 0
     return W_refs, Ht, done, hist, its, converged, final
