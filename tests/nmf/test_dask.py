@@ -310,6 +310,51 @@ def test_one_graph_per_evaluation_of_the_objective(rng, monkeypatch, tol, checks
     assert len(submitted) == len(checks)
 
 
+def test_h_goes_down_a_tree_to_the_workers_and_the_sums_up_it():
+    """On a cluster, every worker's chunk tasks read H from a copy on that worker, each copy made from its parent's
+    in a tree of fan-out split_every rooted where H is computed (the first chunk's worker, where the root sum is):
+    ceil(log_fan(workers)) hops, not one fetch per worker from one place."""
+    from mmconcepts.nmf._updates import Penalty
+
+    n_chunks, fan = 40, 3
+    workers = [f"w{c // 2}" for c in range(n_chunks)]  # 20 workers, 2 chunks each
+    specs = [nd._ChunkSpec(c, c, c + 1) for c in range(n_chunks)]
+    rule = nd._Rule(1.0, 1.0, Penalty(), 1.0, K, "float64")
+    graph = nd._IterationGraph("g", [f"src-{c}" for c in range(n_chunks)], specs, rule, Penalty(), fan, workers)
+    tasks = graph.layer(7, [f"w-{c}" for c in range(n_chunks)], "H7", evaluate=True, update=True)
+    where = graph.where(7, evaluate=True, update=True)
+    depth = {"H7": 0}
+
+    def hops(key):  # the copies between H7 and a key, each on its own worker
+        if key not in depth:
+            func, parent = tasks[key]
+            assert func is nd._same
+            depth[key] = hops(parent) + 1
+        return depth[key]
+
+    for c in range(n_chunks):
+        h = tasks[graph.key("fit", 7, c)][3]
+        assert where[graph.key("fit", 7, c)] == workers[c]
+        assert h == "H7" if workers[c] == "w0" else where[h] == workers[c]
+        assert hops(h) <= 3  # ceil(log3(20))
+    assert max(depth.values()) == 3 and len(depth) == 20  # H7 and one copy on each of the 19 other workers
+    assert {where[k] for k in tasks if "-sum" in k and k.endswith(f"-7-0")} == {"w0"}
+    assert where[graph.key("H", 8)] == where[graph.key("check", 7)] == "w0"
+    for k, task in tasks.items():  # each sum on the worker of its first part's chunk
+        if "-sum0-" in k:
+            assert where[k] == workers[int(task[1].rsplit("-", 1)[1])]
+
+
+def test_fit_with_the_broadcast_tree_equals_the_fit_without(rng, monkeypatch):
+    """The copies of H and the placement of the tasks change no number (synchronous scheduler: placement ignored)."""
+    X, mask, W0, H0 = make_data(rng, False, 0.5, True)
+    kw = dict(init="custom", W=W0, H=H0, max_iter=7, tol=0, loss_every=3, split_every=2)
+    plain = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
+    monkeypatch.setattr(nd, "_chunk_workers", lambda specs, n: [f"w{c}" for c in range(len(specs))])
+    treed = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
+    assert np.array_equal(plain.W.compute(), treed.W.compute()) and np.array_equal(plain.H, treed.H)
+
+
 def test_hstack_row_chunks_for_modalities(rng):
     """Modalities side by side, chunk by chunk: the in-memory stack, fitted alike."""
     X1, _, _, _ = make_data(rng, True, 1.0, False)

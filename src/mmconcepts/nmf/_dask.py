@@ -1205,42 +1205,59 @@ class _IterationGraph:
     ``fit-t-c`` (:func:`_fit_chunk` on the chunk's persisted :class:`Problem`), its two outputs
     ``w-{t+1}-c`` (the new W_c, when updating) and ``part-t-c``; the parts summed in a tree of
     fan-in ``split_every`` in chunk order (so the sums, and the iterates, do not depend on which
-    worker runs which chunk); ``H-{t+1}`` (:func:`_h_step` on the worker that holds the root sum,
-    fetched from there by the next iteration's chunk tasks); and, when evaluating, ``check-t``
-    (:func:`_check_part`). Several iterations chained this way make one graph: the client sees
-    only the checks.
+    worker runs which chunk); ``H-{t+1}`` (:func:`_h_step` on the root sum); and, when evaluating,
+    ``check-t`` (:func:`_check_part`). Several iterations chained this way make one graph: the
+    client sees only the checks.
+
+    With ``workers`` (the worker of each chunk, on a distributed cluster), :meth:`where` also
+    places the tree: each sum runs on the worker of its first chunk, so the root sum, the H update
+    and the check run on the first chunk's worker; and H goes down a tree of the same fan-out to
+    the other workers (``Hto-t-j``, an identity task on the j-th worker, in the order of their
+    first chunk, reading the copy of worker (j - 1) // split_every), instead of every worker
+    fetching it from the one that computed it.
     """
 
     def __init__(self, name: str, source_keys: list, specs: Sequence[_ChunkSpec], rule: _Rule, pen_H: Penalty,
-                 split_every: int):
+                 split_every: int, workers: list[str] | None = None):
         self.name = name
         self.sources = source_keys
         self.specs = list(specs)
         self.rule = rule
         self.pen_H = pen_H
-        levels, groups = [], list(range(len(self.specs)))
-        while len(groups) > 1:  # the tree's shape: at each level, the groups of split_every nodes summed together
-            level = [list(range(a, min(a + split_every, len(groups)))) for a in range(0, len(groups), split_every)]
-            levels.append(level)
-            groups = list(range(len(level)))
+        self.fan = split_every
+        levels, firsts = [], list(range(len(self.specs)))  # firsts: the first chunk under each node of a level
+        while len(firsts) > 1:  # the tree's shape: at each level, the nodes summed together, and their first chunk
+            level = [list(range(a, min(a + split_every, len(firsts)))) for a in range(0, len(firsts), split_every)]
+            levels.append((level, [firsts[g[0]] for g in level]))
+            firsts = levels[-1][1]
         self.levels = levels
+        self.workers = workers
+        self.hosts = list(dict.fromkeys(workers)) if workers else []  # in the order of their first chunk
+        self.host_of = [self.hosts.index(w) for w in workers] if workers else [0] * len(self.specs)
 
     def key(self, what: str, t: int, c: int | None = None) -> str:
         return f"{self.name}-{what}-{t}" if c is None else f"{self.name}-{what}-{t}-{c}"
+
+    def h_for(self, t: int, host: int, h_key: Any) -> Any:
+        """The key of H^t on the host-th worker (its copy down the broadcast tree; H^t itself on the first)."""
+        return h_key if host == 0 else self.key("Hto", t, host)
 
     def layer(self, t: int, w_keys: Sequence[Any], h_key: Any, evaluate: bool, update: bool) -> dict:
         """The tasks of iteration t (see the class)."""
         key = self.key
         out: dict[Any, Any] = {}
+        for j in range(1, len(self.hosts)):
+            out[key("Hto", t, j)] = (_same, self.h_for(t, (j - 1) // self.fan, h_key))
         parts = []
         for c, (src, spec, w) in enumerate(zip(self.sources, self.specs, w_keys)):
             fit = key("fit", t, c)
-            out[fit] = (_fit_chunk, src, w, h_key, self.rule, spec, evaluate, update, None)
+            out[fit] = (_fit_chunk, src, w, self.h_for(t, self.host_of[c], h_key), self.rule, spec, evaluate, update,
+                        None)
             out[key("part", t, c)] = (operator.getitem, fit, 1)
             parts.append(key("part", t, c))
             if update:
                 out[key("w", t + 1, c)] = (operator.getitem, fit, 0)
-        for d, level in enumerate(self.levels):
+        for d, (level, _) in enumerate(self.levels):
             parts_next = []
             for g, members in enumerate(level):
                 out[key(f"sum{d}", t, g)] = (_sum_partials, *[parts[j] for j in members])
@@ -1250,6 +1267,21 @@ class _IterationGraph:
             out[key("H", t + 1)] = (_h_step, parts[0], h_key, self.rule, self.pen_H)
         if evaluate:
             out[key("check", t)] = (_check_part, parts[0], h_key, self.pen_H)
+        return out
+
+    def where(self, t: int, evaluate: bool, update: bool) -> dict:
+        """The worker of each task of iteration t that has one (empty without ``workers``)."""
+        if not self.workers:
+            return {}
+        key, first = self.key, self.workers[0]
+        out = {key("fit", t, c): w for c, w in enumerate(self.workers)}
+        out.update({key("Hto", t, j): self.hosts[j] for j in range(1, len(self.hosts))})
+        for d, (_, firsts) in enumerate(self.levels):
+            out.update({key(f"sum{d}", t, g): self.workers[c] for g, c in enumerate(firsts)})
+        if update:
+            out[key("H", t + 1)] = first
+        if evaluate:
+            out[key("check", t)] = first
         return out
 
 
@@ -1266,7 +1298,8 @@ def _fit_loop_in_memory(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter
     from dask.delayed import Delayed
     from dask.highlevelgraph import HighLevelGraph
 
-    graph = _IterationGraph(f"nmf-{uuid.uuid4().hex}", [s.key for s in sources], specs, rule, pen_H, split_every)
+    graph = _IterationGraph(f"nmf-{uuid.uuid4().hex}", [s.key for s in sources], specs, rule, pen_H, split_every,
+                            store.workers)
     H_ref = dask.delayed(Ht, name=graph.key("H", 0), traverse=False)
     checks = _checks(max_iter, loss_every)
     hist: list[float] = []
@@ -1278,16 +1311,17 @@ def _fit_loop_in_memory(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter
     for q in checks:
         inputs = [*sources, *W_refs, H_ref]
         layer: dict[Any, Any] = {}
+        where: dict[Any, str] = {}
         w_keys, h_key = [w.key for w in W_refs], H_ref.key
         for t in range(start, q + 1):
             layer.update(graph.layer(t, w_keys, h_key, evaluate=t == q, update=t < max_iter))
+            where.update(graph.where(t, evaluate=t == q, update=t < max_iter))
             if t < q:
                 w_keys, h_key = [graph.key("w", t + 1, c) for c in range(len(specs))], graph.key("H", t + 1)
         name = graph.key("batch", q)
         hlg = HighLevelGraph.from_collections(name, layer, dependencies=inputs)
         keep = [*w_keys, h_key] if (q == max_iter or (tol > 0 and q > 0)) else []  # W^q, H^q: the answer if it stops
         ahead = [*[graph.key("w", q + 1, c) for c in range(len(specs))], graph.key("H", q + 1)] if q < max_iter else []
-        where = {graph.key("fit", t, c): w for t in range(start, q + 1) for c, w in enumerate(store.workers or ())}
         with _placed(dask, where, store.workers):
             persisted = dask.persist(*[Delayed(k, hlg, layer=name) for k in [*keep, *ahead, graph.key("check", q)]])
         del inputs, W_refs, H_ref, hlg, layer
