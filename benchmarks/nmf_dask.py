@@ -13,10 +13,13 @@ Two measurements, each compared with a reference in the same run (ratios, not ti
 ``scaling``
     The sparse KL case of ``benchmarks/nmf.py`` grown 10x (200 000 x 2 000, 1 % nonzeros,
     k = 50), persisted on a ``LocalCluster`` (127.0.0.1, worker processes with one thread, numba
-    and BLAS on one thread) of 1 and of 2 workers, fitted in alternation ``--repeats`` times:
-    median time per iteration, the ratio, and the bytes moved per iteration (the model: H to every
-    chunk and each chunk's numerator/denominator back; and the worker-to-worker transfers the
-    workers logged). From those, the projected time per iteration on 8, 32 and 128 machines.
+    and BLAS on one thread) of 1 and of 2 workers, fitted in alternation ``--repeats`` times with
+    the in-memory ``beta_nmf`` in this process (one thread) as the reference: median time per
+    iteration (the fit's iterations, the objective's evaluations at the first and the last included,
+    over the number of iterations; not the set-up), the ratio, and the bytes moved per iteration
+    (the model: H to every chunk and each chunk's numerator/denominator back, an upper bound; and
+    the worker-to-worker transfers the workers logged during the iterations). From those, the
+    projected time per iteration on 8, 32 and 128 machines.
 
 Run:  .venv/bin/python benchmarks/nmf_dask.py [--quick] [--cases outofcore scaling] [--json out.json]
       (--quick: 50 000 x 11 000 out of core, 20 000 x 2 000 scaling, 3 iterations: about a minute on an
@@ -299,13 +302,14 @@ def project_from(t1: float, overhead: float, h_bytes: float, part_bytes: float, 
     """compute(p) + overhead + communication(p) for one iteration on p machines.
 
     compute(p) = t1 / p: the chunk work divides (at least one chunk per machine); ``overhead`` is
-    what the 2-worker run showed beyond t1 / 2 (scheduling, serialisation), taken as constant.
-    Communication: H (k x n_features, ``h_bytes``) sent by the scheduler to each of the p
-    machines in turn (dask embeds it in the graph: p messages from one link), and the chunks'
-    numerators/denominators (``part_bytes`` each, k x n_features) summed in a tree of fan-in 8
-    (ceil(log8 p) levels, each reducer receiving 8 of them), at ``bandwidth`` bytes/s and
-    ``latency`` per message. ``tree_broadcast_s`` is the time with H sent down the same tree
-    instead (not what dask does today).
+    what the 2-worker run showed beyond t1 / 2 (scheduling, serialisation, waiting for the slowest
+    chunk), taken as constant. Communication, as the fit places its tasks (contiguous chunks per
+    machine, the first sums within a machine): the chunks' numerators/denominators
+    (``part_bytes`` each, k x n_features) summed up a tree of fan-in 8 over the machines
+    (ceil(log8 p) levels, each reducer receiving 8 of them), and the new H (k x n_features,
+    ``h_bytes``) sent down a tree of the same fan-out (each level: a machine sends it to 8
+    others), at ``bandwidth`` bytes/s and ``latency`` per message. ``flat_broadcast_s`` is the time
+    with H fetched by every machine from the one that computed it (p messages from one link).
     """
     import math
 
@@ -313,11 +317,11 @@ def project_from(t1: float, overhead: float, h_bytes: float, part_bytes: float, 
     for p in machines:
         levels = max(1, math.ceil(math.log(p, 8)))
         reduce_s = levels * (8 * part_bytes / bandwidth + latency)
-        comm = p * (h_bytes / bandwidth + latency) + reduce_s
-        tree_comm = levels * (8 * h_bytes / bandwidth + latency) + reduce_s
+        comm = levels * (8 * h_bytes / bandwidth + latency) + reduce_s
+        flat_comm = p * (h_bytes / bandwidth + latency) + reduce_s
         compute = t1 / p
         out[str(p)] = dict(compute_s=compute, overhead_s=overhead, comm_s=comm, s_per_iter=compute + overhead + comm,
-                           tree_broadcast_s=compute + overhead + tree_comm)
+                           flat_broadcast_s=compute + overhead + flat_comm)
     return out
 
 
@@ -331,7 +335,8 @@ def _print_projections(rows: list, args) -> None:
         for p, v in sc["projection"].items():
             print(f"  scaling case projected on {p:>3} machines: {v['s_per_iter'] * 1e3:.0f} ms/it "
                   f"(compute {v['compute_s'] * 1e3:.0f}, overhead {v['overhead_s'] * 1e3:.0f}, "
-                  f"communication {v['comm_s'] * 1e3:.0f})")
+                  f"communication {v['comm_s'] * 1e3:.0f}; {v['flat_broadcast_s'] * 1e3:.0f} ms/it with H fetched "
+                  "from one machine)")
     ooc = next((r for r in rows if r["case"] == "outofcore"), None)
     if ooc is not None:  # the out-of-core problem on p machines, its chunks in their memory
         overhead = max(sc["s_per_iter_2"] - sc["s_per_iter_1"] / 2, 0.0) if sc else 0.0
@@ -341,7 +346,7 @@ def _print_projections(rows: list, args) -> None:
         for p, v in ooc["projection"].items():
             print(f"  out-of-core problem projected on {p:>3} machines: {v['s_per_iter']:.1f} s/it "
                   f"(compute {v['compute_s']:.1f}, communication {v['comm_s']:.1f}; "
-                  f"{v['tree_broadcast_s']:.1f} s/it with H broadcast down a tree)")
+                  f"{v['flat_broadcast_s']:.1f} s/it with H fetched from one machine)")
 
 
 def main(argv=None):

@@ -1185,9 +1185,13 @@ def _record_check(i: int, f: float, hist: list, its: list, stop: _Stopping | Non
     return stop, stop.converged(f)
 
 
-def _h_step(total: _Partial, Ht: np.ndarray, rule: _Rule, pen_H: Penalty) -> np.ndarray:
-    """The dictionary update from the chunks' summed numerator and denominator: the in-memory side-1 update."""
-    num = np.array(total.num, copy=True)  # mu_update divides in place: never into a task's result
+def _h_step(total: _Partial, Ht: np.ndarray, rule: _Rule, pen_H: Penalty, own: bool = False) -> np.ndarray:
+    """The dictionary update from the chunks' summed numerator and denominator: the in-memory side-1 update.
+
+    mu_update divides the numerator in place: a copy of it unless the caller ``own``s ``total``
+    (never a task's input).
+    """
+    num = cast(np.ndarray, total.num if own else np.array(total.num, copy=True))
     summed = cast(Side, _Summed(num, _full_den(total.den, Ht)))
     return mu_update(summed, Ht.copy(), cast(np.ndarray, None), rule.beta, rule.gamma, pen_H)  # no W: summed
 
@@ -1362,7 +1366,7 @@ def _fit_loop_on_disk(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, 
         if converged or i == max_iter:
             break
         update_bytes = part.nbytes()
-        W_refs, Ht = new_refs, _h_step(part, Ht, rule, pen_H)
+        W_refs, Ht = new_refs, _h_step(part, Ht, rule, pen_H, own=True)
         i += 1
     final.update_bytes = update_bytes
     return W_refs, Ht, i, hist, its, converged, final
