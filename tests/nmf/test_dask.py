@@ -274,11 +274,11 @@ def test_local_cluster_equals_in_memory(rng):
     ran = {}
     for task in stream.data:
         name = task["key"] if isinstance(task["key"], str) else task["key"][0]
-        if "-fit-" in name:
+        if "-run-" in name:
             ran.setdefault(int(name.rsplit("-", 1)[1]), set()).add(task["worker"])
-    assert sorted(ran) == [0, 1, 2, 3] and all(len(w) == 1 for w in ran.values())
-    # ROW_CHUNKS = (23, 40, 1, 36): the middle of chunk 1 (row 43) is in the first half of the 100 rows
-    assert [ran[c].pop() for c in range(4)] == [workers[0], workers[0], workers[1], workers[1]]
+    # ROW_CHUNKS = (23, 40, 1, 36): the middle of chunk 1 (row 43) is in the first half of the 100 rows, so
+    # chunks 0 and 1 run together on the first worker, 2 and 3 on the second, at every iteration
+    assert ran == {0: {workers[0]}, 1: {workers[1]}}
 
 
 @pytest.mark.parametrize("tol, checks", [(0.0, [0, 5, 10, 12]), (0.05, [0, 5, 10])], ids=["to_max_iter", "stops"])
@@ -311,9 +311,10 @@ def test_one_graph_per_evaluation_of_the_objective(rng, monkeypatch, tol, checks
 
 
 def test_h_goes_down_a_tree_to_the_workers_and_the_sums_up_it():
-    """On a cluster, every worker's chunk tasks read H from a copy on that worker, each copy made from its parent's
-    in a tree of fan-out split_every rooted where H is computed (the first chunk's worker, where the root sum is):
-    ceil(log_fan(workers)) hops, not one fetch per worker from one place."""
+    """On a cluster: one task per run of chunks on a worker; every run reads H from a copy on its worker, each copy
+    made from its parent's in a tree of fan-out split_every rooted where H is computed (the first chunk's worker,
+    with the root sum): ceil(log_fan(workers)) hops, not one fetch per worker from one place; no sum reads a run
+    of another worker (W stays where it is)."""
     from mmconcepts.nmf._updates import Penalty
 
     n_chunks, fan = 40, 3
@@ -321,7 +322,7 @@ def test_h_goes_down_a_tree_to_the_workers_and_the_sums_up_it():
     specs = [nd._ChunkSpec(c, c, c + 1) for c in range(n_chunks)]
     rule = nd._Rule(1.0, 1.0, Penalty(), 1.0, K, "float64")
     graph = nd._IterationGraph("g", [f"src-{c}" for c in range(n_chunks)], specs, rule, Penalty(), fan, workers)
-    tasks = graph.layer(7, [f"w-{c}" for c in range(n_chunks)], "H7", evaluate=True, update=True)
+    tasks = graph.layer(7, None, "H7", evaluate=True, update=True)
     where = graph.where(7, evaluate=True, update=True)
     depth = {"H7": 0}
 
@@ -332,27 +333,34 @@ def test_h_goes_down_a_tree_to_the_workers_and_the_sums_up_it():
             depth[key] = hops(parent) + 1
         return depth[key]
 
-    for c in range(n_chunks):
-        h = tasks[graph.key("fit", 7, c)][3]
-        assert where[graph.key("fit", 7, c)] == workers[c]
-        assert h == "H7" if workers[c] == "w0" else where[h] == workers[c]
+    runs = {k: t for k, t in tasks.items() if "-run-" in k}
+    assert sum(len(t[5]) for t in runs.values()) == n_chunks and len(runs) < n_chunks
+    for k, (_, sources, prev, h, *_rest) in runs.items():
+        chunk_workers = {workers[int(src.rsplit("-", 1)[1])] for src in sources}
+        assert chunk_workers == {where[k]} and prev == k.replace("-7-", "-6-")
+        assert h == "H7" if where[k] == "w0" else where[h] == where[k]
         assert hops(h) <= 3  # ceil(log3(20))
     assert max(depth.values()) == 3 and len(depth) == 20  # H7 and one copy on each of the 19 other workers
-    assert {where[k] for k in tasks if "-sum" in k and k.endswith(f"-7-0")} == {"w0"}
-    assert where[graph.key("H", 8)] == where[graph.key("check", 7)] == "w0"
-    for k, task in tasks.items():  # each sum on the worker of its first part's chunk
-        if "-sum0-" in k:
-            assert where[k] == workers[int(task[1].rsplit("-", 1)[1])]
+    for k, task in tasks.items():
+        if "-sum" in k:
+            assert all(where[a] == where[k] or "-run-" not in a for a in task[1:]), k
+    root = graph.root(7)
+    assert where[root] == where[graph.key("H", 8)] == where[graph.key("check", 7)] == "w0"
+    assert tasks[graph.key("H", 8)][1] == root
 
 
-def test_fit_with_the_broadcast_tree_equals_the_fit_without(rng, monkeypatch):
-    """The copies of H and the placement of the tasks change no number (synchronous scheduler: placement ignored)."""
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("layout, split_every", [("aaab", 2), ("abcd", 2), ("aaaa", 8), ("aabb", 8), ("abab", 3)])
+def test_fit_with_runs_and_the_broadcast_tree_equals_the_fit_without(rng, monkeypatch, layout, split_every):
+    """Runs of chunks, the copies of H and the placement change no number (synchronous scheduler: placement
+    ignored, the graph's shape kept)."""
     X, mask, W0, H0 = make_data(rng, False, 0.5, True)
-    kw = dict(init="custom", W=W0, H=H0, max_iter=7, tol=0, loss_every=3, split_every=2)
+    kw = dict(init="custom", W=W0, H=H0, max_iter=7, tol=1e-3, loss_every=3, split_every=split_every)
     plain = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
-    monkeypatch.setattr(nd, "_chunk_workers", lambda specs, n: [f"w{c}" for c in range(len(specs))])
+    monkeypatch.setattr(nd, "_chunk_workers", lambda specs, n: list(layout))
     treed = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
     assert np.array_equal(plain.W.compute(), treed.W.compute()) and np.array_equal(plain.H, treed.H)
+    assert np.array_equal(plain.loss_history, treed.loss_history)
 
 
 def test_hstack_row_chunks_for_modalities(rng):

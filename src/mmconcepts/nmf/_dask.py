@@ -1202,23 +1202,63 @@ def _check_part(total: _Partial, Ht: np.ndarray, pen_H: Penalty) -> tuple[float,
                                                   update_bytes=total.nbytes())
 
 
+def _fit_run(sources: list, prev: Any, Ht: np.ndarray, rule: _Rule, specs: list, evaluate: bool, update: bool,
+             summed: bool) -> tuple[list, list[_Partial]]:
+    """:func:`_fit_chunk` on consecutive chunks kept on one worker: ``(their W refs, their parts)``.
+
+    ``prev`` is the chunks' W (a list) or the run's previous output; with ``summed``, the run holds
+    a whole group of the tree's first level and returns that group's sum (one part).
+    """
+    Ws = prev[0] if isinstance(prev, tuple) else prev
+    out, parts = [], []
+    for src, w, spec in zip(sources, Ws, specs):
+        w_new, part = _fit_chunk(src, w, Ht, rule, spec, evaluate, update, None)
+        out.append(w_new)
+        parts.append(part)
+    return out, [_sum_partials(*parts)] if summed else parts
+
+
+def _sum_nodes(*nodes: Any) -> _Partial:
+    """The sum, in order, of parts, lists of parts and runs' outputs (:func:`_fit_run`)."""
+    parts: list[_Partial] = []
+    for node in nodes:
+        node = node[1] if isinstance(node, tuple) else node
+        parts.extend(node if isinstance(node, list) else [node])
+    return _sum_partials(*parts)
+
+
+def _first_part(run: tuple[list, list[_Partial]]) -> _Partial:
+    return run[1][0]
+
+
+def _run_parts(run: tuple[list, list[_Partial]]) -> list[_Partial]:
+    return run[1]
+
+
+def _run_w(run: tuple[list, list[_Partial]], i: int) -> Any:
+    return run[0][i]
+
+
 class _IterationGraph:
     """The tasks of one iteration over the chunks, laid out once per fit and named anew for each iteration.
 
-    Iteration t reads the keys of W^t (one per chunk) and of H^t, and defines, for each chunk c,
-    ``fit-t-c`` (:func:`_fit_chunk` on the chunk's persisted :class:`Problem`), its two outputs
-    ``w-{t+1}-c`` (the new W_c, when updating) and ``part-t-c``; the parts summed in a tree of
-    fan-in ``split_every`` in chunk order (so the sums, and the iterates, do not depend on which
-    worker runs which chunk); ``H-{t+1}`` (:func:`_h_step` on the root sum); and, when evaluating,
-    ``check-t`` (:func:`_check_part`). Several iterations chained this way make one graph: the
-    client sees only the checks.
+    The chunks go in *runs*: consecutive chunks on one worker within one group of the first level
+    of the tree that sums the parts (fan-in ``split_every``, in chunk order: the sums, and the
+    iterates, do not depend on which worker runs which chunk); without ``workers`` (the worker of
+    each chunk, on a distributed cluster), each chunk is a run. Iteration t reads W^t (the chunks'
+    keys, or the runs' outputs of iteration t - 1) and H^t, and defines ``run-t-r``
+    (:func:`_fit_run`: W and part of each chunk of run r), the sums up the tree (``sum{d}-t-g``;
+    a run that holds a whole group stands for its sum), ``H-{t+1}`` (:func:`_h_step` on the root)
+    and, when evaluating, ``check-t`` (:func:`_check_part`); ``w-{t+1}-c`` (chunk c's new W) only
+    when asked, at the end of a batch. Several iterations chained this way make one graph: the
+    client sees only the checks, and the scheduler handles a few tasks per worker and iteration.
 
-    With ``workers`` (the worker of each chunk, on a distributed cluster), :meth:`where` also
-    places the tree: each sum runs on the worker of its first chunk, so the root sum, the H update
-    and the check run on the first chunk's worker; and H goes down a tree of the same fan-out to
-    the other workers (``Hto-t-j``, an identity task on the j-th worker, in the order of their
-    first chunk, reading the copy of worker (j - 1) // split_every), instead of every worker
-    fetching it from the one that computed it.
+    With ``workers``, :meth:`where` also places the tasks: each run on its worker, each sum on the
+    worker of its first chunk (the root, the H update and the check on the first chunk's), a part
+    read by a sum on another worker taken out of its run first (``part-t-r``, so W stays); and H
+    goes down a tree of fan-out ``split_every`` to the other workers (``Hto-t-j``, an identity
+    task on the j-th worker, in the order of their first chunk, reading the copy of worker
+    (j - 1) // split_every), instead of every worker fetching it from the one that computed it.
     """
 
     def __init__(self, name: str, source_keys: list, specs: Sequence[_ChunkSpec], rule: _Rule, pen_H: Penalty,
@@ -1229,59 +1269,102 @@ class _IterationGraph:
         self.rule = rule
         self.pen_H = pen_H
         self.fan = split_every
-        levels, firsts = [], list(range(len(self.specs)))  # firsts: the first chunk under each node of a level
-        while len(firsts) > 1:  # the tree's shape: at each level, the nodes summed together, and their first chunk
-            level = [list(range(a, min(a + split_every, len(firsts)))) for a in range(0, len(firsts), split_every)]
-            levels.append((level, [firsts[g[0]] for g in level]))
-            firsts = levels[-1][1]
-        self.levels = levels
+        n = len(self.specs)
         self.workers = workers
+        where = workers or [None] * n
         self.hosts = list(dict.fromkeys(workers)) if workers else []  # in the order of their first chunk
-        self.host_of = [self.hosts.index(w) for w in workers] if workers else [0] * len(self.specs)
+        self.host_of = [self.hosts.index(w) for w in workers] if workers else [0] * n
+        self.group_of = [c // split_every for c in range(n)] if n > 1 else [0]
+        runs: list[list[int]] = []
+        for c in range(n):
+            if workers and runs and where[runs[-1][-1]] == where[c] and self.group_of[runs[-1][-1]] == self.group_of[c]:
+                runs[-1].append(c)
+            else:
+                runs.append([c])
+        self.runs = runs
+        self.whole = [n > 1 and len(r) == len([c for c in range(n) if self.group_of[c] == self.group_of[r[0]]])
+                      for r in runs]  # the run holds its whole first-level group
+        self.levels: list[list[list[int]]] = []  # above the first level: the nodes summed together
+        width = -(-n // split_every) if n > 1 else 0
+        while width > 1:
+            self.levels.append([list(range(a, min(a + split_every, width))) for a in range(0, width, split_every)])
+            width = len(self.levels[-1])
 
     def key(self, what: str, t: int, c: int | None = None) -> str:
         return f"{self.name}-{what}-{t}" if c is None else f"{self.name}-{what}-{t}-{c}"
+
+    def root(self, t: int) -> str:
+        """The key of iteration t's summed part."""
+        if len(self.specs) == 1:
+            return self.key("part", t, 0)
+        return self.key(f"sum{len(self.levels)}", t, 0)
 
     def h_for(self, t: int, host: int, h_key: Any) -> Any:
         """The key of H^t on the host-th worker (its copy down the broadcast tree; H^t itself on the first)."""
         return h_key if host == 0 else self.key("Hto", t, host)
 
-    def layer(self, t: int, w_keys: Sequence[Any], h_key: Any, evaluate: bool, update: bool) -> dict:
-        """The tasks of iteration t (see the class)."""
+    def _worker(self, c: int) -> str | None:
+        return self.workers[c] if self.workers else None
+
+    def layer(self, t: int, w_in: Sequence[Any] | None, h_key: Any, evaluate: bool, update: bool,
+              w_out: bool = False) -> dict:
+        """The tasks of iteration t (see the class); ``w_in``: the chunks' W keys (None: the runs of t - 1)."""
         key = self.key
         out: dict[Any, Any] = {}
         for j in range(1, len(self.hosts)):
             out[key("Hto", t, j)] = (_same, self.h_for(t, (j - 1) // self.fan, h_key))
-        parts = []
-        for c, (src, spec, w) in enumerate(zip(self.sources, self.specs, w_keys)):
-            fit = key("fit", t, c)
-            out[fit] = (_fit_chunk, src, w, self.h_for(t, self.host_of[c], h_key), self.rule, spec, evaluate, update,
-                        None)
-            out[key("part", t, c)] = (operator.getitem, fit, 1)
-            parts.append(key("part", t, c))
-            if update:
-                out[key("w", t + 1, c)] = (operator.getitem, fit, 0)
-        for d, (level, _) in enumerate(self.levels):
-            parts_next = []
+        groups: dict[int, list] = {}
+        for r, (chunks, whole) in enumerate(zip(self.runs, self.whole)):
+            prev = [w_in[c] for c in chunks] if w_in is not None else key("run", t - 1, r)
+            run = key("run", t, r)
+            out[run] = (_fit_run, [self.sources[c] for c in chunks], prev, self.h_for(t, self.host_of[chunks[0]], h_key),
+                        self.rule, [self.specs[c] for c in chunks], evaluate, update, whole)
+            if update and w_out:
+                for i, c in enumerate(chunks):
+                    out[key("w", t + 1, c)] = (_run_w, run, i)
+            g = self.group_of[chunks[0]]
+            reader = (g // self.fan) * self.fan ** 2 if whole and self.levels else g * self.fan  # its sum's first chunk
+            if self._worker(chunks[0]) != self._worker(reader):
+                out[key("part", t, r)] = (_run_parts, run)  # read on another worker: without the W
+                run = key("part", t, r)
+            groups.setdefault(g, []).append((run, whole))
+        if len(self.specs) == 1:
+            out[key("part", t, 0)] = (_first_part, key("run", t, 0))
+        nodes = []
+        for g in sorted(groups):
+            members = groups[g]
+            if len(members) == 1 and members[0][1]:  # the run is the group's sum
+                nodes.append(members[0][0])
+            elif len(self.specs) > 1:
+                out[key("sum0", t, g)] = (_sum_nodes, *[m for m, _ in members])
+                nodes.append(key("sum0", t, g))
+        for d, level in enumerate(self.levels, start=1):
+            nodes_next = []
             for g, members in enumerate(level):
-                out[key(f"sum{d}", t, g)] = (_sum_partials, *[parts[j] for j in members])
-                parts_next.append(key(f"sum{d}", t, g))
-            parts = parts_next
+                out[key(f"sum{d}", t, g)] = (_sum_nodes, *[nodes[j] for j in members])
+                nodes_next.append(key(f"sum{d}", t, g))
+            nodes = nodes_next
+        if nodes and not self.levels and nodes[0] != key("sum0", t, 0):  # one whole group: its run is the root
+            out[key("sum0", t, 0)] = (_sum_nodes, nodes[0])
+        root = self.root(t)
         if update:
-            out[key("H", t + 1)] = (_h_step, parts[0], h_key, self.rule, self.pen_H)
+            out[key("H", t + 1)] = (_h_step, root, h_key, self.rule, self.pen_H)
         if evaluate:
-            out[key("check", t)] = (_check_part, parts[0], h_key, self.pen_H)
+            out[key("check", t)] = (_check_part, root, h_key, self.pen_H)
         return out
 
     def where(self, t: int, evaluate: bool, update: bool) -> dict:
         """The worker of each task of iteration t that has one (empty without ``workers``)."""
         if not self.workers:
             return {}
-        key, first = self.key, self.workers[0]
-        out = {key("fit", t, c): w for c, w in enumerate(self.workers)}
+        key, workers, first = self.key, self.workers, self.workers[0]
+        out = {key("run", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)}
+        out.update({key("part", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)})
         out.update({key("Hto", t, j): self.hosts[j] for j in range(1, len(self.hosts))})
-        for d, (_, firsts) in enumerate(self.levels):
-            out.update({key(f"sum{d}", t, g): self.workers[c] for g, c in enumerate(firsts)})
+        out.update({key("sum0", t, g): workers[g * self.fan] for g in range(max(self.group_of) + 1)})
+        for d, level in enumerate(self.levels, start=1):
+            span = self.fan ** (d + 1)  # chunks under one node of level d
+            out.update({key(f"sum{d}", t, g): workers[g * span] for g in range(len(level))})
         if update:
             out[key("H", t + 1)] = first
         if evaluate:
@@ -1316,15 +1399,19 @@ def _fit_loop_in_memory(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter
         inputs = [*sources, *W_refs, H_ref]
         layer: dict[Any, Any] = {}
         where: dict[Any, str] = {}
-        w_keys, h_key = [w.key for w in W_refs], H_ref.key
+        w_in: list | None = [w.key for w in W_refs]
+        h_key = H_ref.key
+        keep_q = q == max_iter or (tol > 0 and q > 0)  # W^q, H^q: the answer if the rule stops at q
         for t in range(start, q + 1):
-            layer.update(graph.layer(t, w_keys, h_key, evaluate=t == q, update=t < max_iter))
+            layer.update(graph.layer(t, w_in, h_key, evaluate=t == q, update=t < max_iter,
+                                     w_out=t == q or (t == q - 1 and keep_q)))
             where.update(graph.where(t, evaluate=t == q, update=t < max_iter))
-            if t < q:
-                w_keys, h_key = [graph.key("w", t + 1, c) for c in range(len(specs))], graph.key("H", t + 1)
+            w_in, h_key = None, graph.key("H", t + 1)
+        w_keys = [w.key for w in W_refs] if q == start else [graph.key("w", q, c) for c in range(len(specs))]
+        h_key = H_ref.key if q == start else graph.key("H", q)
         name = graph.key("batch", q)
         hlg = HighLevelGraph.from_collections(name, layer, dependencies=inputs)
-        keep = [*w_keys, h_key] if (q == max_iter or (tol > 0 and q > 0)) else []  # W^q, H^q: the answer if it stops
+        keep = [*w_keys, h_key] if keep_q else []
         ahead = [*[graph.key("w", q + 1, c) for c in range(len(specs))], graph.key("H", q + 1)] if q < max_iter else []
         with _placed(dask, where, store.workers):
             persisted = dask.persist(*[Delayed(k, hlg, layer=name) for k in [*keep, *ahead, graph.key("check", q)]])
