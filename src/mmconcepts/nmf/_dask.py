@@ -1271,7 +1271,7 @@ class _IterationGraph:
         self.fan = split_every
         n = len(self.specs)
         self.workers = workers
-        where = workers or [None] * n
+        where: list[str | None] = list(workers) if workers else [None] * n
         self.hosts = list(dict.fromkeys(workers)) if workers else []  # in the order of their first chunk
         self.host_of = [self.hosts.index(w) for w in workers] if workers else [0] * n
         self.group_of = [c // split_every for c in range(n)] if n > 1 else [0]
