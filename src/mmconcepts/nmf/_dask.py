@@ -604,9 +604,12 @@ def _make_problem(x: Any, m: Any, spec: _ChunkSpec, beta: float, scale: float) -
 
 
 def _fit_chunk(problem: Problem | None, w, Ht, rule: _Rule, spec: _ChunkSpec, evaluate: bool, update: bool,
-               w_out: str | None):
-    """One pass over one chunk: [objective of (W_c, H)], [W_c update, (N_c, D_c) with the new W_c]."""
-    W = _load_w(w)
+               w_out: str | None, own_w: bool = False):
+    """One pass over one chunk: [objective of (W_c, H)], [W_c update, (N_c, D_c) with the new W_c].
+
+    The update goes into a copy of W_c unless the caller ``own_w`` (an array nothing else reads).
+    """
+    W = w if own_w and isinstance(w, np.ndarray) else _load_w(w)
     part = _Partial()
     if problem is None:
         return (_store_w(_empty_w(rule), w_out) if update else w), part
@@ -1203,16 +1206,17 @@ def _check_part(total: _Partial, Ht: np.ndarray, pen_H: Penalty) -> tuple[float,
 
 
 def _fit_run(sources: list, prev: Any, Ht: np.ndarray, rule: _Rule, specs: list, evaluate: bool, update: bool,
-             summed: bool) -> tuple[list, list[_Partial]]:
+             summed: bool, own: bool = False) -> tuple[list, list[_Partial]]:
     """:func:`_fit_chunk` on consecutive chunks kept on one worker: ``(their W refs, their parts)``.
 
-    ``prev`` is the chunks' W (a list) or the run's previous output; with ``summed``, the run holds
-    a whole group of the tree's first level and returns that group's sum (one part).
+    ``prev`` is the chunks' W (a list) or the run's previous output, whose W the run updates in
+    place if it ``own``s them (no other task reads them); with ``summed``, the run holds a whole
+    group of the tree's first level and returns that group's sum (one part).
     """
     Ws = prev[0] if isinstance(prev, tuple) else prev
     out, parts = [], []
     for src, w, spec in zip(sources, Ws, specs):
-        w_new, part = _fit_chunk(src, w, Ht, rule, spec, evaluate, update, None)
+        w_new, part = _fit_chunk(src, w, Ht, rule, spec, evaluate, update, None, own_w=own)
         out.append(w_new)
         parts.append(part)
     return out, [_sum_partials(*parts)] if summed else parts
@@ -1307,8 +1311,9 @@ class _IterationGraph:
         return self.workers[c] if self.workers else None
 
     def layer(self, t: int, w_in: Sequence[Any] | None, h_key: Any, evaluate: bool, update: bool,
-              w_out: bool = False) -> dict:
-        """The tasks of iteration t (see the class); ``w_in``: the chunks' W keys (None: the runs of t - 1)."""
+              w_out: bool = False, own: bool = False) -> dict:
+        """The tasks of iteration t (see the class); ``w_in``: the chunks' W keys (None: the runs of t - 1, updated
+        in place if ``own``: not asked for their ``w`` keys)."""
         key = self.key
         out: dict[Any, Any] = {}
         for j in range(1, len(self.hosts)):
@@ -1318,7 +1323,7 @@ class _IterationGraph:
             prev = [w_in[c] for c in chunks] if w_in is not None else key("run", t - 1, r)
             run = key("run", t, r)
             out[run] = (_fit_run, [self.sources[c] for c in chunks], prev, self.h_for(t, self.host_of[chunks[0]], h_key),
-                        self.rule, [self.specs[c] for c in chunks], evaluate, update, whole)
+                        self.rule, [self.specs[c] for c in chunks], evaluate, update, whole, own and w_in is None)
             if update and w_out:
                 for i, c in enumerate(chunks):
                     out[key("w", t + 1, c)] = (_run_w, run, i)
@@ -1404,7 +1409,7 @@ def _fit_loop_in_memory(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter
         keep_q = q == max_iter or (tol > 0 and q > 0)  # W^q, H^q: the answer if the rule stops at q
         for t in range(start, q + 1):
             layer.update(graph.layer(t, w_in, h_key, evaluate=t == q, update=t < max_iter,
-                                     w_out=t == q or (t == q - 1 and keep_q)))
+                                     w_out=t == q or (t == q - 1 and keep_q), own=not (t == q and keep_q)))
             where.update(graph.where(t, evaluate=t == q, update=t < max_iter))
             w_in, h_key = None, graph.key("H", t + 1)
         w_keys = [w.key for w in W_refs] if q == start else [graph.key("w", q, c) for c in range(len(specs))]
