@@ -15,15 +15,18 @@ the chunk's :class:`~mmconcepts.nmf._problem.Problem`), and returns its (N_c, D_
 n_features x k arrays (D_c is a k-vector for the I-divergence and a k x k Gram matrix for the
 Frobenius loss without a mask, as in memory); the sums are reduced in a tree in chunk order
 (the same sums whichever worker runs which chunk), and the task at its root updates H on the
-worker that holds the sums; the next iteration's chunk tasks fetch the new H from there. The
-objective of (W, H) is computed by the chunk tasks of the pass that updates them, and the
-iterations from one evaluation of the objective to the next (every ``loss_every``) make one
-graph, submitted at once: the client reads only the objectives, so the stopping rule and the
-iterates are those of :func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of
-the sums. W never leaves the workers; H and the sums are the only traffic, at most
-k x n_features per chunk and per iteration. On a ``distributed`` cluster, each chunk's tasks
-run on one worker for the whole fit, the chunks cut into contiguous runs of rows of about the
-same size, one per worker (the first sums of the tree are then mostly within a worker).
+worker that holds the sums, for the next iteration's chunk tasks. The objective of (W, H) is
+computed by the chunk tasks of the pass that updates them, and the iterations from one
+evaluation of the objective to the next (every ``loss_every``) make one graph, submitted at
+once: the client reads only the objectives, so the stopping rule and the iterates are those of
+:func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of the sums. W never
+leaves the workers; H and the sums are the only traffic, at most k x n_features per chunk and
+per iteration. On a ``distributed`` cluster, each chunk stays on one worker for the whole fit
+(contiguous rows of about the same size per worker), a worker's consecutive chunks of one group
+of the tree run as one task per iteration that hands their W to the next iteration's, each sum
+runs where its first chunk is, and the new H goes to the workers down a tree of the same
+fan-out: a few tasks per worker and iteration, and a few k x n_features arrays in and out of
+each worker.
 
 Memory
 ------
