@@ -252,19 +252,115 @@ def test_transform_stopping_rule_matches(rng):
 
 
 def test_local_cluster_equals_in_memory(rng):
-    """A LocalCluster of two single-threaded workers (threads, 127.0.0.1): the same fit."""
+    """A LocalCluster of two single-threaded workers (threads, 127.0.0.1): the same fit, bit for bit the fit of the
+    synchronous scheduler (the sums go in chunk order whichever worker runs a chunk), each chunk's tasks on one
+    worker, contiguous rows per worker."""
     distributed = pytest.importorskip("distributed")
     X, mask, W0, H0 = make_data(rng, True, 1.0, True)
-    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0, loss_every=4)
     r_mem = beta_nmf(X, K, mask=mask, **kw)
+    r_sync = beta_nmf(to_dask(X), K, mask=to_dask(mask), **kw)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1", protocol="tcp://",
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         Xd = client.persist(to_dask(X))
         Md = client.persist(to_dask(mask))
-        with dask.config.set(scheduler=client):
+        with dask.config.set(scheduler=client), distributed.get_task_stream(client) as stream:
             r_dask = beta_nmf(Xd, K, mask=Md, **kw)
             W = r_dask.W.compute()
+        workers = sorted(client.nthreads())
     assert rel(W, r_mem.W) < RTOL and rel(r_dask.H, r_mem.H) < RTOL
+    assert np.array_equal(W, r_sync.W.compute()) and np.array_equal(r_dask.H, r_sync.H)
+    assert np.array_equal(r_dask.loss_history, r_sync.loss_history)
+    ran = {}
+    for task in stream.data:
+        name = task["key"] if isinstance(task["key"], str) else task["key"][0]
+        if "-run-" in name:
+            ran.setdefault(int(name.rsplit("-", 1)[1]), set()).add(task["worker"])
+    # ROW_CHUNKS = (23, 40, 1, 36): the middle of chunk 1 (row 43) is in the first half of the 100 rows, so
+    # chunks 0 and 1 run together on the first worker, 2 and 3 on the second, at every iteration
+    assert ran == {0: {workers[0]}, 1: {workers[1]}}
+
+
+@pytest.mark.parametrize("tol, checks", [(0.0, [0, 5, 10, 12]), (0.05, [0, 5, 10])], ids=["to_max_iter", "stops"])
+def test_one_graph_per_evaluation_of_the_objective(rng, monkeypatch, tol, checks):
+    """The iterations between two evaluations of the objective go to the scheduler as one graph: one submission
+    per batch (iteration 0, then up to each multiple of loss_every, then max_iter), not one per iteration; a fit
+    that stops at a check returns that check's (W, H), not the iteration the batch computed past it."""
+    X, _, W0, H0 = make_data(rng, True, 1.0, False)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=12, tol=tol, loss_every=5)
+    r_mem = beta_nmf(X, K, **kw)
+    submitted = []
+    persist, loop = dask.persist, nd._fit_loop_in_memory
+
+    def counting_loop(*args, **kwargs):
+        def counting_persist(*collections, **kw):
+            submitted.append(len(collections))
+            return persist(*collections, **kw)
+
+        monkeypatch.setattr(dask, "persist", counting_persist)
+        try:
+            return loop(*args, **kwargs)
+        finally:
+            monkeypatch.setattr(dask, "persist", persist)
+
+    monkeypatch.setattr(nd, "_fit_loop_in_memory", counting_loop)
+    r_dask = beta_nmf(to_dask(X), K, **kw)
+    assert_same_fit(r_mem, r_dask)
+    assert list(r_mem.loss_iterations) == checks and r_mem.converged == (tol > 0)
+    assert len(submitted) == len(checks)
+
+
+def test_h_goes_down_a_tree_to_the_workers_and_the_sums_up_it():
+    """On a cluster: one task per run of chunks on a worker; every run reads H from a copy on its worker, each copy
+    made from its parent's in a tree of fan-out split_every rooted where H is computed (the first chunk's worker,
+    with the root sum): ceil(log_fan(workers)) hops, not one fetch per worker from one place; no sum reads a run
+    of another worker (W stays where it is)."""
+    from mmconcepts.nmf._updates import Penalty
+
+    n_chunks, fan = 40, 3
+    workers = [f"w{c // 2}" for c in range(n_chunks)]  # 20 workers, 2 chunks each
+    specs = [nd._ChunkSpec(c, c, c + 1) for c in range(n_chunks)]
+    rule = nd._Rule(1.0, 1.0, Penalty(), 1.0, K, "float64")
+    graph = nd._IterationGraph("g", [f"src-{c}" for c in range(n_chunks)], specs, rule, Penalty(), fan, workers)
+    tasks = graph.layer(7, None, "H7", evaluate=True, update=True)
+    where = graph.where(7, evaluate=True, update=True)
+    depth = {"H7": 0}
+
+    def hops(key):  # the copies between H7 and a key, each on its own worker
+        if key not in depth:
+            func, parent = tasks[key]
+            assert func is nd._same
+            depth[key] = hops(parent) + 1
+        return depth[key]
+
+    runs = {k: t for k, t in tasks.items() if "-run-" in k}
+    assert sum(len(t[5]) for t in runs.values()) == n_chunks and len(runs) < n_chunks
+    for k, (_, sources, prev, h, *_rest) in runs.items():
+        chunk_workers = {workers[int(src.rsplit("-", 1)[1])] for src in sources}
+        assert chunk_workers == {where[k]} and prev == k.replace("-7-", "-6-")
+        assert h == "H7" if where[k] == "w0" else where[h] == where[k]
+        assert hops(h) <= 3  # ceil(log3(20))
+    assert max(depth.values()) == 3 and len(depth) == 20  # H7 and one copy on each of the 19 other workers
+    for k, task in tasks.items():
+        if "-sum" in k:
+            assert all(where[a] == where[k] or "-run-" not in a for a in task[1:]), k
+    root = graph.root(7)
+    assert where[root] == where[graph.key("H", 8)] == where[graph.key("check", 7)] == "w0"
+    assert tasks[graph.key("H", 8)][1] == root
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("layout, split_every", [("aaab", 2), ("abcd", 2), ("aaaa", 8), ("aabb", 8), ("abab", 3)])
+def test_fit_with_runs_and_the_broadcast_tree_equals_the_fit_without(rng, monkeypatch, layout, split_every):
+    """Runs of chunks, the copies of H and the placement change no number (synchronous scheduler: placement
+    ignored, the graph's shape kept)."""
+    X, mask, W0, H0 = make_data(rng, False, 0.5, True)
+    kw = dict(init="custom", W=W0, H=H0, max_iter=7, tol=1e-3, loss_every=3, split_every=split_every)
+    plain = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
+    monkeypatch.setattr(nd, "_chunk_workers", lambda specs, n: list(layout))
+    treed = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
+    assert np.array_equal(plain.W.compute(), treed.W.compute()) and np.array_equal(plain.H, treed.H)
+    assert np.array_equal(plain.loss_history, treed.loss_history)
 
 
 def test_hstack_row_chunks_for_modalities(rng):

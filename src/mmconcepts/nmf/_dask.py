@@ -13,26 +13,36 @@ So each iteration is one pass over the chunks: a task per chunk, run where the c
 updates its W_c with exactly the in-memory update (:func:`mmconcepts.nmf._updates.mu_update` on
 the chunk's :class:`~mmconcepts.nmf._problem.Problem`), and returns its (N_c, D_c), two
 n_features x k arrays (D_c is a k-vector for the I-divergence and a k x k Gram matrix for the
-Frobenius loss without a mask, as in memory); the sums are reduced in a tree, and H is updated
-on the client. W never leaves the workers (or the disk); H and the sums are the only traffic,
-k x n_features per chunk and per iteration. The objective of iteration i is computed in the
-pass of iteration i + 1 (one extra pass after the last), so the stopping rule and the iterates
-are those of :func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of the sums.
+Frobenius loss without a mask, as in memory); the sums are reduced in a tree in chunk order
+(the same sums whichever worker runs which chunk), and the task at its root updates H on the
+worker that holds the sums, for the next iteration's chunk tasks. The objective of (W, H) is
+computed by the chunk tasks of the pass that updates them, and the iterations from one
+evaluation of the objective to the next (every ``loss_every``) make one graph, submitted at
+once: the client reads only the objectives, so the stopping rule and the iterates are those of
+:func:`~mmconcepts.nmf.beta_nmf` on the whole matrix, up to the order of the sums. W never
+leaves the workers; H and the sums are the only traffic, at most k x n_features per chunk and
+per iteration. On a ``distributed`` cluster, each chunk stays on one worker for the whole fit
+(contiguous rows of about the same size per worker), a worker's consecutive chunks of one group
+of the tree run as one task per iteration that hands their W to the next iteration's, each sum
+runs where its first chunk is, and the new H goes to the workers down a tree of the same
+fan-out: a few tasks per worker and iteration, and a few k x n_features arrays in and out of
+each worker.
 
 Memory
 ------
 ``beta_nmf`` of a dask array keeps, in the cluster's memory and for the whole fit, each chunk's
 validated rows (with their CSR transpose when sparse, as the in-memory solver does) and its rows
-of W: about twice the nonzeros of X plus n_samples x k, spread over the workers. The client
-holds H and the sums (a few n_features x k arrays).
+of W: about twice the nonzeros of X plus n_samples x k, spread over the workers; W twice at the
+end of each batch when ``tol > 0`` (the W of the evaluated iteration, the answer if the rule stops
+there, beside the next one). The client holds H at the end only.
 
 Out of core
 -----------
 A matrix too large for memory is stored as a folder of ``.npz`` row chunks (the layout of
 :func:`save_npz_chunks`) and read lazily by :func:`load_npz_chunks`;
 :func:`beta_nmf_out_of_core` fits it with W kept on disk between passes (one ``.npy`` file per
-chunk) and writes the final W to a folder of the same layout, chunk by chunk, only once the fit
-has succeeded.
+chunk), one pass per iteration with H updated by the client from the sums, and writes the final
+W to a folder of the same layout, chunk by chunk, only once the fit has succeeded.
 
 Written by hand: no maintained library computes beta-divergence NMF on Dask (dask-ml has no NMF).
 dask is imported lazily: the rest of :mod:`mmconcepts.nmf` works without it.
@@ -40,8 +50,10 @@ dask is imported lazily: the rest of :mod:`mmconcepts.nmf` works without it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import operator
 import os
 import shutil
 import tempfile
@@ -595,9 +607,12 @@ def _make_problem(x: Any, m: Any, spec: _ChunkSpec, beta: float, scale: float) -
 
 
 def _fit_chunk(problem: Problem | None, w, Ht, rule: _Rule, spec: _ChunkSpec, evaluate: bool, update: bool,
-               w_out: str | None):
-    """One pass over one chunk: [objective of (W_c, H)], [W_c update, (N_c, D_c) with the new W_c]."""
-    W = _load_w(w)
+               w_out: str | None, own_w: bool = False):
+    """One pass over one chunk: [objective of (W_c, H)], [W_c update, (N_c, D_c) with the new W_c].
+
+    The update goes into a copy of W_c unless the caller ``own_w`` (an array nothing else reads).
+    """
+    W = w if own_w and isinstance(w, np.ndarray) else _load_w(w)
     part = _Partial()
     if problem is None:
         return (_store_w(_empty_w(rule), w_out) if update else w), part
@@ -663,18 +678,65 @@ def _tree(parts: list, dask, split_every: int):
 
 
 # ---------------------------------------------------------------------------------------------
+# Which worker holds which chunk (a distributed cluster)
+
+
+def _chunk_workers(specs: Sequence[_ChunkSpec], n: int) -> list[str] | None:
+    """The worker each chunk's rows stay on, on the distributed cluster dask computes with; None on another scheduler.
+
+    Contiguous rows per worker (each chunk goes by the middle of its rows): balanced by rows, and
+    the chunks summed together first in the tree are mostly on one worker.
+    """
+    import dask
+
+    client = getattr(dask.base.get_scheduler(), "__self__", None)
+    try:
+        from distributed import Client
+    except ImportError:  # pragma: no cover - distributed comes with the dask extra
+        return None
+    if not isinstance(client, Client):
+        return None
+    workers = sorted(client.nthreads())
+    if not workers:
+        return None
+    return [workers[min(len(workers) - 1, (s.start + s.stop) * len(workers) // (2 * max(n, 1)))] for s in specs]
+
+
+def _persist_placed(dask, refs: Sequence[Any], workers: list[str] | None) -> list[Any]:
+    """``dask.persist`` of one delayed value per chunk, each computed and kept on its chunk's worker.
+
+    The restriction is loose: if that worker leaves, the scheduler runs the task elsewhere.
+    """
+    refs = list(refs)
+    if workers is None:
+        return list(dask.persist(*refs))
+    with _placed(dask, {r.key: w for r, w in zip(refs, workers)}, workers):
+        return list(dask.persist(*refs))
+
+
+def _placed(dask, where: dict, workers: list[str] | None):
+    """The annotation that sends the tasks of ``where`` (key: worker) to their worker, the others anywhere."""
+    if workers is None:
+        return contextlib.nullcontext()
+    anywhere = sorted(set(workers))
+    return dask.annotate(workers=lambda key: [where[key]] if key in where else anywhere, allow_other_workers=True)
+
+
+# ---------------------------------------------------------------------------------------------
 # Where the W chunks live between passes
 
 
 class _WStore:
     """W chunks between passes: persisted in the cluster's memory (``folder=None``) or ``.npy`` files."""
 
-    def __init__(self, dask, n_chunks: int, folder: Path | None, in_flight: int = 2):
+    def __init__(self, dask, n_chunks: int, folder: Path | None, in_flight: int = 2,
+                 workers: list[str] | None = None):
         self.dask = dask
         self.n_chunks = n_chunks
         self.folder = folder
         self.in_flight = max(1, int(in_flight))
         self.buffer = 0
+        self.workers = workers  # the worker of each chunk (in memory, on a distributed cluster)
 
     def path(self, c: int, buffer: int | None = None) -> str | None:
         if self.folder is None:
@@ -699,7 +761,7 @@ class _WStore:
                     W = W.compute()
                 refs.append(_store_w(np.asarray(W), self.path(c)))
         if self.folder is None:
-            refs = list(self.dask.persist(*refs))
+            refs = _persist_placed(self.dask, refs, self.workers)
         return refs
 
 
@@ -744,7 +806,9 @@ def beta_nmf_dask(
     chunks at a time; ``split_every`` is the fan-in of the tree that sums the chunks' statistics.
 
     Without ``w_folder``, each chunk's prepared rows (and their CSR transpose when sparse, as the
-    in-memory solver keeps) are persisted in the cluster's memory for the whole fit, with W.
+    in-memory solver keeps) are persisted in the cluster's memory for the whole fit, with W, and
+    the iterations between two evaluations of the objective run as one graph, H updated on a
+    worker (see the module's docstring).
     """
     dask = _require_dask("beta_nmf of a dask array")
     check_row_chunks(X, "X")
@@ -793,7 +857,7 @@ def beta_nmf_dask(
         w_folder.parent.mkdir(parents=True, exist_ok=True)
         folder = Path(tempfile.mkdtemp(prefix=f".{w_folder.name}.work-", dir=w_folder.parent))
     try:
-        store = _WStore(dask, len(specs), folder, in_flight)
+        store = _WStore(dask, len(specs), folder, in_flight, None if folder is not None else _chunk_workers(specs, n))
         W_refs, Ht = _start(store, x_blocks, m_blocks, specs, n, m, k, dtype, beta, update_H, init, W, H,
                             scale, scale_W, scale_H, x_mean, random_state, dask)
         pen_W, pen_H = resolve_penalties(alpha_W, alpha_H, l1_ratio, n, m)
@@ -805,7 +869,7 @@ def beta_nmf_dask(
         # built once and kept in the cluster's memory; out of core, it is rebuilt from the file in every pass.
         sources = [dask.delayed(_make_problem)(x, mb, s, beta, scale) for x, mb, s in zip(x_blocks, m_blocks, specs)]
         if folder is None:
-            sources = list(dask.persist(*sources))
+            sources = _persist_placed(dask, sources, store.workers)
         loop = _fit_loop if update_H else _transform_loop
         W_refs, Ht, n_iter, hist, its, converged, final = loop(
             store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every, dask,
@@ -1103,7 +1167,281 @@ class _Stopping:
 
 def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
               dask, check_scale):
-    """W and H updates, one pass per iteration; the objective of iteration i comes with the pass of i + 1."""
+    """W and H updates: in batches of iterations in the cluster's memory, pass by pass on disk."""
+    loop = _fit_loop_in_memory if store.folder is None else _fit_loop_on_disk
+    return loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every, dask,
+                check_scale)
+
+
+def _checks(max_iter: int, loss_every: int) -> list[int]:
+    """The iterations whose objective the stopping rule reads (as :func:`mmconcepts.nmf._solver._iterate`)."""
+    return sorted({0, *range(loss_every, max_iter + 1, loss_every), max_iter})
+
+
+def _record_check(i: int, f: float, hist: list, its: list, stop: _Stopping | None, tol: float, rule: _Rule,
+                  check_scale: float | None) -> tuple[_Stopping, bool]:
+    """Append the objective of iteration i; returns the stopping rule (made at i = 0) and whether it stops at i."""
+    hist.append(f)
+    its.append(i)
+    if i == 0:
+        if check_scale is not None:
+            check_objective_range(f, check_scale, rule.beta)
+        return _Stopping(f, tol), False
+    stop = cast(_Stopping, stop)
+    return stop, stop.converged(f)
+
+
+def _h_step(total: _Partial, Ht: np.ndarray, rule: _Rule, pen_H: Penalty, own: bool = False) -> np.ndarray:
+    """The dictionary update from the chunks' summed numerator and denominator: the in-memory side-1 update.
+
+    mu_update divides the numerator in place: a copy of it unless the caller ``own``s ``total``
+    (never a task's input).
+    """
+    num = cast(np.ndarray, total.num if own else np.array(total.num, copy=True))
+    summed = cast(Side, _Summed(num, _full_den(total.den, Ht)))
+    return mu_update(summed, Ht.copy(), cast(np.ndarray, None), rule.beta, rule.gamma, pen_H)  # no W: summed
+
+
+def _check_part(total: _Partial, Ht: np.ndarray, pen_H: Penalty) -> tuple[float, _Partial]:
+    """The objective of a pass's (W, H) and its summary without the sums (what the client reads of a check)."""
+    return _objective(total, Ht, pen_H), _Partial(div=total.div, pen=total.pen, finite=total.finite,
+                                                  update_bytes=total.nbytes())
+
+
+def _fit_run(sources: list, prev: Any, Ht: np.ndarray, rule: _Rule, specs: list, evaluate: bool, update: bool,
+             summed: bool, own: bool = False) -> tuple[list, list[_Partial]]:
+    """:func:`_fit_chunk` on consecutive chunks kept on one worker: ``(their W refs, their parts)``.
+
+    ``prev`` is the chunks' W (a list) or the run's previous output, whose W the run updates in
+    place if it ``own``s them (no other task reads them); with ``summed``, the run holds a whole
+    group of the tree's first level and returns that group's sum (one part).
+    """
+    Ws = prev[0] if isinstance(prev, tuple) else prev
+    out, parts = [], []
+    for src, w, spec in zip(sources, Ws, specs):
+        w_new, part = _fit_chunk(src, w, Ht, rule, spec, evaluate, update, None, own_w=own)
+        out.append(w_new)
+        parts.append(part)
+    return out, [_sum_partials(*parts)] if summed else parts
+
+
+def _sum_nodes(*nodes: Any) -> _Partial:
+    """The sum, in order, of parts, lists of parts and runs' outputs (:func:`_fit_run`)."""
+    parts: list[_Partial] = []
+    for node in nodes:
+        node = node[1] if isinstance(node, tuple) else node
+        parts.extend(node if isinstance(node, list) else [node])
+    return _sum_partials(*parts)
+
+
+def _first_part(run: tuple[list, list[_Partial]]) -> _Partial:
+    return run[1][0]
+
+
+def _run_parts(run: tuple[list, list[_Partial]]) -> list[_Partial]:
+    return run[1]
+
+
+def _run_w(run: tuple[list, list[_Partial]], i: int) -> Any:
+    return run[0][i]
+
+
+class _IterationGraph:
+    """The tasks of one iteration over the chunks, laid out once per fit and named anew for each iteration.
+
+    The chunks go in *runs*: consecutive chunks on one worker within one group of the first level
+    of the tree that sums the parts (fan-in ``split_every``, in chunk order: the sums, and the
+    iterates, do not depend on which worker runs which chunk); without ``workers`` (the worker of
+    each chunk, on a distributed cluster), each chunk is a run. Iteration t reads W^t (the chunks'
+    keys, or the runs' outputs of iteration t - 1) and H^t, and defines ``run-t-r``
+    (:func:`_fit_run`: W and part of each chunk of run r), the sums up the tree (``sum{d}-t-g``;
+    a run that holds a whole group stands for its sum), ``H-{t+1}`` (:func:`_h_step` on the root)
+    and, when evaluating, ``check-t`` (:func:`_check_part`); ``w-{t+1}-c`` (chunk c's new W) only
+    when asked, at the end of a batch. Several iterations chained this way make one graph: the
+    client sees only the checks, and the scheduler handles a few tasks per worker and iteration.
+
+    With ``workers``, :meth:`where` also places the tasks: each run on its worker, each sum on the
+    worker of its first chunk (the root, the H update and the check on the first chunk's), a part
+    read by a sum on another worker taken out of its run first (``part-t-r``, so W stays); and H
+    goes down a tree of fan-out ``split_every`` to the other workers (``Hto-t-j``, an identity
+    task on the j-th worker, in the order of their first chunk, reading the copy of worker
+    (j - 1) // split_every), instead of every worker fetching it from the one that computed it.
+    """
+
+    def __init__(self, name: str, source_keys: list, specs: Sequence[_ChunkSpec], rule: _Rule, pen_H: Penalty,
+                 split_every: int, workers: list[str] | None = None):
+        self.name = name
+        self.sources = source_keys
+        self.specs = list(specs)
+        self.rule = rule
+        self.pen_H = pen_H
+        self.fan = split_every
+        n = len(self.specs)
+        self.workers = workers
+        where: list[str | None] = list(workers) if workers else [None] * n
+        self.hosts = list(dict.fromkeys(workers)) if workers else []  # in the order of their first chunk
+        self.host_of = [self.hosts.index(w) for w in workers] if workers else [0] * n
+        self.group_of = [c // split_every for c in range(n)] if n > 1 else [0]
+        runs: list[list[int]] = []
+        for c in range(n):
+            if workers and runs and where[runs[-1][-1]] == where[c] and self.group_of[runs[-1][-1]] == self.group_of[c]:
+                runs[-1].append(c)
+            else:
+                runs.append([c])
+        self.runs = runs
+        self.whole = [n > 1 and len(r) == len([c for c in range(n) if self.group_of[c] == self.group_of[r[0]]])
+                      for r in runs]  # the run holds its whole first-level group
+        self.levels: list[list[list[int]]] = []  # above the first level: the nodes summed together
+        width = -(-n // split_every) if n > 1 else 0
+        while width > 1:
+            self.levels.append([list(range(a, min(a + split_every, width))) for a in range(0, width, split_every)])
+            width = len(self.levels[-1])
+
+    def key(self, what: str, t: int, c: int | None = None) -> str:
+        return f"{self.name}-{what}-{t}" if c is None else f"{self.name}-{what}-{t}-{c}"
+
+    def root(self, t: int) -> str:
+        """The key of iteration t's summed part."""
+        if len(self.specs) == 1:
+            return self.key("part", t, 0)
+        return self.key(f"sum{len(self.levels)}", t, 0)
+
+    def h_for(self, t: int, host: int, h_key: Any) -> Any:
+        """The key of H^t on the host-th worker (its copy down the broadcast tree; H^t itself on the first)."""
+        return h_key if host == 0 else self.key("Hto", t, host)
+
+    def _worker(self, c: int) -> str | None:
+        return self.workers[c] if self.workers else None
+
+    def layer(self, t: int, w_in: Sequence[Any] | None, h_key: Any, evaluate: bool, update: bool,
+              w_out: bool = False, own: bool = False) -> dict:
+        """The tasks of iteration t (see the class); ``w_in``: the chunks' W keys (None: the runs of t - 1, updated
+        in place if ``own``: not asked for their ``w`` keys)."""
+        key = self.key
+        out: dict[Any, Any] = {}
+        for j in range(1, len(self.hosts)):
+            out[key("Hto", t, j)] = (_same, self.h_for(t, (j - 1) // self.fan, h_key))
+        groups: dict[int, list] = {}
+        for r, (chunks, whole) in enumerate(zip(self.runs, self.whole)):
+            prev = [w_in[c] for c in chunks] if w_in is not None else key("run", t - 1, r)
+            run = key("run", t, r)
+            out[run] = (_fit_run, [self.sources[c] for c in chunks], prev, self.h_for(t, self.host_of[chunks[0]], h_key),
+                        self.rule, [self.specs[c] for c in chunks], evaluate, update, whole, own and w_in is None)
+            if update and w_out:
+                for i, c in enumerate(chunks):
+                    out[key("w", t + 1, c)] = (_run_w, run, i)
+            g = self.group_of[chunks[0]]
+            reader = (g // self.fan) * self.fan ** 2 if whole and self.levels else g * self.fan  # its sum's first chunk
+            if self._worker(chunks[0]) != self._worker(reader):
+                out[key("part", t, r)] = (_run_parts, run)  # read on another worker: without the W
+                run = key("part", t, r)
+            groups.setdefault(g, []).append((run, whole))
+        if len(self.specs) == 1:
+            out[key("part", t, 0)] = (_first_part, key("run", t, 0))
+        nodes = []
+        for g in sorted(groups):
+            members = groups[g]
+            if len(members) == 1 and members[0][1]:  # the run is the group's sum
+                nodes.append(members[0][0])
+            elif len(self.specs) > 1:
+                out[key("sum0", t, g)] = (_sum_nodes, *[m for m, _ in members])
+                nodes.append(key("sum0", t, g))
+        for d, level in enumerate(self.levels, start=1):
+            nodes_next = []
+            for g, members in enumerate(level):
+                out[key(f"sum{d}", t, g)] = (_sum_nodes, *[nodes[j] for j in members])
+                nodes_next.append(key(f"sum{d}", t, g))
+            nodes = nodes_next
+        if nodes and not self.levels and nodes[0] != key("sum0", t, 0):  # one whole group: its run is the root
+            out[key("sum0", t, 0)] = (_sum_nodes, nodes[0])
+        root = self.root(t)
+        if update:
+            out[key("H", t + 1)] = (_h_step, root, h_key, self.rule, self.pen_H)
+        if evaluate:
+            out[key("check", t)] = (_check_part, root, h_key, self.pen_H)
+        return out
+
+    def where(self, t: int, evaluate: bool, update: bool) -> dict:
+        """The worker of each task of iteration t that has one (empty without ``workers``)."""
+        if not self.workers:
+            return {}
+        key, workers, first = self.key, self.workers, self.workers[0]
+        out = {key("run", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)}
+        out.update({key("part", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)})
+        out.update({key("Hto", t, j): self.hosts[j] for j in range(1, len(self.hosts))})
+        out.update({key("sum0", t, g): workers[g * self.fan] for g in range(max(self.group_of) + 1)})
+        for d, level in enumerate(self.levels, start=1):
+            span = self.fan ** (d + 1)  # chunks under one node of level d
+            out.update({key(f"sum{d}", t, g): workers[g * span] for g in range(len(level))})
+        if update:
+            out[key("H", t + 1)] = first
+        if evaluate:
+            out[key("check", t)] = first
+        return out
+
+
+def _fit_loop_in_memory(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
+                        dask, check_scale):
+    """W and H updates in the cluster's memory, one graph per batch of iterations, H updated on a worker.
+
+    A batch runs the iterations after a check up to the next one (the first batch is iteration 0
+    alone, whose objective is checked against the data's range before anything else runs): the
+    client submits it, keeps W and H of its last iteration (and of the check, when the stopping
+    rule may stop there) persisted in the cluster, and reads back the check's objective only. The
+    iterates and the objectives are those of the pass-by-pass loop.
+    """
+    from dask.delayed import Delayed
+    from dask.highlevelgraph import HighLevelGraph
+
+    graph = _IterationGraph(f"nmf-{uuid.uuid4().hex}", [s.key for s in sources], specs, rule, pen_H, split_every,
+                            store.workers)
+    H_ref = dask.delayed(Ht, name=graph.key("H", 0), traverse=False)
+    checks = _checks(max_iter, loss_every)
+    hist: list[float] = []
+    its: list[int] = []
+    stop: _Stopping | None = None
+    converged = False
+    update_bytes = 0
+    start = 0
+    for q in checks:
+        inputs = [*sources, *W_refs, H_ref]
+        layer: dict[Any, Any] = {}
+        where: dict[Any, str] = {}
+        w_in: list | None = [w.key for w in W_refs]
+        h_key = H_ref.key
+        keep_q = q == max_iter or (tol > 0 and q > 0)  # W^q, H^q: the answer if the rule stops at q
+        for t in range(start, q + 1):
+            layer.update(graph.layer(t, w_in, h_key, evaluate=t == q, update=t < max_iter,
+                                     w_out=t == q or (t == q - 1 and keep_q), own=not (t == q and keep_q)))
+            where.update(graph.where(t, evaluate=t == q, update=t < max_iter))
+            w_in, h_key = None, graph.key("H", t + 1)
+        w_keys = [w.key for w in W_refs] if q == start else [graph.key("w", q, c) for c in range(len(specs))]
+        h_key = H_ref.key if q == start else graph.key("H", q)
+        name = graph.key("batch", q)
+        hlg = HighLevelGraph.from_collections(name, layer, dependencies=inputs)
+        keep = [*w_keys, h_key] if keep_q else []
+        ahead = [*[graph.key("w", q + 1, c) for c in range(len(specs))], graph.key("H", q + 1)] if q < max_iter else []
+        with _placed(dask, where, store.workers):
+            persisted = dask.persist(*[Delayed(k, hlg, layer=name) for k in [*keep, *ahead, graph.key("check", q)]])
+        del inputs, W_refs, H_ref, hlg, layer
+        f, part = dask.compute(persisted[-1])[0]
+        stop, converged = _record_check(q, f, hist, its, stop, tol, rule, check_scale)
+        update_bytes = part.update_bytes or update_bytes
+        if converged or q == max_iter:
+            *W_refs, H_ref = persisted[:len(keep)]
+            break
+        *W_refs, H_ref = persisted[len(keep):-1]
+        del persisted
+        start = q + 1
+    part.update_bytes = update_bytes
+    Ht = np.asarray(dask.compute(H_ref)[0])
+    return W_refs, Ht, q, hist, its, converged, part
+
+
+def _fit_loop_on_disk(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
+                      dask, check_scale):
+    """W and H updates, one pass per iteration, H updated on the client; the objective of iteration i comes with
+    the pass of i + 1."""
     hist: list[float] = []
     its: list[int] = []
     stop: _Stopping | None = None
@@ -1118,23 +1456,12 @@ def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, los
             new_refs, part, _ = _objective_pass(store, sources, specs, W_refs, Ht, rule, check, True, split_every,
                                                 dask)
         if check:
-            f = _objective(part, Ht, pen_H)
-            hist.append(f)
-            its.append(i)
-            if i == 0:
-                stop = _Stopping(f, tol)
-                if check_scale is not None:
-                    check_objective_range(f, check_scale, rule.beta)
-            elif cast(_Stopping, stop).converged(f):
-                converged = True
+            stop, converged = _record_check(i, _objective(part, Ht, pen_H), hist, its, stop, tol, rule, check_scale)
             final = part
         if converged or i == max_iter:
             break
         update_bytes = part.nbytes()
-        num = cast(np.ndarray, part.num)
-        Ht_new = mu_update(cast(Side, _Summed(num, _full_den(part.den, Ht))), Ht.copy(), None, rule.beta,
-                           rule.gamma, pen_H)
-        W_refs, Ht = new_refs, Ht_new
+        W_refs, Ht = new_refs, _h_step(part, Ht, rule, pen_H, own=True)
         i += 1
     final.update_bytes = update_bytes
     return W_refs, Ht, i, hist, its, converged, final
@@ -1158,23 +1485,15 @@ def _transform_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, to
                  for src, w, s in zip(sources, W_refs, specs)]
         W_refs, (part0, part) = _run_pass(store, tasks, 2, True, split_every, dask)
         if first:
-            f0 = _objective(part0, Ht, pen_H)
-            hist.append(f0)
-            its.append(0)
-            stop = _Stopping(f0, tol)
-            if check_scale is not None:
-                check_objective_range(f0, check_scale, rule.beta)
+            stop, _ = _record_check(0, _objective(part0, Ht, pen_H), hist, its, stop, tol, rule, check_scale)
             if c == 0:  # max_iter == 0
                 final = part0
                 final.finite = part.finite
                 break
-        f = _objective(part, Ht, pen_H)
-        hist.append(f)
-        its.append(c)
+        stop, converged = _record_check(c, _objective(part, Ht, pen_H), hist, its, stop, tol, rule, check_scale)
         done = c
         final = part
-        if cast(_Stopping, stop).converged(f):
-            converged = True
+        if converged:
             break
     final.update_bytes = 0
     return W_refs, Ht, done, hist, its, converged, final
