@@ -21,6 +21,7 @@ from ._data import is_dask_array, validate_data
 from ._solver import beta_nmf
 from ._updates import (
     BETA_NMF_CONSTRAINTS,
+    NMFResult,
     check_fit_in_range,
     check_objective_range,
     constant_coefficients,
@@ -400,7 +401,7 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         -------
         self
         """
-        self.fit_transform(X, mask=mask, W=W, H=H)
+        self._fit(X, mask, W, H)
         return self
 
     def fit_transform(self, X: Any, y: Any = None, *, mask: Any = None, W: Any = None, H: Any = None) -> np.ndarray:
@@ -410,6 +411,23 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         convergence for the final dictionary, as :meth:`transform` solves it:
         ``fit_transform(X)`` is ``fit(X).transform(X)`` up to that solution's tolerance.
         W is a dask array with X's row chunks when X is a dask array.
+        """
+        res = self._fit(X, mask, W, H)
+        if not self._solves_coefficients():
+            return res.W
+        # The coefficients of the final dictionary, solved as transform solves them (from the fit's W):
+        # fit_transform(X) is fit(X).transform(X) up to the tolerance of the solution.
+        if is_dask_array(X):
+            columns = _live_features(res.H)
+            return self._solve_coefficients_dask(X, mask, res.H if columns is None else res.H[:, columns], res.W,
+                                                 columns)
+        H, Xv, maskv = _live_columns(res.H, *validate_data(X, mask))
+        return self._solve_coefficients(Xv, maskv, H, res.W)
+
+    def _fit(self, X: Any, mask: Any, W: Any, H: Any) -> NMFResult:
+        """Fit the dictionary, set the fitted attributes and return the solver's result (its last W included).
+
+        :meth:`fit` stops here: only :meth:`fit_transform` solves the coefficients to convergence.
         """
         validate_params(self, self._parameter_constraints)
         res = beta_nmf(  # a dask array goes to the distributed solver (nmf/_dask.py); W is then a dask array
@@ -428,22 +446,11 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         self.n_iter_ = res.n_iter
         self.loss_history_ = res.loss_history
         self.loss_iterations_ = res.loss_iterations
-        if "divergence" in res.extra:  # dask: the divergence of the last pass over the chunks, X not read again
-            self.reconstruction_err_ = float(np.sqrt(2.0 * max(res.extra["divergence"], 0.0)))
-        else:
-            self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
+        # the divergence of the final factors, evaluated by the solver's last objective: X is not read again
+        self.reconstruction_err_ = float(np.sqrt(2.0 * max(res.extra["divergence"], 0.0)))
         self.n_steps_ = 0
         self._stats = None
-        if not self._solves_coefficients():
-            return res.W
-        # The coefficients of the final dictionary, solved as transform solves them (from the fit's W):
-        # fit_transform(X) is fit(X).transform(X) up to the tolerance of the solution.
-        if is_dask_array(X):
-            columns = _live_features(res.H)
-            return self._solve_coefficients_dask(X, mask, res.H if columns is None else res.H[:, columns], res.W,
-                                                 columns)
-        H, Xv, maskv = _live_columns(res.H, *validate_data(X, mask))
-        return self._solve_coefficients(Xv, maskv, H, res.W)
+        return res
 
     def _set_fitted(self, H: np.ndarray, X: Any) -> None:
         self.components_ = H
@@ -452,13 +459,6 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         names = getattr(X, "columns", None)
         if names is not None:
             self.feature_names_in_ = np.asarray(names, dtype=object)
-
-    def _reconstruction_err(self, X, W, H, mask) -> float:
-        from ._problem import beta_divergence
-
-        Xv, maskv = validate_data(X, mask)
-        d = beta_divergence(Xv, W, H, resolve_beta(self.beta_loss), mask=maskv)
-        return float(np.sqrt(2.0 * max(d, 0.0)))
 
     def partial_fit(self, X: Any, y: Any = None, *, mask: Any = None) -> NMF:
         """Update the dictionary with one mini-batch (online multiplicative updates).
