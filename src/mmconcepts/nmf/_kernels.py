@@ -202,3 +202,38 @@ def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
                 d /= beta * (beta - 1.0)
             total += w * d
     return total
+
+
+@njit(parallel=False, **_OPTS)
+def kl_log_ratio_pass(X, Y, M, out):  # pragma: no cover - compiled
+    """The first pass of the I-divergence of a block: out <- x / y (1 where x = 0 or unobserved).
+
+    Returns sum_ij m_ij (y_ij - x_ij) in float64; numpy then takes the log of ``out`` (vectorised,
+    several times faster than a scalar log per cell) and :func:`weighted_sum` adds sum_ij x_ij log(x_ij / y_ij):
+    with 0 log 0 = 0 the two sums are the I-divergence (thesis eq. 2.3, beta = 1). ``M`` is an
+    empty array when every cell is observed; ``out`` is float64 whatever X's type.
+    """
+    n, m = X.shape
+    has_m = M.shape[0] > 0
+    total = 0.0
+    for i in range(n):
+        for j in range(m):
+            if has_m and M[i, j] == 0.0:  # unobserved: counts 0, even where the product overflowed
+                out[i, j] = 1.0
+                continue
+            x = np.float64(X[i, j])
+            y = np.float64(Y[i, j])
+            total += y - x
+            out[i, j] = x / y if x > 0.0 else 1.0
+    return total
+
+
+@njit(parallel=False, **_OPTS)
+def weighted_sum(X, V):  # pragma: no cover - compiled
+    """sum_ij x_ij v_ij, accumulated in float64."""
+    n, m = X.shape
+    total = 0.0
+    for i in range(n):
+        for j in range(m):
+            total += np.float64(X[i, j]) * V[i, j]
+    return total

@@ -41,6 +41,8 @@ __all__ = ["Side", "Problem", "beta_divergence"]
 #: Bytes of one block of the dense I-divergence numerator's product (1 to 8 MB measured on the
 #: 2-core project machine, ``benchmarks/README.md``: 4 MB was fastest).
 _BLOCK_BYTES = 4 << 20
+#: Bytes of one block of the product when the divergence of a dense X is evaluated.
+_DIVERGENCE_BLOCK_BYTES = 1 << 20
 
 _blas: Any = None  # threadpoolctl's controller of the BLAS libraries, made on first use
 _pool: ThreadPoolExecutor | None = None
@@ -135,6 +137,7 @@ class Side:
     transposed: bool  # dense only: this side updates the right factor (X ~ R @ L.T)
     buffer: np.ndarray | None = None  # dense only: scratch space for the product, reused
     block_buffer: _StripeBuffers | None = None  # dense only: scratch space of the blocked I-divergence update
+    divergence_buffer: np.ndarray | None = None  # dense only: one block of the product, for the divergence
 
     @property
     def sparse(self) -> bool:
@@ -345,9 +348,38 @@ class Side:
                 total -= float(np.sum(zero_term, dtype=np.float64))
                 total += (1.0 if beta == 1.0 else 1.0 / beta) * sum_power_lowrank(L, R, beta, M)
             return total
-        Y = self._product(L, R)
+        return self._dense_divergence(L, R, beta)
+
+    def _dense_divergence(self, L: np.ndarray, R: np.ndarray, beta: float) -> float:
+        """D_beta of a dense X by blocks of its stored rows, each block of the product used while in cache.
+
+        Each block's terms are summed in float64 and the blocks' sums added in order. For
+        beta = 1 the logarithms are taken by numpy, vectorised (:func:`_kernels.kl_log_ratio_pass`).
+        """
+        X, M = self.X, self.mask
+        n, m = X.shape
+        b = max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
+        buf = self.divergence_buffer
+        if buf is None or buf.dtype != L.dtype or buf.shape[0] < min(b, n) or buf.shape[1] != m:
+            buf = self.divergence_buffer = np.empty((min(b, n), m), dtype=L.dtype)
+        ratio = buf if L.dtype == np.float64 else np.empty(buf.shape, dtype=np.float64)
         empty = np.empty((0, 0), dtype=X.dtype)
-        return float(_kernels.dense_divergence(X, Y, empty if M is None else M, beta))
+        total = 0.0
+        for s in range(0, n, b):
+            e = min(s + b, n)
+            P = buf[: e - s]
+            np.matmul(R[s:e], L.T, out=P) if self.transposed else np.matmul(L[s:e], R.T, out=P)
+            Mb = empty if M is None else M[s:e]
+            if beta == 1.0:
+                Q = ratio[: e - s]
+                part = _kernels.kl_log_ratio_pass(X[s:e], P, Mb, Q)
+                with np.errstate(divide="ignore"):
+                    np.log(Q, out=Q)
+                part += _kernels.weighted_sum(X[s:e], Q)
+            else:
+                part = _kernels.dense_divergence(X[s:e], P, Mb, beta)
+            total += float(part)
+        return total
 
 
 class Problem:
