@@ -25,9 +25,9 @@ EPSILON = float(np.finfo(np.float32).eps)
 _OPTS: dict[str, Any] = dict(nogil=True, cache=True, fastmath={"reassoc", "contract"}, error_model="numpy")
 
 
-# Bytes of R's rows that one pass over a block of columns keeps in use (within a core's L2):
-# beyond it, every row of X would fetch R's rows from memory again.
-_TILE_BYTES = 192 * 1024
+# Bytes of R's rows that one pass over a block of columns keeps in use (within a core's L2, half
+# of 1 MB): beyond it, every row of X would fetch R's rows from memory again.
+_TILE_BYTES = 512 * 1024
 _NO_DEN = np.empty(0)  # mu_numerator: no fused update
 _NO_WEIGHTS = np.empty(0)
 
