@@ -16,7 +16,7 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, cast
 
 import numpy as np
@@ -135,9 +135,10 @@ class Side:
     mask: np.ndarray | sp.csr_matrix | None  # same layout as X, float; None = all observed
     weights: np.ndarray | None  # sparse X only: mask values at X's stored entries
     transposed: bool  # dense only: this side updates the right factor (X ~ R @ L.T)
-    buffer: np.ndarray | None = None  # dense only: scratch space for the product, reused
+    buffer: np.ndarray | None = None  # scratch space, reused: the dense product, or the sparse I-divergence ratio
     block_buffer: _StripeBuffers | None = None  # dense only: scratch space of the blocked I-divergence update
-    divergence_buffer: np.ndarray | None = None  # dense only: one block of the product, for the divergence
+    divergence_buffers: list[np.ndarray] = field(default_factory=list)  # dense only: a block of the product per
+    # thread, for the divergence
 
     @property
     def sparse(self) -> bool:
@@ -163,7 +164,10 @@ class Side:
         """
         X = cast("sp.csr_matrix", self.X)
         den_row = np.ascontiguousarray(den_row, dtype=L.dtype)
-        _kernels.kl_update(X.indptr, X.indices, X.data, L, R, den_row, np.empty_like(L))
+        buf = self.buffer
+        if buf is None or buf.shape != L.shape or buf.dtype != L.dtype:  # N / den, reused across iterations
+            buf = self.buffer = np.empty_like(L)
+        _kernels.kl_update(X.indptr, X.indices, X.data, L, R, den_row, buf)
         return L
 
     def _dense_nd(self, L, R, beta):
@@ -177,7 +181,9 @@ class Side:
             return E.T @ R if t else E @ R
 
         if beta == 2.0 and M is None:
-            return rdot(X), L @ (R.T @ R)
+            # X R formed transposed, (k, rows) = R^T X^T: OpenBLAS runs the wide-output form faster
+            # on these shapes (the form scikit-learn's H update uses)
+            return (R.T @ X).T if t else (R.T @ X.T).T, L @ (R.T @ R)
         Y = self._product(L, R)
         if beta == 2.0:
             Y *= M
@@ -353,33 +359,45 @@ class Side:
     def _dense_divergence(self, L: np.ndarray, R: np.ndarray, beta: float) -> float:
         """D_beta of a dense X by blocks of its stored rows, each block of the product used while in cache.
 
-        Each block's terms are summed in float64 and the blocks' sums added in order. For
-        beta = 1 the logarithms are taken by numpy, vectorised (:func:`_kernels.kl_log_ratio_pass`).
+        The blocks are grouped in at most 8 contiguous stripes run as the blocked numerator runs
+        them (:func:`_stripes_in_threads`); each block's terms are summed in float64, each stripe
+        sums its blocks in order and the stripes are added in order, whatever the number of
+        threads. For beta = 1 the logarithms are taken by numpy, vectorised
+        (:func:`_kernels.kl_log_ratio_pass`).
         """
         X, M = self.X, self.mask
         n, m = X.shape
         b = max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
-        buf = self.divergence_buffer
-        if buf is None or buf.dtype != L.dtype or buf.shape[0] < min(b, n) or buf.shape[1] != m:
-            buf = self.divergence_buffer = np.empty((min(b, n), m), dtype=L.dtype)
-        ratio = buf if L.dtype == np.float64 else np.empty(buf.shape, dtype=np.float64)
+        starts = range(0, n, b)
+        n_stripes = max(1, min(8, len(starts)))
+        stripes = np.array_split(np.asarray(starts), n_stripes)
+        count = min(n_stripes, _blas_threads())
+        bufs = self.divergence_buffers
+        if len(bufs) != count or bufs[0].dtype != L.dtype or bufs[0].shape != (min(b, n), m):
+            bufs = self.divergence_buffers = [np.empty((min(b, n), m), dtype=L.dtype) for _ in range(count)]
         empty = np.empty((0, 0), dtype=X.dtype)
-        total = 0.0
-        for s in range(0, n, b):
-            e = min(s + b, n)
-            P = buf[: e - s]
-            np.matmul(R[s:e], L.T, out=P) if self.transposed else np.matmul(L[s:e], R.T, out=P)
-            Mb = empty if M is None else M[s:e]
-            if beta == 1.0:
-                Q = ratio[: e - s]
-                part = _kernels.kl_log_ratio_pass(X[s:e], P, Mb, Q)
-                with np.errstate(divide="ignore"):
-                    np.log(Q, out=Q)
-                part += _kernels.weighted_sum(X[s:e], Q)
-            else:
-                part = _kernels.dense_divergence(X[s:e], P, Mb, beta)
-            total += float(part)
-        return total
+        sums = [0.0] * n_stripes
+
+        def run(i: int, t: int) -> None:
+            total = 0.0
+            for s in stripes[i]:
+                e = min(s + b, n)
+                P = bufs[t][: e - s]
+                np.matmul(R[s:e], L.T, out=P) if self.transposed else np.matmul(L[s:e], R.T, out=P)
+                Mb = empty if M is None else M[s:e]
+                if beta == 1.0:
+                    Q = P if P.dtype == np.float64 else np.empty(P.shape, dtype=np.float64)
+                    part = _kernels.kl_log_ratio_pass(X[s:e], P, Mb, Q)
+                    with np.errstate(divide="ignore"):
+                        np.log(Q, out=Q)
+                    part += _kernels.weighted_sum(X[s:e], Q)
+                else:
+                    part = _kernels.dense_divergence(X[s:e], P, Mb, beta)
+                total += float(part)
+            sums[i] = total
+
+        _stripes_in_threads(run, n_stripes, count)
+        return float(sum(sums))
 
 
 class Problem:
