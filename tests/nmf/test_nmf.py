@@ -1265,3 +1265,80 @@ def test_fit_does_not_solve_the_coefficients_fit_transform_does(rng, monkeypatch
     assert len(calls) == 2
     np.testing.assert_array_equal(a.components_, b.components_)
     assert mm.components_.shape == (4, 12)
+
+
+# --------------------------------------------------------------------------- cost of a fit
+def test_fit_does_not_solve_the_coefficients(rng, monkeypatch):
+    """fit learns the dictionary only: the coefficients solved to convergence are fit_transform's alone."""
+    import mmconcepts.nmf._estimator as estimator
+
+    X = _positive(rng)
+    expected = NMF(3, beta_loss=1, random_state=0, max_iter=30).fit(X).components_
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("fit solved the coefficients")
+
+    monkeypatch.setattr(estimator, "solve_coefficients", refuse)
+    model = NMF(3, beta_loss=1, random_state=0, max_iter=30).fit(X)
+    np.testing.assert_array_equal(model.components_, expected)
+    with pytest.raises(AssertionError, match="fit solved"):
+        NMF(3, beta_loss=1, random_state=0, max_iter=30).fit_transform(X)
+
+
+@pytest.mark.parametrize("kind", ["dense", "sparse", "masked", "penalised", "rescaled"])
+@pytest.mark.parametrize("beta", [1.0, 2.0, 0.5])
+def test_final_divergence_is_that_of_the_final_factors(rng, kind, beta):
+    """extra['divergence'] (reconstruction_err_'s source) is D_beta(X | W H) of the returned factors, in X's
+    units, without the penalties."""
+    X = _positive(rng, 60, 45) * (rng.random((60, 45)) < 0.6)
+    X[0, 0] = 1.0
+    kw: dict = dict(beta_loss=beta, init="nndsvda", max_iter=25, tol=0, random_state=0)
+    mask = None
+    if kind == "sparse":
+        X = sp.csr_matrix(X)
+    elif kind == "masked":
+        mask = rng.random(X.shape) < 0.8
+    elif kind == "penalised":
+        kw.update(alpha_W=0.01, alpha_H=0.02, l1_ratio=0.5)
+    elif kind == "rescaled":  # outside the range fitted as given: the fit runs on X / 2 ** 40
+        X = X * 2.0**40
+    res = beta_nmf(X, 4, mask=mask, **kw)
+    expected = beta_divergence(X, res.W, res.H, beta, mask=mask)
+    assert res.extra["divergence"] == pytest.approx(expected, rel=1e-9)
+    if kind == "penalised":
+        assert res.loss_history[-1] > expected * (1 + 1e-6)
+    model = NMF(4, **kw).fit(X, mask=mask)
+    assert model.reconstruction_err_ == pytest.approx(np.sqrt(2 * expected), rel=1e-9)
+
+
+@pytest.mark.parametrize("beta", BETAS + [3.0])
+@pytest.mark.parametrize("masked", [False, True])
+def test_dense_divergence_by_blocks_equals_the_elementwise_sum(rng, monkeypatch, beta, masked):
+    """The dense divergence, by blocks of rows over several stripes, equals the sum of its terms (zeros of X,
+    unobserved cells and cells where W H = 0 included)."""
+    import mmconcepts.nmf._problem as problem
+    from mmconcepts.nmf._beta import elementwise_beta_divergence
+
+    monkeypatch.setattr(problem, "_DIVERGENCE_BLOCK_BYTES", 8 * 30 * 7)  # 16-row blocks: 10 blocks, 8 stripes
+    n, m, k = 157, 30, 3
+    X = rng.random((n, m)) + 0.1
+    if beta > 0:
+        X *= rng.random((n, m)) < 0.7
+    W, Ht = rng.random((n, k)), rng.random((m, k))
+    M = (rng.random((n, m)) < 0.75) if masked else None
+    if M is not None:
+        X = X * M
+    Y = W @ Ht.T
+    terms = elementwise_beta_divergence(X, Y, beta)
+    expected = float(np.sum(terms if M is None else np.where(M, terms, 0.0)))
+    assert problem.Problem(X, M).divergence(W, Ht, beta) == pytest.approx(expected, rel=1e-12)
+    if 0 < beta <= 1 and M is not None:  # a row of W of zeros: W H = 0 where X > 0 is infinite, unless unobserved
+        W[5] = 0.0
+        X[5] = 0.0
+        X[5, 0] = 1.0
+        expected_inf = np.inf if M[5, 0] else None
+        got = problem.Problem(X, M).divergence(W, Ht, beta)
+        if expected_inf is not None:
+            assert got == np.inf
+        else:
+            assert np.isfinite(got)

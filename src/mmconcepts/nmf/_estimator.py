@@ -21,6 +21,7 @@ from ._data import is_dask_array, validate_data
 from ._solver import beta_nmf
 from ._updates import (
     BETA_NMF_CONSTRAINTS,
+    NMFResult,
     check_fit_in_range,
     check_objective_range,
     constant_coefficients,
@@ -423,9 +424,11 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         H, Xv, maskv = _live_columns(res.H, *validate_data(X, mask))
         return self._solve_coefficients(Xv, maskv, H, res.W)
 
-    def _fit(self, X: Any, mask: Any, W: Any, H: Any) -> Any:
-        """The multiplicative updates (or the other solvers) from the start; sets the fitted attributes and
-        returns the solver's result (its W is the updates' last iterate, not solved for the final dictionary)."""
+    def _fit(self, X: Any, mask: Any, W: Any, H: Any) -> NMFResult:
+        """Fit the dictionary, set the fitted attributes and return the solver's result (its last W included).
+
+        :meth:`fit` stops here: only :meth:`fit_transform` solves the coefficients to convergence.
+        """
         validate_params(self, self._parameter_constraints)
         res = beta_nmf(  # a dask array goes to the distributed solver (nmf/_dask.py); W is then a dask array
             X,
@@ -443,10 +446,8 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         self.n_iter_ = res.n_iter
         self.loss_history_ = res.loss_history
         self.loss_iterations_ = res.loss_iterations
-        if "divergence" in res.extra:  # dask: the divergence of the last pass over the chunks, X not read again
-            self.reconstruction_err_ = float(np.sqrt(2.0 * max(res.extra["divergence"], 0.0)))
-        else:
-            self.reconstruction_err_ = self._reconstruction_err(X, res.W, res.H, mask)
+        # the divergence of the final factors, evaluated by the solver's last objective: X is not read again
+        self.reconstruction_err_ = float(np.sqrt(2.0 * max(res.extra["divergence"], 0.0)))
         self.n_steps_ = 0
         self._stats = None
         return res
@@ -458,13 +459,6 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
         names = getattr(X, "columns", None)
         if names is not None:
             self.feature_names_in_ = np.asarray(names, dtype=object)
-
-    def _reconstruction_err(self, X, W, H, mask) -> float:
-        from ._problem import beta_divergence
-
-        Xv, maskv = validate_data(X, mask)
-        d = beta_divergence(Xv, W, H, resolve_beta(self.beta_loss), mask=maskv)
-        return float(np.sqrt(2.0 * max(d, 0.0)))
 
     def partial_fit(self, X: Any, y: Any = None, *, mask: Any = None) -> NMF:
         """Update the dictionary with one mini-batch (online multiplicative updates).

@@ -168,6 +168,8 @@ def unreachable_cells(X, W: np.ndarray | None, H: np.ndarray | None) -> tuple[np
         k = np.shape(H)[0]
     else:
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    if (W is None or bool(np.all(np.asarray(W) > 0))) and (H is None or bool(np.all(np.asarray(H) > 0))):
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)  # full supports: every cell is reachable
     Ws = np.ones((n, k)) if W is None else (np.asarray(W) > 0).astype(np.float64)
     Hts = np.ones((m, k)) if H is None else np.ascontiguousarray((np.asarray(H) > 0).T, dtype=np.float64)
     return zero_product_cells(X, Ws, Hts)

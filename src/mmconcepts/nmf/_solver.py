@@ -72,11 +72,12 @@ class _Solver:
         self.step = [1.0, 1.0]  # per-side step sizes of the gradient solvers, carried across iterations
         # per side, (R, R's column sums or None) when R stays fixed across this solver's updates
         self.fixed: list[tuple[np.ndarray, np.ndarray | None] | None] = [None, None]
+        self.last_divergence = float("nan")  # the divergence part of the last objective evaluated
 
     # -- objective -------------------------------------------------------------------
     def objective(self, W: np.ndarray, Ht: np.ndarray) -> float:
-        return (self.problem.divergence(W, Ht, self.beta)
-                + self.penalties[0].value(W) + self.penalties[1].value(Ht))
+        self.last_divergence = self.problem.divergence(W, Ht, self.beta)
+        return self.last_divergence + self.penalties[0].value(W) + self.penalties[1].value(Ht)
 
     def _side_objective(self, s: int, L: np.ndarray, R: np.ndarray) -> float:
         side = self.problem.sides[s]
@@ -277,9 +278,9 @@ def beta_nmf(
     Returns
     -------
     NMFResult
-        W, H, n_iter, loss_history, loss_iterations, converged. For a dask X, W is a dask
-        array with X's row chunks (held by the cluster) and ``extra['divergence']`` the final
-        divergence.
+        W, H, n_iter, loss_history, loss_iterations, converged, and ``extra['divergence']``
+        the divergence of the final factors (``loss_history[-1]`` without the penalties). For a
+        dask X, W is a dask array with X's row chunks (held by the cluster).
 
     Notes
     -----
@@ -380,17 +381,19 @@ def beta_nmf(
     if rescaled:
         check_objective_range(sol.objective(W, Ht), scale, beta)
     shrink = _EmptyColumns.of(problem) if (update_H and solver == "mu" and hoyer == (None, None)) else None
-    W, Ht, n_iter, hist, its, converged = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every, shrink)
+    W, Ht, n_iter, hist, its, converged, sol = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every, shrink)
     check_fit_in_range(X, beta, W, Ht, hist)
     stopped = tol > 0 and not converged and max_iter > 0
     cause = infinite_objective_cause(X, W, Ht, beta, scale) if stopped and not np.isfinite(hist[-1]) else None
+    divergence = sol.last_divergence  # of the final factors: the fit always ends on an evaluation
     if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
         hist = in_units_of_X(hist, scale, beta)
+        divergence = float(in_units_of_X(divergence, scale, beta))
         W = W * dtype.type(scale_W)
         Ht = Ht * dtype.type(scale_H)
     if stopped:
         warnings.warn(stopped_message(max_iter, tol, hist[-1], cause), ConvergenceWarning, stacklevel=2)
-    return NMFResult(W, np.ascontiguousarray(Ht.T), n_iter, hist, its, converged)
+    return NMFResult(W, np.ascontiguousarray(Ht.T), n_iter, hist, its, converged, {"divergence": divergence})
 
 
 def _fit_scales(X, H, beta: float, update_H: bool, sparseness_H: float | None) -> tuple[float, float, float]:
@@ -507,7 +510,8 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
     """Alternate W and H updates; record the objective every ``loss_every`` iterations.
 
     With ``shrink``, the all-zero columns of X are left out after the first iteration (see
-    :class:`_EmptyColumns`) and put back, as zero rows of Ht, at the end.
+    :class:`_EmptyColumns`) and put back, as zero rows of Ht, at the end. Returns
+    (W, Ht, n_iter, objectives, their iterations, converged, the solver of the last iterations).
     """
     shrunk = False
     if not update_H:  # W's updates all see the same Ht
@@ -544,4 +548,4 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
             prev = err
     if shrunk:
         Ht = cast(_EmptyColumns, shrink).expand(Ht)
-    return W, Ht, n_iter, np.asarray(hist), np.asarray(its, dtype=int), converged
+    return W, Ht, n_iter, np.asarray(hist), np.asarray(its, dtype=int), converged, sol
