@@ -11,9 +11,13 @@ approach a coefficient that is zero at the optimum no faster than geometrically,
 that can be close to one: from a flat start, a few hundred of them leave the coefficients
 percents from the optimum. The projected Newton method of Bertsekas (1982) identifies the
 zero coefficients in a few steps and then converges quadratically; an Armijo search along the
-projection arc and a Levenberg-Marquardt ridge make it converge from any start. It is written
-by hand: scipy's ``nnls`` solves beta = 2 only, without a mask, one row at a time, and no
-maintained library solves the other betas.
+projection arc and a Levenberg-Marquardt ridge (scaled by each coefficient's curvature, as
+Marquardt's) make it converge from any start. Where x spans hundreds of orders of magnitude
+(kernel-density histograms), curvatures do too: the Newton system is solved scaled to a unit
+diagonal, a coefficient far below its optimum climbs by the multiplicative update's factor
+rather than by Newton's doubling, and a free coefficient near zero that the coupled step would
+clip is held for the step. It is written by hand: scipy's ``nnls`` solves beta = 2 only,
+without a mask, one row at a time, and no maintained library solves the other betas.
 
 Rows whose minimiser is not unique (:func:`determined_rows`) keep their start. For
 1 < beta < 2 the curvature is infinite where a product vanishes at an x = 0: the steps can stop
@@ -39,30 +43,38 @@ __all__ = ["determined_rows", "solve_coefficients", "solves_coefficients"]
 
 #: Sufficient decrease of the Armijo rule, and the step halvings tried before the ridge grows.
 _SIGMA, _HALVINGS = 1e-4, 30
-#: The smallest ridge added to the free coefficients' Hessian, relative to its largest diagonal entry: a
-#: singular restriction stays solvable, a regular one keeps its Newton step to about 1e-14 times its condition
-#: number. A row whose step needs many halvings gets a larger ridge (Levenberg-Marquardt), up to 1, where the
-#: step is its gradient scaled by its curvature: directions of no curvature (beta = 1, zero x) stay bounded.
+#: The smallest ridge added to the free coefficients' Hessian, relative to each one's own curvature (its
+#: diagonal entry; 1e-14 of the row's largest for a coefficient without any): a singular restriction stays solvable, a
+#: regular one keeps its Newton step to about 1e-14 times its scaled condition number. A row whose step needs
+#: many halvings gets a larger ridge (Levenberg-Marquardt), up to 1, about half its gradient scaled by its
+#: curvature: directions of no curvature (beta = 1, zero x) stay bounded.
 _RIDGE = 1e-14
 #: Below this ridge a step is a Newton step: a row optimal to the tolerance takes full ones, whose length
 #: measures its distance to the optimum.
 _NEWTON_RIDGE = 1e-6
 #: The floor of the product where the derivatives take its negative powers with x > 0 (x y^(beta-2),
 #: x y^(beta-3)): the multiplicative updates clip it at float32's epsilon, which changes the problem where a
-#: product is that small; here the gradient is the objective's own down to this floor, where its terms still
-#: fit in float64 (x / y < 1e106 for the x <= 2^20 of the rescaled data), so that it agrees with the
-#: objective the line search reads. The curvature's term without x, (beta - 1) y^(beta-2) for
+#: product is that small; here the terms still fit in float64 at this floor (x / y < 1e106 for the x <= 2^20
+#: of the rescaled data), and below it the objective the line search reads continues its x y^(beta-1) term
+#: (x log y) linearly (:func:`_floored_divergence`): the gradient is that objective's own everywhere. The curvature's term without x, (beta - 1) y^(beta-2) for
 #: 1 < beta < 2, infinite at y = 0 where the objective is finite, takes the product clipped at float32's
 #: epsilon as the updates do: it is only the Newton steps' model.
 _FLOOR = 1e-100
 #: The most a step may divide a product where x > 0 (beta < 2). The derivative there is -inf at y = 0, so the
 #: optimum has y > 0; but the objective stays finite (1 < beta < 2) or grows only as x log(1 / y) (beta = 1),
 #: so a projected step that zeroes the only atoms reaching such a cell can lower it, and Newton steps then
-#: climb back from y near 0 only by a constant factor each. The line search refuses such steps.
+#: climb back from y near 0 only by a constant factor each. The line search refuses such steps, unless the
+#: cell's divergence is below the resolution of its row's (:data:`_RESOLUTION`): an x too small to matter.
 _COLLAPSE = 1e-3
 #: The relative decrease of a row's objective below which its rounding (a sum of terms each exact to about 1e-16)
 #: may hide it: a step that predicts no more is not searched further.
 _RESOLUTION = 1e-13
+#: The dictionary's entries (scaled to a largest of about 1) the curvature leaves out: their products would
+#: underflow. The curvature is only the Newton steps' model; the gradient and the objective keep them.
+_NEGLIGIBLE = 1e-150
+_TINY = np.finfo(np.float64).tiny
+#: The excess -g / den (the multiplicative update's factor minus one) beyond which a coefficient climbs by that factor.
+_CLIMB = 3.0
 #: Floats in the temporaries of one block of rows.
 _BLOCK_CELLS = 1 << 22
 #: Bertsekas' epsilon: a coefficient within this fraction of its row's largest (and within one scaled
@@ -178,11 +190,14 @@ class _SparseKL(_Rows):
     def _divergence(self, rows, W, start):
         sub, y = self._at_nonzeros(rows, W)
         x = sub.data
-        with np.errstate(divide="ignore", invalid="ignore"):
-            terms = np.where(x > 0, x * np.log(np.where(x > 0, x, 1.0) / y), 0.0) - x
-        if start is not None:
-            terms = np.where((x > 0) & (y < _COLLAPSE * self._at_nonzeros(rows, start)[1]), np.inf, terms)
-        return _row_sums(sub, terms) + W @ self.colsum
+        terms = _floored_divergence(x, y, 1.0) - y  # the products' sum is W @ colsum
+        f = _row_sums(sub, terms) + W @ self.colsum
+        if start is None:
+            return f
+        # the whole cell, x log(x / y) - x + y, against its row's divergence
+        owner = np.repeat(np.arange(sub.shape[0]), np.diff(sub.indptr))
+        collapsed = _collapsed(x, y, self._at_nonzeros(rows, start)[1], terms + y, f[owner])
+        return np.where(_row_sums(sub, collapsed.astype(np.float64)) > 0, np.inf, f)
 
     def derivatives(self, rows, W):
         sub, y = self._at_nonzeros(rows, W)
@@ -210,7 +225,10 @@ class _Dense(_Rows):
         m, k = Ht.shape
         iu = np.triu_indices(k)
         self.iu = iu
-        self.outer = Ht[:, iu[0]] * Ht[:, iu[1]]  # (m, k (k + 1) / 2): row j holds the upper triangle of h_j h_j^T
+        # (m, k (k + 1) / 2): row j holds the upper triangle of h_j h_j^T, of the entries above :data:`_NEGLIGIBLE`
+        # (products that underflow to subnormal numbers are a hundred times slower to make and to multiply)
+        Hn = np.where(Ht >= _NEGLIGIBLE, Ht, 0.0)
+        self.outer = Hn[:, iu[0]] * Hn[:, iu[1]]
 
     def _block(self, rows):
         X = self.X[rows]
@@ -227,13 +245,14 @@ class _Dense(_Rows):
         for part in self._row_blocks(len(rows), self.Ht.shape[0]):
             X, M = self._block(rows[part])
             Y = W[part] @ self.Ht.T
-            with np.errstate(over="ignore"):
-                d = elementwise_beta_divergence(X, Y, self.beta)
-            if start is not None and self.beta < 2.0:
-                d = np.where((X > 0) & (Y < _COLLAPSE * (start[part] @ self.Ht.T)), np.inf, d)
+            d = _floored_divergence(X, Y, self.beta)
             if M is not None:
                 d = np.where(M > 0, d * M, 0.0)
             f[part] = d.sum(axis=1)
+            if start is not None and self.beta < 2.0:
+                observed = X > 0 if M is None else (X > 0) & (M > 0)
+                collapsed = _collapsed(observed, Y, start[part] @ self.Ht.T, d, f[part, None])
+                f[part] = np.where(collapsed.any(axis=1), np.inf, f[part])
         return f
 
     def derivatives(self, rows, W):
@@ -249,6 +268,7 @@ class _Dense(_Rows):
                 Yf = np.maximum(Y, _FLOOR)
                 den_y, num_y = np.ones_like(Y), X / Yf
                 curv = num_y / Yf
+                curv[curv < _TINY] = 0.0  # subnormal (x itself can be)
             else:
                 Yf, Yc = np.maximum(Y, _FLOOR), np.maximum(Y, EPSILON)
                 den_y, num_y = np.maximum(Y, 0.0) ** (beta - 1.0), X * Yf ** (beta - 2.0)
@@ -260,6 +280,33 @@ class _Dense(_Rows):
             Hs[:, self.iu[0], self.iu[1]] = upper
             Hs[:, self.iu[1], self.iu[0]] = upper
             yield (part, *self._penalised(Wp, num_y @ self.Ht, den_y @ self.Ht, Hs))
+
+
+def _floored_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np.ndarray:
+    """d_beta(x | y) elementwise, its term in x y^(beta-1) (x log y at beta = 1) continued linearly below :data:`_FLOOR`.
+
+    The derivatives take that term's derivative, x y^(beta-2), at the product clipped to the floor: this is the
+    objective whose derivatives they are (convex, once differentiable), equal to d_beta wherever the product is
+    above the floor, and finite at y = 0.
+    """
+    if beta == 2.0:
+        return elementwise_beta_divergence(x, y, beta)
+    yf = np.maximum(y, _FLOOR)
+    below = np.minimum(y / _FLOOR - 1.0, 0.0)  # (y - floor) / floor where y < floor, else 0
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if beta == 1.0:
+            # x log(x / y) - x + y with log y continued as log(floor) + (y - floor) / floor
+            return np.where(x > 0, x * (np.log(np.where(x > 0, x, 1.0) / yf) - below), 0.0) - x + y
+        # x^beta / (beta (beta - 1)) + y^beta / beta - x y^(beta-1) / (beta - 1), the last term continued
+        cross = np.where(x > 0, x * yf ** (beta - 1.0) * (1.0 + (beta - 1.0) * below), 0.0)
+        return (x**beta + (beta - 1.0) * y**beta - beta * cross) / (beta * (beta - 1.0))
+
+
+def _collapsed(x_positive, y, y_start, cell, total) -> np.ndarray:
+    """The cells a step collapses (:data:`_COLLAPSE`) where x > 0 and their divergence ``cell`` is not below the
+    resolution of their row's ``total``: a cell whose x is too small to change its row's objective at any
+    product may follow its atoms to zero."""
+    return (x_positive > 0) & (y < _COLLAPSE * y_start) & (cell > _RESOLUTION * np.abs(total))
 
 
 def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
@@ -285,6 +332,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     g, den_all, d = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
     active = np.empty((n, k), dtype=bool)
     optimal = np.empty(n, dtype=bool)
+    factor = np.empty((n, k))
     tiny = np.finfo(np.float64).tiny
     for part, gp, den, Hs in model.derivatives(rows, W):
         Wp = W[part]
@@ -297,21 +345,44 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         diag = np.einsum("ijj->ij", Hs)
         scale = diag.max(axis=1, keepdims=True)
         scale = np.where(scale > 0, scale, 1.0)
-        safe = np.maximum(diag, _RIDGE * scale)
-        moved = np.abs(Wp - np.maximum(Wp - gp / safe, 0.0)).max(axis=1)
+        # each coefficient's own curvature (they span hundreds of orders of magnitude where products are tiny);
+        # one without any (the objective is linear in it) a floor far below the row's largest
+        safe = np.where(diag > 0, diag, _RIDGE * scale)
+        with np.errstate(over="ignore"):
+            moved = np.abs(Wp - np.maximum(Wp - gp / safe, 0.0)).max(axis=1)
         eps = np.minimum(_EPS_CAP * np.maximum(Wp.max(axis=1), tiny), moved)[:, None]
         # held at zero: near it and pushed down, or pushed down without curvature (the objective is linear in
         # it: under beta = 1, an atom that sees only zero x)
         act = ((Wp <= eps) | (diag == 0)) & (gp > 0)
-        g[part], den_all[part], active[part] = gp, den, act
-        d[part] = _restricted_newton(Hs, gp, act, safe, ridge[part, None] * scale)
-    return g, den_all, d, active, optimal
+        # far below its optimum, where the product it makes is far below x, a coefficient's Newton steps only double
+        # it (the curvature of -x log y grows as y shrinks): it takes the multiplicative update's factor num / den
+        # instead, along a geometric arc, and is held out of the Newton system
+        up = ~act & (Wp > 0) & (excess < -_CLIMB) & np.isfinite(excess)
+        act = act | up
+        dp = _restricted_newton(Hs, gp, act, safe, ridge[part])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            factor[part] = np.where(up, 1.0 - excess, 1.0)
+        dp[up] = Wp[up] * excess[up]  # w - d = w num / den
+        # a free coefficient near zero that the coupled step drives below it (though its own gradient pushes it
+        # up) would be clipped at every step length the arc can resolve: it is held where it is, and the others'
+        # step solved without it (a Newton step in a subspace still descends)
+        held = ~act & (Wp <= eps) & (dp > Wp)
+        redo = np.flatnonzero(held.any(axis=1))
+        if redo.size:
+            dp[redo] = _restricted_newton(Hs[redo], gp[redo], act[redo] | held[redo], safe[redo], ridge[part][redo])
+            dp[held] = 0.0
+            act = act | held
+        g[part], den_all[part], active[part], d[part] = gp, den, act, dp
+    return g, den_all, d, active, optimal, factor
 
 
 def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
                        ridge: np.ndarray) -> np.ndarray:
     """Each row's step: the Newton step of its free coefficients, the curvature-scaled gradient of the active ones.
 
+    The free coefficients' system is scaled by their curvatures (``safe``) to a unit diagonal,
+    where ``ridge`` (one per row) is added (Levenberg-Marquardt with Marquardt's scaling): its
+    solution does not depend on the coefficients' units, however far apart their curvatures.
     The free coefficients are moved first (a stable sort keeps their order), and only the
     leading block of the largest free count is solved: with many coefficients held at zero,
     far smaller systems than (k, k).
@@ -319,17 +390,21 @@ def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.
     r, k = g.shape
     n_free = k - act.sum(axis=1)
     f = int(n_free.max())
-    d = g / safe  # the active coefficients' step (and every coefficient's when none is free)
+    with np.errstate(over="ignore"):
+        d = g / safe  # the active coefficients' step (and every coefficient's when none is free)
     if f == 0:
         return d
     order = np.argsort(act, axis=1, kind="stable")[:, :f]  # each row's free coefficients first
     sub = Hs[np.arange(r)[:, None, None], order[:, :, None], order[:, None, :]]
     free = np.arange(f) < n_free[:, None]  # the leading block holds some active ones in rows with fewer free
     sub *= free[:, :, None] & free[:, None, :]
+    unit = 1.0 / np.sqrt(np.take_along_axis(safe, order, axis=1))
+    sub *= unit[:, :, None]  # |H_ij| <= sqrt(H_ii H_jj): one factor at a time, nothing overflows
+    sub *= unit[:, None, :]
     idx = np.arange(f)
-    # free coefficients: the ridge; active ones: their own curvature
-    sub[:, idx, idx] += np.where(free, ridge, np.take_along_axis(safe, order, axis=1))
-    step = np.linalg.solve(sub, np.take_along_axis(g, order, axis=1)[:, :, None])[:, :, 0]
+    # free coefficients: the ridge; active ones: their own curvature (1 once scaled)
+    sub[:, idx, idx] = np.where(free, sub[:, idx, idx] + ridge[:, None], 1.0)
+    step = np.linalg.solve(sub, (np.take_along_axis(g, order, axis=1) * unit)[:, :, None])[:, :, 0] * unit
     np.put_along_axis(d, order, step, axis=1)
     return d
 
@@ -387,11 +462,12 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         if rows.size == 0:
             return W, True
         Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
-        g, den, d, active, optimal = _newton_directions(model, rows, Wr, tol, ridge)
+        g, den, d, active, optimal, factor = _newton_directions(model, rows, Wr, tol, ridge)
+        newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
         # Optimal to tol (where the objective no longer resolves the decreases the line search needs): full
         # Newton steps, converging quadratically; done when one moves no coefficient by more than tol times the
         # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance).
-        newton = optimal & (ridge <= _NEWTON_RIDGE)
+        newton = optimal & newtonian
         full = np.maximum(Wr[newton] - d[newton], 0.0)
         size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr[newton]).max(axis=1))
         W[rows[newton]] = full
@@ -407,6 +483,8 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
                 break
             p = pending[todo]
             trial = np.maximum(Wr[p] - alpha[todo, None] * d[p], 0.0)
+            climbing = factor[p] != 1.0
+            trial[climbing] = (Wr[p] * factor[p] ** alpha[todo, None])[climbing]
             ft = model.objective(rows[p], trial, Wr[p])
             # Armijo along the projection arc: the decrease the gradient predicts from the free coefficients'
             # Newton step and the active ones' actual move
@@ -421,7 +499,12 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             stuck[todo[hidden]] = True
             todo = todo[~ok & ~hidden]
             alpha[todo] *= 0.5
-        # a hidden decrease: a failed search, as one that ran out of halvings
+        # a decrease the objective cannot resolve along Newton's own step: stationary up to rounding; along a step
+        # the ridge shortened from the full step on: one closer to Newton's may be resolved; otherwise a failed
+        # search, as one that ran out of halvings
+        done[pending[stuck & newtonian[pending]]] = True
+        short = stuck & ~newtonian[pending] & (alpha == 1.0)
+        stuck &= ~newtonian[pending] & ~short
         alpha[stuck] = 0.0
         todo = np.union1d(todo, np.flatnonzero(stuck))
         # no decrease along the arc even at the largest ridge: stationary up to rounding
@@ -430,7 +513,8 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         # Levenberg-Marquardt: a row whose full step was taken trusts Newton more, one that needed halvings less
         r = rows[pending]
         ridge_all[r] = np.where(alpha == 1.0, np.maximum(ridge_all[r] / 10.0, _RIDGE), ridge_all[r])
-        ridge_all[r] = np.where(alpha < 0.125, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
+        ridge_all[r] = np.where(short, np.maximum(ridge_all[r] / 100.0, _RIDGE), ridge_all[r])
+        ridge_all[r] = np.where((alpha < 0.125) & ~short, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
         rows = rows[~done]
     return W, rows.size == 0
 
