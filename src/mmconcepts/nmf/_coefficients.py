@@ -63,8 +63,9 @@ _FLOOR = 1e-100
 #: The most a step may divide a product where x > 0 (beta < 2). The derivative there is -inf at y = 0, so the
 #: optimum has y > 0; but the objective stays finite (1 < beta < 2) or grows only as x log(1 / y) (beta = 1),
 #: so a projected step that zeroes the only atoms reaching such a cell can lower it, and Newton steps then
-#: climb back from y near 0 only by a constant factor each. The line search refuses such steps, unless the
-#: cell's divergence is below the resolution of its row's (:data:`_RESOLUTION`): an x too small to matter.
+#: climb back from y near 0 only by a constant factor each. The line search refuses such steps, and the coefficients
+#: held at zero shrink by at most twice this factor per step (their scaled-gradient step to zero would collapse
+#: the cells their atom alone reaches at every step length the arc can resolve).
 _COLLAPSE = 1e-3
 #: The relative decrease of a row's objective below which its rounding (a sum of terms each exact to about 1e-16)
 #: may hide it: a step that predicts no more is not searched further.
@@ -194,9 +195,7 @@ class _SparseKL(_Rows):
         f = _row_sums(sub, terms) + W @ self.colsum
         if start is None:
             return f
-        # the whole cell, x log(x / y) - x + y, against its row's divergence
-        owner = np.repeat(np.arange(sub.shape[0]), np.diff(sub.indptr))
-        collapsed = _collapsed(x, y, self._at_nonzeros(rows, start)[1], terms + y, f[owner])
+        collapsed = _collapsed(x, y, self._at_nonzeros(rows, start)[1])
         return np.where(_row_sums(sub, collapsed.astype(np.float64)) > 0, np.inf, f)
 
     def derivatives(self, rows, W):
@@ -251,7 +250,7 @@ class _Dense(_Rows):
             f[part] = d.sum(axis=1)
             if start is not None and self.beta < 2.0:
                 observed = X > 0 if M is None else (X > 0) & (M > 0)
-                collapsed = _collapsed(observed, Y, start[part] @ self.Ht.T, d, f[part, None])
+                collapsed = _collapsed(observed, Y, start[part] @ self.Ht.T)
                 f[part] = np.where(collapsed.any(axis=1), np.inf, f[part])
         return f
 
@@ -302,11 +301,9 @@ def _floored_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np.ndarray
         return (x**beta + (beta - 1.0) * y**beta - beta * cross) / (beta * (beta - 1.0))
 
 
-def _collapsed(x_positive, y, y_start, cell, total) -> np.ndarray:
-    """The cells a step collapses (:data:`_COLLAPSE`) where x > 0 and their divergence ``cell`` is not below the
-    resolution of their row's ``total``: a cell whose x is too small to change its row's objective at any
-    product may follow its atoms to zero."""
-    return (x_positive > 0) & (y < _COLLAPSE * y_start) & (cell > _RESOLUTION * np.abs(total))
+def _collapsed(x_positive, y, y_start) -> np.ndarray:
+    """The cells where x > 0 whose product a step divides by more than :data:`_COLLAPSE`."""
+    return (x_positive > 0) & (y < _COLLAPSE * y_start)
 
 
 def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
@@ -468,7 +465,13 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         # Newton steps, converging quadratically; done when one moves no coefficient by more than tol times the
         # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance).
         newton = optimal & newtonian
+        # beta < 2: the held coefficients shrink by at most 2 _COLLAPSE per searched step (see there); a full step
+        # takes them to zero exactly unless that collapses a cell with x > 0
+        floor = np.where(active, 2.0 * _COLLAPSE * Wr, 0.0) if model.beta < 2.0 else np.zeros_like(Wr)
         full = np.maximum(Wr[newton] - d[newton], 0.0)
+        if model.beta < 2.0 and full.size:
+            collapsing = ~np.isfinite(model.objective(rows[newton], full, Wr[newton]))
+            full[collapsing] = np.maximum(Wr[newton] - d[newton], floor[newton])[collapsing]
         size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr[newton]).max(axis=1))
         W[rows[newton]] = full
         f_all[rows[newton]] = model.objective(rows[newton], full)
@@ -482,7 +485,7 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             if todo.size == 0:
                 break
             p = pending[todo]
-            trial = np.maximum(Wr[p] - alpha[todo, None] * d[p], 0.0)
+            trial = np.maximum(Wr[p] - alpha[todo, None] * d[p], floor[p])
             climbing = factor[p] != 1.0
             trial[climbing] = (Wr[p] * factor[p] ** alpha[todo, None])[climbing]
             ft = model.objective(rows[p], trial, Wr[p])
@@ -500,11 +503,9 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             todo = todo[~ok & ~hidden]
             alpha[todo] *= 0.5
         # a decrease the objective cannot resolve along Newton's own step: stationary up to rounding; along a step
-        # the ridge shortened from the full step on: one closer to Newton's may be resolved; otherwise a failed
-        # search, as one that ran out of halvings
+        # the ridge damped: a failed search, as one that ran out of halvings
         done[pending[stuck & newtonian[pending]]] = True
-        short = stuck & ~newtonian[pending] & (alpha == 1.0)
-        stuck &= ~newtonian[pending] & ~short
+        stuck &= ~newtonian[pending]
         alpha[stuck] = 0.0
         todo = np.union1d(todo, np.flatnonzero(stuck))
         # no decrease along the arc even at the largest ridge: stationary up to rounding
@@ -513,8 +514,7 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         # Levenberg-Marquardt: a row whose full step was taken trusts Newton more, one that needed halvings less
         r = rows[pending]
         ridge_all[r] = np.where(alpha == 1.0, np.maximum(ridge_all[r] / 10.0, _RIDGE), ridge_all[r])
-        ridge_all[r] = np.where(short, np.maximum(ridge_all[r] / 100.0, _RIDGE), ridge_all[r])
-        ridge_all[r] = np.where((alpha < 0.125) & ~short, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
+        ridge_all[r] = np.where(alpha < 0.125, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
         rows = rows[~done]
     return W, rows.size == 0
 
