@@ -1236,17 +1236,50 @@ def test_coefficients_of_wide_kernel_density_histograms_converge():
     assert np.all(f <= f0)
 
 
+@pytest.mark.parametrize("beta, case", [(2.0, "dense"), (2.0, "sparse"), (1.0, "sparse"), (1.0, "dense"),
+                                        (1.5, "dense"), (1.0, "mask"), (1.5, "penalty")])
+def test_the_curvature_blocks_are_the_gradients_derivative(rng, beta, case):
+    """Each model's Hessian blocks (any order of coefficients) and diagonal against central finite differences of
+    its own gradient (an outside answer), penalties included."""
+    from mmconcepts.nmf._coefficients import _rows_model
+    from mmconcepts.nmf._updates import Penalty
+
+    n, m, k = 4, 12, 5
+    X = rng.gamma(1.0, 1.0, (n, m)) * (rng.random((n, m)) < 0.7)
+    Ht = rng.gamma(1.0, 1.0, (m, k)) + 0.1
+    W = rng.random((n, k)) + 0.2
+    mask = rng.random((n, m)) < 0.8 if case == "mask" else None
+    penalty = Penalty(l1=0.1, l2=0.3) if case == "penalty" else Penalty()
+    model = _rows_model(sp.csr_matrix(X) if case == "sparse" else X, Ht, beta, penalty, mask)
+    rows = np.arange(n)
+
+    def gradient(V):
+        return np.vstack([g for _, g, _, _ in model.derivatives(rows, V)])
+
+    (_, _, _, curvature), = list(model.derivatives(rows, W))
+    order = np.array([rng.permutation(k)[:3] for _ in range(n)])
+    block = curvature.block(order, rows)
+    h = 1e-6
+    for i in range(n):
+        for a, j in enumerate(order[i]):
+            step = np.zeros_like(W)
+            step[i, j] = h
+            column = (gradient(W + step) - gradient(W - step))[i] / (2 * h)
+            np.testing.assert_allclose(block[i, :, a], column[order[i]], rtol=1e-6, atol=1e-8)
+            assert curvature.diag[i, j] == pytest.approx(column[j], rel=1e-6)
+
+
 def test_the_curvature_model_holds_no_subnormal_number():
     """Subnormal products are a hundred times slower to form and multiply: a dictionary with entries down to
-    1e-300 gives a curvature model (the atoms' outer products) without any."""
+    1e-300 gives a curvature model whose entries' products are all normal numbers."""
     from mmconcepts.nmf._coefficients import _Dense
     from mmconcepts.nmf._updates import Penalty
 
     Ht = np.array([[1.0, 1e-200, 1e-300], [0.5, 1e-160, 2.0], [1e-155, 1e-155, 1.0]])
-    outer = _Dense(np.ones((2, 3)), Ht, 1.0, Penalty(), None).outer
-    tiny = np.finfo(np.float64).tiny
-    assert not np.any((outer > 0) & (outer < tiny))
-    assert outer[0, 0] == 1.0 and outer[2, -1] == 1.0  # the entries that matter are kept
+    model = _Dense(np.ones((2, 3)), Ht, 1.0, Penalty(), None)
+    kept = model.Hn[model.Hn > 0]
+    assert kept.min() ** 2 >= np.finfo(np.float64).tiny
+    np.testing.assert_array_equal(model.Hn.T[Ht >= 1e-100], Ht[Ht >= 1e-100])  # the entries that matter are kept
 
 
 def test_a_full_newton_step_leaves_no_cell_with_x_without_a_product():

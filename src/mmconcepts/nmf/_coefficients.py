@@ -76,6 +76,8 @@ _NEGLIGIBLE = 1e-150
 _TINY = np.finfo(np.float64).tiny
 #: The excess -g / den (the multiplicative update's factor minus one) beyond which a coefficient climbs by that factor.
 _CLIMB = 3.0
+#: How many times a climbing coefficient's factor may be squared after a step (up to factor^64).
+_COMPOUNDINGS = 6
 #: Floats in the temporaries of one block of rows.
 _BLOCK_CELLS = 1 << 22
 #: Bertsekas' epsilon: a coefficient within this fraction of its row's largest (and within one scaled
@@ -114,21 +116,21 @@ class _Rows(abc.ABC):
 
     @abc.abstractmethod
     def derivatives(self, rows: np.ndarray, W: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray,
-                                                                               np.ndarray]]:
-        """Blocks (part, g, den, Hs) over ``rows``, penalties included: ``part`` indexes ``rows``.
+                                                                               _Curvature]]:
+        """Blocks (part, g, den, curvature) over ``rows``, penalties included: ``part`` indexes ``rows``.
 
         ``den`` is the positive part of the gradient g = den - num (the denominator of the
-        multiplicative update, thesis eq. 2.16); Hs is (rows, k, k).
+        multiplicative update, thesis eq. 2.16); ``curvature`` the Hessian's diagonal and, on
+        demand, its blocks (a Newton step needs only its free coefficients').
         """
 
-    def _penalised(self, W, num, den, Hs):
+    def _penalised(self, W, num, den, diag, block):
         pen = self.penalty
         if pen.l1:
             den = den + pen.l1
         if pen.l2:
             den = den + pen.l2 * W
-            Hs = Hs + pen.l2 * np.eye(W.shape[1])
-        return den - num, den, Hs
+        return den - num, den, _Curvature(diag, block, pen.l2)
 
     def _row_blocks(self, n_rows: int, cells_per_row: int) -> Iterator[slice]:
         step = max(1, _BLOCK_CELLS // max(1, cells_per_row))
@@ -139,6 +141,25 @@ class _Rows(abc.ABC):
 def _row_sums(A: sp.csr_matrix, values: np.ndarray) -> np.ndarray:
     """The sum over each row of A of ``values``, one per stored entry of A."""
     return np.bincount(np.repeat(np.arange(A.shape[0]), np.diff(A.indptr)), weights=values, minlength=A.shape[0])
+
+
+class _Curvature:
+    """The Hessian of a block of rows: its diagonal ``diag`` (rows, k), and any of its blocks on demand.
+
+    ``block(order, sel)`` gives, for rows ``sel`` of the block, the (len(sel), f, f) Hessian of the
+    coefficients ``order`` (len(sel), f), the L2 penalty ``l2`` included.
+    """
+
+    def __init__(self, diag: np.ndarray, block, l2: float = 0.0):
+        self.diag = diag + l2 if l2 else diag
+        self._block, self._l2 = block, l2
+
+    def block(self, order: np.ndarray, sel: np.ndarray) -> np.ndarray:
+        B = self._block(order, sel)
+        if self._l2:
+            idx = np.arange(order.shape[1])
+            B[:, idx, idx] += self._l2
+        return B
 
 
 class _Quadratic(_Rows):
@@ -170,9 +191,11 @@ class _Quadratic(_Rows):
     def derivatives(self, rows, W):
         den, num = W @ self.G, self.B[rows]
         k = W.shape[1]
+        G = self.G
         for part in self._row_blocks(len(rows), k * k):
-            Hs = np.broadcast_to(self.G, (part.stop - part.start, k, k))
-            yield (part, *self._penalised(W[part], num[part], den[part], Hs))
+            diag = np.broadcast_to(np.diag(G), (part.stop - part.start, k))
+            yield (part, *self._penalised(W[part], num[part], den[part], diag,
+                                          lambda order, sel: G[order[:, :, None], order[:, None, :]]))
 
 
 class _SparseKL(_Rows):
@@ -205,14 +228,20 @@ class _SparseKL(_Rows):
         num = np.asarray(ratio @ self.Ht)
         den = np.broadcast_to(self.colsum, num.shape)
         c = np.sqrt(sub.data) / yc  # x / y^2 = c^2
-        k = W.shape[1]
-        for part in self._row_blocks(len(rows), k * k):
-            Hs = np.empty((part.stop - part.start, k, k))
-            for i, r in enumerate(range(part.start, part.stop)):
-                lo, hi = sub.indptr[r], sub.indptr[r + 1]
-                A = self.Ht[sub.indices[lo:hi]] * c[lo:hi, None]
-                np.matmul(A.T, A, out=Hs[i])
-            yield (part, *self._penalised(W[part], num[part], den[part], Hs))
+        diag = np.asarray(sp.csr_matrix((c**2, sub.indices, sub.indptr), shape=sub.shape) @ self.Ht**2)
+        Ht, indptr, indices = self.Ht, sub.indptr, sub.indices
+
+        def block(start, order, sel):
+            B = np.empty((len(sel), order.shape[1], order.shape[1]))
+            for i, r in enumerate(start + sel):
+                lo, hi = indptr[r], indptr[r + 1]
+                A = Ht[indices[lo:hi, None], order[i]] * c[lo:hi, None]
+                np.matmul(A.T, A, out=B[i])
+            return B
+
+        for part in self._row_blocks(len(rows), W.shape[1]):
+            yield (part, *self._penalised(W[part], num[part], den[part], diag[part],
+                                          lambda order, sel, start=part.start: block(start, order, sel)))
 
 
 class _Dense(_Rows):
@@ -222,12 +251,10 @@ class _Dense(_Rows):
         super().__init__(Ht, beta, penalty)
         self.X, self.mask = X, mask
         m, k = Ht.shape
-        iu = np.triu_indices(k)
-        self.iu = iu
-        # (m, k (k + 1) / 2): row j holds the upper triangle of h_j h_j^T, of the entries above :data:`_NEGLIGIBLE`
-        # (products that underflow to subnormal numbers are a hundred times slower to make and to multiply)
-        Hn = np.where(Ht >= _NEGLIGIBLE, Ht, 0.0)
-        self.outer = Hn[:, iu[0]] * Hn[:, iu[1]]
+        # the curvature's dictionary: the entries above :data:`_NEGLIGIBLE` (products that underflow to subnormal
+        # numbers are a hundred times slower to make and to multiply), atoms as rows, and its squares
+        self.Hn = np.ascontiguousarray(np.where(Ht >= _NEGLIGIBLE, Ht, 0.0).T)
+        self.Hn2 = (self.Hn**2).T
 
     def _block(self, rows):
         X = self.X[rows]
@@ -256,7 +283,7 @@ class _Dense(_Rows):
 
     def derivatives(self, rows, W):
         beta, (m, k) = self.beta, self.Ht.shape
-        for part in self._row_blocks(len(rows), 4 * m + 2 * k * k):
+        for part in self._row_blocks(len(rows), 6 * m + k * (m + k)):
             X, M = self._block(rows[part])
             Wp = W[part]
             Y = Wp @ self.Ht.T
@@ -274,11 +301,13 @@ class _Dense(_Rows):
                 curv = (beta - 1.0) * Yc ** (beta - 2.0) + (2.0 - beta) * X * Yf ** (beta - 3.0)
             if M is not None:
                 den_y, num_y, curv = den_y * M, num_y * M, curv * M
-            upper = curv @ self.outer
-            Hs = np.empty((len(Wp), k, k))
-            Hs[:, self.iu[0], self.iu[1]] = upper
-            Hs[:, self.iu[1], self.iu[0]] = upper
-            yield (part, *self._penalised(Wp, num_y @ self.Ht, den_y @ self.Ht, Hs))
+            root = np.sqrt(curv)
+
+            def block(order, sel, root=root):
+                A = self.Hn[order] * root[sel, None, :]  # (rows, f, m): the free atoms, weighted
+                return A @ A.transpose(0, 2, 1)
+
+            yield (part, *self._penalised(Wp, num_y @ self.Ht, den_y @ self.Ht, curv @ self.Hn2, block))
 
 
 def _floored_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np.ndarray:
@@ -331,7 +360,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     optimal = np.empty(n, dtype=bool)
     factor = np.empty((n, k))
     tiny = np.finfo(np.float64).tiny
-    for part, gp, den, Hs in model.derivatives(rows, W):
+    for part, gp, den, curvature in model.derivatives(rows, W):
         Wp = W[part]
         with np.errstate(divide="ignore", invalid="ignore"):
             excess = np.where(den > 0, gp / den, np.where(gp == 0, 0.0, np.sign(gp) * np.inf))
@@ -339,7 +368,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         size = np.maximum(Wp.max(axis=1, keepdims=True), tiny)
         down = np.minimum(np.maximum(excess, 0.0), Wp / size)
         optimal[part] = np.maximum(np.maximum(-excess, 0.0), down).max(axis=1) <= tol
-        diag = np.einsum("ijj->ij", Hs)
+        diag = curvature.diag
         scale = diag.max(axis=1, keepdims=True)
         scale = np.where(scale > 0, scale, 1.0)
         # each coefficient's own curvature (they span hundreds of orders of magnitude where products are tiny);
@@ -356,24 +385,27 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         # instead, along a geometric arc, and is held out of the Newton system
         up = ~act & (Wp > 0) & (excess < -_CLIMB) & np.isfinite(excess)
         act = act | up
-        dp = _restricted_newton(Hs, gp, act, safe, ridge[part])
+        everyone = np.arange(len(Wp))
+        dp = _restricted_newton(curvature, everyone, gp, act, safe, ridge[part])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             factor[part] = np.where(up, 1.0 - excess, 1.0)
         dp[up] = Wp[up] * excess[up]  # w - d = w num / den
         # a free coefficient near zero that the coupled step drives below it (though its own gradient pushes it
-        # up) would be clipped at every step length the arc can resolve: it is held where it is, and the others'
-        # step solved without it (a Newton step in a subspace still descends)
+        # up) would be clipped at every step length the arc can resolve: it is held out of the Newton system and
+        # takes its own curvature-scaled gradient step (up), the others' step solved without it
         held = ~act & (Wp <= eps) & (dp > Wp)
         redo = np.flatnonzero(held.any(axis=1))
         if redo.size:
-            dp[redo] = _restricted_newton(Hs[redo], gp[redo], act[redo] | held[redo], safe[redo], ridge[part][redo])
-            dp[held] = 0.0
+            dp[redo] = _restricted_newton(curvature, redo, gp[redo], act[redo] | held[redo], safe[redo],
+                                          ridge[part][redo])
+            with np.errstate(over="ignore"):
+                dp[held] = (gp / safe)[held]
             act = act | held
         g[part], den_all[part], active[part], d[part] = gp, den, act, dp
     return g, den_all, d, active, optimal, factor
 
 
-def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
+def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
                        ridge: np.ndarray) -> np.ndarray:
     """Each row's step: the Newton step of its free coefficients, the curvature-scaled gradient of the active ones.
 
@@ -381,8 +413,9 @@ def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.
     where ``ridge`` (one per row) is added (Levenberg-Marquardt with Marquardt's scaling): its
     solution does not depend on the coefficients' units, however far apart their curvatures.
     The free coefficients are moved first (a stable sort keeps their order), and only the
-    leading block of the largest free count is solved: with many coefficients held at zero,
-    far smaller systems than (k, k).
+    leading block of the largest free count is formed and solved: with many coefficients held at
+    zero, far smaller systems than (k, k). ``sel`` are the rows of ``curvature``'s block that
+    ``g``, ``act``, ``safe`` and ``ridge`` hold.
     """
     r, k = g.shape
     n_free = k - act.sum(axis=1)
@@ -392,7 +425,7 @@ def _restricted_newton(Hs: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.
     if f == 0:
         return d
     order = np.argsort(act, axis=1, kind="stable")[:, :f]  # each row's free coefficients first
-    sub = Hs[np.arange(r)[:, None, None], order[:, :, None], order[:, None, :]]
+    sub = curvature.block(order, sel)
     free = np.arange(f) < n_free[:, None]  # the leading block holds some active ones in rows with fewer free
     sub *= free[:, :, None] & free[:, None, :]
     unit = 1.0 / np.sqrt(np.take_along_axis(safe, order, axis=1))
@@ -502,6 +535,14 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             stuck[todo[hidden]] = True
             todo = todo[~ok & ~hidden]
             alpha[todo] *= 0.5
+        # climbing coefficients after a full step (or one too small to see): their factor compounded while the
+        # objective falls (a coefficient 20 orders of magnitude below its optimum climbs in a few steps)
+        full_or_hidden = np.flatnonzero(((alpha == 1.0) & ~np.isin(np.arange(pending.size), todo)) | stuck)
+        lift = full_or_hidden[(factor[pending[full_or_hidden]] != 1.0).any(axis=1)]
+        if lift.size:
+            rose = _compound(model, rows[pending[lift]], W, f_all, Wr[pending[lift]], factor[pending[lift]])
+            stuck[lift[rose]] = False
+            alpha[lift[rose]] = 1.0
         # a decrease the objective cannot resolve along Newton's own step: stationary up to rounding; along a step
         # the ridge damped: a failed search, as one that ran out of halvings
         done[pending[stuck & newtonian[pending]]] = True
@@ -517,6 +558,35 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         ridge_all[r] = np.where(alpha < 0.125, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
         rows = rows[~done]
     return W, rows.size == 0
+
+
+def _compound(model: _Rows, rows: np.ndarray, W: np.ndarray, f_all: np.ndarray, start: np.ndarray,
+              factor: np.ndarray) -> np.ndarray:
+    """The climbing coefficients (``factor`` != 1) of ``rows`` at ``start`` times factor^2, ^4, ... while each
+    power leaves the row's objective no higher (W and f_all updated in place); which rows moved.
+
+    No higher rather than lower: a coefficient far below its optimum changes the objective by less than its
+    rounding until it has climbed most of the way."""
+    climbing = factor != 1.0
+    rose = np.zeros(len(rows), dtype=bool)
+    todo = np.arange(len(rows))
+    power = 2.0
+    for _ in range(_COMPOUNDINGS):
+        if todo.size == 0:
+            break
+        now = W[rows[todo]]
+        trial = now.copy()
+        with np.errstate(over="ignore", invalid="ignore"):
+            trial[climbing[todo]] = (start[todo] * factor[todo] ** power)[climbing[todo]]
+        ft = model.objective(rows[todo], trial, now)
+        with np.errstate(invalid="ignore"):
+            lower = np.isfinite(ft) & (ft <= f_all[rows[todo]])
+        W[rows[todo[lower]]] = trial[lower]
+        f_all[rows[todo[lower]]] = ft[lower]
+        rose[todo[lower]] = True
+        todo = todo[lower]
+        power *= 2.0
+    return rose
 
 
 def solve_coefficients(X, H: np.ndarray, W: np.ndarray, beta: float, *, mask=None, penalty: Penalty | None = None,
