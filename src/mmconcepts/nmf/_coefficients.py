@@ -344,12 +344,13 @@ def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
 
 
 def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float, ridge: np.ndarray):
-    """g, den, the projected Newton direction d, the active coefficients, and the rows optimal to ``tol``.
+    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor.
 
     Active (Bertsekas 1982): a coefficient at (or within eps of) zero whose gradient pushes it
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
-    of the problem restricted to them, with ``ridge`` (one per row, relative to the largest
-    curvature) on the diagonal. Optimality is read in the multiplicative update's terms: with
+    of the problem restricted to them, with ``ridge`` (one per row, relative to each
+    coefficient's curvature) on the diagonal; a climbing one (update factor above 1 +
+    :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the multiplicative update's terms: with
     g = den - num, the ratio num / den (the update's factor) must be at most 1 + ``tol``, and at
     least 1 - ``tol`` where w is more than ``tol`` times the row's largest coefficient (the
     Karush-Kuhn-Tucker conditions, free of units).
