@@ -76,6 +76,8 @@ _NEGLIGIBLE = 1e-150
 _TINY = np.finfo(np.float64).tiny
 #: The excess -g / den (the multiplicative update's factor minus one) beyond which a coefficient climbs by that factor.
 _CLIMB = 3.0
+#: The ratio of free counts grouped in one batched Newton solve (padded to the group's largest).
+_GROUPING = 1.25
 #: How many times a climbing coefficient's factor may be squared after a step (up to factor^64).
 _COMPOUNDINGS = 6
 #: Floats in the temporaries of one block of rows.
@@ -418,25 +420,31 @@ def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, ac
     zero, far smaller systems than (k, k). ``sel`` are the rows of ``curvature``'s block that
     ``g``, ``act``, ``safe`` and ``ridge`` hold.
     """
-    r, k = g.shape
+    k = g.shape[1]
     n_free = k - act.sum(axis=1)
-    f = int(n_free.max())
     with np.errstate(over="ignore"):
         d = g / safe  # the active coefficients' step (and every coefficient's when none is free)
-    if f == 0:
-        return d
-    order = np.argsort(act, axis=1, kind="stable")[:, :f]  # each row's free coefficients first
-    sub = curvature.block(order, sel)
-    free = np.arange(f) < n_free[:, None]  # the leading block holds some active ones in rows with fewer free
-    sub *= free[:, :, None] & free[:, None, :]
-    unit = 1.0 / np.sqrt(np.take_along_axis(safe, order, axis=1))
-    sub *= unit[:, :, None]  # |H_ij| <= sqrt(H_ii H_jj): one factor at a time, nothing overflows
-    sub *= unit[:, None, :]
-    idx = np.arange(f)
-    # free coefficients: the ridge; active ones: their own curvature (1 once scaled)
-    sub[:, idx, idx] = np.where(free, sub[:, idx, idx] + ridge[:, None], 1.0)
-    step = np.linalg.solve(sub, (np.take_along_axis(g, order, axis=1) * unit)[:, :, None])[:, :, 0] * unit
-    np.put_along_axis(d, order, step, axis=1)
+    order = np.argsort(act, axis=1, kind="stable")  # each row's free coefficients first
+    # rows solved by groups of similar free counts (each padded to its largest: the cost grows as its cube)
+    size = np.ceil(np.log(np.maximum(n_free, 1)) / np.log(_GROUPING))
+    for key in np.unique(size[n_free > 0]):
+        group = np.flatnonzero((size == key) & (n_free > 0))
+        f = int(n_free[group].max())
+        rows_order = order[group, :f]
+        sub = curvature.block(rows_order, sel[group])
+        free = np.arange(f) < n_free[group, None]  # the leading block holds active ones in rows with fewer free
+        sub *= free[:, :, None] & free[:, None, :]
+        unit = 1.0 / np.sqrt(np.take_along_axis(safe[group], rows_order, axis=1))
+        sub *= unit[:, :, None]  # |H_ij| <= sqrt(H_ii H_jj): one factor at a time, nothing overflows
+        sub *= unit[:, None, :]
+        idx = np.arange(f)
+        # free coefficients: the ridge; active ones: their own curvature (1 once scaled)
+        sub[:, idx, idx] = np.where(free, sub[:, idx, idx] + ridge[group, None], 1.0)
+        rhs = (np.take_along_axis(g[group], rows_order, axis=1) * unit)[:, :, None]
+        step = np.linalg.solve(sub, rhs)[:, :, 0] * unit
+        rows_d = d[group]
+        np.put_along_axis(rows_d, rows_order, step, axis=1)
+        d[group] = rows_d
     return d
 
 
