@@ -43,22 +43,22 @@ __all__ = ["determined_rows", "solve_coefficients", "solves_coefficients"]
 
 #: Sufficient decrease of the Armijo rule, and the step halvings tried before the ridge grows.
 _SIGMA, _HALVINGS = 1e-4, 30
-#: The smallest ridge added to the free coefficients' Hessian, relative to each one's own curvature (its
-#: diagonal entry; 1e-14 of the row's largest for a coefficient without any): a singular restriction stays solvable, a
-#: regular one keeps its Newton step to about 1e-14 times its scaled condition number. A row whose step needs
-#: many halvings gets a larger ridge (Levenberg-Marquardt), up to 1, about half its gradient scaled by its
-#: curvature: directions of no curvature (beta = 1, zero x) stay bounded.
+#: The smallest ridge added to the free coefficients' Hessian, relative to each one's own curvature (its diagonal
+#: entry; 1e-14 of the row's largest for a coefficient without any): a singular restriction stays solvable, a regular
+#: one keeps its Newton step to about 1e-14 times its scaled condition number. A row whose step needs many halvings
+#: gets a larger ridge (Levenberg-Marquardt), up to 1, about half its gradient scaled by its curvature: directions of
+#: no curvature (beta = 1, zero x) stay bounded.
 _RIDGE = 1e-14
 #: Below this ridge a step is a Newton step: a row optimal to the tolerance takes full ones, whose length
 #: measures its distance to the optimum.
 _NEWTON_RIDGE = 1e-6
 #: The floor of the product where the derivatives take its negative powers with x > 0 (x y^(beta-2),
-#: x y^(beta-3)): the multiplicative updates clip it at float32's epsilon, which changes the problem where a
-#: product is that small; here the terms still fit in float64 at this floor (x / y < 1e106 for the x <= 2^20
-#: of the rescaled data), and below it the objective the line search reads continues its x y^(beta-1) term
-#: (x log y) linearly (:func:`_floored_divergence`): the gradient is that objective's own everywhere. The curvature's term without x, (beta - 1) y^(beta-2) for
-#: 1 < beta < 2, infinite at y = 0 where the objective is finite, takes the product clipped at float32's
-#: epsilon as the updates do: it is only the Newton steps' model.
+#: x y^(beta-3)): the multiplicative updates clip it at float32's epsilon, which changes the problem where a product is
+#: that small; here the terms still fit in float64 at this floor (x / y < 1e106 for the x <= 2^20 of the rescaled data),
+#: and below it the objective the line search reads continues its x y^(beta-1) term (x log y) linearly
+#: (:func:`_floored_divergence`): the gradient is that objective's own everywhere. The curvature's term without x,
+#: (beta - 1) y^(beta-2) for 1 < beta < 2, infinite at y = 0 where the objective is finite, takes the product clipped at
+#: float32's epsilon as the updates do: it is only the Newton steps' model.
 _FLOOR = 1e-100
 #: The most a step may divide a product where x > 0 (beta < 2). The derivative there is -inf at y = 0, so the
 #: optimum has y > 0; but the objective stays finite (1 < beta < 2) or grows only as x log(1 / y) (beta = 1),
@@ -73,6 +73,7 @@ _RESOLUTION = 1e-13
 #: The dictionary's entries (scaled to a largest of about 1) the curvature leaves out: their products would
 #: underflow. The curvature is only the Newton steps' model; the gradient and the objective keep them.
 _NEGLIGIBLE = 1e-150
+#: The smallest normal float64: below it, a product is subnormal.
 _TINY = np.finfo(np.float64).tiny
 #: The excess -g / den (the multiplicative update's factor minus one) beyond which a coefficient climbs by that factor.
 _CLIMB = 3.0
@@ -313,7 +314,7 @@ class _Dense(_Rows):
 
 
 def _floored_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np.ndarray:
-    """d_beta(x | y) elementwise, its term in x y^(beta-1) (x log y at beta = 1) continued linearly below :data:`_FLOOR`.
+    """d_beta(x | y) elementwise, its x y^(beta-1) term (x log y at beta = 1) continued linearly below the floor.
 
     The derivatives take that term's derivative, x y^(beta-2), at the product clipped to the floor: this is the
     objective whose derivatives they are (convex, once differentiable), equal to d_beta wherever the product is
@@ -352,23 +353,22 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
     of the problem restricted to them, with ``ridge`` (one per row, relative to each
     coefficient's curvature) on the diagonal; a climbing one (update factor above 1 +
-    :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the multiplicative update's terms: with
-    g = den - num, the ratio num / den (the update's factor) must be at most 1 + ``tol``, and at
-    least 1 - ``tol`` where w is more than ``tol`` times the row's largest coefficient (the
-    Karush-Kuhn-Tucker conditions, free of units).
+    :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the
+    multiplicative update's terms: with g = den - num, the ratio num / den (the update's factor)
+    must be at most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the
+    row's largest coefficient (the Karush-Kuhn-Tucker conditions, free of units).
     """
     n, k = W.shape
     g, den_all, d = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
     active = np.empty((n, k), dtype=bool)
     optimal = np.empty(n, dtype=bool)
     factor = np.empty((n, k))
-    tiny = np.finfo(np.float64).tiny
     for part, gp, den, curvature in model.derivatives(rows, W):
         Wp = W[part]
         with np.errstate(divide="ignore", invalid="ignore"):
             excess = np.where(den > 0, gp / den, np.where(gp == 0, 0.0, np.sign(gp) * np.inf))
         # pushed up: excess < 0 is a violation at any w; pushed down: only where w is not negligible
-        size = np.maximum(Wp.max(axis=1, keepdims=True), tiny)
+        size = np.maximum(Wp.max(axis=1, keepdims=True), _TINY)
         down = np.minimum(np.maximum(excess, 0.0), Wp / size)
         optimal[part] = np.maximum(np.maximum(-excess, 0.0), down).max(axis=1) <= tol
         diag = curvature.diag
@@ -379,7 +379,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         safe = np.where(diag > 0, diag, _RIDGE * scale)
         with np.errstate(over="ignore"):
             moved = np.abs(Wp - np.maximum(Wp - gp / safe, 0.0)).max(axis=1)
-        eps = np.minimum(_EPS_CAP * np.maximum(Wp.max(axis=1), tiny), moved)[:, None]
+        eps = np.minimum(_EPS_CAP * np.maximum(Wp.max(axis=1), _TINY), moved)[:, None]
         # held at zero: near it and pushed down, or pushed down without curvature (the objective is linear in
         # it: under beta = 1, an atom that sees only zero x)
         act = ((Wp <= eps) | (diag == 0)) & (gp > 0)
@@ -456,9 +456,10 @@ def determined_rows(X, H: np.ndarray, beta: float, *, mask=None, penalty: Penalt
     linearly independent, to within a condition number of 1e6, and each row must observe at
     least as many cells as there are such atoms (the objective depends on w only through the
     observed cells of w H); under the I-divergence (beta = 1), as many observed cells where
-    x > 0, since a cell where x = 0 adds (w H)_j, linear in w, to the objective. Elsewhere (more atoms than the features can tell apart, as with a
-    dictionary of 150 atoms seen through 3 features) the minimisers form a set, and the
-    updates' coefficients are kept as one of its points.
+    x > 0, since a cell where x = 0 adds (w H)_j, linear in w, to the objective. Elsewhere (more
+    atoms than the features can tell apart, as with a dictionary of 150 atoms seen through 3
+    features) the minimisers form a set, and the updates' coefficients are kept as one of its
+    points.
     """
     n = X.shape[0]
     if penalty is not None and penalty.l2 > 0:
