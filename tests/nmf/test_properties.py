@@ -171,6 +171,7 @@ def test_every_label_nmf_parameter_value_reaches_the_nmf_it_builds(data):
 @example(n=2, m=31, k=None, beta=1.5, zeros=False, seed=22677)
 @example(n=33, m=31, k=6, beta=1.0, zeros=True, seed=420)
 @example(n=100, m=19, k=8, beta=1.0, zeros=True, seed=2007873)  # a coefficient 22 orders below its optimum
+@example(n=70, m=50, k=None, beta="frobenius", zeros=True, seed=481575569)  # held coefficients at beta = 2
 @example(n=2, m=2, k=None, beta=1.5, zeros=False, seed=599418)
 def test_fit_transform_is_fit_then_transform(n, m, k, beta, zeros, seed):
     """The scikit-learn contract, for random data of any shape: fit_transform(X) equals

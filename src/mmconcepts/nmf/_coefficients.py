@@ -386,17 +386,18 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         # far below its optimum, where the product it makes is far below x, a coefficient's Newton steps only double
         # it (the curvature of -x log y grows as y shrinks): it takes the multiplicative update's factor num / den
         # instead, along a geometric arc, and is held out of the Newton system
-        up = ~act & (Wp > 0) & (excess < -_CLIMB) & np.isfinite(excess)
+        up = ~act & (Wp > 0) & (excess < -_CLIMB) & np.isfinite(excess) & (model.beta < 2.0)
         act = act | up
         everyone = np.arange(len(Wp))
         dp = _restricted_newton(curvature, everyone, gp, act, safe, ridge[part])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             factor[part] = np.where(up, 1.0 - excess, 1.0)
         dp[up] = Wp[up] * excess[up]  # w - d = w num / den
-        # a free coefficient near zero that the coupled step drives below it (though its own gradient pushes it
-        # up) would be clipped at every step length the arc can resolve: it is held out of the Newton system and
-        # takes its own curvature-scaled gradient step (up), the others' step solved without it
-        held = ~act & (Wp <= eps) & (dp > Wp)
+        # beta < 2: a free coefficient near zero that the coupled step drives below it (though its own gradient
+        # pushes it up) would be clipped at every step length the arc can resolve: it is held out of the Newton
+        # system and takes its own curvature-scaled gradient step (up), the others' step solved without it (at
+        # beta = 2 the projection arc alone reaches the exact least-squares solution; holding there stops short)
+        held = ~act & (Wp <= eps) & (dp > Wp) & (model.beta < 2.0)
         redo = np.flatnonzero(held.any(axis=1))
         if redo.size:
             dp[redo] = _restricted_newton(curvature, redo, gp[redo], act[redo] | held[redo], safe[redo],
