@@ -61,12 +61,17 @@ GOLDEN_IDS ?= $(sort $(basename $(notdir $(wildcard tests/golden/*.json))))
 
 ## Rewrite tests/golden/, the smoke records of the golden set (at least one experiment per chapter, on generated data,
 ## against which tests/experiments/test_golden_records.py compares), after a change meant to change their results;
-## GOLDEN_IDS="ID ..." makes those experiments the golden set
+## GOLDEN_IDS="ID ..." makes those experiments the golden set. They run in the numerical environment of
+## tests/golden_platform.py (every library held to x86-64-v3), with their own cache folder, and tests/golden/PLATFORM
+## names this CPU's class.
 golden: $(VENV)/.installed-dev
-	rm -rf $(VENV)/golden-run
-	MMCONCEPTS_DATA_ROOT= $(BIN)/mmconcepts reproduce --smoke --only $(GOLDEN_IDS) --workers 2 --output $(VENV)/golden-run
+	rm -rf $(VENV)/golden-run $(VENV)/golden-cache
+	MMCONCEPTS_DATA_ROOT= MMCONCEPTS_DATA=$(VENV)/golden-cache $(BIN)/python tests/golden_platform.py \
+	  --write-class $(VENV)/golden-platform \
+	  $(BIN)/mmconcepts reproduce --smoke --only $(GOLDEN_IDS) --workers 2 --output $(VENV)/golden-run
 	rm -f tests/golden/*.json
 	cp $(VENV)/golden-run/*.json tests/golden/
+	cp $(VENV)/golden-platform tests/golden/PLATFORM
 
 ## Install headless Chromium and its driver (Debian packages) for tests/report/test_browser.py when they are
 ## missing and this user may (root, or passwordless sudo); otherwise do nothing (that test then skips, saying why)
