@@ -704,8 +704,10 @@ class MultimodalNMF(SaveLoadMixin, TransformerMixin, BaseEstimator):
             raise DataError("W must be finite and nonnegative (internal representations from transform).")
         out = []
         for name in names:
-            out.append(W @ self.components_[:, self._slice(name)] * self.scales_[name])
-        return np.hstack(out)
+            part = W @ self.components_[:, self._slice(name)]
+            part *= self.scales_[name]
+            out.append(part)
+        return out[0] if len(out) == 1 else np.hstack(out)
 
     @property
     def n_iter_(self) -> int:

@@ -58,10 +58,13 @@ def _dense(X: Any) -> np.ndarray:
 def _kl(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """KL(p_i || q_j) for all pairs of rows (rows normalised to distributions)."""
     P = P + _EPS
-    Q = Q + _EPS
-    P = P / P.sum(1, keepdims=True)
-    Q = Q / Q.sum(1, keepdims=True)
-    return (P * np.log(P)).sum(1)[:, None] - P @ np.log(Q).T
+    P /= P.sum(1, keepdims=True)
+    log_q = Q + _EPS
+    log_q /= log_q.sum(1, keepdims=True)
+    np.log(log_q, out=log_q)
+    plogp = np.log(P)
+    plogp *= P
+    return plogp.sum(1)[:, None] - P @ log_q.T
 
 
 def _idiv(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
@@ -69,7 +72,11 @@ def _idiv(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     if (P < 0).any() or (Q < 0).any():
         raise DataError("the I-divergence needs nonnegative data.")
     Pe, Qe = P + _EPS, Q + _EPS
-    return ((Pe * np.log(Pe)).sum(1) - Pe.sum(1))[:, None] - Pe @ np.log(Qe).T + Qe.sum(1)[None, :]
+    q_sum = Qe.sum(1)
+    log_q = np.log(Qe, out=Qe)
+    plogp = np.log(Pe)
+    plogp *= Pe
+    return (plogp.sum(1) - Pe.sum(1))[:, None] - Pe @ log_q.T + q_sum[None, :]
 
 
 def pairwise_divergence(A: Any, B: Any, metric: str = "kl") -> np.ndarray:

@@ -368,11 +368,18 @@ def space_pairs(model, X: dict, test_mods, ref_mods, cache: dict) -> dict[str, t
         return cache[key]
 
     def obs(mods):
-        return np.hstack([X[m].toarray() if hasattr(X[m], "toarray") else np.asarray(X[m]) for m in mods])
+        parts = [X[m].toarray() if hasattr(X[m], "toarray") else np.asarray(X[m]) for m in mods]
+        return parts[0] if len(parts) == 1 else np.hstack(parts)
 
     return {"internal": (h(test_mods), h(ref_mods)),
             "reference": (model.reconstruct(h(test_mods), list(ref_mods)), obs(ref_mods)),
             "test": (obs(test_mods), model.reconstruct(h(ref_mods), list(test_mods)))}
+
+
+def _recognise(model, X: dict, mods: list[str], y: np.ndarray) -> float:
+    """Label recognition (Table 6.4): the fraction of examples whose best reconstructed label is theirs."""
+    W = model.transform({m: X[m] for m in mods})  # noqa: N806
+    return float(np.mean(model.reconstruct(W, "labels").argmax(1) == y))
 
 
 def _fold(task: dict) -> dict:
@@ -391,14 +398,13 @@ def _fold(task: dict) -> dict:
         Xte = {"sound": S[te], "motion": M[te]}
         kw = dict(n_components=task["k"], max_iter=task["n_iter"], random_state=seed)
         shuffled_motion = M[tr][np.random.default_rng(task["control_seed"]).permutation(len(tr))]
-        fits = {
-            "plain": MultimodalNMF(**kw).fit({"sound": Xtr["sound"], "motion": Xtr["motion"]}),
-            "shuffled": MultimodalNMF(**kw).fit({"sound": Xtr["sound"], "motion": shuffled_motion}),
-            "symbolic": MultimodalNMF(**kw).fit(Xtr),
-            "sound_labels": MultimodalNMF(**kw).fit({"sound": Xtr["sound"], "labels": Xtr["labels"]}),
-            "motion_labels": MultimodalNMF(**kw).fit({"motion": Xtr["motion"], "labels": Xtr["labels"]}),
-        }
-        for prefix, model in (("", fits["plain"]), ("shuffled.", fits["shuffled"]), ("symbolic.", fits["symbolic"])):
+        # each learner is fitted when its metrics are computed and released after them (every learner has the
+        # fold's seed, so the order changes nothing): one sound dictionary in memory at a time
+        training = {"": {"sound": Xtr["sound"], "motion": Xtr["motion"]},
+                    "shuffled.": {"sound": Xtr["sound"], "motion": shuffled_motion},
+                    "symbolic.": Xtr}
+        for prefix, train in training.items():
+            model = MultimodalNMF(**kw).fit(train)
             cache: dict = {}
             for direction, (tmods, rmods) in (("sound2motion", (["sound"], ["motion"])),
                                               ("motion2sound", (["motion"], ["sound"]))):
@@ -409,17 +415,16 @@ def _fold(task: dict) -> dict:
                         D = pairwise_divergence(A, B, metric)
                         out[f"{prefix}{direction}.{space_name}.{name}"] = matching_success_rate(
                             D, y[te], y[te], random_state=ref_seed)
-
-        # label recognition (Table 6.4): the best reconstructed label
-        def recognise(model, mods):
-            W = model.transform({m: Xte[m] for m in mods})  # noqa: N806
-            return float(np.mean(model.reconstruct(W, "labels").argmax(1) == y[te]))
-
-        out["sound_labels.s2l"] = recognise(fits["sound_labels"], ["sound"])
-        out["motion_labels.m2l"] = recognise(fits["motion_labels"], ["motion"])
-        out["all.s2l"] = recognise(fits["symbolic"], ["sound"])
-        out["all.m2l"] = recognise(fits["symbolic"], ["motion"])
-        out["all.sm2l"] = recognise(fits["symbolic"], ["sound", "motion"])
+                del pairs
+            if prefix == "symbolic.":  # label recognition (Table 6.4) by the learner of all three modalities
+                out["all.s2l"] = _recognise(model, Xte, ["sound"], y[te])
+                out["all.m2l"] = _recognise(model, Xte, ["motion"], y[te])
+                out["all.sm2l"] = _recognise(model, Xte, ["sound", "motion"], y[te])
+            del model, cache
+        out["sound_labels.s2l"] = _recognise(
+            MultimodalNMF(**kw).fit({"sound": Xtr["sound"], "labels": Xtr["labels"]}), Xte, ["sound"], y[te])
+        out["motion_labels.m2l"] = _recognise(
+            MultimodalNMF(**kw).fit({"motion": Xtr["motion"], "labels": Xtr["labels"]}), Xte, ["motion"], y[te])
 
         # Fig. 6.10: the k = 15 learner on the training pairs, its coefficients of the training pairs
         W = MultimodalNMF(n_components=task["concept_k"], max_iter=task["n_iter"], random_state=seed).fit_transform(
