@@ -1468,6 +1468,42 @@ def test_final_divergence_is_that_of_the_final_factors(rng, kind, beta):
     assert model.reconstruction_err_ == pytest.approx(np.sqrt(2 * expected), rel=1e-9)
 
 
+@pytest.mark.parametrize("n, m, k", [(157, 30, 3), (40, 300, 12), (25, 25, 25)])
+def test_frobenius_objective_from_the_kept_numerator(rng, n, m, k):
+    """Under beta = 2 the objective after an H update reuses its numerator X^T W: it equals the elementwise sum
+    (scikit-learn's _beta_divergence) on a loose fit, falls back to the direct sum on a close one, and
+    a numerator kept for another W, or used once already, is not reused."""
+    import mmconcepts.nmf._problem as problem
+    from mmconcepts.nmf._solver import _Solver
+    from mmconcepts.nmf._updates import Penalty
+
+    X = rng.random((n, m)) * 3.0
+    W, Ht = rng.random((n, k)), rng.random((m, k))
+    prob = problem.Problem(X)
+    sol = _Solver(prob, 2.0, "mu", "mu", (Penalty(), Penalty()), (None, None))
+    sol.objective_next = True
+    Ht = sol.update(1, Ht, W)
+    kept = prob.sides[1].kept_numerator
+    assert kept is not None and kept[0] is W
+    np.testing.assert_allclose(kept[1], X.T @ W, rtol=1e-13)
+    expected = _beta_divergence(X, W, Ht.T, 2.0)  # half the squared norm, as ours
+    got = prob.divergence(W, Ht, 2.0)
+    assert got == pytest.approx(expected, rel=1e-11)
+    assert got != prob.sides[0].divergence(W, Ht, 2.0) or n * m < 1000  # the shortcut ran (rounding differs)
+    assert prob.sides[1].kept_numerator is None  # used once
+    # kept for another W: not reused
+    Ht = sol.update(1, Ht, W)
+    other = W.copy()
+    assert prob.divergence(other, Ht, 2.0) == prob.sides[0].divergence(other, Ht, 2.0)
+    # a close fit: the terms cancel, the direct sum is taken
+    Xc = W @ Ht.T + 1e-4 * rng.random((n, m))
+    close = problem.Problem(Xc)
+    sol = _Solver(close, 2.0, "mu", "mu", (Penalty(), Penalty()), (None, None))
+    sol.objective_next = True
+    Ht2 = sol.update(1, Ht.copy(), W)
+    assert close.divergence(W, Ht2, 2.0) == close.sides[0].divergence(W, Ht2, 2.0)
+
+
 @pytest.mark.parametrize("beta", BETAS + [3.0])
 @pytest.mark.parametrize("masked", [False, True])
 def test_dense_divergence_by_blocks_equals_the_elementwise_sum(rng, monkeypatch, beta, masked):

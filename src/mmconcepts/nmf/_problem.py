@@ -114,6 +114,10 @@ def _stripes_in_threads(run: Callable[[int, int], None], n_stripes: int, T: int)
         _limiter = None
 
 
+#: Below this fraction of ||X||^2 / 2, the Frobenius objective is formed directly (see Problem.divergence).
+_CANCELLATION = 1e-4
+
+
 @dataclass
 class _StripeBuffers:
     """Scratch space of :meth:`Side._kl_numerator_blocked`, kept while ``key`` matches."""
@@ -139,6 +143,8 @@ class Side:
     block_buffer: _StripeBuffers | None = None  # dense only: scratch space of the blocked I-divergence update
     divergence_buffers: list[np.ndarray] = field(default_factory=list)  # dense only: a block of the product per
     # thread, for the divergence
+    keep_numerator: bool = False  # dense, beta = 2, unmasked, float64: keep the next update's numerator X^T R ...
+    kept_numerator: tuple[np.ndarray, np.ndarray] | None = None  # ... as (R, a copy of it), for Problem.divergence
 
     @property
     def sparse(self) -> bool:
@@ -184,7 +190,10 @@ class Side:
             # X R formed transposed, (k, rows) = R^T X^T: OpenBLAS runs the wide-output form faster
             # on these shapes (the form scikit-learn's H update uses); copied back to L's layout, in
             # which the update's elementwise passes run about twice as fast
-            return np.ascontiguousarray((R.T @ X).T if t else (R.T @ X.T).T), L @ (R.T @ R)
+            num = np.ascontiguousarray((R.T @ X).T if t else (R.T @ X.T).T)
+            if self.keep_numerator and num.dtype == np.float64:
+                self.kept_numerator = (R, num.copy())  # the caller divides num in place
+            return num, L @ (R.T @ R)
         Y = self._product(L, R)
         if beta == 2.0:
             Y *= M
@@ -450,7 +459,34 @@ class Problem:
         return out
 
     def divergence(self, W: np.ndarray, Ht: np.ndarray, beta: float) -> float:
+        """D_beta(X | W Ht^T); under beta = 2, from the numerator of the last H update when it was kept for it.
+
+        When side 1 kept the numerator ``N = X^T W`` of an update made with this very ``W``
+        (:attr:`Side.keep_numerator`, dense, unmasked, float64), half the squared Frobenius norm
+        is formed without the product W Ht^T, as scikit-learn forms it:
+
+        .. math:: \\tfrac12 \\|X - W H\\|^2 = \\tfrac12 \\|X\\|^2 - \\langle H_t, N \\rangle
+                  + \\tfrac12 \\langle W^T W, H_t^T H_t \\rangle
+
+        (``O((n + m) k^2)`` instead of ``O(n m k)``). The three terms nearly cancel on a close
+        fit; below :data:`_CANCELLATION` times the first, where the rounding would exceed about
+        1e-11 of the value, the divergence is formed directly. The kept numerator is used once.
+        """
+        kept, self.sides[1].kept_numerator = self.sides[1].kept_numerator, None
+        if beta == 2.0 and kept is not None and kept[0] is W and self.mask is None:
+            half_sq = self._half_squared_norm()
+            value = (half_sq - float(np.vdot(Ht, kept[1]))
+                     + 0.5 * float(np.vdot(W.T @ W, Ht.T @ Ht)))
+            if value >= _CANCELLATION * half_sq:
+                return value
         return self.sides[0].divergence(W, Ht, beta)
+
+    def _half_squared_norm(self) -> float:
+        """||X||^2 / 2 of a dense X, computed once."""
+        if getattr(self, "_half_sq", None) is None:
+            X = np.asarray(self.sides[0].X)
+            self._half_sq = 0.5 * float(np.vdot(X, X))
+        return self._half_sq
 
 
 def beta_divergence(

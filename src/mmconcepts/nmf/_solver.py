@@ -73,6 +73,7 @@ class _Solver:
         # per side, (R, R's column sums or None) when R stays fixed across this solver's updates
         self.fixed: list[tuple[np.ndarray, np.ndarray | None] | None] = [None, None]
         self.last_divergence = float("nan")  # the divergence part of the last objective evaluated
+        self.objective_next = False  # the objective is evaluated after the next update of side 1
 
     # -- objective -------------------------------------------------------------------
     def objective(self, W: np.ndarray, Ht: np.ndarray) -> float:
@@ -86,6 +87,7 @@ class _Solver:
     # -- one update of the left factor of side s -------------------------------------
     def update(self, s: int, L: np.ndarray, R: np.ndarray) -> np.ndarray:
         side = self.problem.sides[s]
+        side.keep_numerator = s == 1 and self.objective_next
         hoyer = self.hoyer[s]
         if hoyer is not None:
             return self._hoyer_step(s, side, L, R, hoyer)
@@ -530,7 +532,10 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
     for n_iter in range(1, max_iter + 1):
         W = sol.update(0, W, Ht)
         if update_H:
+            # the objective evaluated next may reuse this H update's numerator (Problem.divergence)
+            sol.objective_next = n_iter % loss_every == 0 or n_iter == max_iter
             Ht = sol.update(1, Ht, W)
+            sol.objective_next = False
             if shrink is not None and n_iter == 1 and n_iter < max_iter:
                 reduced = shrink.reduce(sol, Ht)
                 if reduced is not None:
