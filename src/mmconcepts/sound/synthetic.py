@@ -90,6 +90,7 @@ Piper speakers differ from run to run and have no timings (``corpus.json`` recor
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
@@ -115,7 +116,7 @@ from .data import (
     load_generic_audio,
     normalize_word,
 )
-from .tts import EspeakEngine, PiperEngine, TTSEngine
+from .tts import EspeakEngine, PiperEngine, TTSEngine, release_engines
 
 __all__ = [
     "CAREGIVER_KEYWORDS",
@@ -542,6 +543,10 @@ def _utt_rng(seed: int, speaker: int, stream: int, index: int = 0) -> np.random.
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(speaker), int(stream), int(index)]))
 
 
+def _render_chunk_args(args: tuple) -> list[tuple[str, str, tuple, str, tuple | None]]:
+    return _render_chunk(*args)
+
+
 def _render_chunk(folder: str, profile: SpeakerProfile, speaker_index: int, seed: int,
                   items: list[tuple[int, tuple[str, ...], str]]) -> list[tuple[str, str, tuple, str, tuple | None]]:
     """Render and write the utterances ``items`` (index, labels, text) of one speaker."""
@@ -627,7 +632,8 @@ def make_caregiver_corpus(
     random_state : int, default=0
         Seed; the corpus is a function of it (see the module docstring on determinism).
     n_jobs : int or None, default=1
-        joblib processes over chunks of 25 utterances (-1: all cores).
+        Processes over chunks of 25 utterances (joblib's convention: -1 for all cores), started for the corpus
+        and ended with it (a loaded voice stays in a process's memory).
     overwrite : bool, default=False
         Replace an existing ``root``.
     verbose : bool or int, default=False
@@ -667,7 +673,8 @@ def _check_n_speakers(n_speakers: int) -> int:
 def _write_corpus(folder: Path, n: int, n_spk: int, kws: tuple[str, ...], keywords_per_utterance: int, seed: int,
                   n_jobs: int | None, verbose: bool | int) -> None:
     """Write the corpus of :func:`make_caregiver_corpus` into the empty ``folder`` (arguments checked)."""
-    from joblib import Parallel, delayed
+    from joblib import effective_n_jobs
+    from joblib.externals.loky import ProcessPoolExecutor  # joblib's processes, but not its reusable ones
 
     profiles = SPEAKERS[:n_spk]
     for p in {p.engine: p for p in profiles}.values():
@@ -681,13 +688,23 @@ def _write_corpus(folder: Path, n: int, n_spk: int, kws: tuple[str, ...], keywor
         for c in range(0, n, _CHUNK):
             tasks.append((c, s, prof, items[c: c + _CHUNK]))
     tasks.sort(key=lambda t: (t[0], t[1]))  # interleave speakers: slow and fast engines spread over workers
-    results = progress_chunks(
-        Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(_render_chunk)(str(folder), prof, s, seed, items) for _, s, prof, items in tasks),
-        [len(items) for *_, items in tasks], verbose=verbose, desc="generated utterances", unit="utterance")
-    by_key = {}
-    for (c, s, _, _), res in zip(tasks, results):
-        by_key[(s, c)] = res
+    calls = [(str(folder), prof, s, seed, items) for _, s, prof, items in tasks]
+    n_procs = min(effective_n_jobs(n_jobs), len(calls))
+    with contextlib.ExitStack() as stack:
+        if n_procs > 1:
+            # processes of their own, which end with the corpus: a text-to-speech voice loaded into a worker stays
+            # in its memory (about 200 MB of Piper's), and the reusable workers of joblib would carry it into
+            # the computations that follow
+            pool = stack.enter_context(ProcessPoolExecutor(n_procs))
+            rendered = pool.map(_render_chunk_args, calls)
+        else:
+            rendered = map(_render_chunk_args, calls)
+            stack.callback(release_engines)
+        results = progress_chunks(rendered, [len(items) for *_, items in tasks], verbose=verbose,
+                                  desc="generated utterances", unit="utterance")
+        by_key = {}
+        for (c, s, _, _), res in zip(tasks, results):
+            by_key[(s, c)] = res
     rows = [r for key in sorted(by_key) for r in by_key[key]]
     _write_tables(folder, rows)
     engines = {p.engine: p.make_engine() for p in profiles}

@@ -492,6 +492,12 @@ def _piper_model(model_path: str, config_path: str, n_threads: int) -> _PiperMod
         return m
 
 
+def release_engines() -> None:
+    """Forget the loaded Piper voices (about 200 MB each with their inference sessions); the next use loads again."""
+    with _PIPER_LOCK:
+        _PIPER_CACHE.clear()
+
+
 def _onnx_available() -> bool:
     try:
         import onnx  # noqa: F401
