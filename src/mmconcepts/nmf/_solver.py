@@ -380,6 +380,7 @@ def beta_nmf(
     problem = Problem(X, mask)
     sol = _Solver(problem, beta, solver, update_rule, (pen_W, pen_H), hoyer)
     W, Ht = _projected_start(sol, hoyer, W, H, update_H)
+    H = None  # the fit reads Ht only (the start it was copied from can be freed)
     if rescaled:
         check_objective_range(sol.objective(W, Ht), scale, beta)
     shrink = _EmptyColumns.of(problem) if (update_H and solver == "mu" and hoyer == (None, None)) else None
@@ -388,6 +389,7 @@ def beta_nmf(
     stopped = tol > 0 and not converged and max_iter > 0
     cause = infinite_objective_cause(X, W, Ht, beta, scale) if stopped and not np.isfinite(hist[-1]) else None
     divergence = sol.last_divergence  # of the final factors: the fit always ends on an evaluation
+    del sol, problem, shrink  # their scratch buffers, before the result's copy of the dictionary
     if rescaled:  # back to X's units: D_beta(c x | c y) = c ** beta D_beta(x | y)
         hist = in_units_of_X(hist, scale, beta)
         divergence = float(in_units_of_X(divergence, scale, beta))

@@ -360,15 +360,20 @@ def _fold(task: dict) -> dict:
         W = compositional.fit_transform({"sound": S[rows(tr_c)], "motion": M[rows(tr_c)]})
         if task["explorer"]:  # the concept explorer: the compositional learner's coefficients of its training pairs
             out["coefficients"] = W
-        models = {
-            "": compositional,
-            "shuffled.": MultimodalNMF(**kw).fit({"sound": S[rows(tr_c)], "motion": M[rows(tr_c)][perm]}),
-            "single_trained.": MultimodalNMF(**kw).fit({"sound": S[rows(tr_s)], "motion": M[rows(tr_s)]}),
+        # each learner is fitted when its metrics are computed and released after them (every learner has the
+        # fold's seed, so the order changes nothing): one sound dictionary in memory at a time
+        fitted = [compositional]
+        del compositional
+        learners = {
+            "": fitted.pop,
+            "shuffled.": lambda: MultimodalNMF(**kw).fit({"sound": S[rows(tr_c)], "motion": M[rows(tr_c)][perm]}),
+            "single_trained.": lambda: MultimodalNMF(**kw).fit({"sound": S[rows(tr_s)], "motion": M[rows(tr_s)]}),
         }
         refs = {"test": {"motion": _refs(M, rows(single_te), Y[used]), "sound": _refs(S, rows(single_te), Y[used])},
                 "cal": {"motion": _refs(M, rows(single_tr), Y[used]), "sound": _refs(S, rows(single_tr), Y[used])}}
         combos_te = [combos[i] for i in te]
-        for name, model in models.items():
+        for name, learner in learners.items():
+            model = learner()
             Ws = model.transform({"sound": S[rows(te)]})
             Wm = model.transform({"motion": M[rows(te)]})
             D = pairwise_divergence(Ws, Wm, "cosine")
@@ -385,6 +390,7 @@ def _fold(task: dict) -> dict:
                 eta = _best_threshold(Y[cal], A_cal)
                 out[f"{name}{d}.l_given_number"], out[f"{name}{d}.l_full"] = common.example_scores(Y[te], A, eta)
                 out[f"{name}{d}.threshold"] = eta
+            del model
         # ceiling of the naming protocol: the target modality *observed* (not reconstructed) decomposed on the
         # training folds' references (the test fold's would contain the observed recordings themselves), threshold
         # from the same calibration examples
