@@ -213,6 +213,9 @@ def _fold(task: dict) -> dict:
                 ev = _evaluate(online, S[te], M[te], y[te], task["reference_seed"], task["control_seed"],
                                cfg["n_bins"])
                 out["online"].append({**ev, "time": t_online, "memory_mb": state / 2**20})
+        if task["explorer"]:  # the concept explorer: the online learner's coefficients of the training pairs
+            out["coefficients"] = online.transform({"sound": S[tr], "motion": M[tr]})
+        del online  # one learner in memory at a time (the batch refits' dictionaries are as large)
         for p in points:
             idx = order[:p]
             t0 = time.process_time()
@@ -221,8 +224,7 @@ def _fold(task: dict) -> dict:
             ev = _evaluate(batch, S[te], M[te], y[te], task["reference_seed"], task["control_seed"], cfg["n_bins"])
             kept = _nbytes(S[idx]) + _nbytes(M[idx]) + batch.components_.nbytes
             out["batch"].append({**ev, "time": dt, "memory_mb": kept / 2**20})
-        if task["explorer"]:  # the concept explorer: the online learner's coefficients of the training pairs
-            out["coefficients"] = online.transform({"sound": S[tr], "motion": M[tr]})
+            del batch
     return out
 
 
