@@ -62,7 +62,7 @@ def can_pin() -> tuple[bool, str]:
 
 
 def cpu_class() -> str:
-    """This CPU's class as onnxruntime's kernels see it: ``x86-64 avx512`` or ``x86-64 avx2``."""
+    """This CPU's class as onnxruntime's kernels see it: ``x86_64 avx512`` or ``x86_64 avx2`` (the machine's name)."""
     flags = _flags()
     level = "avx512" if {"avx512f", "avx512bw", "avx512dq", "avx512vl"} <= flags else "avx2"
     return f"{platform.machine().lower()} {level}"

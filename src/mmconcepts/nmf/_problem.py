@@ -12,6 +12,7 @@ W_thesis = Ht and H_thesis = W.T, so thesis eq. (2.16)'s H-update is our side 0.
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from collections.abc import Callable
@@ -493,19 +494,18 @@ class Problem:
         """
         kept, self.sides[1].kept_numerator = self.sides[1].kept_numerator, None
         if beta == 2.0 and kept is not None and kept[0] is W and self.mask is None:
-            half_sq = self._half_squared_norm()
+            half_sq = self._half_squared_norm
             value = (half_sq - float(np.vdot(Ht, kept[1]))
                      + 0.5 * float(np.vdot(W.T @ W, Ht.T @ Ht)))
             if value >= _CANCELLATION * half_sq:
                 return value
         return self.sides[0].divergence(W, Ht, beta)
 
+    @functools.cached_property
     def _half_squared_norm(self) -> float:
         """||X||^2 / 2 of a dense X, computed once."""
-        if getattr(self, "_half_sq", None) is None:
-            X = np.asarray(self.sides[0].X)
-            self._half_sq = 0.5 * float(np.vdot(X, X))
-        return self._half_sq
+        X = np.asarray(self.sides[0].X)
+        return 0.5 * float(np.vdot(X, X))
 
 
 def beta_divergence(

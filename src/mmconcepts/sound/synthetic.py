@@ -543,10 +543,6 @@ def _utt_rng(seed: int, speaker: int, stream: int, index: int = 0) -> np.random.
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(speaker), int(stream), int(index)]))
 
 
-def _render_chunk_args(args: tuple) -> list[tuple[str, str, tuple, str, tuple | None]]:
-    return _render_chunk(*args)
-
-
 def _render_chunk(folder: str, profile: SpeakerProfile, speaker_index: int, seed: int,
                   items: list[tuple[int, tuple[str, ...], str]]) -> list[tuple[str, str, tuple, str, tuple | None]]:
     """Render and write the utterances ``items`` (index, labels, text) of one speaker."""
@@ -688,17 +684,17 @@ def _write_corpus(folder: Path, n: int, n_spk: int, kws: tuple[str, ...], keywor
         for c in range(0, n, _CHUNK):
             tasks.append((c, s, prof, items[c: c + _CHUNK]))
     tasks.sort(key=lambda t: (t[0], t[1]))  # interleave speakers: slow and fast engines spread over workers
-    calls = [(str(folder), prof, s, seed, items) for _, s, prof, items in tasks]
-    n_procs = min(effective_n_jobs(n_jobs), len(calls))
+    calls = list(zip(*[(str(folder), prof, s, seed, items) for _, s, prof, items in tasks]))  # one list per argument
+    n_procs = min(effective_n_jobs(n_jobs), len(tasks))
     with contextlib.ExitStack() as stack:
         if n_procs > 1:
             # processes of their own, which end with the corpus: a text-to-speech voice loaded into a worker stays
             # in its memory (about 200 MB of Piper's), and the reusable workers of joblib would carry it into
             # the computations that follow
             pool = stack.enter_context(ProcessPoolExecutor(n_procs))
-            rendered = pool.map(_render_chunk_args, calls)
+            rendered = pool.map(_render_chunk, *calls)
         else:
-            rendered = map(_render_chunk_args, calls)
+            rendered = map(_render_chunk, *calls)
             stack.callback(release_engines)
         results = progress_chunks(rendered, [len(items) for *_, items in tasks], verbose=verbose,
                                   desc="generated utterances", unit="utterance")
