@@ -9,6 +9,7 @@ worker processes (or a Dask cluster) under :func:`workers_end_with_this_process`
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import sys
 import threading
@@ -18,11 +19,16 @@ from collections.abc import Callable
 from typing import Any, cast
 
 __all__ = ["WORKER_MEMORY_GROWTH", "WarningsCarried", "end_with_parent", "init_worker", "progress_enabled",
-           "workers_end_with_this_process"]
+           "release_free_memory", "workers_end_with_this_process"]
 
 
 class WarningsCarried:
-    """Call ``fn`` in a worker process and return its result with the warnings it raised."""
+    """Call ``fn`` in a worker process and return its result with the warnings it raised.
+
+    After each call the worker gives the memory its task freed back to the system
+    (:func:`release_free_memory`), so that what one task or experiment needed at its peak
+    does not stay counted against the worker through the next ones.
+    """
 
     def __init__(self, fn: Callable[[Any], Any]) -> None:
         self.fn = fn
@@ -31,7 +37,38 @@ class WarningsCarried:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result = self.fn(item)
+        release_free_memory()
         return result, [(w.category, str(w.message), w.filename, w.lineno) for w in caught]
+
+
+def release_free_memory() -> bool:
+    """Return the free memory of the C heap to the system: glibc's ``malloc_trim(0)``.
+
+    numpy's arrays of the size a task allocates (a few MB and more) come from ``mmap`` and go
+    back to the system when freed, but glibc raises its mmap threshold up to 32 MB as such
+    blocks are freed, after which blocks under it come from the heap's arenas (one per thread
+    that allocated: numba's and the BLAS's threads too), which keep their freed pages
+    until trimmed. Elsewhere than on glibc (musl, macOS, Windows) this does nothing.
+
+    Returns
+    -------
+    bool
+        Whether memory was returned (False also where there is no ``malloc_trim``).
+    """
+    trim = _malloc_trim()
+    return bool(trim(0)) if trim is not None else False
+
+
+@functools.cache
+def _malloc_trim() -> Callable[[int], int] | None:
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        import ctypes
+
+        return cast("Callable[[int], int]", ctypes.CDLL(None).malloc_trim)
+    except (OSError, AttributeError):  # not glibc
+        return None
 
 
 def workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
