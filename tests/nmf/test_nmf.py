@@ -8,6 +8,8 @@ import warnings
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from sklearn.decomposition import NMF as SkNMF
 from sklearn.decomposition._nmf import _beta_divergence
 from sklearn.utils.estimator_checks import check_estimator
@@ -268,6 +270,66 @@ def test_projected_gradient_decreases_loss(rng, beta):
     assert np.diff(res.loss_history).max() <= 1e-9 * res.loss_history[0]
     assert res.loss_history[-1] < 0.05 * res.loss_history[0]
     assert (res.W >= 0).all() and (res.H >= 0).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sparse=st.booleans(), l1=st.sampled_from([0.0, 0.3]),
+       l2=st.sampled_from([0.0, 0.7]), side=st.sampled_from([0, 1]), scale=st.sampled_from([1e-3, 1.0, 1e3]))
+def test_the_quadratic_armijo_change_is_the_objective_difference(seed, sparse, l1, l2, side, scale):
+    """Under the unmasked Frobenius loss the projected gradient's trials take f(L + D) - f(L) from the gradient and
+    R^T R; it equals the difference of the objective computed directly (numpy), penalties included."""
+    from mmconcepts.nmf._problem import Problem
+    from mmconcepts.nmf._solver import _quadratic_change, _Solver
+    from mmconcepts.nmf._updates import Penalty
+
+    g = np.random.default_rng(seed)
+    X = g.gamma(1.0, scale, (23, 17)) * (g.random((23, 17)) < 0.4)
+    W, Ht = g.gamma(1.0, 1.0, (23, 4)), g.gamma(1.0, 1.0, (17, 4))
+    pen = Penalty(l1=l1, l2=l2)
+    solver = _Solver(Problem(sp.csr_matrix(X) if sparse else X), 2.0, "pg", "mm", (pen, pen), (None, None))
+    L, R, Xs = (W, Ht, X) if side == 0 else (Ht, W, X.T)
+    Ln = np.maximum(L - 0.05 * g.standard_normal(L.shape), 0.0)
+
+    def f(L):
+        return 0.5 * np.sum((Xs - L @ R.T) ** 2) + l1 * L.sum() + 0.5 * l2 * np.sum(L * L)
+
+    grad = solver._gradient(side, solver.problem.sides[side], L, R)
+    np.testing.assert_allclose(grad, L @ R.T @ R - Xs @ R + l1 + l2 * L, rtol=1e-10, atol=1e-10 * np.abs(grad).max())
+    D = Ln - L
+    change = _quadratic_change(float(np.sum(grad * D)), D, R.T @ R, l2)
+    direct = f(Ln) - f(L)
+    assert change == pytest.approx(direct, rel=1e-9, abs=1e-12 * f(L))
+    assert change == pytest.approx(solver._side_objective(side, Ln, R) - solver._side_objective(side, L, R),
+                                   rel=1e-9, abs=1e-12 * f(L))
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_projected_gradient_frobenius_takes_the_steps_of_the_evaluated_objective(rng, sparse, monkeypatch):
+    """The unmasked Frobenius fit decides its steps without evaluating the objective (a mask of ones, which
+    evaluates it, gives the same fit), with penalties."""
+    from mmconcepts.nmf import _solver
+
+    W, H, X = _lowrank(rng)
+    X = X * (rng.random(X.shape) < 0.5)
+    X = sp.csr_matrix(X) if sparse else X
+    fit = dict(init="random", random_state=0, max_iter=30, tol=0, alpha_W=0.01, l1_ratio=0.5)
+    evaluated = beta_nmf(X, 4, beta_loss=2.0, solver="pg", mask=np.ones(X.shape), **fit)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the side objective was evaluated")
+
+    side_objective = _solver._Solver._side_objective
+    monkeypatch.setattr(_solver._Solver, "_side_objective", refuse)
+    quadratic = beta_nmf(X, 4, beta_loss=2.0, solver="pg", **fit)
+    np.testing.assert_allclose(quadratic.W, evaluated.W, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(quadratic.H, evaluated.H, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(quadratic.loss_history, evaluated.loss_history, rtol=1e-9)
+    # a mask that hides cells: the loss is no longer the quadratic of R^T R, the trials evaluate it
+    calls = []
+    monkeypatch.setattr(_solver._Solver, "_side_objective", lambda *a: calls.append(1) or side_objective(*a))
+    mask = (rng.random(X.shape) < 0.8).astype(float)
+    masked = beta_nmf(X, 4, beta_loss=2.0, solver="pg", mask=mask, **fit)
+    assert calls and np.diff(masked.loss_history).max() <= 1e-9 * masked.loss_history[0]
 
 
 # --------------------------------------------------------------------------- sparse, dtype, masks

@@ -80,6 +80,13 @@ def _after_fork_in_child() -> None:
 os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
+@functools.lru_cache(maxsize=256)
+def _stripe_starts(n: int, b: int, n_stripes: int) -> tuple[tuple[int, ...], ...]:
+    """The starts 0, b, 2b, ... (< n) of the row blocks, in ``n_stripes`` contiguous stripes (``np.array_split``'s
+    split), kept for the next call on the same shape: a fit asks for the same stripes at every update."""
+    return tuple(tuple(int(s) for s in part) for part in np.array_split(np.arange(0, n, b), n_stripes))
+
+
 def _stripes_in_threads(run: Callable[[int, int], None], n_stripes: int, T: int) -> None:
     """Call ``run(i, t)`` for every stripe i, on T threads (t = 0 .. T-1) with one BLAS thread each.
 
@@ -256,7 +263,7 @@ class Side:
         starts = range(0, n, b)
         # At most 8 stripes, and their partial sums (transposed side) at most a quarter of X's size.
         n_stripes = max(1, min(8, len(starts), n // (4 * k)))
-        stripes = np.array_split(np.asarray(starts), n_stripes)
+        stripes = _stripe_starts(n, b, n_stripes)
         eps = L.dtype.type(EPSILON)
         buf = self._stripe_buffers(n_stripes, (b, m), L)
         # The products with the factor are formed transposed, (k, rows): OpenBLAS runs the
@@ -400,7 +407,7 @@ class Side:
         b = max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
         starts = range(0, n, b)
         n_stripes = max(1, min(8, len(starts)))
-        stripes = np.array_split(np.asarray(starts), n_stripes)
+        stripes = _stripe_starts(n, b, n_stripes)
         count = min(n_stripes, _blas_threads())
         bufs = self.divergence_buffers
         if len(bufs) != count or bufs[0].dtype != L.dtype or bufs[0].shape != (min(b, n), m):
