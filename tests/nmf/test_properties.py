@@ -199,6 +199,25 @@ def test_fit_transform_is_fit_then_transform(n, m, k, beta, zeros, seed):
     assert np.abs(W - again)[one].max(initial=0.0) <= 1e-6 * max(np.abs(W).max(), 1e-12)
 
 
+@pytest.mark.xfail(strict=True, reason="known defect: a row whose Newton step's decrease the objective cannot resolve "
+                   "is declared converged although its update factor is 1 + 1.16e-7, outside tol = 1e-7")
+def test_a_row_is_not_declared_optimal_outside_tol_when_its_decrease_is_below_rounding():
+    """The case hypothesis found for the property below (m = k = 4, beta = 1, a start 10^3.3 times the minimum, seed
+    4): solved from that start, row 2 stops 1.2e-7 (relative) from the minimum a flat start reaches, with its free
+    coefficient's factor num / den at 1 + 1.16e-7 and ``converged`` True (L-BFGS-B to 1e-14 agrees with the flat
+    start's answer to 3e-11)."""
+    from mmconcepts.nmf._coefficients import solve_coefficients
+
+    rng = np.random.default_rng(4)
+    H = rng.gamma(0.5, 1.0, (4, 4)) + 0.01
+    X = rng.gamma(0.5, 1.0, (4, 4)) + 0.01
+    want, _ = solve_coefficients(X, H, np.ones((4, 4)), 1.0)
+    W, converged = solve_coefficients(X, H, want * 10.0**3.3355768150940284 + rng.random(want.shape), 1.0)
+    factor = ((X / (W @ H)) @ H.T) / H.sum(axis=1)
+    free = W > 1e-7 * W.max(axis=1, keepdims=True)
+    assert not converged or np.abs(factor - 1.0)[free].max() <= 1e-7
+
+
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     m=st.integers(2, 6),

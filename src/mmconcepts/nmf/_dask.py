@@ -546,7 +546,8 @@ def _h_partial(side: Side, Ht: np.ndarray, W: np.ndarray, beta: float):
         num = np.asarray(X @ W) if side.sparse else X.T @ W  # sparse: X is the chunk's X.T in CSR
         return num, _Gram(W.T @ W)
     num, den = side.numerator_denominator(Ht, W, beta)
-    num = np.array(num)  # a task's result: the dense I-divergence numerator is the side's reused buffer
+    if not side.sparse:  # a task's result: the dense I-divergence numerator is the side's reused buffer
+        num = np.array(num)
     if den.ndim == 2 and den.shape[0] > 1 and den.strides[0] == 0:  # np.broadcast_to of one row
         return num, _Row(np.array(den[0]))
     return num, np.array(den)

@@ -196,9 +196,10 @@ def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
                 r = x / y
                 d = r - np.log(r) - 1.0 if r != np.inf else np.inf  # inf - log(inf) would be NaN
             else:
-                d = x**beta + (beta - 1.0) * y**beta
-                if x > 0.0:
-                    d -= beta * x * y ** (beta - 1.0)
+                yb = y**beta
+                d = x**beta + (beta - 1.0) * yb
+                if x > 0.0:  # y^(beta-1) as y^beta / y: one power fewer (y = 0: 0 or inf, by the power)
+                    d -= beta * x * (yb / y if y > 0.0 else y ** (beta - 1.0))
                 d /= beta * (beta - 1.0)
             total += w * d
     return total

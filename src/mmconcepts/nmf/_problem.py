@@ -220,7 +220,9 @@ class Side:
         Yb1 = Y ** (beta - 1.0)  # Y^(beta-1)
         if beta == 0.0:
             Y = Yb1 * Yb1  # Y^-2
-        else:
+        elif beta < 2.0:  # Y >= eps > 0: Y^(beta-2) = Y^(beta-1) / Y, a division where a power costs ten times more
+            np.divide(Yb1, Y, out=Y)
+        else:  # Y may be 0, where Y^(beta-2) is 0 and the ratio would not be
             Y **= beta - 2.0
         Y *= X
         if M is not None:
