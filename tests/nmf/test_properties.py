@@ -199,13 +199,11 @@ def test_fit_transform_is_fit_then_transform(n, m, k, beta, zeros, seed):
     assert np.abs(W - again)[one].max(initial=0.0) <= 1e-6 * max(np.abs(W).max(), 1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: from a start 10^3.3 times its minimum, a row is declared "
-                   "converged with its update factor at 1 + 1.16e-7, outside tol = 1e-7")
 def test_a_row_started_far_from_its_minimum_is_not_declared_optimal_outside_tol():
     """The case hypothesis found for the property below (m = k = 4, beta = 1, a start 10^3.3 times the minimum, seed
-    4): solved from that start, row 2 stops 1.2e-7 (relative) from the minimum a flat start reaches, with its free
-    coefficient's factor num / den at 1 + 1.16e-7 and ``converged`` True (L-BFGS-B to 1e-14 agrees with the flat
-    start's answer to 3e-11)."""
+    4): row 2's last full Newton step is short (1.1e-7 of its largest coefficient) but also zeroes its held
+    coefficients, which moves the free one's minimum; taken as done there, it stopped with its factor num / den at
+    1 + 1.16e-7 and ``converged`` True. A short step must be confirmed optimal where it lands."""
     from mmconcepts.nmf._coefficients import solve_coefficients
 
     rng = np.random.default_rng(4)

@@ -499,16 +499,22 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
     f_all = np.empty(W.shape[0])
     f_all[rows] = model.objective(rows, W[rows])
     ridge_all = np.full(W.shape[0], _RIDGE)
+    settled = np.zeros(W.shape[0], dtype=bool)
     for _ in range(max_iter):
         if rows.size == 0:
             return W, True
         Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
         g, den, d, active, optimal, factor = _newton_directions(model, rows, Wr, tol, ridge)
         newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
+        # a row whose last full step was short and that is still optimal where that step left it: done there
+        confirmed = settled[rows] & optimal
+        settled[rows] = False
         # Optimal to tol (where the objective no longer resolves the decreases the line search needs): full
-        # Newton steps, converging quadratically; done when one moves no coefficient by more than tol times the
-        # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance).
-        newton = optimal & newtonian
+        # Newton steps, converging quadratically; settled when one moves no coefficient by more than tol times the
+        # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance), and
+        # done when the point it reached is optimal too (the step moves the free coefficients to the minimum of
+        # the quadratic model at the held ones' old values, which the same step then zeroes)
+        newton = optimal & newtonian & ~confirmed
         # beta < 2: the held coefficients shrink by at most 2 _COLLAPSE per searched step (see there); a full step
         # takes them to zero exactly unless that collapses a cell with x > 0
         floor = np.where(active, 2.0 * _COLLAPSE * Wr, 0.0) if model.beta < 2.0 else np.zeros_like(Wr)
@@ -519,8 +525,8 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr[newton]).max(axis=1))
         W[rows[newton]] = full
         f_all[rows[newton]] = model.objective(rows[newton], full)
-        done = np.zeros(rows.size, dtype=bool)
-        done[np.flatnonzero(newton)[np.abs(full - Wr[newton]).max(axis=1) <= tol * size]] = True
+        done = confirmed.copy()
+        settled[rows[np.flatnonzero(newton)[np.abs(full - Wr[newton]).max(axis=1) <= tol * size]]] = True
         pending = np.flatnonzero(~newton)
         alpha = np.ones(pending.size)
         todo = np.arange(pending.size)
