@@ -632,7 +632,7 @@ def solve_coefficients(X, H: np.ndarray, W: np.ndarray, beta: float, *, mask=Non
         Optimality: the factor of the multiplicative update, num / den with g = den - num, is at
         most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the row's
         largest coefficient. From there a row takes full Newton steps, and stops after one that
-        moves no coefficient by more than ``tol`` times its largest.
+        moves no coefficient by more than ``tol`` times its largest and leaves it optimal.
 
     Returns
     -------
