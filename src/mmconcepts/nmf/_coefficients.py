@@ -347,7 +347,8 @@ def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
 
 
 def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float, ridge: np.ndarray):
-    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor.
+    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor, and
+    the rows stationary to ``tol``.
 
     Active (Bertsekas 1982): a coefficient at (or within eps of) zero whose gradient pushes it
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
@@ -356,12 +357,15 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the
     multiplicative update's terms: with g = den - num, the ratio num / den (the update's factor)
     must be at most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the
-    row's largest coefficient (the Karush-Kuhn-Tucker conditions, free of units).
+    row's largest coefficient (the Karush-Kuhn-Tucker conditions, free of units). Stationary:
+    the factor within ``tol`` of 1 at every coefficient above ``tol`` times the row's largest
+    (those below are left out whichever way they are pushed).
     """
     n, k = W.shape
     g, den_all, d = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
     active = np.empty((n, k), dtype=bool)
     optimal = np.empty(n, dtype=bool)
+    stationary = np.empty(n, dtype=bool)
     factor = np.empty((n, k))
     for part, gp, den, curvature in model.derivatives(rows, W):
         Wp = W[part]
@@ -371,6 +375,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         size = np.maximum(Wp.max(axis=1, keepdims=True), _TINY)
         down = np.minimum(np.maximum(excess, 0.0), Wp / size)
         optimal[part] = np.maximum(np.maximum(-excess, 0.0), down).max(axis=1) <= tol
+        stationary[part] = np.where(Wp > tol * size, np.abs(excess), 0.0).max(axis=1) <= tol
         diag = curvature.diag
         scale = diag.max(axis=1, keepdims=True)
         scale = np.where(scale > 0, scale, 1.0)
@@ -406,7 +411,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
                 dp[held] = (gp / safe)[held]
             act = act | held
         g[part], den_all[part], active[part], d[part] = gp, den, act, dp
-    return g, den_all, d, active, optimal, factor
+    return g, den_all, d, active, optimal, factor, stationary
 
 
 def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
@@ -504,16 +509,16 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         if rows.size == 0:
             return W, True
         Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
-        g, den, d, active, optimal, factor = _newton_directions(model, rows, Wr, tol, ridge)
+        g, den, d, active, optimal, factor, stationary = _newton_directions(model, rows, Wr, tol, ridge)
         newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
-        # a row whose last full step was short and that is still optimal where that step left it: done there
-        confirmed = settled[rows] & optimal
-        settled[rows] = False
         # Optimal to tol (where the objective no longer resolves the decreases the line search needs): full
         # Newton steps, converging quadratically; settled when one moves no coefficient by more than tol times the
         # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance), and
-        # done when the point it reached is optimal too (the step moves the free coefficients to the minimum of
-        # the quadratic model at the held ones' old values, which the same step then zeroes)
+        # done when the point it reached is stationary (the step moves the free coefficients to the minimum of
+        # the quadratic model at the held ones' old values, which the same step may zero; a coefficient below tol
+        # times the largest is within the step's resolution)
+        confirmed = settled[rows] & stationary
+        settled[rows] = False
         newton = optimal & newtonian & ~confirmed
         # beta < 2: the held coefficients shrink by at most 2 _COLLAPSE per searched step (see there); a full step
         # takes them to zero exactly unless that collapses a cell with x > 0
@@ -527,7 +532,7 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         f_all[rows[newton]] = model.objective(rows[newton], full)
         done = confirmed.copy()
         settled[rows[np.flatnonzero(newton)[np.abs(full - Wr[newton]).max(axis=1) <= tol * size]]] = True
-        pending = np.flatnonzero(~newton)
+        pending = np.flatnonzero(~newton & ~confirmed)
         alpha = np.ones(pending.size)
         todo = np.arange(pending.size)
         stuck = np.zeros(pending.size, dtype=bool)
