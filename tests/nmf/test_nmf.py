@@ -1329,6 +1329,62 @@ def test_the_curvature_blocks_are_the_gradients_derivative(rng, beta, case):
             column = (gradient(W + step) - gradient(W - step))[i] / (2 * h)
             np.testing.assert_allclose(block[i, :, a], column[order[i]], rtol=1e-6, atol=1e-8)
             assert curvature.diag[i, j] == pytest.approx(column[j], rel=1e-6)
+    if beta == 2.0 or case != "sparse":  # the Hessian's product, where a model forms it: the same derivative along V
+        V = rng.standard_normal((n, k))
+        directional = (gradient(W + h * V) - gradient(W - h * V)) / (2 * h)
+        np.testing.assert_allclose(curvature.product(V), directional, rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_a_least_squares_step_solves_the_free_coefficients_where_the_held_ones_land(rng, masked):
+    """beta = 2: a full projected Newton step leaves the free coefficients at the least-squares solution (numpy's
+    lstsq) for the held ones at the values the same step gives them, not at the held ones' old values (rows would
+    otherwise alternate between most atoms held and none, as chapter 3's k = 150 transforms did)."""
+    from mmconcepts.nmf._coefficients import _newton_directions, _rows_model
+    from mmconcepts.nmf._updates import Penalty
+
+    n, m, k = 6, 30, 8
+    Ht = rng.gamma(0.5, 1.0, (m, k)) + 0.01
+    X = (rng.gamma(0.5, 1.0, (n, k)) * (rng.random((n, k)) < 0.5)) @ Ht.T + 0.01 * rng.random((n, m))
+    W = np.where(rng.random((n, k)) < 0.5, 1e-4, rng.random((n, k)) + 0.5)  # some near zero: candidates to hold
+    mask = rng.random((n, m)) < 0.8 if masked else None
+    model = _rows_model(X * (mask if masked else 1), Ht, 2.0, Penalty(), mask)
+    rows = np.arange(n)
+    _, _, d, active, *_ = _newton_directions(model, rows, W, 1e-7, np.full(n, 1e-14))
+    landed = np.maximum(W - d, 0.0)
+    checked = 0
+    for i in rows:
+        free = ~active[i]
+        if not active[i].any() or (landed[i, free] <= 0).any():
+            continue  # nothing held, or a free coefficient clipped: the step is not the restricted solution
+        seen = np.ones(m, dtype=bool) if mask is None else mask[i]
+        rest = X[i, seen] - Ht[seen][:, ~free] @ landed[i, ~free]
+        want = np.linalg.lstsq(Ht[seen][:, free], rest, rcond=None)[0]
+        np.testing.assert_allclose(landed[i, free], want, rtol=1e-7, atol=1e-9 * np.abs(want).max())
+        checked += 1
+    assert checked >= 2
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_least_squares_rows_over_a_wide_dictionary_reach_scipys_nnls(seed):
+    """beta = 2, 150 atoms over 256 bins, rows that use about a tenth of them (chapter 3's dictionary sizes), from
+    the multiplicative updates' start: every row reaches scipy's NNLS answer to 1e-9 of its largest coefficient.
+    (A line search that reads the free coefficients' decrease from the raw gradient, not from the step's own
+    right-hand side, stops rows about 3e-3 short here.)"""
+    from scipy.optimize import nnls
+
+    from mmconcepts.nmf._coefficients import solve_coefficients
+
+    rng = np.random.default_rng(seed)
+    H = rng.gamma(0.3, 1.0, (150, 256))
+    X = (rng.gamma(0.5, 1.0, (12, 150)) * (rng.random((12, 150)) < 0.1)) @ H + 0.05 * rng.random((12, 256))
+    start = beta_nmf(X, 150, H=H, update_H=False, max_iter=50, random_state=0).W
+    W, converged = solve_coefficients(X, H, start, 2.0)
+    assert converged
+    for i in range(len(X)):
+        want = nnls(H.T, X[i])[0]
+        np.testing.assert_allclose(W[i], want, rtol=0, atol=1e-9 * want.max())
 
 
 def test_the_curvature_model_holds_no_subnormal_number():

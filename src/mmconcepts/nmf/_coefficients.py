@@ -127,13 +127,13 @@ class _Rows(abc.ABC):
         demand, its blocks (a Newton step needs only its free coefficients').
         """
 
-    def _penalised(self, W, num, den, diag, block):
+    def _penalised(self, W, num, den, diag, block, product=None):
         pen = self.penalty
         if pen.l1:
             den = den + pen.l1
         if pen.l2:
             den = den + pen.l2 * W
-        return den - num, den, _Curvature(diag, block, pen.l2)
+        return den - num, den, _Curvature(diag, block, pen.l2, product)
 
     def _row_blocks(self, n_rows: int, cells_per_row: int) -> Iterator[slice]:
         step = max(1, _BLOCK_CELLS // max(1, cells_per_row))
@@ -150,12 +150,20 @@ class _Curvature:
     """The Hessian of a block of rows: its diagonal ``diag`` (rows, k), and any of its blocks on demand.
 
     ``block(order, sel)`` gives, for rows ``sel`` of the block, the (len(sel), f, f) Hessian of the
-    coefficients ``order`` (len(sel), f), the L2 penalty ``l2`` included.
+    coefficients ``order`` (len(sel), f), the L2 penalty ``l2`` included; ``product(V)``, where the model
+    forms it, the Hessian of each row times its row of V.
     """
 
-    def __init__(self, diag: np.ndarray, block, l2: float = 0.0):
+    def __init__(self, diag: np.ndarray, block, l2: float = 0.0, product=None):
         self.diag = diag + l2 if l2 else diag
-        self._block, self._l2 = block, l2
+        self._block, self._l2, self._product = block, l2, product
+
+    def product(self, V: np.ndarray) -> np.ndarray:
+        """The Hessian of each row of the block times its row of V (rows, k)."""
+        if self._product is None:
+            raise NotImplementedError("this model does not form the Hessian's product (used at beta = 2 only)")
+        out = self._product(V)
+        return out + self._l2 * V if self._l2 else out
 
     def block(self, order: np.ndarray, sel: np.ndarray) -> np.ndarray:
         B = self._block(order, sel)
@@ -198,7 +206,8 @@ class _Quadratic(_Rows):
         for part in self._row_blocks(len(rows), k * k):
             diag = np.broadcast_to(np.diag(G), (part.stop - part.start, k))
             yield (part, *self._penalised(W[part], num[part], den[part], diag,
-                                          lambda order, sel: G[order[:, :, None], order[:, None, :]]))
+                                          lambda order, sel: G[order[:, :, None], order[:, None, :]],
+                                          lambda V: V @ G))
 
 
 class _SparseKL(_Rows):
@@ -310,7 +319,8 @@ class _Dense(_Rows):
                 A = self.Hn[order] * root[sel, None, :]  # (rows, f, m): the free atoms, weighted
                 return A @ A.transpose(0, 2, 1)
 
-            yield (part, *self._penalised(Wp, num_y @ self.Ht, den_y @ self.Ht, curv @ self.Hn2, block))
+            yield (part, *self._penalised(Wp, num_y @ self.Ht, den_y @ self.Ht, curv @ self.Hn2, block,
+                                          lambda V, curv=curv: ((V @ self.Hn) * curv) @ self.Hn.T))
 
 
 def _floored_divergence(x: np.ndarray, y: np.ndarray, beta: float) -> np.ndarray:
@@ -347,13 +357,14 @@ def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
 
 
 def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float, ridge: np.ndarray):
-    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor, and
-    the rows stationary to ``tol``.
+    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor, the
+    rows stationary to ``tol``, and the right-hand side of the free coefficients' Newton system (``slope``).
 
     Active (Bertsekas 1982): a coefficient at (or within eps of) zero whose gradient pushes it
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
     of the problem restricted to them, with ``ridge`` (one per row, relative to each
-    coefficient's curvature) on the diagonal; a climbing one (update factor above 1 +
+    coefficient's curvature) on the diagonal, at beta = 2 for the gradient where the active ones'
+    full step lands them (``slope``; g elsewhere); a climbing one (update factor above 1 +
     :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the
     multiplicative update's terms: with g = den - num, the ratio num / den (the update's factor)
     must be at most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the
@@ -362,7 +373,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     (those below are left out whichever way they are pushed).
     """
     n, k = W.shape
-    g, den_all, d = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
+    g, den_all, d, slope = np.empty((n, k)), np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
     active = np.empty((n, k), dtype=bool)
     optimal = np.empty(n, dtype=bool)
     stationary = np.empty(n, dtype=bool)
@@ -394,7 +405,16 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         up = ~act & (Wp > 0) & (excess < -_CLIMB) & np.isfinite(excess) & (model.beta < 2.0)
         act = act | up
         everyone = np.arange(len(Wp))
-        dp = _restricted_newton(curvature, everyone, gp, act, safe, ridge[part])
+        # beta = 2, where the quadratic model is the objective: the free coefficients' step is taken where the held
+        # ones' own full step leaves the gradient (held ones zeroed at once change the fit the free ones' step
+        # assumes, and the next step undoes it: rows then alternate between most atoms held and none)
+        pushed = act & (gp > 0) if model.beta == 2.0 else np.zeros_like(act)
+        rhs = gp
+        if pushed.any():
+            with np.errstate(over="ignore", invalid="ignore"):
+                moves = np.where(pushed, np.minimum(gp / safe, Wp), 0.0)
+            rhs = np.where(act, gp, gp - curvature.product(moves))
+        dp = _restricted_newton(curvature, everyone, rhs, act, safe, ridge[part])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             factor[part] = np.where(up, 1.0 - excess, 1.0)
         dp[up] = Wp[up] * excess[up]  # w - d = w num / den
@@ -405,13 +425,13 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         held = ~act & (Wp <= eps) & (dp > Wp) & (model.beta < 2.0)
         redo = np.flatnonzero(held.any(axis=1))
         if redo.size:
-            dp[redo] = _restricted_newton(curvature, redo, gp[redo], act[redo] | held[redo], safe[redo],
+            dp[redo] = _restricted_newton(curvature, redo, rhs[redo], act[redo] | held[redo], safe[redo],
                                           ridge[part][redo])
             with np.errstate(over="ignore"):
                 dp[held] = (gp / safe)[held]
             act = act | held
-        g[part], den_all[part], active[part], d[part] = gp, den, act, dp
-    return g, den_all, d, active, optimal, factor, stationary
+        g[part], den_all[part], active[part], d[part], slope[part] = gp, den, act, dp, rhs
+    return g, den_all, d, active, optimal, factor, stationary, slope
 
 
 def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
@@ -509,7 +529,7 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         if rows.size == 0:
             return W, True
         Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
-        g, den, d, active, optimal, factor, stationary = _newton_directions(model, rows, Wr, tol, ridge)
+        g, den, d, active, optimal, factor, stationary, slope = _newton_directions(model, rows, Wr, tol, ridge)
         newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
         # Optimal to tol (where the objective no longer resolves the decreases the line search needs): full
         # Newton steps, converging quadratically; settled when one moves no coefficient by more than tol times the
@@ -544,9 +564,10 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             climbing = factor[p] != 1.0
             trial[climbing] = (Wr[p] * factor[p] ** alpha[todo, None])[climbing]
             ft = model.objective(rows[p], trial, Wr[p])
-            # Armijo along the projection arc: the decrease the gradient predicts from the free coefficients'
-            # Newton step and the active ones' actual move
-            predicted = np.where(active[p], g[p] * (Wr[p] - trial), alpha[todo, None] * g[p] * d[p]).sum(axis=1)
+            # Armijo along the projection arc: the decrease the gradient predicts from the active ones' actual move,
+            # and the free coefficients' Newton step against its own right-hand side (the gradient where the active
+            # ones land, beta = 2: the quadratic's decrease along it, which the raw gradient can understate)
+            predicted = np.where(active[p], g[p] * (Wr[p] - trial), alpha[todo, None] * slope[p] * d[p]).sum(axis=1)
             # from an infinite objective (beta = 1, a cell whose product underflowed to 0), any finite one is progress
             with np.errstate(invalid="ignore"):
                 ok = np.isfinite(ft) & (~np.isfinite(f[p]) | (f[p] - ft >= _SIGMA * predicted))
