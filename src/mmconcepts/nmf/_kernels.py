@@ -168,11 +168,13 @@ def divide_clipped(X, Y, eps):  # pragma: no cover - compiled
 
 
 @njit(parallel=False, **_OPTS)
-def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
+def dense_divergence(X, Y, M, beta, with_x=True):  # pragma: no cover - compiled
     """sum_ij m_ij d_beta(X_ij | Y_ij) in one pass, accumulated in float64 (thesis eq. 2.2-2.3).
 
     ``M`` is an empty array when every cell is observed. 0 log 0 = 0, and a term whose cell is
-    unobserved counts 0 even when it is infinite.
+    unobserved counts 0 even when it is infinite. For beta outside {0, 1, 2}, ``with_x=False``
+    leaves out the terms x^beta / (beta (beta - 1)), which do not depend on Y
+    (:func:`dense_power_sum` gives their sum once).
     """
     n, m = X.shape
     has_m = M.shape[0] > 0
@@ -197,11 +199,31 @@ def dense_divergence(X, Y, M, beta):  # pragma: no cover - compiled
                 d = r - np.log(r) - 1.0 if r != np.inf else np.inf  # inf - log(inf) would be NaN
             else:
                 yb = y**beta
-                d = x**beta + (beta - 1.0) * yb
+                d = (beta - 1.0) * yb
+                if with_x:
+                    d += x**beta
                 if x > 0.0:  # y^(beta-1) as y^beta / y: one power fewer (y = 0: 0 or inf, by the power)
                     d -= beta * x * (yb / y if y > 0.0 else y ** (beta - 1.0))
                 d /= beta * (beta - 1.0)
             total += w * d
+    return total
+
+
+@njit(parallel=False, **_OPTS)
+def dense_power_sum(X, M, beta):  # pragma: no cover - compiled
+    """sum_ij m_ij x_ij^beta / (beta (beta - 1)) in float64: the part of the beta-divergence (beta outside
+    {0, 1, 2}) that does not depend on the product; ``M`` is an empty array when every cell is observed."""
+    n, m = X.shape
+    has_m = M.shape[0] > 0
+    total = 0.0
+    for i in range(n):
+        for j in range(m):
+            w = 1.0
+            if has_m:
+                w = M[i, j]
+                if w == 0.0:
+                    continue
+            total += w * (np.float64(X[i, j]) ** beta / (beta * (beta - 1.0)))
     return total
 
 

@@ -154,6 +154,8 @@ class Side:
     frobenius_buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # dense only: see _frobenius_buffers
     keep_numerator: bool = False  # dense, beta = 2, unmasked, float64: keep the next update's numerator X^T R ...
     kept_numerator: tuple[np.ndarray, np.ndarray] | None = None  # ... as (R, a copy of it), for Problem.divergence
+    x_terms: dict[float, float] = field(default_factory=dict)  # dense only: per beta, the divergence's terms in X
+    # alone (beta outside {0, 1, 2}: sum m x^beta / (beta (beta - 1))), summed once
 
     @property
     def sparse(self) -> bool:
@@ -416,6 +418,12 @@ class Side:
             bufs = self.divergence_buffers = [np.empty((min(b, n), m), dtype=L.dtype) for _ in range(count)]
         empty = np.empty((0, 0), dtype=X.dtype)
         sums = [0.0] * n_stripes
+        # fractional beta: the terms in X alone are the same at every evaluation, summed once
+        constant, fractional = 0.0, beta not in (0.0, 1.0, 2.0)
+        if fractional:
+            if beta not in self.x_terms:
+                self.x_terms[beta] = float(_kernels.dense_power_sum(X, empty if M is None else M, beta))
+            constant = self.x_terms[beta]
 
         def run(i: int, t: int) -> None:
             total = 0.0
@@ -431,12 +439,12 @@ class Side:
                         np.log(Q, out=Q)
                     part += _kernels.weighted_sum(X[s:e], Q)
                 else:
-                    part = _kernels.dense_divergence(X[s:e], P, Mb, beta)
+                    part = _kernels.dense_divergence(X[s:e], P, Mb, beta, not fractional)
                 total += float(part)
             sums[i] = total
 
         _stripes_in_threads(run, n_stripes, count)
-        return float(sum(sums))
+        return float(sum(sums)) + constant
 
 
 class Problem:
