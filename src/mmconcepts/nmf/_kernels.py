@@ -174,7 +174,7 @@ def dense_divergence(X, Y, M, beta, with_x=True):  # pragma: no cover - compiled
     ``M`` is an empty array when every cell is observed. 0 log 0 = 0, and a term whose cell is
     unobserved counts 0 even when it is infinite. For beta outside {0, 1, 2}, ``with_x=False``
     leaves out the terms x^beta / (beta (beta - 1)), which do not depend on Y
-    (:func:`dense_power_sum` gives their sum once).
+    (the caller sums them once).
     """
     n, m = X.shape
     has_m = M.shape[0] > 0
@@ -206,24 +206,6 @@ def dense_divergence(X, Y, M, beta, with_x=True):  # pragma: no cover - compiled
                     d -= beta * x * (yb / y if y > 0.0 else y ** (beta - 1.0))
                 d /= beta * (beta - 1.0)
             total += w * d
-    return total
-
-
-@njit(parallel=False, **_OPTS)
-def dense_power_sum(X, M, beta):  # pragma: no cover - compiled
-    """sum_ij m_ij x_ij^beta / (beta (beta - 1)) in float64: the part of the beta-divergence (beta outside
-    {0, 1, 2}) that does not depend on the product; ``M`` is an empty array when every cell is observed."""
-    n, m = X.shape
-    has_m = M.shape[0] > 0
-    total = 0.0
-    for i in range(n):
-        for j in range(m):
-            w = 1.0
-            if has_m:
-                w = M[i, j]
-                if w == 0.0:
-                    continue
-            total += w * (np.float64(X[i, j]) ** beta / (beta * (beta - 1.0)))
     return total
 
 

@@ -397,6 +397,15 @@ class Side:
             return total
         return self._dense_divergence(L, R, beta)
 
+    @staticmethod
+    def _x_power_sum(X: np.ndarray, M: np.ndarray | None, beta: float) -> float:
+        """sum m x^beta / (beta (beta - 1)) over a block in float64: the beta-divergence's terms in X alone."""
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            P = np.asarray(X, dtype=np.float64) ** beta
+            if M is not None:
+                P = np.where(M != 0, P * M, 0.0)  # an unobserved cell counts 0 even where x^beta is infinite
+        return float(P.sum()) / (beta * (beta - 1.0))
+
     def _dense_divergence(self, L: np.ndarray, R: np.ndarray, beta: float) -> float:
         """D_beta of a dense X by blocks of its stored rows, each block of the product used while in cache.
 
@@ -422,7 +431,8 @@ class Side:
         constant, fractional = 0.0, beta not in (0.0, 1.0, 2.0)
         if fractional:
             if beta not in self.x_terms:
-                self.x_terms[beta] = float(_kernels.dense_power_sum(X, empty if M is None else M, beta))
+                self.x_terms[beta] = sum(self._x_power_sum(X[s:s + b], None if M is None else M[s:s + b], beta)
+                                         for s in starts)
             constant = self.x_terms[beta]
 
         def run(i: int, t: int) -> None:
