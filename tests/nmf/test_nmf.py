@@ -1249,6 +1249,36 @@ def _kernel_density_rows(rng, n, m, width):
     return X / X.sum(axis=1, keepdims=True)
 
 
+@pytest.mark.xfail(strict=True, reason="known defect: on kernel-density rows with chapter 3's sizes, a row is declared "
+                   "converged where L-BFGS-B, started from its answer, lowers the I-divergence by 6.9e-4 of it")
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+def test_no_row_of_wide_kernel_density_histograms_stops_above_its_minimum():
+    """30 kernel-density rows over 256 bins, 150 atoms (chapter 3's sizes): scipy's L-BFGS-B, started from each row's
+    answer, lowers no row's I-divergence by more than 1e-9 of it (an outside answer; the test above starts it from
+    the updates' start, which it does not always bring as low). Found by comparing captured chapter-3 solves with
+    L-BFGS-B: a row stopped with a cell of x = 0.015 whose product had collapsed to 1.6e-178, under the objective
+    the solver reads (the logarithm continued linearly below 1e-100) 2.6 lower than the I-divergence."""
+    from scipy.optimize import minimize
+
+    from mmconcepts.nmf._beta import elementwise_beta_divergence
+    from mmconcepts.nmf._coefficients import solve_coefficients
+
+    X = _kernel_density_rows(np.random.default_rng(1), 30, 256, 4.0)
+    H = NMF(150, beta_loss=1.0, random_state=1, max_iter=200).fit(X).components_
+    start = beta_nmf(X, 150, H=H, update_H=False, max_iter=100, random_state=2).W
+    W, converged = solve_coefficients(X, H, start, 1.0)
+    assert converged
+    for w, x in zip(W, X):
+        def f(v, x=x):
+            y = np.maximum(v @ H, 1e-300)
+            return float(np.sum(y - x * np.log(y))), H @ (1.0 - x / y)
+
+        better = minimize(f, w, jac=True, method="L-BFGS-B", bounds=[(0, None)] * len(w),
+                          options=dict(ftol=1e-15, gtol=1e-12, maxiter=20000)).x
+        ours, theirs = (elementwise_beta_divergence(x, v @ H, 1.0).sum() for v in (w, better))
+        assert ours <= theirs * (1 + 1e-9)
+
+
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
 @pytest.mark.parametrize("seed, n, m, k, width", [(0, 30, 64, 20, 2.5), (0, 30, 64, 20, 3.0), (0, 30, 128, 60, 4.0),
                                                   (0, 40, 96, 40, 3.0), (3, 40, 200, 100, 5.0)])
