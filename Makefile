@@ -110,6 +110,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/dtw.py
 	$(BIN)/python benchmarks/tree.py
 	$(BIN)/python benchmarks/mdp.py
+	$(BIN)/python benchmarks/coefficients.py
 
 clean:
 	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache tests/.artifacts docs/_build docs/auto_examples docs/api/generated docs/sg_execution_times.rst
