@@ -159,9 +159,8 @@ class _Curvature:
         self._block, self._l2, self._product = block, l2, product
 
     def product(self, V: np.ndarray) -> np.ndarray:
-        """The Hessian of each row of the block times its row of V (rows, k)."""
-        if self._product is None:
-            raise NotImplementedError("this model does not form the Hessian's product (used at beta = 2 only)")
+        """The Hessian of each row of the block times its row of V (rows, k); formed by the models that reach
+        beta = 2, the only beta that uses it."""
         out = self._product(V)
         return out + self._l2 * V if self._l2 else out
 
