@@ -349,6 +349,49 @@ def test_h_goes_down_a_tree_to_the_workers_and_the_sums_up_it():
     assert tasks[graph.key("H", 8)][1] == root
 
 
+@pytest.mark.parametrize("layout, fan", [("aaaabbbbbbbb", 8), ("aaaaaabbbbbbcccccc", 3), ("aabbbccc", 2)])
+def test_a_few_workers_each_update_their_own_H_from_the_same_sums(layout, fan):
+    """At most split_every workers: each worker sums every worker's parts up the tree itself and updates its own copy
+    of H (one task, no root to wait for, no copy of H sent down a tree but at a batch's start); every copy reads the
+    same parts in the same order, and none reads another worker's run (W stays where it is). More workers than the
+    fan-in keep the root and the broadcast tree (the test above)."""
+    from mmconcepts.nmf._updates import Penalty
+
+    n = len(layout)
+    specs = [nd._ChunkSpec(c, c, c + 1) for c in range(n)]
+    rule = nd._Rule(1.0, 1.0, Penalty(), 1.0, K, "float64")
+    graph = nd._IterationGraph("g", [f"src-{c}" for c in range(n)], specs, rule, Penalty(), fan, list(layout))
+    hosts = list(dict.fromkeys(layout))
+    assert graph.replicated == (len(hosts) <= fan)
+    if not graph.replicated:
+        return
+    middle = graph.layer(7, None, "H7", evaluate=False, update=True)
+    where = graph.where(7, evaluate=False, update=True)
+    assert not any(task[0] is nd._same for task in middle.values())  # H^7 is on every worker already
+    updates = [graph.key("H", 8)] + [graph.key("Hto", 8, j) for j in range(1, len(hosts))]
+    read = []
+    for j, k in enumerate(updates):
+        func, fan_in, h_prev, _rule, _pen, *nodes = middle[k]
+        assert func is nd._tree_h_step and fan_in == fan and where[k] == hosts[j]
+        assert h_prev == ("H7" if j == 0 else graph.key("Hto", 7, j))
+        assert all(where[a] == hosts[j] for a in nodes if "-run-" in a)  # another worker's run only through its part
+        # the same node (a run, its part or a group's sum) in the same place of every copy's sum
+        read.append([a.replace("-part-", "-run-") for a in nodes])
+        assert graph.key("H", 8) != k or not any("-Hto-" in a for a in nodes)
+    assert all(r == read[0] for r in read)
+    # a run reads its own worker's H
+    for k, task in middle.items():
+        if "-run-" in k:
+            assert where[task[3]] == where[k] if task[3] != "H7" else where[k] == hosts[0]
+    # a batch's first iteration copies H^t to the other workers; its last sums once for the check and makes H^(t+1)
+    # on the first worker alone (the next batch copies it)
+    first = graph.layer(7, [f"w-{c}" for c in range(n)], "H7", evaluate=True, update=True)
+    copies = {k for k, task in first.items() if task[0] is nd._same}
+    assert copies == {graph.key("Hto", 7, j) for j in range(1, len(hosts))}
+    assert first[graph.key("check", 7)][1] == graph.root(7) == first[graph.key("H", 8)][1]
+    assert not any(graph.key("Hto", 8, j) in first for j in range(1, len(hosts)))
+
+
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
 @pytest.mark.parametrize("layout, split_every", [("aaab", 2), ("abcd", 2), ("aaaa", 8), ("aabb", 8), ("abab", 3)])
 def test_fit_with_runs_and_the_broadcast_tree_equals_the_fit_without(rng, monkeypatch, layout, split_every):
@@ -361,6 +404,22 @@ def test_fit_with_runs_and_the_broadcast_tree_equals_the_fit_without(rng, monkey
     treed = nd.beta_nmf_dask(to_dask(X), K, beta=0.5, mask=to_dask(mask), **kw)
     assert np.array_equal(plain.W.compute(), treed.W.compute()) and np.array_equal(plain.H, treed.H)
     assert np.array_equal(plain.loss_history, treed.loss_history)
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("layout", ["a" * 9 + "b" * 11, "aaaaaaabbbbbbbcccccc"])
+def test_each_workers_own_H_is_the_roots_bit_for_bit(rng, monkeypatch, layout):
+    """Twenty chunks, a tree of fan-in 3 two levels above its first (7 groups, then 3, then 1): each worker's
+    update of H sums the parts in the tree's order, so the fit is the one without workers, bit for bit."""
+    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
+    W0, H0 = rng.random((200, K)) + 0.1, rng.random((K, M)) + 0.1
+    Xd = da.from_array(X, chunks=(10, -1), asarray=False)
+    kw = dict(init="custom", W=W0, H=H0, beta=1.0, max_iter=6, tol=1e-6, loss_every=3, split_every=3)
+    plain = nd.beta_nmf_dask(Xd, K, **kw)
+    monkeypatch.setattr(nd, "_chunk_workers", lambda specs, n: list(layout))
+    shared = nd.beta_nmf_dask(Xd, K, **kw)
+    assert np.array_equal(plain.W.compute(), shared.W.compute()) and np.array_equal(plain.H, shared.H)
+    assert np.array_equal(plain.loss_history, shared.loss_history)
 
 
 def test_hstack_row_chunks_for_modalities(rng):

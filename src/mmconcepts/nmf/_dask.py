@@ -26,7 +26,10 @@ per iteration. On a ``distributed`` cluster, each chunk stays on one worker for 
 of the tree run as one task per iteration that hands their W to the next iteration's, each sum
 runs where its first chunk is, and the new H goes to the workers down a tree of the same
 fan-out: a few tasks per worker and iteration, and a few k x n_features arrays in and out of
-each worker.
+each worker. With no more workers than the fan-in (``split_every``), each worker instead
+receives the other workers' sums and adds up all of them itself, in the tree's order, to update
+its own copy of H: the same numbers, and one exchange between the workers per iteration where
+the tree has two (the sums up to the root, H back down).
 
 Memory
 ------
@@ -1235,6 +1238,27 @@ def _sum_nodes(*nodes: Any) -> _Partial:
     return _sum_partials(*parts)
 
 
+def _tree_sum(fan: int, *nodes: Any) -> _Partial:
+    """The sum of the first level's nodes (each one part, or a run's output holding one) up a tree of fan-in
+    ``fan``: the sums the tree's tasks make, in the same order (the same numbers), in one task; a new part."""
+    level = [_sum_nodes(nodes[0])] if len(nodes) == 1 else [_only_part(n) for n in nodes]
+    while len(level) > 1:
+        level = [_sum_partials(*level[a:a + fan]) for a in range(0, len(level), fan)]
+    return level[0]
+
+
+def _only_part(node: Any) -> _Partial:
+    node = node[1] if isinstance(node, tuple) else node
+    if isinstance(node, list):
+        (node,) = node
+    return node
+
+
+def _tree_h_step(fan: int, Ht: np.ndarray, rule: _Rule, pen_H: Penalty, *nodes: Any) -> np.ndarray:
+    """:func:`_h_step` of :func:`_tree_sum`: a worker's own copy of the next H, from every worker's sums."""
+    return _h_step(_tree_sum(fan, *nodes), Ht, rule, pen_H, own=True)
+
+
 def _first_part(run: tuple[list, list[_Partial]]) -> _Partial:
     return run[1][0]
 
@@ -1267,6 +1291,13 @@ class _IterationGraph:
     goes down a tree of fan-out ``split_every`` to the other workers (``Hto-t-j``, an identity
     task on the j-th worker, in the order of their first chunk, reading the copy of worker
     (j - 1) // split_every), instead of every worker fetching it from the one that computed it.
+
+    With no more workers than ``split_every`` (``replicated``), the levels above the first are one
+    task per worker instead (:func:`_tree_h_step`, ``H-{t+1}`` on the first worker, ``Hto-{t+1}-j``
+    on the j-th): it reads the first level's nodes (another worker's run through its ``part``), sums
+    them in the tree's order (:func:`_tree_sum`) and updates that worker's H^t; H is copied to the
+    workers only at a batch's first iteration, and a batch's last iteration sums once on the first
+    worker (``tree-t``, read by the check and the H update persisted for the next batch).
     """
 
     def __init__(self, name: str, source_keys: list, specs: Sequence[_ChunkSpec], rule: _Rule, pen_H: Penalty,
@@ -1297,6 +1328,9 @@ class _IterationGraph:
         while width > 1:
             self.levels.append([list(range(a, min(a + split_every, width))) for a in range(0, width, split_every)])
             width = len(self.levels[-1])
+        # a few workers (no more than the fan-in): each sums the first level's nodes and updates H itself, from the
+        # same parts in the same order, instead of waiting for H to come down from the root
+        self.replicated = 1 < len(self.hosts) <= split_every
 
     def key(self, what: str, t: int, c: int | None = None) -> str:
         return f"{self.name}-{what}-{t}" if c is None else f"{self.name}-{what}-{t}-{c}"
@@ -1305,6 +1339,8 @@ class _IterationGraph:
         """The key of iteration t's summed part."""
         if len(self.specs) == 1:
             return self.key("part", t, 0)
+        if self.replicated:
+            return self.key("tree", t)
         return self.key(f"sum{len(self.levels)}", t, 0)
 
     def h_for(self, t: int, host: int, h_key: Any) -> Any:
@@ -1320,9 +1356,12 @@ class _IterationGraph:
         in place if ``own``: not asked for their ``w`` keys)."""
         key = self.key
         out: dict[Any, Any] = {}
-        for j in range(1, len(self.hosts)):
-            out[key("Hto", t, j)] = (_same, self.h_for(t, (j - 1) // self.fan, h_key))
+        if not self.replicated or w_in is not None:  # replicated: H^t is already on every worker but in a batch's first
+            for j in range(1, len(self.hosts)):
+                out[key("Hto", t, j)] = (_same, self.h_for(t, (j - 1) // self.fan, h_key))
         groups: dict[int, list] = {}
+        remote: dict[str, str] = {}  # a run's key -> the key of its parts alone (read on another worker)
+        held_on: dict[str, str | None] = {}  # the worker of each part or run
         for r, (chunks, whole) in enumerate(zip(self.runs, self.whole)):
             prev = [w_in[c] for c in chunks] if w_in is not None else key("run", t - 1, r)
             run = key("run", t, r)
@@ -1336,7 +1375,11 @@ class _IterationGraph:
             if self._worker(chunks[0]) != self._worker(reader):
                 out[key("part", t, r)] = (_run_parts, run)  # read on another worker: without the W
                 run = key("part", t, r)
+            elif self.replicated and whole:  # a node of the first level: read on every worker
+                out[key("part", t, r)] = (_run_parts, run)
+                remote[run] = key("part", t, r)
             groups.setdefault(g, []).append((run, whole))
+            held_on[run] = self._worker(chunks[0])
         if len(self.specs) == 1:
             out[key("part", t, 0)] = (_first_part, key("run", t, 0))
         nodes = []
@@ -1347,6 +1390,20 @@ class _IterationGraph:
             elif len(self.specs) > 1:
                 out[key("sum0", t, g)] = (_sum_nodes, *[m for m, _ in members])
                 nodes.append(key("sum0", t, g))
+                held_on[key("sum0", t, g)] = self._worker(g * self.fan)
+        if self.replicated:
+            read = [[n if held_on[n] == host else remote.get(n, n) for n in nodes] for host in self.hosts]
+            if evaluate:  # the last iteration of a batch: the check reads the sum, the next batch copies H^(t+1)
+                out[self.root(t)] = (_tree_sum, self.fan, *read[0])
+                if update:
+                    out[key("H", t + 1)] = (_h_step, self.root(t), h_key, self.rule, self.pen_H)
+            elif update:
+                for j in range(len(self.hosts)):
+                    h_next = key("H", t + 1) if j == 0 else key("Hto", t + 1, j)
+                    out[h_next] = (_tree_h_step, self.fan, self.h_for(t, j, h_key), self.rule, self.pen_H, *read[j])
+            if evaluate:
+                out[key("check", t)] = (_check_part, self.root(t), h_key, self.pen_H)
+            return out
         for d, level in enumerate(self.levels, start=1):
             nodes_next = []
             for g, members in enumerate(level):
@@ -1370,6 +1427,11 @@ class _IterationGraph:
         out = {key("run", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)}
         out.update({key("part", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)})
         out.update({key("Hto", t, j): self.hosts[j] for j in range(1, len(self.hosts))})
+        if self.replicated:
+            out[self.root(t)] = first
+            if update and not evaluate:
+                out.update({key("Hto", t + 1, j): self.hosts[j] for j in range(1, len(self.hosts))})
+            out[key("H", t + 1)] = first
         out.update({key("sum0", t, g): workers[g * self.fan] for g in range(max(self.group_of) + 1)})
         for d, level in enumerate(self.levels, start=1):
             span = self.fan ** (d + 1)  # chunks under one node of level d
