@@ -1313,6 +1313,34 @@ def test_coefficients_of_kernel_density_histograms_reach_the_minimum(seed, n, m,
 
 
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("seed, n, m, k, width", [(0, 30, 64, 20, 3.0), (0, 30, 128, 60, 4.0)])
+def test_no_newton_step_raises_a_rows_objective(monkeypatch, seed, n, m, k, width):
+    """Every step leaves each row's objective no higher than it was, up to its rounding (1e-10 of it: the terms
+    cancel to far less than their sum): a row optimal to tol takes a full Newton step only where it does not raise
+    the objective (on these kernel-density rows, one that zeroed its held coefficients at once raised it by 1.5e-8
+    of it, and the row cycled between such steps and searched ones to the step limit)."""
+    from mmconcepts.nmf import _coefficients as C
+
+    X = _kernel_density_rows(np.random.default_rng(seed), n, m, width)
+    H = NMF(k, beta_loss=1.0, random_state=1, max_iter=200).fit(X).components_
+    start = beta_nmf(X, k, H=H, update_H=False, max_iter=100, random_state=2).W
+    seen: dict[int, list[float]] = {}
+    directions = C._newton_directions
+
+    def recording(model, rows, W, *args):
+        for r, f in zip(rows, model.objective(rows, W)):
+            seen.setdefault(int(r), []).append(float(f))
+        return directions(model, rows, W, *args)
+
+    monkeypatch.setattr(C, "_newton_directions", recording)
+    _, converged = C.solve_coefficients(X, H, start, 1.0)
+    assert converged
+    for r, fs in seen.items():
+        f = np.array(fs)
+        assert np.all(f[1:] <= f[:-1] * (1 + 1e-10)), (r, np.max(f[1:] / f[:-1]))
+
+
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
 def test_coefficients_of_wide_kernel_density_histograms_converge():
     """60 atoms over 128 bins of kernel densities: every row stops before the step limit (clipped coefficients
     near zero held, cells whose x cannot matter left to collapse), and no row ends above its start."""

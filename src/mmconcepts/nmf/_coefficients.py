@@ -547,10 +547,18 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             collapsing = ~np.isfinite(model.objective(rows[newton], full, Wr[newton]))
             full[collapsing] = np.maximum(Wr[newton] - d[newton], floor[newton])[collapsing]
         size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr[newton]).max(axis=1))
-        W[rows[newton]] = full
-        f_all[rows[newton]] = model.objective(rows[newton], full)
+        f_full = model.objective(rows[newton], full)
+        # a full step that raises the objective beyond its rounding (the held coefficients zeroed at once can, where
+        # the quadratic model is not the objective) is searched instead, like any other step: taken, rows can cycle
+        with np.errstate(invalid="ignore"):
+            raised = np.isfinite(f[newton]) & ~(f_full <= f[newton] + _RESOLUTION * np.abs(f[newton]))
+        full_rows = np.flatnonzero(newton)
+        W[rows[full_rows[~raised]]] = full[~raised]
+        f_all[rows[full_rows[~raised]]] = f_full[~raised]
+        short = ~raised & (np.abs(full - Wr[newton]).max(axis=1) <= tol * size)
+        settled[rows[full_rows[short]]] = True
+        newton[full_rows[raised]] = False
         done = confirmed.copy()
-        settled[rows[np.flatnonzero(newton)[np.abs(full - Wr[newton]).max(axis=1) <= tol * size]]] = True
         pending = np.flatnonzero(~newton & ~confirmed)
         alpha = np.ones(pending.size)
         todo = np.arange(pending.size)
