@@ -356,8 +356,8 @@ def _rows_model(X, Ht, beta, penalty, mask) -> _Rows:
 
 
 def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float, ridge: np.ndarray):
-    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor, the
-    rows stationary to ``tol``, and the right-hand side of the free coefficients' Newton system (``slope``).
+    """g, den, the projected Newton direction d, the active coefficients, the rows optimal to ``tol``, factor, and
+    the right-hand side of the free coefficients' Newton system (``slope``).
 
     Active (Bertsekas 1982): a coefficient at (or within eps of) zero whose gradient pushes it
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
@@ -367,25 +367,16 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the
     multiplicative update's terms: with g = den - num, the ratio num / den (the update's factor)
     must be at most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the
-    row's largest coefficient (the Karush-Kuhn-Tucker conditions, free of units). Stationary:
-    the factor within ``tol`` of 1 at every coefficient above ``tol`` times the row's largest
-    (those below are left out whichever way they are pushed).
+    row's largest coefficient (the Karush-Kuhn-Tucker conditions, free of units; :func:`_optimality`).
     """
     n, k = W.shape
     g, den_all, d, slope = np.empty((n, k)), np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
     active = np.empty((n, k), dtype=bool)
     optimal = np.empty(n, dtype=bool)
-    stationary = np.empty(n, dtype=bool)
     factor = np.empty((n, k))
     for part, gp, den, curvature in model.derivatives(rows, W):
         Wp = W[part]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            excess = np.where(den > 0, gp / den, np.where(gp == 0, 0.0, np.sign(gp) * np.inf))
-        # pushed up: excess < 0 is a violation at any w; pushed down: only where w is not negligible
-        size = np.maximum(Wp.max(axis=1, keepdims=True), _TINY)
-        down = np.minimum(np.maximum(excess, 0.0), Wp / size)
-        optimal[part] = np.maximum(np.maximum(-excess, 0.0), down).max(axis=1) <= tol
-        stationary[part] = np.where(Wp > tol * size, np.abs(excess), 0.0).max(axis=1) <= tol
+        excess, optimal[part], _ = _optimality(gp, den, Wp, tol)
         diag = curvature.diag
         scale = diag.max(axis=1, keepdims=True)
         scale = np.where(scale > 0, scale, 1.0)
@@ -430,7 +421,35 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
                 dp[held] = (gp / safe)[held]
             act = act | held
         g[part], den_all[part], active[part], d[part], slope[part] = gp, den, act, dp, rhs
-    return g, den_all, d, active, optimal, factor, stationary, slope
+    return g, den_all, d, active, optimal, factor, slope
+
+
+def _optimality(g: np.ndarray, den: np.ndarray, W: np.ndarray, tol: float):
+    """The excess g / den (the multiplicative update's factor minus one), and which rows are optimal and which
+    stationary to ``tol``.
+
+    Optimal: the factor at most 1 + ``tol`` everywhere, and at least 1 - ``tol`` where w is more
+    than ``tol`` times the row's largest coefficient (the Karush-Kuhn-Tucker conditions).
+    Stationary: the factor within ``tol`` of 1 at every coefficient above ``tol`` times the row's
+    largest (those below are left out whichever way they are pushed).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        excess = np.where(den > 0, g / den, np.where(g == 0, 0.0, np.sign(g) * np.inf))
+    # pushed up: excess < 0 is a violation at any w; pushed down: only where w is not negligible
+    size = np.maximum(W.max(axis=1, keepdims=True), _TINY)
+    down = np.minimum(np.maximum(excess, 0.0), W / size)
+    optimal = np.maximum(np.maximum(-excess, 0.0), down).max(axis=1) <= tol
+    stationary = np.where(W > tol * size, np.abs(excess), 0.0).max(axis=1) <= tol
+    return excess, optimal, stationary
+
+
+def _stationary_rows(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float) -> np.ndarray:
+    """Which of ``rows`` (W holds their coefficients) are stationary to ``tol``: the gradient alone, no Newton
+    system formed."""
+    out = np.empty(len(rows), dtype=bool)
+    for part, gp, den, _curvature in model.derivatives(rows, W):
+        out[part] = _optimality(gp, den, W[part], tol)[2]
+    return out
 
 
 def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
@@ -525,20 +544,23 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
     ridge_all = np.full(W.shape[0], _RIDGE)
     settled = np.zeros(W.shape[0], dtype=bool)
     for _ in range(max_iter):
-        if rows.size == 0:
-            return W, True
-        Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
-        g, den, d, active, optimal, factor, stationary, slope = _newton_directions(model, rows, Wr, tol, ridge)
-        newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
         # Optimal to tol (where the objective no longer resolves the decreases the line search needs): full
         # Newton steps, converging quadratically; settled when one moves no coefficient by more than tol times the
         # row's largest (a flat minimum can meet tol far from its optimum: the step measures that distance), and
         # done when the point it reached is stationary (the step moves the free coefficients to the minimum of
         # the quadratic model at the held ones' old values, which the same step may zero; a coefficient below tol
-        # times the largest is within the step's resolution)
-        confirmed = settled[rows] & stationary
-        settled[rows] = False
-        newton = optimal & newtonian & ~confirmed
+        # times the largest is within the step's resolution): read from the gradient alone, before any Newton
+        # system is formed
+        if settled[rows].any():
+            check = rows[settled[rows]]
+            settled[check] = False
+            rows = rows[~np.isin(rows, check[_stationary_rows(model, check, W[check], tol)])]
+        if rows.size == 0:
+            return W, True
+        Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
+        g, den, d, active, optimal, factor, slope = _newton_directions(model, rows, Wr, tol, ridge)
+        newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
+        newton = optimal & newtonian
         # beta < 2: the held coefficients shrink by at most 2 _COLLAPSE per searched step (see there); a full step
         # takes them to zero exactly unless that collapses a cell with x > 0
         floor = np.where(active, 2.0 * _COLLAPSE * Wr, 0.0) if model.beta < 2.0 else np.zeros_like(Wr)
@@ -558,8 +580,8 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         short = ~raised & (np.abs(full - Wr[newton]).max(axis=1) <= tol * size)
         settled[rows[full_rows[short]]] = True
         newton[full_rows[raised]] = False
-        done = confirmed.copy()
-        pending = np.flatnonzero(~newton & ~confirmed)
+        done = np.zeros(rows.size, dtype=bool)
+        pending = np.flatnonzero(~newton)
         alpha = np.ones(pending.size)
         todo = np.arange(pending.size)
         stuck = np.zeros(pending.size, dtype=bool)
