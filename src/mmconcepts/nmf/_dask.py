@@ -1241,10 +1241,10 @@ def _sum_nodes(*nodes: Any) -> _Partial:
 def _tree_sum(fan: int, *nodes: Any) -> _Partial:
     """The sum of the first level's nodes (each one part, or a run's output holding one) up a tree of fan-in
     ``fan``: the sums the tree's tasks make, in the same order (the same numbers), in one task; a new part."""
-    level = [_sum_nodes(nodes[0])] if len(nodes) == 1 else [_only_part(n) for n in nodes]
+    level = [_only_part(n) for n in nodes]
     while len(level) > 1:
         level = [_sum_partials(*level[a:a + fan]) for a in range(0, len(level), fan)]
-    return level[0]
+    return level[0] if len(nodes) > 1 else _sum_partials(level[0])  # a copy of a lone node
 
 
 def _only_part(node: Any) -> _Partial:
@@ -1427,11 +1427,10 @@ class _IterationGraph:
         out = {key("run", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)}
         out.update({key("part", t, r): workers[chunks[0]] for r, chunks in enumerate(self.runs)})
         out.update({key("Hto", t, j): self.hosts[j] for j in range(1, len(self.hosts))})
-        if self.replicated:
+        if self.replicated and evaluate:
             out[self.root(t)] = first
-            if update and not evaluate:
-                out.update({key("Hto", t + 1, j): self.hosts[j] for j in range(1, len(self.hosts))})
-            out[key("H", t + 1)] = first
+        elif self.replicated and update:
+            out.update({key("Hto", t + 1, j): self.hosts[j] for j in range(1, len(self.hosts))})
         out.update({key("sum0", t, g): workers[g * self.fan] for g in range(max(self.group_of) + 1)})
         for d, level in enumerate(self.levels, start=1):
             span = self.fan ** (d + 1)  # chunks under one node of level d
