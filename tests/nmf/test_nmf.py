@@ -367,7 +367,11 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
     w = rng.random(X.nnz) if weighted else np.empty(0)
     ref_num, ref_y = _numerator_reference(X, w, L, R, beta, 1e-9)
     none = _kernels._NO_DEN  # no fused update
-    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, 1, 10**9)
+    def factors(Z, weights, groups):  # the kernel's scratch
+        return _kernels._factors(Z.indptr, Z.data, weights, L, groups)
+
+    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, 1, 10**9,
+                                   factors(X, w, 1))
     np.testing.assert_allclose(whole, ref_num, rtol=1e-12)
     shuffled = X.copy()  # the same entries, each row's column indices in another order
     for i in range(X.shape[0]):
@@ -376,12 +380,12 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
         shuffled.indices[sl], shuffled.data[sl] = X.indices[sl][order], X.data[sl][order]
     for groups, tile in [(1, 1), (2, 7), (3, 64), (23, 100), (5, 699), (2, 701)]:
         got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, groups,
-                                     tile)
+                                     tile, factors(X, w, groups))
         np.testing.assert_array_equal(got, whole)
         y = _kernels._lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz), groups, tile)
         np.testing.assert_allclose(y if beta >= 2.0 else np.maximum(y, 1e-9), ref_y, rtol=1e-13)
         got = _kernels._mu_numerator(shuffled.indptr, shuffled.indices, shuffled.data, np.empty(0), L, R, beta, 1e-9,
-                                     np.empty_like(L), none, groups, tile)
+                                     np.empty_like(L), none, groups, tile, factors(shuffled, np.empty(0), groups))
         np.testing.assert_allclose(got, _numerator_reference(shuffled, np.empty(0), L, R, beta, 1e-9)[0], rtol=1e-12)
 
 
@@ -396,15 +400,17 @@ def test_fused_kl_update_equals_numerator_then_numpy_update(rng, dtype):
     L, R = rng.random((19, 5)).astype(dtype), rng.random((500, 5)).astype(dtype)
     den = R.sum(axis=0)
     eps = dtype(_kernels.EPSILON)
-    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0, dtype), L, R, 1.0, eps, np.empty_like(L),
-                               _kernels._NO_DEN, 1, 10**9)
+    none = np.empty(0, dtype)
+    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L, R, 1.0, eps, np.empty_like(L),
+                               _kernels._NO_DEN, 1, 10**9, _kernels._factors(X.indptr, X.data, none, L, 1))
     expected = L * (N / den)
     for groups, tile in [(1, 10**9), (2, 64), (3, 7), (19, 1)]:
         L2 = L.copy()
-        ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0, dtype), L2, R, 1.0, eps,
-                                       np.empty_like(L), den, groups, tile)
+        ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L2, R, 1.0, eps,
+                                       np.empty_like(L), den, groups, tile, _kernels._factors(X.indptr, X.data, none, L,
+                                                                                              groups))
         np.testing.assert_array_equal(ratio, N / den)
-        np.testing.assert_array_equal(L2 * ratio, expected)
+        np.testing.assert_array_equal(L2, expected)  # L updated in place by the kernel
     L3 = L.copy()
     assert _kernels.kl_update(X.indptr, X.indices, X.data, L3, R, den, np.empty_like(L)) is L3
     np.testing.assert_array_equal(L3, expected)

@@ -50,6 +50,14 @@ def lowrank_at_nonzeros(indptr, indices, L, R, out):
     return _lowrank_at_nonzeros(indptr, indices, L, R, out, *_tiling(indptr, R))
 
 
+def _factors(indptr, data, weights, L, groups: int) -> np.ndarray:
+    """Scratch for ``_mu_numerator``: one row per group, as long as the longest row of X, of the
+    type the entries' factors are computed in (that of ``data``, ``L`` and ``weights`` together)."""
+    longest = int(np.diff(indptr).max()) if len(indptr) > 1 else 0
+    dtype = np.result_type(data, L, weights) if weights.shape[0] else np.result_type(data, L)
+    return np.empty((groups, longest), dtype=dtype)
+
+
 def mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out):
     """out[i] = sum_p w_p * x_p * y_p**(beta - 2) * R[j_p]  with y_p = L[i] . R[j_p].
 
@@ -65,7 +73,9 @@ def mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out):
     as the plain row-by-row loop, for any tile size and even with unsorted column indices
     (which only lose the cache benefit).
     """
-    return _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, _NO_DEN, *_tiling(indptr, R))
+    groups, tile = _tiling(indptr, R)
+    return _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, _NO_DEN, groups, tile,
+                         _factors(indptr, data, weights, L, groups))
 
 
 def kl_update(indptr, indices, data, L, R, den, out):
@@ -74,13 +84,14 @@ def kl_update(indptr, indices, data, L, R, den, out):
     L <- L * (N / den) with N = ``mu_numerator`` at beta = 1 (thesis eq. 2.16 with gamma = 1)
     and ``den`` the (k,) denominator row (R's column sums, zeros replaced by the caller). The
     kernel divides each row of N by ``den`` as soon as it is complete, while it is in the cache,
-    and numpy multiplies L by the ratios: the same numbers, bit for bit, as the numerator
-    followed by ``L *= N / den``. (The product stays out of the kernel: under its fastmath
-    flags, LLVM would compute (L * N) / den, other last bits.) ``out`` receives N / den.
+    and multiplies that row of L by the ratios: the same numbers, bit for bit, as the numerator
+    followed by ``L *= N / den`` in numpy (the kernel is compiled without reassociation, so
+    ``L * (N / den)`` is not turned into ``(L * N) / den``). ``out`` receives N / den.
     """
-    _mu_numerator(indptr, indices, data, _NO_WEIGHTS, L, R, 1.0, L.dtype.type(EPSILON), out, den,
-                  *_tiling(indptr, R))
-    return np.multiply(L, out, out=L)
+    groups, tile = _tiling(indptr, R)
+    _mu_numerator(indptr, indices, data, _NO_WEIGHTS, L, R, 1.0, L.dtype.type(EPSILON), out, den, groups, tile,
+                  _factors(indptr, data, _NO_WEIGHTS, L, groups))
+    return L
 
 
 @njit(parallel=True, **_OPTS)
@@ -104,8 +115,26 @@ def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: n
     return out
 
 
-@njit(parallel=True, **_OPTS)
-def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, groups, tile):  # pragma: no cover
+# Without reassociation: the numerator's sums over a row's entries then run in their stored order
+# (each term one fused multiply-add), whatever the grouping of entries below.
+_OPTS_ORDERED: dict[str, Any] = dict(_OPTS, fastmath={"contract"})
+
+
+@njit(**_OPTS)
+def _row_dot(L, i, R, j, k):  # pragma: no cover - compiled
+    """L[i] . R[j] over the first k entries (vectorised: reassociated)."""
+    acc = L.dtype.type(0.0)
+    for t in range(k):
+        acc += L[i, t] * R[j, t]
+    return acc
+
+
+@njit(parallel=True, **_OPTS_ORDERED)
+def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, groups, tile, factors):  # pragma: no cover
+    # Two passes over each row's entries in a tile: their factors e_p first (a dot product each,
+    # independent of one another), then out[i] += e_p R[j_p], four entries per sweep over out[i]
+    # (one load and store of out[i] per four entries instead of one per entry). Each out[i, t]
+    # still receives e_p R[j_p, t] one entry after the other in stored order, as a plain loop would.
     n = indptr.shape[0] - 1
     m, k = R.shape[0], L.shape[1]
     has_w = weights.shape[0] > 0
@@ -114,22 +143,21 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, gro
     for g in nb.prange(groups):
         r0, r1 = g * n // groups, (g + 1) * n // groups
         pos = indptr[r0:r1].copy()
+        factor = factors[g]
         for i in range(r0, r1):
             for t in range(k):
                 out[i, t] = 0.0
         last = max(m, 1)  # one pass even without columns, for the fused update
         for c1 in range(tile, last + tile, tile):
             for i in range(r0, r1):
-                p, end = pos[i - r0], indptr[i + 1]
+                p0, end = pos[i - r0], indptr[i + 1]
+                p = p0
                 while p < end and indices[p] < c1:
-                    j = indices[p]
                     x = data[p]
                     if beta == 2.0:
                         e = x
                     else:
-                        y = L.dtype.type(0.0)
-                        for t in range(k):
-                            y += L[i, t] * R[j, t]
+                        y = _row_dot(L, i, R, indices[p], k)
                         if beta < 2.0 and y < eps:
                             y = eps
                         if beta == 1.0:
@@ -140,13 +168,30 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, gro
                             e = x * y**bm2
                     if has_w:
                         e = e * weights[p]
-                    for t in range(k):
-                        out[i, t] += e * R[j, t]
+                    factor[p - p0] = e
                     p += 1
                 pos[i - r0] = p
-                if fused and c1 >= last:  # the row's last tile: its numerator is complete
+                q, cnt = 0, p - p0
+                while q + 4 <= cnt:
+                    j0, j1, j2, j3 = indices[p0 + q], indices[p0 + q + 1], indices[p0 + q + 2], indices[p0 + q + 3]
+                    e0, e1, e2, e3 = factor[q], factor[q + 1], factor[q + 2], factor[q + 3]
+                    for t in range(k):
+                        acc = out[i, t]
+                        acc += e0 * R[j0, t]
+                        acc += e1 * R[j1, t]
+                        acc += e2 * R[j2, t]
+                        acc += e3 * R[j3, t]
+                        out[i, t] = acc
+                    q += 4
+                while q < cnt:
+                    j0, e0 = indices[p0 + q], factor[q]
+                    for t in range(k):
+                        out[i, t] += e0 * R[j0, t]
+                    q += 1
+                if fused and c1 >= last:  # the row's last tile: its numerator is complete, L[i] no longer read
                     for t in range(k):
                         out[i, t] /= den[t]
+                        L[i, t] *= out[i, t]
     return out
 
 
