@@ -94,6 +94,15 @@ def kl_update(indptr, indices, data, L, R, den, out):
     return L
 
 
+@njit(**_OPTS)
+def _row_dot(L, i, R, j, k):  # pragma: no cover - compiled
+    """L[i] . R[j] over the first k entries (vectorised: reassociated)."""
+    acc = L.dtype.type(0.0)
+    for t in range(k):
+        acc += L[i, t] * R[j, t]
+    return acc
+
+
 @njit(parallel=True, **_OPTS)
 def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: no cover - compiled
     n = indptr.shape[0] - 1
@@ -105,11 +114,7 @@ def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: n
             for i in range(r0, r1):
                 p, end = pos[i - r0], indptr[i + 1]
                 while p < end and indices[p] < c1:
-                    j = indices[p]
-                    acc = L.dtype.type(0.0)
-                    for t in range(k):
-                        acc += L[i, t] * R[j, t]
-                    out[p] = acc
+                    out[p] = _row_dot(L, i, R, indices[p], k)
                     p += 1
                 pos[i - r0] = p
     return out
@@ -118,15 +123,6 @@ def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: n
 # Without reassociation: the numerator's sums over a row's entries then run in their stored order
 # (each term one fused multiply-add), whatever the grouping of entries below.
 _OPTS_ORDERED: dict[str, Any] = dict(_OPTS, fastmath={"contract"})
-
-
-@njit(**_OPTS)
-def _row_dot(L, i, R, j, k):  # pragma: no cover - compiled
-    """L[i] . R[j] over the first k entries (vectorised: reassociated)."""
-    acc = L.dtype.type(0.0)
-    for t in range(k):
-        acc += L[i, t] * R[j, t]
-    return acc
 
 
 @njit(parallel=True, **_OPTS_ORDERED)
