@@ -1255,15 +1255,14 @@ def _kernel_density_rows(rng, n, m, width):
     return X / X.sum(axis=1, keepdims=True)
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: on kernel-density rows with chapter 3's sizes, a row is declared "
-                   "converged where L-BFGS-B, started from its answer, lowers the I-divergence by 6.9e-4 of it")
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.filterwarnings("error::RuntimeWarning")
 def test_no_row_of_wide_kernel_density_histograms_stops_above_its_minimum():
     """30 kernel-density rows over 256 bins, 150 atoms (chapter 3's sizes): scipy's L-BFGS-B, started from each row's
     answer, lowers no row's I-divergence by more than 1e-9 of it (an outside answer; the test above starts it from
-    the updates' start, which it does not always bring as low). Found by comparing captured chapter-3 solves with
-    L-BFGS-B: a row stopped with a cell of x = 0.015 whose product had collapsed to 1.6e-178, under the objective
-    the solver reads (the logarithm continued linearly below 1e-100) 2.6 lower than the I-divergence."""
+    the updates' start, which it does not always bring as low). Rows were declared converged 6.9e-4 above their
+    minimum where the search along the projection arc failed at the largest ridge (held coefficients shrinking at
+    every step length): they now take multiplicative updates and Newton's steps again. No RuntimeWarning either."""
     from scipy.optimize import minimize
 
     from mmconcepts.nmf._beta import elementwise_beta_divergence
