@@ -19,7 +19,10 @@ Two measurements, each compared with a reference in the same run (ratios, not ti
     over the number of iterations; not the set-up), the ratio, and the bytes moved per iteration
     (the model: H to every chunk and each chunk's numerator/denominator back, an upper bound; and
     the worker-to-worker transfers the workers logged during the iterations). From those, the
-    projected time per iteration on 8, 32 and 128 machines.
+    projected time per iteration on 8, 32 and 128 machines. Also the CPU this process (client,
+    scheduler, nannies) takes per iteration, and what the idle cluster of 2 workers takes per
+    second (this process and each worker, over 5 s before the fits): on a machine with as many
+    cores as workers, that time is taken from the workers.
 
 Run:  .venv/bin/python benchmarks/nmf_dask.py [--quick] [--cases outofcore scaling] [--json out.json]
       (--quick: 50 000 x 11 000 out of core, 20 000 x 2 000 scaling, 3 iterations: about a minute on an
@@ -180,17 +183,19 @@ def case_scaling(args) -> dict:
     from mmconcepts.nmf import _dask as nd
     from mmconcepts.nmf import beta_nmf
 
-    loops: list[tuple[float, float]] = []
+    loops: list[tuple[float, float, float]] = []
     inner = nd._fit_loop
     current: dict = {}
 
     def timed(*a, **kw):  # time the iterations (not the checks and set-up of the fit, nor the final W's scaling)
         client = current["client"]
         before = sum(client.run(_transfer_bytes).values())
+        cpu = _process_cpu()
         t = time.perf_counter()
         res = inner(*a, **kw)
         elapsed = time.perf_counter() - t
-        loops.append((elapsed, sum(client.run(_transfer_bytes).values()) - before))
+        cpu = _process_cpu() - cpu  # this process: the client, the scheduler and the nannies
+        loops.append((elapsed, sum(client.run(_transfer_bytes).values()) - before, cpu))
         return res
 
     n, m, k = args.scaling_rows, 2000, 50
@@ -211,8 +216,10 @@ def case_scaling(args) -> dict:
                                                dashboard_address=":0", memory_limit="4GiB")
             clusters[w] = (cluster, distributed.Client(cluster, set_as_default=False))
         del env
+        idle = _idle_cpu(clusters[2][1], seconds=5.0)
         times: dict[int, list[float]] = {0: [], 1: [], 2: []}
         traffic: dict[int, list[float]] = {1: [], 2: []}
+        client_cpu: dict[int, list[float]] = {1: [], 2: []}
         model = 0
         results = {}
         for rep in range(args.repeats + 1):  # the first round warms the workers up (numba compilation)
@@ -240,9 +247,10 @@ def case_scaling(args) -> dict:
                 finally:
                     nd._fit_loop = inner
                 if rep > 0:
-                    elapsed, moved = loops[0]
+                    elapsed, moved, cpu = loops[0]
                     times[w].append(elapsed / its)
                     traffic[w].append(moved / its)  # the iterations' worker-to-worker bytes (set-up excluded)
+                    client_cpu[w].append(cpu / its)
                     model = res.extra["bytes_per_iteration"]
                     results[w] = float(res.loss_history[-1])
         t0, t1, t2 = (statistics.median(times[w]) for w in (0, 1, 2))
@@ -253,11 +261,17 @@ def case_scaling(args) -> dict:
                    worker_transfer_bytes_per_iter_1=statistics.median(traffic[1]),
                    worker_transfer_bytes_per_iter_2=statistics.median(traffic[2]),
                    loss_rel_diff_1_vs_2=abs(results[1] - results[2]) / results[1],
-                   loss_rel_diff_1_vs_in_memory=abs(results[1] - results[0]) / results[0])
+                   loss_rel_diff_1_vs_in_memory=abs(results[1] - results[0]) / results[0],
+                   client_cpu_s_per_iter_1=statistics.median(client_cpu[1]),
+                   client_cpu_s_per_iter_2=statistics.median(client_cpu[2]), idle_cpu_per_s=idle)
         print(f"scaling: {n} x {m}, {args.scaling_chunks} chunks: in memory {t0 * 1e3:.0f} ms/it, 1 worker "
               f"{t1 * 1e3:.0f} ms/it, 2 workers {t2 * 1e3:.0f} ms/it, speedup x{t1 / t2:.2f}; model "
               f"{model / 1e6:.1f} MB/it, worker-to-worker {row['worker_transfer_bytes_per_iter_2'] / 1e6:.1f} MB/it "
               "(2 workers)", flush=True)
+        print(f"  CPU of this process (client, scheduler, nannies) per iteration: 1 worker "
+              f"{row['client_cpu_s_per_iter_1'] * 1e3:.0f} ms, 2 workers {row['client_cpu_s_per_iter_2'] * 1e3:.0f} ms; "
+              f"idle cluster of 2 workers, CPU-s per second: this process {idle['client']:.3f}, workers "
+              + ", ".join(f"{v:.3f}" for v in idle["workers"]), flush=True)
         return row
     finally:
         for cluster, client in clusters.values():
@@ -265,6 +279,25 @@ def case_scaling(args) -> dict:
             cluster.close()
         os.environ.clear()
         os.environ.update(old_env)
+
+
+def _process_cpu(pid: int | None = None) -> float:
+    """User + system CPU seconds of a process so far (this one by default)."""
+    import psutil
+
+    times = psutil.Process(pid).cpu_times()
+    return times.user + times.system
+
+
+def _idle_cpu(client, seconds: float) -> dict:
+    """CPU seconds per second that an idle cluster takes: this process (client, scheduler, nannies) and each worker
+    process (heartbeats, monitors, the workers' sampling profiler), over ``seconds`` with no task."""
+    pids = sorted(client.run(os.getpid).values())
+    before = [_process_cpu()] + [_process_cpu(p) for p in pids]
+    time.sleep(seconds)
+    after = [_process_cpu()] + [_process_cpu(p) for p in pids]
+    per_s = [(b - a) / seconds for a, b in zip(before, after)]
+    return dict(client=per_s[0], workers=per_s[1:], seconds=seconds)
 
 
 @contextlib.contextmanager
