@@ -13,7 +13,7 @@ percents from the optimum. The projected Newton method of Bertsekas (1982) ident
 zero coefficients in a few steps and then converges quadratically; an Armijo search along the
 projection arc and a Levenberg-Marquardt ridge (scaled by each coefficient's curvature, as
 Marquardt's) make it converge from any start; a row whose search fails even at the largest
-ridge takes multiplicative updates (which never raise its objective) before Newton's steps
+ridge takes multiplicative updates (kept where they lower its objective) before Newton's steps
 resume. Where x spans hundreds of orders of magnitude (kernel-density histograms), curvatures
 do too: the Newton system is solved scaled to a unit diagonal, a coefficient far below its
 optimum climbs by the multiplicative update's factor rather than by Newton's doubling, and a
@@ -637,8 +637,8 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         ridge_all[r] = np.where(alpha == 1.0, np.maximum(ridge_all[r] / 10.0, _RIDGE), ridge_all[r])
         ridge_all[r] = np.where(alpha < 0.125, np.minimum(ridge_all[r] * 100.0, 1.0), ridge_all[r])
         # a failed search is no sign of a minimum (the arc can fail where held coefficients shrink at every step
-        # length): the row takes multiplicative updates, which never raise its objective, and Newton's steps again
-        # from where they lead; a row they do not lower beyond its rounding is stationary up to rounding
+        # length): the row takes multiplicative updates, kept where they lower its objective, and Newton's steps
+        # again from where they lead; a row they do not lower beyond its rounding is stationary up to rounding
         if failed.size:
             lowered = _fall_back(model, rows[failed], W, f_all)
             ridge_all[rows[failed[lowered]]] = _RIDGE
@@ -652,8 +652,9 @@ def _fall_back(model: _Rows, rows: np.ndarray, W: np.ndarray, f_all: np.ndarray)
     g = den - num), kept where they lower the row's objective by more than its rounding (:data:`_RESOLUTION`; W and
     f_all updated in place); which rows.
 
-    For 1 <= beta <= 2 each update is a majorisation-minimisation step (Fevotte & Idier 2011), so it never raises
-    the objective; where the floor of the products changes the derivatives, the objective decides.
+    For 1 <= beta <= 2, without an L2 penalty, each update is a majorisation-minimisation step (Fevotte & Idier
+    2011) and never raises the objective; with one (its term in the denominator is a majorisation only at
+    beta = 2) the updates can oscillate, and the objective decides whether they are kept.
     """
     V = W[rows]
     with np.errstate(all="ignore"):  # a factor that overflows makes the row's objective infinite: not kept

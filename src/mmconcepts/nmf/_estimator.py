@@ -697,8 +697,9 @@ class NMF(SaveLoadMixin, ClassNamePrefixFeaturesOutMixin, TransformerMixin, Base
                                           penalty=self._coefficient_penalty(H.shape[1]))
         if not converged:
             warnings.warn(
-                "the coefficients' projected Newton steps did not converge; they are the last iterate. "
-                "Check X and the dictionary for values at the edge of the float range.",
+                "the coefficients' projected Newton steps did not converge; they are the last iterate. Rows whose "
+                "values span hundreds of orders of magnitude (kernel-density histograms) converge slowly; values at "
+                "the edge of the float range can stop them.",
                 ConvergenceWarning,
                 stacklevel=3,
             )
