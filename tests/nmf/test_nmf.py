@@ -370,8 +370,9 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
     def factors(Z, weights, groups):  # the kernel's scratch
         return _kernels._factors(Z.indptr, Z.data, weights, L, groups)
 
+    keep = _kernels._NO_RATIOS
     whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, 1, 10**9,
-                                   factors(X, w, 1))
+                                   factors(X, w, 1), keep, _kernels._NO_SUMS)
     np.testing.assert_allclose(whole, ref_num, rtol=1e-12)
     shuffled = X.copy()  # the same entries, each row's column indices in another order
     for i in range(X.shape[0]):
@@ -380,12 +381,13 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
         shuffled.indices[sl], shuffled.data[sl] = X.indices[sl][order], X.data[sl][order]
     for groups, tile in [(1, 1), (2, 7), (3, 64), (23, 100), (5, 699), (2, 701)]:
         got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, groups,
-                                     tile, factors(X, w, groups))
+                                     tile, factors(X, w, groups), keep, _kernels._NO_SUMS)
         np.testing.assert_array_equal(got, whole)
         y = _kernels._lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz), groups, tile)
         np.testing.assert_allclose(y if beta >= 2.0 else np.maximum(y, 1e-9), ref_y, rtol=1e-13)
         got = _kernels._mu_numerator(shuffled.indptr, shuffled.indices, shuffled.data, np.empty(0), L, R, beta, 1e-9,
-                                     np.empty_like(L), none, groups, tile, factors(shuffled, np.empty(0), groups))
+                                     np.empty_like(L), none, groups, tile, factors(shuffled, np.empty(0), groups),
+                                     keep, _kernels._NO_SUMS)
         np.testing.assert_allclose(got, _numerator_reference(shuffled, np.empty(0), L, R, beta, 1e-9)[0], rtol=1e-12)
 
 
@@ -402,15 +404,21 @@ def test_fused_kl_update_equals_numerator_then_numpy_update(rng, dtype):
     eps = dtype(_kernels.EPSILON)
     none = np.empty(0, dtype)
     N = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L, R, 1.0, eps, np.empty_like(L),
-                               _kernels._NO_DEN, 1, 10**9, _kernels._factors(X.indptr, X.data, none, L, 1))
+                               _kernels._NO_DEN, 1, 10**9, _kernels._factors(X.indptr, X.data, none, L, 1),
+                               _kernels._NO_RATIOS, _kernels._NO_SUMS)
     expected = L * (N / den)
     for groups, tile in [(1, 10**9), (2, 64), (3, 7), (19, 1)]:
         L2 = L.copy()
+        kept = np.full(X.nnz, np.nan)
         ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L2, R, 1.0, eps,
                                        np.empty_like(L), den, groups, tile, _kernels._factors(X.indptr, X.data, none, L,
-                                                                                              groups))
+                                                                                              groups), kept,
+                                       _kernels._NO_SUMS)
         np.testing.assert_array_equal(ratio, N / den)
         np.testing.assert_array_equal(L2, expected)  # L updated in place by the kernel
+        # the ratios x / y of the L it started from, at every stored entry
+        y = np.einsum("ij,ij->i", L[np.repeat(np.arange(19), np.diff(X.indptr))], R[X.indices])
+        np.testing.assert_allclose(kept, X.data.astype(np.float64) / y, rtol=1e-12 if dtype == np.float64 else 1e-5)
     L3 = L.copy()
     assert _kernels.kl_update(X.indptr, X.indices, X.data, L3, R, den, np.empty_like(L)) is L3
     np.testing.assert_array_equal(L3, expected)
@@ -479,14 +487,17 @@ def test_empty_columns_left_out_after_the_first_update_match_sklearn(rng, beta, 
 
     monkeypatch.setattr(_solver._EmptyColumns, "reduce", spy)
     widths = []  # rows of Ht at each update of Ht
-    real_update = _solver.mu_update
 
-    def spy_update(side, L, R, *args):
-        if L.shape[1] == 4 and R.shape[0] == 40:
-            widths.append(L.shape[0])
-        return real_update(side, L, R, *args)
+    def spy_on(real_update):
+        def spy_update(side, L, R, *args):
+            if L.shape[1] == 4 and R.shape[0] == 40:
+                widths.append(L.shape[0])
+            return real_update(side, L, R, *args)
+        return spy_update
 
-    monkeypatch.setattr(_solver, "mu_update", spy_update)
+    # (the unpenalised I-divergence's one-pass update, and every other)
+    monkeypatch.setattr(_solver, "sparse_kl_update", spy_on(_solver.sparse_kl_update))
+    monkeypatch.setattr(_solver, "mu_update", spy_on(_solver.mu_update))
     kw = dict(beta_loss=beta, max_iter=60, tol=0, alpha_W=alpha, l1_ratio=0.5)
     rule_kw = {} if rule == "mm" else {"update_rule": rule}
     res = beta_nmf(X, 4, init="custom", W=W0, H=H0, **kw, **rule_kw)
@@ -888,15 +899,23 @@ def test_convergence_warning_and_tol(rng):
 
 
 class _ScriptedSolver:
-    """A solver whose updates change nothing and whose objective follows a script."""
+    """A solver whose updates change nothing and whose objective follows a script; ``fused``: read from the next W
+    update where there is one, as the sparse I-divergence's update reads it."""
 
-    def __init__(self, values):
-        self.values = list(values)
+    def __init__(self, values, fused=False):
+        self.values, self.fused, self.read_apart = list(values), fused, 0
 
     def update(self, side, A, B):
         return A
 
+    def objective_in_update(self):
+        return self.fused
+
+    def update_W_with_objective(self, W, Ht):
+        return self.values.pop(0)
+
     def objective(self, W, Ht):
+        self.read_apart += 1
         return self.values.pop(0)
 
 
@@ -909,12 +928,18 @@ class _ScriptedSolver:
     ([np.inf, 90.0, 90.0, 10.0, 10.0, 10.0], 2, True),
     ([100.0, 90.0, 80.0, 70.0, 70.0, 70.0], 4, True),
 ])
-def test_stopping_rule_never_reads_an_infinite_objective_as_progress(script, n_iter, converged):
+@pytest.mark.parametrize("fused", [False, True])
+def test_stopping_rule_never_reads_an_infinite_objective_as_progress(script, n_iter, converged, fused):
     from mmconcepts.nmf._solver import _iterate
 
     W, Ht = np.ones((2, 1)), np.ones((3, 1))
-    out = _iterate(_ScriptedSolver(script), W, Ht, True, 5, 1e-3, 1)
+    solver = _ScriptedSolver(script, fused)
+    out = _iterate(solver, W, Ht, True, 5, 1e-3, 1)
     assert (out[2], out[5]) == (n_iter, converged)
+    np.testing.assert_array_equal(out[3], script[:n_iter + 1])
+    np.testing.assert_array_equal(out[4], np.arange(n_iter + 1))
+    # read from the W updates, but for the last iteration's (no update follows it)
+    assert solver.read_apart == (1 if fused and n_iter == 5 else 0 if fused else n_iter + 1)
 
 
 @pytest.mark.filterwarnings("ignore::mmconcepts.errors.ConvergenceWarning")
@@ -1716,3 +1741,84 @@ def test_dense_divergence_by_blocks_equals_the_elementwise_sum(rng, monkeypatch,
             assert got == np.inf
         else:
             assert np.isfinite(got)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), max_iter=st.integers(0, 25), loss_every=st.integers(1, 6),
+       tol=st.sampled_from([0.0, 1e-4, 1e-2, 0.2]), update_H=st.booleans(), rescale=st.sampled_from([1.0, 1e-3]),
+       empty_column=st.booleans(), kernel_sums=st.booleans())
+def test_objective_read_in_the_w_update_equals_the_objective_evaluated_apart(seed, max_iter, loss_every, tol,
+                                                                               update_H, rescale, empty_column,
+                                                                               kernel_sums):
+    """Sparse, unmasked I-divergence fits read each recorded objective from the next W update: the same
+    iterates, stopping iteration and objectives (to rounding) as evaluating it apart, and each objective is
+    scikit-learn's I-divergence of the factors it was recorded for. With the factors' column sums added by the
+    kernel (``kernel_sums``, here from the first row on), the iterates are scikit-learn's."""
+    from mmconcepts.nmf import _problem, _solver
+
+    rng = np.random.default_rng(seed)
+    X = sp.random(40, 30, density=0.2, format="csr", random_state=rng, dtype=np.float64)
+    X.data = (rng.poisson(2.0, X.nnz) + 1.0) * rescale
+    if empty_column:
+        X = sp.csr_matrix(X.multiply(np.arange(30) != 7))  # stored zeros in column 7
+    W0, H0 = rng.random((40, 4)) + 0.1, rng.random((4, 30)) + 0.1
+    kw = dict(beta_loss=1.0, init="custom", W=W0, H=H0, update_H=update_H, max_iter=max_iter, tol=tol,
+              loss_every=loss_every)
+    threshold = _problem._KERNEL_SUM_ROWS
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        assert _solver._Solver.objective_in_update  # the path this test compares with the reference
+        original = _solver._Solver.objective_in_update
+        try:
+            _problem._KERNEL_SUM_ROWS = 1 if kernel_sums else 10**9
+            fused = beta_nmf(X, 4, **kw)
+            _solver._Solver.objective_in_update = lambda self: False  # type: ignore[method-assign]
+            apart = beta_nmf(X, 4, **kw)
+        finally:
+            _solver._Solver.objective_in_update = original  # type: ignore[method-assign]
+            _problem._KERNEL_SUM_ROWS = threshold
+    Xe = X.copy()
+    Xe.eliminate_zeros()  # (stored zeros, which the fits are given, break scikit-learn's sparse products)
+    if kernel_sums and tol == 0 and update_H and max_iter > 0:
+        sk = SkNMF(4, init="custom", solver="mu", beta_loss=1.0, max_iter=max_iter, tol=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            W_sk = sk.fit_transform(Xe, W=W0.copy(), H=H0.copy())
+        np.testing.assert_allclose(fused.W, W_sk, rtol=1e-10, atol=1e-13 * W_sk.max())
+        np.testing.assert_allclose(fused.H, sk.components_, rtol=1e-10, atol=1e-13 * sk.components_.max())
+    assert (fused.n_iter, fused.converged) == (apart.n_iter, apart.converged)
+    np.testing.assert_array_equal(fused.loss_iterations, apart.loss_iterations)
+    np.testing.assert_array_equal(fused.W, apart.W)
+    np.testing.assert_array_equal(fused.H, apart.H)
+    np.testing.assert_allclose(fused.loss_history, apart.loss_history, rtol=1e-12)
+    np.testing.assert_allclose(fused.extra["divergence"], apart.extra["divergence"], rtol=1e-12)
+    np.testing.assert_allclose(fused.extra["divergence"], _beta_divergence(Xe, fused.W, fused.H, 1.0), rtol=1e-10)
+
+
+@pytest.mark.parametrize("n", [1, 63, 64, 65, 300, 1000])
+def test_kl_update_sums_the_updated_factor_the_same_way_for_any_number_of_threads(rng, n):
+    """The column sums the sparse I-divergence kernel adds while it updates L: those of numpy on the updated L (to
+    rounding), each block of rows summed the same way whatever the number of row groups (threads), and the update
+    itself unchanged by them."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(n, 300, density=0.05, random_state=5, format="csr")
+    X.data = rng.poisson(2.0, X.nnz) + 1.0
+    L, R = rng.random((n, 7)), rng.random((300, 7))
+    den = R.sum(axis=0)
+    plain = L.copy()
+    _kernels.kl_update(X.indptr, X.indices, X.data, plain, R, den, np.empty_like(L))
+    blocks = -(-n // _kernels.SUM_ROWS)
+    first = None
+    for groups in [1, 2, 3, 5, 16]:
+        L2, sums = L.copy(), np.full((blocks, 7), np.nan)
+        _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0), L2, R, 1.0, _kernels.EPSILON,
+                               np.empty_like(L), den, groups, 40, _kernels._factors(X.indptr, X.data, np.empty(0), L,
+                                                                                   groups),
+                               _kernels._NO_RATIOS, sums)
+        np.testing.assert_array_equal(L2, plain)
+        for b in range(blocks):
+            np.testing.assert_allclose(sums[b], plain[b * 64:(b + 1) * 64].sum(axis=0), rtol=1e-13)
+        if first is None:
+            first = sums
+        np.testing.assert_array_equal(sums, first)

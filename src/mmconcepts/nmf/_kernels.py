@@ -30,6 +30,11 @@ _OPTS: dict[str, Any] = dict(nogil=True, cache=True, fastmath={"reassoc", "contr
 _TILE_BYTES = 512 * 1024
 _NO_DEN = np.empty(0)  # mu_numerator: no fused update
 _NO_WEIGHTS = np.empty(0)
+_NO_RATIOS = np.empty(0)  # kl_update: the ratios x / y not kept
+_NO_SUMS = np.empty((0, 0))  # kl_update: the updated factor's column sums not kept
+#: Rows per partial column sum in ``kl_update``: each thread's rows are whole blocks of this many, so the partial
+#: sums, and their total, do not depend on the number of threads.
+SUM_ROWS = 64
 
 
 def _tiling(indptr, R) -> tuple[int, int]:
@@ -75,10 +80,10 @@ def mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out):
     """
     groups, tile = _tiling(indptr, R)
     return _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, _NO_DEN, groups, tile,
-                         _factors(indptr, data, weights, L, groups))
+                         _factors(indptr, data, weights, L, groups), _NO_RATIOS, _NO_SUMS)
 
 
-def kl_update(indptr, indices, data, L, R, den, out):
+def kl_update(indptr, indices, data, L, R, den, out, ratios=_NO_RATIOS, sums=_NO_SUMS):
     """The I-divergence multiplicative update of L in place, with its numerator's last pass.
 
     L <- L * (N / den) with N = ``mu_numerator`` at beta = 1 (thesis eq. 2.16 with gamma = 1)
@@ -87,10 +92,20 @@ def kl_update(indptr, indices, data, L, R, den, out):
     and multiplies that row of L by the ratios: the same numbers, bit for bit, as the numerator
     followed by ``L *= N / den`` in numpy (the kernel is compiled without reassociation, so
     ``L * (N / den)`` is not turned into ``(L * N) / den``). ``out`` receives N / den.
+
+    ``ratios``, a float64 array of one value per stored entry p, receives x_p / y_p with the
+    product y_p of the L it starts from, not clipped (1 where x_p = 0): the I-divergence of that
+    L is sum_p x_p log(ratios_p) - sum_p x_p + sum of all products (thesis eq. 2.3), with no
+    product formed again. Empty (the default): not kept.
+
+    ``sums``, a float64 array of shape (ceil(rows / SUM_ROWS), k), receives the column sums of the
+    updated L over each block of :data:`SUM_ROWS` consecutive rows, each summed in row order while
+    the row is in the cache (their sum over blocks is L's column sums, the next update's
+    denominator on the other side). Empty (the default): not kept.
     """
     groups, tile = _tiling(indptr, R)
     _mu_numerator(indptr, indices, data, _NO_WEIGHTS, L, R, 1.0, L.dtype.type(EPSILON), out, den, groups, tile,
-                  _factors(indptr, data, _NO_WEIGHTS, L, groups))
+                  _factors(indptr, data, _NO_WEIGHTS, L, groups), ratios, sums)
     return L
 
 
@@ -126,7 +141,8 @@ _OPTS_ORDERED: dict[str, Any] = dict(_OPTS, fastmath={"contract"})
 
 
 @njit(parallel=True, **_OPTS_ORDERED)
-def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, groups, tile, factors):  # pragma: no cover
+def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, groups, tile, factors,  # pragma: no cover
+                  ratios, sums):
     # Two passes over each row's entries in a tile: their factors e_p first (a dot product each,
     # independent of one another), then out[i] += e_p R[j_p], four entries per sweep over out[i]
     # (one load and store of out[i] per four entries instead of one per entry). Each out[i, t]
@@ -135,14 +151,22 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, gro
     m, k = R.shape[0], L.shape[1]
     has_w = weights.shape[0] > 0
     fused = den.shape[0] > 0
+    keep = ratios.shape[0] > 0 and beta == 1.0
+    summed = fused and sums.shape[0] > 0
     bm2 = beta - 2.0
+    unit = SUM_ROWS if summed else 1  # with sums, whole blocks of SUM_ROWS rows per group: no two threads add into
+    units = (n + unit - 1) // unit  # one block's sums
     for g in nb.prange(groups):
-        r0, r1 = g * n // groups, (g + 1) * n // groups
+        r0, r1 = min(n, g * units // groups * unit), min(n, (g + 1) * units // groups * unit)
         pos = indptr[r0:r1].copy()
         factor = factors[g]
         for i in range(r0, r1):
             for t in range(k):
                 out[i, t] = 0.0
+        if summed:
+            for b in range(r0 // SUM_ROWS, (r1 + SUM_ROWS - 1) // SUM_ROWS):
+                for t in range(k):
+                    sums[b, t] = 0.0
         last = max(m, 1)  # one pass even without columns, for the fused update
         for c1 in range(tile, last + tile, tile):
             for i in range(r0, r1):
@@ -154,6 +178,8 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, gro
                         e = x
                     else:
                         y = _row_dot(L, i, R, indices[p], k)
+                        if keep:
+                            ratios[p] = np.float64(x) / np.float64(y) if x > 0 else 1.0
                         if beta < 2.0 and y < eps:
                             y = eps
                         if beta == 1.0:
@@ -188,6 +214,10 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, out, den, gro
                     for t in range(k):
                         out[i, t] /= den[t]
                         L[i, t] *= out[i, t]
+                    if summed:
+                        b = i // SUM_ROWS
+                        for t in range(k):
+                            sums[b, t] += L[i, t]
     return out
 
 

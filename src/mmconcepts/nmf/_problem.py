@@ -173,19 +173,43 @@ class Side:
             return self._sparse_nd(L, R, beta)
         return self._dense_nd(L, R, beta)
 
-    def kl_update(self, L: np.ndarray, R: np.ndarray, den_row: np.ndarray) -> np.ndarray:
+    def kl_update(self, L: np.ndarray, R: np.ndarray, den_row: np.ndarray,
+                  divergence: bool = False) -> tuple[float, np.ndarray | None]:
         """L <- L * N / den_row in place for a sparse, unmasked side under the I-divergence (one pass).
 
         ``den_row`` is the (k,) denominator, R's column sums with zeros replaced; the numbers
         are those of ``numerator_denominator`` followed by the division and the product.
+        Returns (the I-divergence of the L it started from, the (k,) column sums of the updated L).
+        The divergence (the value of :meth:`divergence`, thesis eq. 2.3) is read from the products
+        the update forms anyway, with ``divergence`` only (NaN otherwise); the column sums are
+        added by the kernel while each row is in the cache, for an L of at least
+        :data:`_KERNEL_SUM_ROWS` rows (None for a smaller one, whose sums cost little).
         """
         X = cast("sp.csr_matrix", self.X)
         den_row = np.ascontiguousarray(den_row, dtype=L.dtype)
         buf = self.buffer
         if buf is None or buf.shape != L.shape or buf.dtype != L.dtype:  # N / den, reused across iterations
             buf = self.buffer = np.empty_like(L)
-        _kernels.kl_update(X.indptr, X.indices, X.data, L, R, den_row, buf)
-        return L
+        sums = _kernels._NO_SUMS
+        if L.shape[0] >= _KERNEL_SUM_ROWS:
+            sums = np.empty((-(-L.shape[0] // _kernels.SUM_ROWS), L.shape[1]))
+        f, ratios = float("nan"), _kernels._NO_RATIOS
+        if divergence:
+            # sum_p x_p log(x_p / y_p) - x_p at the stored entries, and every product's sum through the factors' sums
+            f = float(L.sum(axis=0, dtype=np.float64) @ R.sum(axis=0, dtype=np.float64)) - self._data_sum
+            ratios = np.empty(X.nnz)
+        _kernels.kl_update(X.indptr, X.indices, X.data, L, R, den_row, buf, ratios, sums)
+        if divergence:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                np.log(ratios, out=ratios)
+                ratios *= X.data  # (not np.dot: BLAS's threads, left spinning, would slow the kernel's next calls)
+            f += float(ratios.sum())
+        return f, (sums.sum(axis=0).astype(L.dtype, copy=False) if sums.shape[0] else None)
+
+    @functools.cached_property
+    def _data_sum(self) -> float:
+        """The sum of X's stored values, in float64."""
+        return float(np.sum(cast("sp.csr_matrix", self.X).data, dtype=np.float64))
 
     def _dense_nd(self, L, R, beta):
         # Dense data stays in its stored (C) orientation: side 1 computes Y = R @ L.T, the
@@ -455,6 +479,10 @@ class Side:
 
         _stripes_in_threads(run, n_stripes, count)
         return float(sum(sums)) + constant
+
+
+#: The sparse I-divergence update adds the updated factor's column sums in its kernel from this many rows on.
+_KERNEL_SUM_ROWS = 4096
 
 
 class Problem:

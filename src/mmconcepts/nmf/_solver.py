@@ -30,6 +30,8 @@ from ._updates import (
     mu_update,
     resolve_penalties,
     scale_penalties,
+    sparse_kl_applies,
+    sparse_kl_update,
     stopped_message,
 )
 from .sparseness import l1_for_sparseness, project_hoyer
@@ -72,6 +74,8 @@ class _Solver:
         self.step = [1.0, 1.0]  # per-side step sizes of the gradient solvers, carried across iterations
         # per side, (R, R's column sums or None) when R stays fixed across this solver's updates
         self.fixed: list[tuple[np.ndarray, np.ndarray | None] | None] = [None, None]
+        # per side, (R, R's column sums) as the update that last changed R summed it
+        self.sums: list[tuple[np.ndarray, np.ndarray] | None] = [None, None]
         self.last_divergence = float("nan")  # the divergence part of the last objective evaluated
         self.objective_next = False  # the objective is evaluated after the next update of side 1
 
@@ -84,23 +88,52 @@ class _Solver:
         side = self.problem.sides[s]
         return side.divergence(L, R, self.beta) + self.penalties[s].value(L)
 
+    def objective_in_update(self) -> bool:
+        """Whether :meth:`update_W_with_objective` applies: W's multiplicative update under the I-divergence, W
+        unpenalised and unconstrained, X sparse and unmasked (the update forms every product the objective needs)."""
+        return (self.solver == "mu" and self.hoyer[0] is None
+                and sparse_kl_applies(self.problem.sides[0], self.beta, self.gamma, self.penalties[0]))
+
+    def update_W_with_objective(self, W: np.ndarray, Ht: np.ndarray) -> float:
+        """W's update in place (:meth:`update`); returns the objective of (W, Ht) before it, as :meth:`objective`
+        would (where :meth:`objective_in_update`)."""
+        self.last_divergence = self._sparse_kl(0, W, Ht, divergence=True)
+        return self.last_divergence + self.penalties[1].value(Ht)  # W is unpenalised
+
+    def _sum(self, s: int, R: np.ndarray) -> np.ndarray | None:
+        """R's column sums where they are known: R fixed across this solver's updates of side s (computed once), or
+        summed by the update that last changed R; else None."""
+        fixed = self.fixed[s]
+        if fixed is not None and fixed[0] is R:
+            if fixed[1] is None:
+                fixed = self.fixed[s] = (R, R.sum(axis=0))
+            return fixed[1]
+        known = self.sums[s]
+        return known[1] if known is not None and known[0] is R else None
+
+    def _sparse_kl(self, s: int, L: np.ndarray, R: np.ndarray, divergence: bool = False) -> float:
+        """Side s's one-pass I-divergence update of L in place, keeping L's column sums for the other side's next
+        update; returns the divergence before it with ``divergence`` (NaN otherwise)."""
+        self.sums[1 - s] = None
+        f, sums = sparse_kl_update(self.problem.sides[s], L, R, self._sum(s, R), divergence)
+        if sums is not None:
+            self.sums[1 - s] = (L, sums)
+        return f
+
     # -- one update of the left factor of side s -------------------------------------
     def update(self, s: int, L: np.ndarray, R: np.ndarray) -> np.ndarray:
         side = self.problem.sides[s]
         side.keep_numerator = s == 1 and self.objective_next
+        self.sums[1 - s] = None  # L changes: the sums known of it no longer hold
         hoyer = self.hoyer[s]
         if hoyer is not None:
             return self._hoyer_step(s, side, L, R, hoyer)
         if self.solver == "pg":
             return self._pg_step(s, side, L, R)
-        R_sum = None
-        fixed = self.fixed[s]
-        if fixed is not None and fixed[0] is R:  # R does not change: its sums neither
-            R_sum = fixed[1]
-            if R_sum is None:
-                R_sum = R.sum(axis=0)
-                self.fixed[s] = (R, R_sum)
-        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s], R_sum)
+        if sparse_kl_applies(side, self.beta, self.gamma, self.penalties[s]):
+            self._sparse_kl(s, L, R)
+            return L
+        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s], self._sum(s, R))
 
     def _gradient(self, s: int, side: Side, L: np.ndarray, R: np.ndarray) -> np.ndarray:
         """Gradient of the side objective in L (thesis eq. 2.11-2.13): D - N + penalties."""
@@ -423,10 +456,12 @@ def beta_nmf(
     sol = _Solver(problem, beta, solver, update_rule, (pen_W, pen_H), hoyer)
     W, Ht = _projected_start(sol, hoyer, W, H, update_H)
     H = None  # the fit reads Ht only (the start it was copied from can be freed)
+    f0 = None
     if rescaled:
-        check_objective_range(sol.objective(W, Ht), scale, beta)
+        f0 = sol.objective(W, Ht)
+        check_objective_range(f0, scale, beta)
     shrink = _EmptyColumns.of(problem) if (update_H and solver == "mu" and hoyer == (None, None)) else None
-    W, Ht, n_iter, hist, its, converged, sol = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every, shrink)
+    W, Ht, n_iter, hist, its, converged, sol = _iterate(sol, W, Ht, update_H, max_iter, tol, loss_every, shrink, f0)
     check_fit_in_range(X, beta, W, Ht, hist)
     stopped = tol > 0 and not converged and max_iter > 0
     cause = infinite_objective_cause(X, W, Ht, beta, scale) if stopped and not np.isfinite(hist[-1]) else None
@@ -552,49 +587,77 @@ class _EmptyColumns:
 
 
 def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, loss_every: int,
-             shrink: _EmptyColumns | None = None):
+             shrink: _EmptyColumns | None = None, f0: float | None = None):
     """Alternate W and H updates; record the objective every ``loss_every`` iterations.
 
     With ``shrink``, the all-zero columns of X are left out after the first iteration (see
     :class:`_EmptyColumns`) and put back, as zero rows of Ht, at the end. Returns
     (W, Ht, n_iter, objectives, their iterations, converged, the solver of the last iterations).
+    ``f0``: the objective of the start, when the caller has evaluated it.
+
+    Where W's update forms every product the objective needs (:meth:`_Solver.objective_in_update`),
+    the objective of an iterate is read from the next iteration's W update, and the fit stops there
+    (W as it was before that update) when the stopping rule says so: the same objectives, iterates
+    and stopping iteration as evaluating it apart, the last iterate's objective apart.
     """
     shrunk = False
     if not update_H:  # W's updates all see the same Ht
         sol.fixed[0] = (Ht, None)
-    f0 = sol.objective(W, Ht)
-    hist, its = [f0], [0]
+    hist: list[float] = []
+    its: list[int] = []
     # Stopping rule of scikit-learn, on the error sqrt(2 * objective). An objective that
     # overflows (KL against a dictionary column of denormal size) cannot measure progress:
     # the rule waits for finite errors and takes the first one as its reference, and an
     # objective that becomes infinite later (a subnormal data cell whose reconstruction
     # underflows to 0) is never read as a decrease: the rule waits for two finite ones again.
-    err0 = np.sqrt(2.0 * max(f0, 0.0))
-    prev = err0
+    err0 = prev = float("nan")
+
+    def stop_after(n: int, f: float) -> bool:
+        """Record the objective f of iteration n; whether the rule stops the fit there."""
+        nonlocal err0, prev
+        hist.append(f)
+        its.append(n)
+        err = float(np.sqrt(2.0 * max(f, 0.0)))
+        if n == 0 or not np.isfinite(err0):
+            err0 = prev = err
+            return False
+        if tol > 0 and err0 > 0 and np.isfinite(prev) and np.isfinite(err) and (prev - err) / err0 < tol:
+            return True
+        prev = err
+        return False
+
+    fused = max_iter > 0 and sol.objective_in_update()
+    due: int | None = 0  # the iteration whose objective the next W update reads (fused), if any
+    if not fused or f0 is not None:
+        stop_after(0, sol.objective(W, Ht) if f0 is None else f0)
+        due = None
     converged = False
     n_iter = 0
     for n_iter in range(1, max_iter + 1):
-        W = sol.update(0, W, Ht)
+        if due is not None:
+            before = W.copy() if tol > 0 and due > 0 else None  # the iterate to return if the rule stops here
+            if stop_after(due, sol.update_W_with_objective(W, Ht)) and before is not None:
+                W, n_iter, converged = before, due, True
+                break
+            due = None
+        else:
+            W = sol.update(0, W, Ht)
+        evaluate = n_iter % loss_every == 0 or n_iter == max_iter
         if update_H:
             # the objective evaluated next may reuse this H update's numerator (Problem.divergence)
-            sol.objective_next = n_iter % loss_every == 0 or n_iter == max_iter
+            sol.objective_next = evaluate and not (fused and n_iter < max_iter)
             Ht = sol.update(1, Ht, W)
             sol.objective_next = False
             if shrink is not None and n_iter == 1 and n_iter < max_iter:
                 reduced = shrink.reduce(sol, Ht)
                 if reduced is not None:
                     (sol, Ht), shrunk = reduced, True
-        if n_iter % loss_every == 0 or n_iter == max_iter:
-            f = sol.objective(W, Ht)
-            hist.append(f)
-            its.append(n_iter)
-            err = np.sqrt(2.0 * max(f, 0.0))
-            if not np.isfinite(err0):
-                err0 = err
-            elif tol > 0 and err0 > 0 and np.isfinite(prev) and np.isfinite(err) and (prev - err) / err0 < tol:
+        if evaluate:
+            if fused and n_iter < max_iter:
+                due = n_iter
+            elif stop_after(n_iter, sol.objective(W, Ht)):
                 converged = True
                 break
-            prev = err
     if shrunk:
         Ht = cast(_EmptyColumns, shrink).expand(Ht)
     return W, Ht, n_iter, np.asarray(hist), np.asarray(its, dtype=int), converged, sol

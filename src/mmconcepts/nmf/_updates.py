@@ -24,7 +24,8 @@ from ._problem import Side
 
 __all__ = ["BETA_NMF_CONSTRAINTS", "NMFResult", "Penalty", "SOLVERS", "UPDATE_RULES", "check_fit_in_range",
            "check_objective_range", "constant_coefficients", "data_scale", "in_units_of_X",
-           "infinite_objective_cause", "mu_update", "resolve_penalties", "scale_penalties", "stopped_message"]
+           "infinite_objective_cause", "mu_update", "resolve_penalties", "scale_penalties", "sparse_kl_applies",
+           "sparse_kl_update", "stopped_message"]
 
 
 SOLVERS = ("mu", "pg")
@@ -83,6 +84,24 @@ class Penalty:
         return den
 
 
+def sparse_kl_applies(side: Side, beta: float, gamma: float, penalty: Penalty) -> bool:
+    """Whether :func:`mu_update` runs the one-pass kernel: the I-divergence's update (gamma = 1) of an
+    unpenalised factor on a sparse, unmasked side."""
+    return (beta == 1.0 and gamma == 1.0 and not (penalty.l1 or penalty.l2) and isinstance(side, Side)
+            and side.sparse and side.mask is None)
+
+
+def sparse_kl_update(side: Side, L: np.ndarray, R: np.ndarray, R_sum: np.ndarray | None = None,
+                     divergence: bool = False) -> tuple[float, np.ndarray | None]:
+    """The update of :func:`mu_update` where :func:`sparse_kl_applies`, L in place; returns (with ``divergence``, the
+    I-divergence of the L it started from, else NaN; the updated L's column sums or None), see
+    :meth:`Side.kl_update`."""
+    den_row = R.sum(axis=0) if R_sum is None else R_sum
+    if np.any(den_row == 0):
+        den_row = np.where(den_row == 0, L.dtype.type(EPSILON), den_row)
+    return side.kl_update(L, R, den_row, divergence)
+
+
 def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: Penalty,
               R_sum: np.ndarray | None = None) -> np.ndarray:
     """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1).
@@ -90,12 +109,9 @@ def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: floa
     ``R_sum`` is R's column sums when the caller already has them (R fixed across updates,
     as in ``transform``); the sparse, unmasked I-divergence update uses them as its denominator.
     """
-    if (beta == 1.0 and gamma == 1.0 and not (penalty.l1 or penalty.l2) and isinstance(side, Side)
-            and side.sparse and side.mask is None):
-        den_row = R.sum(axis=0) if R_sum is None else R_sum
-        if np.any(den_row == 0):
-            den_row = np.where(den_row == 0, L.dtype.type(EPSILON), den_row)
-        return side.kl_update(L, R, den_row)
+    if sparse_kl_applies(side, beta, gamma, penalty):
+        sparse_kl_update(side, L, R, R_sum)
+        return L
     num, den = side.numerator_denominator(L, R, beta)
     den = penalty.add_to(den, L)
     if np.any(den == 0):
