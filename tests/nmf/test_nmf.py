@@ -1822,3 +1822,33 @@ def test_kl_update_sums_the_updated_factor_the_same_way_for_any_number_of_thread
         if first is None:
             first = sums
         np.testing.assert_array_equal(sums, first)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), beta=st.sampled_from([1.0, 1.5, 2.0]), sparse=st.booleans(),
+       l2=st.sampled_from([0.0, 0.3]))
+def test_newton_systems_read_back_for_fewer_free_coefficients_equal_those_formed_again(seed, beta, sparse, l2):
+    """A row solved again with more coefficients held reads its Newton system from the first solve's (the rows and
+    columns of the coefficients still free): the same steps as forming that system again from the curvature."""
+    from mmconcepts.nmf._coefficients import _restricted_newton, _rows_model
+    from mmconcepts.nmf._updates import Penalty
+
+    rng = np.random.default_rng(seed)
+    n, m, k = 9, 30, 7
+    X = rng.gamma(1.0, 1.0, (n, m)) * (rng.random((n, m)) < 0.7)
+    X = sp.csr_matrix(X) if sparse and beta == 1.0 else X
+    Ht, W = rng.random((m, k)) + 0.05, rng.random((n, k)) + 0.01
+    model = _rows_model(X, Ht, beta, Penalty(l2=l2), None)
+    rows = np.arange(n)
+    part, g, _den, curvature = next(iter(model.derivatives(rows, W)))
+    safe = np.maximum(curvature.diag, 1e-12)
+    ridge = 10.0 ** rng.uniform(-14, 0, n)
+    act = rng.random((n, k)) < 0.3
+    systems: list = [None] * n
+    _restricted_newton(curvature, rows, g, act, safe, ridge, systems)
+    more = act | (rng.random((n, k)) < 0.4)
+    again = np.flatnonzero(rng.random(n) < 0.7)
+    formed = _restricted_newton(curvature, again, g[again], more[again], safe[again], ridge[again])
+    read = _restricted_newton(curvature, again, g[again], more[again], safe[again], ridge[again],
+                              known=[systems[i] for i in again])
+    np.testing.assert_allclose(read, formed, rtol=1e-12, atol=0)

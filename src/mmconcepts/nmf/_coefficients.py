@@ -107,13 +107,15 @@ class _Rows(abc.ABC):
     def __init__(self, Ht: np.ndarray, beta: float, penalty: Penalty):
         self.Ht, self.beta, self.penalty = Ht, beta, penalty
 
-    def objective(self, rows: np.ndarray, W: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+    def objective(self, rows: np.ndarray, W: np.ndarray, start: np.ndarray | None = None,
+                  start_products: np.ndarray | None = None) -> np.ndarray:
         """The objective of each of ``rows`` (W holds their coefficients), penalties included.
 
         With ``start`` (the coefficients a step leaves, beta < 2), a row where the step divides a
-        product by more than :data:`_COLLAPSE` where x > 0 reads infinite (see there).
+        product by more than :data:`_COLLAPSE` where x > 0 reads infinite (see there);
+        ``start_products``, where :meth:`products` gave them, are the start's products, not formed again.
         """
-        f = self._divergence(rows, W, start)
+        f = self._divergence(rows, W, start, start_products)
         pen = self.penalty
         if pen.l1:
             f = f + pen.l1 * W.sum(axis=1)
@@ -122,8 +124,14 @@ class _Rows(abc.ABC):
         return f
 
     @abc.abstractmethod
-    def _divergence(self, rows: np.ndarray, W: np.ndarray, start: np.ndarray | None) -> np.ndarray:
+    def _divergence(self, rows: np.ndarray, W: np.ndarray, start: np.ndarray | None,
+                    start_products: np.ndarray | None = None) -> np.ndarray:
         """The divergence of each of ``rows`` (W holds their coefficients), without penalties."""
+
+    def products(self, rows: np.ndarray, W: np.ndarray) -> np.ndarray | None:
+        """The products W H of ``rows`` (W holds their coefficients), (len(rows), n_features), where the model reads
+        them back in :meth:`objective` (``start_products``) and they are small enough to keep; else None."""
+        return None
 
     @abc.abstractmethod
     def derivatives(self, rows: np.ndarray, W: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray,
@@ -194,7 +202,7 @@ class _Quadratic(_Rows):
         self.G = Ht.T @ Ht
         self.B = np.asarray(X @ Ht, dtype=np.float64)
 
-    def _divergence(self, rows, W, start):
+    def _divergence(self, rows, W, start, start_products=None):
         if not sp.issparse(self.X):
             f = np.empty(len(rows))
             for part in self._row_blocks(len(rows), self.Ht.shape[0]):
@@ -230,7 +238,7 @@ class _SparseKL(_Rows):
         y = lowrank_at_nonzeros(sub.indptr, sub.indices, W, self.Ht, np.empty(sub.nnz))
         return sub, y
 
-    def _divergence(self, rows, W, start):
+    def _divergence(self, rows, W, start, start_products=None):
         sub, y = self._at_nonzeros(rows, W)
         x = sub.data
         terms = _floored_divergence(x, y, 1.0) - y  # the products' sum is W @ colsum
@@ -285,7 +293,7 @@ class _Dense(_Rows):
             M = np.asarray(M, dtype=np.float64)
         return np.asarray(X, dtype=np.float64), M
 
-    def _divergence(self, rows, W, start):
+    def _divergence(self, rows, W, start, start_products=None):
         f = np.empty(len(rows))
         for part in self._row_blocks(len(rows), self.Ht.shape[0]):
             X, M = self._block(rows[part])
@@ -296,9 +304,15 @@ class _Dense(_Rows):
             f[part] = d.sum(axis=1)
             if start is not None and self.beta < 2.0:
                 observed = X > 0 if M is None else (X > 0) & (M > 0)
-                collapsed = _collapsed(observed, Y, start[part] @ self.Ht.T)
+                Y_start = start[part] @ self.Ht.T if start_products is None else start_products[part]
+                collapsed = _collapsed(observed, Y, Y_start)
                 f[part] = np.where(collapsed.any(axis=1), np.inf, f[part])
         return f
+
+    def products(self, rows, W):
+        if self.beta >= 2.0 or len(rows) * self.Ht.shape[0] > _BLOCK_CELLS:
+            return None
+        return W @ self.Ht.T
 
     def derivatives(self, rows, W):
         beta, (m, k) = self.beta, self.Ht.shape
@@ -412,7 +426,8 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
             with np.errstate(over="ignore", invalid="ignore"):
                 moves = np.where(pushed, np.minimum(gp / safe, Wp), 0.0)
             rhs = np.where(act, gp, gp - curvature.product(moves))
-        dp = _restricted_newton(curvature, everyone, rhs, act, safe, ridge[part])
+        systems: list = [None] * len(Wp)  # each row's scaled system, read back if the row is solved again below
+        dp = _restricted_newton(curvature, everyone, rhs, act, safe, ridge[part], systems)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             factor[part] = np.where(up, 1.0 - excess, 1.0)
         dp[up] = Wp[up] * excess[up]  # w - d = w num / den
@@ -424,7 +439,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         redo = np.flatnonzero(held.any(axis=1))
         if redo.size:
             dp[redo] = _restricted_newton(curvature, redo, rhs[redo], act[redo] | held[redo], safe[redo],
-                                          ridge[part][redo])
+                                          ridge[part][redo], known=[systems[i] for i in redo])
             with np.errstate(over="ignore"):
                 dp[held] = (gp / safe)[held]
             act = act | held
@@ -461,7 +476,7 @@ def _stationary_rows(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float) 
 
 
 def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, act: np.ndarray, safe: np.ndarray,
-                       ridge: np.ndarray) -> np.ndarray:
+                       ridge: np.ndarray, systems: list | None = None, known: list | None = None) -> np.ndarray:
     """Each row's step: the Newton step of its free coefficients, the curvature-scaled gradient of the active ones.
 
     The free coefficients' system is scaled by their curvatures (``safe``) to a unit diagonal,
@@ -471,6 +486,11 @@ def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, ac
     leading block of the largest free count is formed and solved: with many coefficients held at
     zero, far smaller systems than (k, k). ``sel`` are the rows of ``curvature``'s block that
     ``g``, ``act``, ``safe`` and ``ridge`` hold.
+
+    ``systems`` (a list, one entry per row) receives each row's scaled system and its free
+    coefficients; ``known``, such entries of a first solve of the same rows with the same
+    ``safe`` and ``ridge``, where every coefficient free now was free then: the systems are then
+    read from them (their rows and columns of the coefficients still free) instead of formed.
     """
     k = g.shape[1]
     n_free = k - act.sum(axis=1)
@@ -483,15 +503,26 @@ def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, ac
         group = np.flatnonzero((size == key) & (n_free > 0))
         f = int(n_free[group].max())
         rows_order = order[group, :f]
-        sub = curvature.block(rows_order, sel[group])
         free = np.arange(f) < n_free[group, None]  # the leading block holds active ones in rows with fewer free
-        sub *= free[:, :, None] & free[:, None, :]
         unit = 1.0 / np.sqrt(np.take_along_axis(safe[group], rows_order, axis=1))
-        sub *= unit[:, :, None]  # |H_ij| <= sqrt(H_ii H_jj): one factor at a time, nothing overflows
-        sub *= unit[:, None, :]
         idx = np.arange(f)
-        # free coefficients: the ridge; active ones: their own curvature (1 once scaled)
-        sub[:, idx, idx] = np.where(free, sub[:, idx, idx] + ridge[group, None], 1.0)
+        if known is None:
+            sub = curvature.block(rows_order, sel[group])
+            sub *= free[:, :, None] & free[:, None, :]
+            sub *= unit[:, :, None]  # |H_ij| <= sqrt(H_ii H_jj): one factor at a time, nothing overflows
+            sub *= unit[:, None, :]
+            # free coefficients: the ridge; active ones: their own curvature (1 once scaled)
+            sub[:, idx, idx] = np.where(free, sub[:, idx, idx] + ridge[group, None], 1.0)
+            if systems is not None:
+                for j, i in enumerate(group):
+                    systems[i] = (sub[j, :n_free[i], :n_free[i]], rows_order[j, :n_free[i]])
+        else:
+            sub = np.zeros((len(group), f, f))
+            sub[:, idx, idx] = 1.0
+            for j, i in enumerate(group):
+                system, then = known[i]
+                still = np.flatnonzero(~act[i, then])  # (the free coefficients keep their order)
+                sub[j, :still.size, :still.size] = system[np.ix_(still, still)]
         rhs = (np.take_along_axis(g[group], rows_order, axis=1) * unit)[:, :, None]
         step = np.linalg.solve(sub, rhs)[:, :, 0] * unit
         rows_d = d[group]
@@ -567,6 +598,13 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             return W, True
         Wr, f, ridge = W[rows], f_all[rows], ridge_all[rows]
         g, den, d, active, optimal, factor, slope = _newton_directions(model, rows, Wr, tol, ridge)
+        kept: list = []  # the products of Wr, formed on first use and read back by every trial's collapse test
+
+        def start_products(sel):
+            if not kept:
+                kept.append(model.products(rows, Wr))
+            return None if kept[0] is None else kept[0][sel]
+
         newtonian = ridge < 2.0 * _NEWTON_RIDGE  # (the ridge moves by factors of ten, not exactly)
         newton = optimal & newtonian
         # beta < 2: the held coefficients shrink by at most 2 _COLLAPSE per searched step (see there); a full step
@@ -574,10 +612,15 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
         floor = np.where(active, 2.0 * _COLLAPSE * Wr, 0.0) if model.beta < 2.0 else np.zeros_like(Wr)
         full = np.maximum(Wr[newton] - d[newton], 0.0)
         if model.beta < 2.0 and full.size:
-            collapsing = ~np.isfinite(model.objective(rows[newton], full, Wr[newton]))
+            # the objective read infinite where the step collapses a cell (and where it is infinite anyway): those
+            # rows' held coefficients stop at the floor instead, and their objective is evaluated again
+            f_full = model.objective(rows[newton], full, Wr[newton], start_products(newton))
+            collapsing = ~np.isfinite(f_full)
             full[collapsing] = np.maximum(Wr[newton] - d[newton], floor[newton])[collapsing]
+            f_full[collapsing] = model.objective(rows[newton][collapsing], full[collapsing])
+        else:
+            f_full = model.objective(rows[newton], full)
         size = np.maximum(np.abs(full).max(axis=1), np.abs(Wr[newton]).max(axis=1))
-        f_full = model.objective(rows[newton], full)
         # a full step that raises the objective beyond its rounding (the held coefficients zeroed at once can, where
         # the quadratic model is not the objective) is searched instead, like any other step: taken, rows can cycle
         with np.errstate(invalid="ignore"):
@@ -600,7 +643,7 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             trial = np.maximum(Wr[p] - alpha[todo, None] * d[p], floor[p])
             climbing = factor[p] != 1.0
             trial[climbing] = (Wr[p] * factor[p] ** alpha[todo, None])[climbing]
-            ft = model.objective(rows[p], trial, Wr[p])
+            ft = model.objective(rows[p], trial, Wr[p], start_products(p))
             # Armijo along the projection arc: the decrease the gradient predicts from the active ones' actual move,
             # and the free coefficients' Newton step against its own right-hand side (the gradient where the active
             # ones land, beta = 2: the quadratic's decrease along it, which the raw gradient can understate)
