@@ -90,6 +90,8 @@ from ._updates import (
     mu_update,
     resolve_penalties,
     scale_penalties,
+    sparse_kl_applies,
+    sparse_kl_update,
     stopped_message,
 )
 
@@ -620,13 +622,20 @@ def _fit_chunk(problem: Problem | None, w, Ht, rule: _Rule, spec: _ChunkSpec, ev
     part = _Partial()
     if problem is None:
         return (_store_w(_empty_w(rule), w_out) if update else w), part
+    # the sparse I-divergence's update forms every product the objective needs: read from it (W unpenalised)
+    fused = evaluate and update and sparse_kl_applies(problem.sides[0], rule.beta, rule.gamma, rule.pen_W)
     if evaluate:
-        part.div = problem.divergence(W, Ht, rule.beta)
         part.pen = rule.pen_W.value(W)
         part.finite = bool(np.isfinite(W).all())
+        if not fused:
+            part.div = problem.divergence(W, Ht, rule.beta)
     if not update:
         return w, part
-    W = mu_update(problem.sides[0], np.ascontiguousarray(W), Ht, rule.beta, rule.gamma, rule.pen_W)
+    if fused:
+        W = np.ascontiguousarray(W)
+        part.div = sparse_kl_update(problem.sides[0], W, Ht, divergence=True)[0]
+    else:
+        W = mu_update(problem.sides[0], np.ascontiguousarray(W), Ht, rule.beta, rule.gamma, rule.pen_W)
     part.num, part.den = _h_partial(problem.sides[1], Ht, W, rule.beta)
     return _store_w(W, w_out), part
 
