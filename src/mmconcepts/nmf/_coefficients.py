@@ -426,7 +426,8 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
             with np.errstate(over="ignore", invalid="ignore"):
                 moves = np.where(pushed, np.minimum(gp / safe, Wp), 0.0)
             rhs = np.where(act, gp, gp - curvature.product(moves))
-        systems: list = [None] * len(Wp)  # each row's scaled system, read back if the row is solved again below
+        # beta < 2: each row's scaled system, read back if the row is solved again below
+        systems: list | None = [None] * len(Wp) if model.beta < 2.0 else None
         dp = _restricted_newton(curvature, everyone, rhs, act, safe, ridge[part], systems)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             factor[part] = np.where(up, 1.0 - excess, 1.0)
@@ -439,7 +440,7 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         redo = np.flatnonzero(held.any(axis=1))
         if redo.size:
             dp[redo] = _restricted_newton(curvature, redo, rhs[redo], act[redo] | held[redo], safe[redo],
-                                          ridge[part][redo], known=[systems[i] for i in redo])
+                                          ridge[part][redo], known=None if systems is None else [systems[i] for i in redo])
             with np.errstate(over="ignore"):
                 dp[held] = (gp / safe)[held]
             act = act | held
@@ -489,8 +490,10 @@ def _restricted_newton(curvature: _Curvature, sel: np.ndarray, g: np.ndarray, ac
 
     ``systems`` (a list, one entry per row) receives each row's scaled system and its free
     coefficients; ``known``, such entries of a first solve of the same rows with the same
-    ``safe`` and ``ridge``, where every coefficient free now was free then: the systems are then
-    read from them (their rows and columns of the coefficients still free) instead of formed.
+    ``safe`` and ``ridge``, where every coefficient free now was free then (the caller's
+    guarantee, not checked): the systems are then read from them (their rows and columns of the
+    coefficients still free) instead of formed, equal to those formed again up to the rounding of
+    the products that form them.
     """
     k = g.shape[1]
     n_free = k - act.sum(axis=1)

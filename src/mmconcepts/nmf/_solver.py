@@ -597,8 +597,9 @@ def _iterate(sol: _Solver, W, Ht, update_H: bool, max_iter: int, tol: float, los
 
     Where W's update forms every product the objective needs (:meth:`_Solver.objective_in_update`),
     the objective of an iterate is read from the next iteration's W update, and the fit stops there
-    (W as it was before that update) when the stopping rule says so: the same objectives, iterates
-    and stopping iteration as evaluating it apart, the last iterate's objective apart.
+    (W as it was before that update) when the stopping rule says so: the same iterates as evaluating
+    it apart, the objectives equal to rounding (so the stopping iteration is the same unless a
+    decrease falls within that rounding of ``tol``); the last iterate's objective is evaluated apart.
     """
     shrunk = False
     if not update_H:  # W's updates all see the same Ht
