@@ -444,6 +444,49 @@ def test_kl_transform_with_a_fixed_dictionary_matches_sklearn(rng, sparse):
     np.testing.assert_array_equal(res.H, H)
 
 
+def test_frobenius_transform_forms_the_dictionary_products_once(rng, monkeypatch):
+    """Under beta = 2, W's updates against a fixed H (transform) form X H^T and H H^T once: the iterates are
+    scikit-learn's and, to the bit, those of updates that form them every time; an R not the fixed one is
+    never served the fixed one's products."""
+    from sklearn.decomposition import non_negative_factorization
+
+    import mmconcepts.nmf._problem as problem
+
+    X = rng.random((40, 300)) ** 3
+    H = rng.random((6, 300)) + 0.1
+    W0 = np.full((40, 6), np.sqrt(X.mean() / 6))  # scikit-learn's start when H is fixed (it ignores a given W)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk, _, _ = non_negative_factorization(X, W=W0.copy(), H=H.copy(), n_components=6, init="custom",
+                                                update_H=False, solver="mu", beta_loss=2.0, max_iter=50, tol=0)
+    formed = []
+    dense_nd = problem.Side._dense_nd
+
+    def spy(self, L, R, beta, fixed=False):
+        formed.append(self.fixed_products is None or self.fixed_products[0] is not R or not fixed)
+        return dense_nd(self, L, R, beta, fixed)
+
+    monkeypatch.setattr(problem.Side, "_dense_nd", spy)
+    res = beta_nmf(X, 6, init="custom", W=W0, H=H, update_H=False, beta_loss=2.0, max_iter=50, tol=0)
+    assert len(formed) == 50 and sum(formed) == 1
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-10, atol=1e-14)
+    monkeypatch.undo()
+    # the same updates forming every product each time
+    side, Ht = problem.Problem(X).sides[0], np.ascontiguousarray(H.T)
+    W = W0.copy()
+    for _ in range(50):
+        num, den = side.numerator_denominator(W, Ht, 2.0)
+        W *= num / den
+    np.testing.assert_array_equal(res.W, W)
+    # another R, even after the fixed one's products were kept: its own products
+    side = problem.Problem(X).sides[0]
+    side.numerator_denominator(W0, Ht, 2.0, fixed=True)
+    other = Ht * 2.0
+    num, den = side.numerator_denominator(W0, other, 2.0, fixed=True)
+    np.testing.assert_allclose(num, X @ other, rtol=1e-13)
+    np.testing.assert_allclose(den, W0 @ (other.T @ other), rtol=1e-13)
+
+
 def test_sparse_fit_over_many_tiles_matches_sklearn(rng, monkeypatch):
     """A fit whose dictionary spans many tiles (tiles shrunk to 64 of 1000 columns) keeps
     scikit-learn's KL iterates."""

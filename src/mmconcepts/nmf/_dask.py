@@ -572,7 +572,7 @@ class _Summed:
     def __init__(self, num: np.ndarray, den: np.ndarray):
         self.num, self.den = num, den
 
-    def numerator_denominator(self, L, R, beta):
+    def numerator_denominator(self, L, R, beta, fixed=False):
         return self.num, self.den
 
 

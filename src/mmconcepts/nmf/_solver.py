@@ -133,7 +133,9 @@ class _Solver:
         if sparse_kl_applies(side, self.beta, self.gamma, self.penalties[s]):
             self._sparse_kl(s, L, R)
             return L
-        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s], self._sum(s, R))
+        known = self.fixed[s]
+        fixed = known is not None and known[0] is R
+        return mu_update(side, L, R, self.beta, self.gamma, self.penalties[s], self._sum(s, R), fixed)
 
     def _gradient(self, s: int, side: Side, L: np.ndarray, R: np.ndarray) -> np.ndarray:
         """Gradient of the side objective in L (thesis eq. 2.11-2.13): D - N + penalties."""

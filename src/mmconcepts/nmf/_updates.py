@@ -103,16 +103,17 @@ def sparse_kl_update(side: Side, L: np.ndarray, R: np.ndarray, R_sum: np.ndarray
 
 
 def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: Penalty,
-              R_sum: np.ndarray | None = None) -> np.ndarray:
+              R_sum: np.ndarray | None = None, fixed: bool = False) -> np.ndarray:
     """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1).
 
     ``R_sum`` is R's column sums when the caller already has them (R fixed across updates,
     as in ``transform``); the sparse, unmasked I-divergence update uses them as its denominator.
+    ``fixed``: R stays the same across the caller's updates (see :meth:`Side.numerator_denominator`).
     """
     if sparse_kl_applies(side, beta, gamma, penalty):
         sparse_kl_update(side, L, R, R_sum)
         return L
-    num, den = side.numerator_denominator(L, R, beta)
+    num, den = side.numerator_denominator(L, R, beta, fixed)
     den = penalty.add_to(den, L)
     if np.any(den == 0):
         den = np.where(den == 0, L.dtype.type(EPSILON), den)
