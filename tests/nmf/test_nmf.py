@@ -371,7 +371,7 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
         return _kernels._factors(Z.indptr, Z.data, weights, L, groups)
 
     keep = _kernels._NO_RATIOS
-    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, 1, 10**9,
+    whole = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, 0.0, np.empty_like(L), none, 1, 10**9,
                                    factors(X, w, 1), keep, _kernels._NO_SUMS)
     np.testing.assert_allclose(whole, ref_num, rtol=1e-12)
     shuffled = X.copy()  # the same entries, each row's column indices in another order
@@ -380,13 +380,13 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
         order = rng.permutation(sl.stop - sl.start)
         shuffled.indices[sl], shuffled.data[sl] = X.indices[sl][order], X.data[sl][order]
     for groups, tile in [(1, 1), (2, 7), (3, 64), (23, 100), (5, 699), (2, 701)]:
-        got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, np.empty_like(L), none, groups,
+        got = _kernels._mu_numerator(X.indptr, X.indices, X.data, w, L, R, beta, 1e-9, 0.0, np.empty_like(L), none, groups,
                                      tile, factors(X, w, groups), keep, _kernels._NO_SUMS)
         np.testing.assert_array_equal(got, whole)
         y = _kernels._lowrank_at_nonzeros(X.indptr, X.indices, L, R, np.empty(X.nnz), groups, tile)
         np.testing.assert_allclose(y if beta >= 2.0 else np.maximum(y, 1e-9), ref_y, rtol=1e-13)
         got = _kernels._mu_numerator(shuffled.indptr, shuffled.indices, shuffled.data, np.empty(0), L, R, beta, 1e-9,
-                                     np.empty_like(L), none, groups, tile, factors(shuffled, np.empty(0), groups),
+                                     0.0, np.empty_like(L), none, groups, tile, factors(shuffled, np.empty(0), groups),
                                      keep, _kernels._NO_SUMS)
         np.testing.assert_allclose(got, _numerator_reference(shuffled, np.empty(0), L, R, beta, 1e-9)[0], rtol=1e-12)
 
@@ -394,23 +394,30 @@ def test_sparse_kernels_agree_with_numpy_for_every_tiling(rng, beta, weighted):
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_fused_kl_update_equals_numerator_then_numpy_update(rng, dtype):
     """The sparse I-divergence update divides each finished numerator row in the kernel: L ends
-    as ``L * (N / den)`` computed by numpy, bit for bit, for every tiling."""
+    as ``L * (N / den)`` computed by numpy, bit for bit, for every tiling, its entries below
+    ``flush_below`` set to zero (and only those)."""
     from mmconcepts.nmf import _kernels
 
     X = sp.random(19, 500, density=0.1, random_state=7, format="csr", dtype=dtype)
     X.data = (rng.poisson(2.0, X.nnz) + 1.0).astype(dtype)
     L, R = rng.random((19, 5)).astype(dtype), rng.random((500, 5)).astype(dtype)
+    flush = _kernels.flush_below(dtype)
+    assert flush == np.sqrt(np.finfo(dtype).tiny).astype(dtype)
+    L[0, :3] = flush * np.array([0.5, 1.0, 4.0], dtype=dtype)  # updated: some below the flush, some not
     den = R.sum(axis=0)
     eps = dtype(_kernels.EPSILON)
     none = np.empty(0, dtype)
-    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L, R, 1.0, eps, np.empty_like(L),
+    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L, R, 1.0, eps, 0.0, np.empty_like(L),
                                _kernels._NO_DEN, 1, 10**9, _kernels._factors(X.indptr, X.data, none, L, 1),
                                _kernels._NO_RATIOS, _kernels._NO_SUMS)
     expected = L * (N / den)
+    low = expected < flush
+    assert low.sum() == int((expected[0, :3] < flush).sum()) >= 1 and not low[0, 2]  # only the row made low
+    expected[low] = 0.0
     for groups, tile in [(1, 10**9), (2, 64), (3, 7), (19, 1)]:
         L2 = L.copy()
         kept = np.full(X.nnz, np.nan)
-        ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L2, R, 1.0, eps,
+        ratio = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L2, R, 1.0, eps, flush,
                                        np.empty_like(L), den, groups, tile, _kernels._factors(X.indptr, X.data, none, L,
                                                                                               groups), kept,
                                        _kernels._NO_SUMS)
@@ -485,6 +492,34 @@ def test_frobenius_transform_forms_the_dictionary_products_once(rng, monkeypatch
     num, den = side.numerator_denominator(W0, other, 2.0, fixed=True)
     np.testing.assert_allclose(num, X @ other, rtol=1e-13)
     np.testing.assert_allclose(den, W0 @ (other.T @ other), rtol=1e-13)
+
+
+def test_sparse_kl_fit_flushes_entries_no_product_should_underflow_and_keeps_sklearn_iterates(rng):
+    """A sparse I-divergence fit whose factors' entries fall by orders of magnitude per iteration (scikit-learn's
+    own iterates hold entries between 0 and the square root of the smallest normal number): ours hold none
+    there (set to zero) and stay scikit-learn's iterates to 1e-10."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(2000, 300, density=0.01, format="csr", random_state=np.random.RandomState(0),
+                  data_rvs=lambda size: rng.poisson(2.0, size) + 1.0)
+    X = X[:, np.asarray(X.getnnz(axis=0)) > 0]
+    scale = np.sqrt(X.mean() / 10)
+    W0, H0 = np.abs(scale * rng.standard_normal((2000, 10))), np.abs(scale * rng.standard_normal((10, X.shape[1])))
+    sk = SkNMF(10, init="custom", solver="mu", beta_loss=1.0, max_iter=100, tol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        W_sk = sk.fit_transform(X, W=W0.copy(), H=H0.copy())
+    flush = _kernels.flush_below(np.float64)
+
+    def low(A):
+        return int(((A > 0) & (A < flush)).sum())
+
+    assert low(W_sk) + low(sk.components_) > 0  # the case reaches the flush
+    res = beta_nmf(X, 10, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=100, tol=0)
+    assert low(res.W) == low(res.H) == 0
+    assert (res.W == 0).sum() > (W_sk == 0).sum()
+    np.testing.assert_allclose(res.W, W_sk, rtol=1e-10, atol=1e-10 * np.abs(W_sk).max())
+    np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10, atol=1e-10 * np.abs(sk.components_).max())
 
 
 def test_sparse_fit_over_many_tiles_matches_sklearn(rng, monkeypatch):
@@ -1856,7 +1891,7 @@ def test_kl_update_sums_the_updated_factor_the_same_way_for_any_number_of_thread
     for groups in [1, 2, 3, 5, 16]:
         L2, sums = L.copy(), np.full((blocks, 7), np.nan)
         _kernels._mu_numerator(X.indptr, X.indices, X.data, np.empty(0), L2, R, 1.0, _kernels.EPSILON,
-                               np.empty_like(L), den, groups, 40, _kernels._factors(X.indptr, X.data, np.empty(0), L,
+                               _kernels.flush_below(L.dtype), np.empty_like(L), den, groups, 40, _kernels._factors(X.indptr, X.data, np.empty(0), L,
                                                                                    groups),
                                _kernels._NO_RATIOS, sums)
         np.testing.assert_array_equal(L2, plain)
