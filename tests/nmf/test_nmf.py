@@ -403,16 +403,25 @@ def test_fused_kl_update_equals_numerator_then_numpy_update(rng, dtype):
     L, R = rng.random((19, 5)).astype(dtype), rng.random((500, 5)).astype(dtype)
     flush = _kernels.flush_below(dtype)
     assert flush == np.sqrt(np.finfo(dtype).tiny).astype(dtype)
-    L[0, :3] = flush * np.array([0.5, 1.0, 4.0], dtype=dtype)  # updated: some below the flush, some not
     den = R.sum(axis=0)
     eps = dtype(_kernels.EPSILON)
     none = np.empty(0, dtype)
-    N = _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L, R, 1.0, eps, 0.0, np.empty_like(L),
-                               _kernels._NO_DEN, 1, 10**9, _kernels._factors(X.indptr, X.data, none, L, 1),
-                               _kernels._NO_RATIOS, _kernels._NO_SUMS)
+
+    def numerator(L):
+        return _kernels._mu_numerator(X.indptr, X.indices, X.data, none, L, R, 1.0, eps, 0.0, np.empty_like(L),
+                                      _kernels._NO_DEN, 1, 10**9, _kernels._factors(X.indptr, X.data, none, L, 1),
+                                      _kernels._NO_RATIOS, _kernels._NO_SUMS)
+
+    # entries that the update takes below the flush: some lowered (set to zero), one raised (kept)
+    L[1] *= 1e-3  # a row far below its data: its factors are above 1
+    rising = np.argwhere(numerator(L)[1:] / den > 1.0)[0] + (1, 0)
+    L[0, :3] = flush * np.array([0.5, 1.0, 4.0], dtype=dtype)
+    L[tuple(rising)] = flush / 1e6
+    N = numerator(L)
     expected = L * (N / den)
-    low = expected < flush
-    assert low.sum() == int((expected[0, :3] < flush).sum()) >= 1 and not low[0, 2]  # only the row made low
+    low = (expected < flush) & (N / den < 1.0)
+    assert expected[tuple(rising)] < flush and not low[tuple(rising)]
+    assert 1 <= low.sum() == int(low[0, :3].sum())  # only those made low
     expected[low] = 0.0
     for groups, tile in [(1, 10**9), (2, 64), (3, 7), (19, 1)]:
         L2 = L.copy()
@@ -520,6 +529,34 @@ def test_sparse_kl_fit_flushes_entries_no_product_should_underflow_and_keeps_skl
     assert (res.W == 0).sum() > (W_sk == 0).sum()
     np.testing.assert_allclose(res.W, W_sk, rtol=1e-10, atol=1e-10 * np.abs(W_sk).max())
     np.testing.assert_allclose(res.H, sk.components_, rtol=1e-10, atol=1e-10 * np.abs(sk.components_).max())
+
+
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+def test_dense_update_flushes_the_entries_it_lowers_below_the_smallest_normal_number(rng, beta):
+    """A dense multiplicative update is numpy's ``L * N / D``, except that an entry it lowers below the smallest
+    normal number is zero; one that it raises is kept however small (a start of subnormal size climbs back)."""
+    import mmconcepts.nmf._problem as problem
+    from mmconcepts.nmf._updates import Penalty, mu_update
+
+    X = rng.random((20, 15)) + 0.1
+    L, R = rng.random((20, 3)) + 0.1, rng.random((15, 3)) + 0.1
+    tiny = np.finfo(np.float64).tiny
+    L[0, 0], L[1, 1] = 4.0 * tiny, 1e-320  # the first falls below tiny under a factor below 1/4; the second rises
+    side = problem.Problem(X).sides[0]
+    num, den = side.numerator_denominator(L, R, beta)
+    factor = num / den
+    factor[0, 0], factor[1, 1] = 0.1, 8.0  # (through the numerator: the update reads N / D)
+    num = factor * den
+    expected = L * (num / den)
+    assert 0 < expected[0, 0] < tiny and 0 < expected[1, 1] < tiny and factor[1, 1] > 1
+    expected[0, 0] = 0.0
+
+    class Fixed:  # the side's numerator and denominator, the first entry's made to fall
+        def numerator_denominator(self, L, R, beta, fixed=False):
+            return num.copy(), den
+
+    got = mu_update(Fixed(), L.copy(), R, beta, 1.0, Penalty())
+    np.testing.assert_array_equal(got, expected)
 
 
 def test_sparse_fit_over_many_tiles_matches_sklearn(rng, monkeypatch):

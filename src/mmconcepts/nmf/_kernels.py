@@ -106,15 +106,16 @@ def kl_update(indptr, indices, data, L, R, den, out, ratios=_NO_RATIOS, sums=_NO
     L is sum_p x_p log(ratios_p) - sum_p x_p + sum of all products (thesis eq. 2.3), with no
     product formed again. Empty (the default): not kept.
 
-    An updated entry below :func:`flush_below` (the square root of the smallest normal number,
-    1.5e-154 in float64) is set to zero, so that no product of two entries of the factors
+    An entry that the update lowers below :func:`flush_below` (the square root of the smallest
+    normal number, 1.5e-154 in float64) is set to zero, so that no product of two such entries
     underflows. The updates take some entries of a sparse X's factors down towards zero by many
     orders of magnitude per iteration, and a product that underflows to a subnormal number costs
     the processor about a hundred times an ordinary one: without the flush, the iterations of
-    ``benchmarks/nmf.py``'s sparse case ran two to three times slower from about the 45th on. The
-    flush changes a product by at most k times 1.5e-154 times the other factor's largest entry,
-    and an entry that low does not climb back to matter within a fit (it would need about five
-    hundred doublings, where these entries were falling by orders of magnitude per iteration).
+    ``benchmarks/nmf.py``'s sparse case ran two to three times slower from about the 45th on. An
+    entry that rises (a start of subnormal size, say) is kept however small. The flush changes a
+    product by at most k times 1.5e-154 times the other factor's largest entry; a flushed entry
+    stays zero, where the updates would have had to raise it by 150 orders of magnitude for it
+    to matter.
 
     ``sums``, a float64 array of shape (ceil(rows / SUM_ROWS), k), receives the column sums of the
     updated L over each block of :data:`SUM_ROWS` consecutive rows, each summed in row order while
@@ -232,7 +233,7 @@ def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, tiny, out, de
                     for t in range(k):
                         out[i, t] /= den[t]
                         v = L[i, t] * out[i, t]
-                        L[i, t] = v if v >= tiny else 0.0  # (see kl_update)
+                        L[i, t] = 0.0 if v < tiny and out[i, t] < 1.0 else v  # (see kl_update)
                     if summed:
                         b = i // SUM_ROWS
                         for t in range(k):
