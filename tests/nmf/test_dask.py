@@ -624,3 +624,22 @@ def test_warns_like_in_memory(rng):
         warnings.simplefilter("always")
         beta_nmf(to_dask(X), K, init="custom", W=W0, H=H0, max_iter=2, tol=1e-12)
     assert any("max_iter=2" in str(w.message) for w in caught)
+
+
+def test_sparse_kl_h_update_flushes_as_the_in_memory_kernel(rng):
+    """A sparse I-divergence fit whose H entries fall far below 1e-154: the H update summed over the chunks sets to
+    zero the entries the in-memory kernel sets to zero (below ``flush_below``), and the iterates stay equal."""
+    from mmconcepts.nmf import _kernels
+
+    X = sp.random(300, 2000, density=0.01, format="csr", random_state=np.random.RandomState(0),
+                  data_rvs=lambda size: rng.poisson(2.0, size) + 1.0)
+    X = X[:, np.asarray(X.getnnz(axis=0)) > 0]
+    W0, H0 = rng.random((300, 10)) + 0.1, rng.random((10, X.shape[1])) + 0.1
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=100, tol=0)
+    r_mem = beta_nmf(X, 10, **kw)
+    r_dask = beta_nmf(da.from_array(X, chunks=(50, -1), asarray=False), 10, **kw)
+    flush = _kernels.flush_below(np.float64)
+    assert (r_mem.H == 0).sum() > 1000  # the case reaches the flush
+    assert not ((r_dask.H > 0) & (r_dask.H < flush)).any()
+    np.testing.assert_array_equal(r_dask.H == 0, r_mem.H == 0)
+    assert rel(r_dask.H, r_mem.H) < RTOL

@@ -76,6 +76,7 @@ from .._validation import check_nonnegative_matrix, check_random_state
 from ..errors import ConvergenceWarning, DataError, DataFormatError, ParameterError
 from ._beta import check_beta_zeros, mm_exponent
 from ._coefficients import solve_coefficients
+from . import _kernels
 from ._problem import Problem, Side
 from ._data import check_factor, check_mask, is_dask_array, validate_data
 from ._init import Unreachable, check_factor_not_zero, refuse_unreachable
@@ -586,6 +587,7 @@ class _Rule:
     scale: float
     k: int
     dtype: str
+    flush_H: float | None = None  # the H update's flush (see mu_update): the in-memory update's for the same X
 
 
 def _load_w(w: Any) -> np.ndarray:
@@ -877,7 +879,10 @@ def beta_nmf_dask(
         if rescaled:
             pen_W, pen_H = scale_penalties(pen_W, pen_H, scale, scale_W, scale_H, beta)
         gamma = mm_exponent(beta) if update_rule == "mm" else 1.0
-        rule = _Rule(beta, gamma, pen_W, scale, k, str(dtype))
+        # the in-memory H update of a sparse, unmasked X under the I-divergence is the kernel's, with its flush
+        kernel_h = (beta == 1.0 and gamma == 1.0 and mask is None and not (pen_H.l1 or pen_H.l2)
+                    and sp.issparse(getattr(X, "_meta", None)))
+        rule = _Rule(beta, gamma, pen_W, scale, k, str(dtype), _kernels.flush_below(dtype) if kernel_h else None)
         # Each chunk's Problem (its validated rows of X / scale, and their CSR transpose for sparse data) is
         # built once and kept in the cluster's memory; out of core, it is rebuilt from the file in every pass.
         sources = [dask.delayed(_make_problem)(x, mb, s, beta, scale) for x, mb, s in zip(x_blocks, m_blocks, specs)]
@@ -1212,7 +1217,8 @@ def _h_step(total: _Partial, Ht: np.ndarray, rule: _Rule, pen_H: Penalty, own: b
     """
     num = cast(np.ndarray, total.num if own else np.array(total.num, copy=True))
     summed = cast(Side, _Summed(num, _full_den(total.den, Ht)))
-    return mu_update(summed, Ht.copy(), cast(np.ndarray, None), rule.beta, rule.gamma, pen_H)  # no W: summed
+    return mu_update(summed, Ht.copy(), cast(np.ndarray, None), rule.beta, rule.gamma, pen_H,  # no W: summed
+                     flush=rule.flush_H)
 
 
 def _check_part(total: _Partial, Ht: np.ndarray, pen_H: Penalty) -> tuple[float, _Partial]:

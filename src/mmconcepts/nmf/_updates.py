@@ -103,7 +103,7 @@ def sparse_kl_update(side: Side, L: np.ndarray, R: np.ndarray, R_sum: np.ndarray
 
 
 def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: float, penalty: Penalty,
-              R_sum: np.ndarray | None = None, fixed: bool = False) -> np.ndarray:
+              R_sum: np.ndarray | None = None, fixed: bool = False, flush: float | None = None) -> np.ndarray:
     """One multiplicative update of L in place (thesis eq. 2.15-2.16; eq. 2.17 when gamma = 1).
 
     ``R_sum`` is R's column sums when the caller already has them (R fixed across updates,
@@ -111,7 +111,7 @@ def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: floa
     ``fixed``: R stays the same across the caller's updates (see :meth:`Side.numerator_denominator`).
 
     An entry that the update lowers below ``flush`` is set to zero (:func:`flush_falling`), by
-    default the smallest normal number of L's type (2.2e-308 in float64): a subnormal entry makes
+    default (None) the smallest normal number of L's type (2.2e-308 in float64): a subnormal entry makes
     every product it enters take the processor about a hundred times longer (a dictionary with a
     few dozen of them among 38 400 entries, as chapter 3's had, made its products 1.7 times
     slower). An entry that rises is kept however small. (The sparse, unmasked I-divergence update
@@ -128,7 +128,7 @@ def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: floa
     if gamma != 1.0:
         ratio **= gamma
     L *= ratio
-    return flush_falling(L, ratio)
+    return flush_falling(L, ratio, flush)
 
 
 def flush_falling(L: np.ndarray, factor: np.ndarray, flush: float | None = None) -> np.ndarray:
