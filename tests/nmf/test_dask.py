@@ -626,20 +626,40 @@ def test_warns_like_in_memory(rng):
     assert any("max_iter=2" in str(w.message) for w in caught)
 
 
-def test_sparse_kl_h_update_flushes_as_the_in_memory_kernel(rng):
+@pytest.mark.parametrize("case", ["from_array", "from_delayed", "masked", "alpha_H"])
+def test_sparse_kl_h_update_flushes_as_the_in_memory_kernel(rng, case):
     """A sparse I-divergence fit whose H entries fall far below 1e-154: the H update summed over the chunks sets to
-    zero the entries the in-memory kernel sets to zero (below ``flush_below``), and the iterates stay equal."""
+    zero the entries the in-memory fit sets to zero (below ``flush_below`` where the in-memory H update is the
+    kernel's: sparse chunks, even where the dask array's meta is dense; below the smallest normal number with a
+    mask or a penalty on H), and the iterates stay equal."""
     from mmconcepts.nmf import _kernels
 
     X = sp.random(300, 2000, density=0.01, format="csr", random_state=np.random.RandomState(0),
                   data_rvs=lambda size: rng.poisson(2.0, size) + 1.0)
     X = X[:, np.asarray(X.getnnz(axis=0)) > 0]
-    W0, H0 = rng.random((300, 10)) + 0.1, rng.random((10, X.shape[1])) + 0.1
+    m = X.shape[1]
+    W0, H0 = rng.random((300, 10)) + 0.1, rng.random((10, m)) + 0.1
     kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=100, tol=0)
-    r_mem = beta_nmf(X, 10, **kw)
-    r_dask = beta_nmf(da.from_array(X, chunks=(50, -1), asarray=False), 10, **kw)
+    mask = None
+    if case == "masked":
+        mask = rng.random((300, m)) > 0.1
+    if case == "alpha_H":
+        kw.update(alpha_W=0.0, alpha_H=1e-3)
+    r_mem = beta_nmf(X, 10, mask=mask, **kw)
+    if case == "from_delayed":  # CSR chunks under an ndarray meta
+        Xd = da.concatenate([da.from_delayed(dask.delayed(X[a:a + 50]), shape=(50, m), dtype=np.float64)
+                             for a in range(0, 300, 50)])
+        assert not sp.issparse(Xd._meta)
+    else:
+        Xd = da.from_array(X, chunks=(50, -1), asarray=False)
+    r_dask = beta_nmf(Xd, 10, mask=None if mask is None else da.from_array(mask, chunks=(50, -1)), **kw)
     flush = _kernels.flush_below(np.float64)
+    tiny = np.finfo(np.float64).tiny
     assert (r_mem.H == 0).sum() > 1000  # the case reaches the flush
-    assert not ((r_dask.H > 0) & (r_dask.H < flush)).any()
+    kept = (r_mem.H > 0) & (r_mem.H < flush)
+    if case in ("from_array", "from_delayed"):
+        assert not kept.any()
+    else:
+        assert kept.any() and not ((r_mem.H > 0) & (r_mem.H < tiny)).any()
     np.testing.assert_array_equal(r_dask.H == 0, r_mem.H == 0)
     assert rel(r_dask.H, r_mem.H) < RTOL

@@ -542,13 +542,15 @@ def test_dense_update_flushes_the_entries_it_lowers_below_the_smallest_normal_nu
     L, R = rng.random((20, 3)) + 0.1, rng.random((15, 3)) + 0.1
     tiny = np.finfo(np.float64).tiny
     L[0, 0], L[1, 1] = 4.0 * tiny, 1e-320  # the first falls below tiny under a factor below 1/4; the second rises
+    L[2, 2] = 1e-200  # falls, and stays above tiny: kept
     side = problem.Problem(X).sides[0]
     num, den = side.numerator_denominator(L, R, beta)
     factor = num / den
-    factor[0, 0], factor[1, 1] = 0.1, 8.0  # (through the numerator: the update reads N / D)
+    factor[0, 0], factor[1, 1], factor[2, 2] = 0.1, 8.0, 0.5  # (through the numerator: the update reads N / D)
     num = factor * den
     expected = L * (num / den)
     assert 0 < expected[0, 0] < tiny and 0 < expected[1, 1] < tiny and factor[1, 1] > 1
+    assert tiny < expected[2, 2] < 1e-154
     expected[0, 0] = 0.0
 
     class Fixed:  # the side's numerator and denominator, the first entry's made to fall

@@ -448,6 +448,7 @@ class _Stats:
     total: float = 0.0
     observed: float = 0.0
     errors: list = field(default_factory=list)
+    sparse: bool | None = None  # every chunk holding rows is sparse once validated (None: no such chunk)
 
 
 def _chunk_stats(x: Any, m: Any, spec: _ChunkSpec, beta: float) -> _Stats:
@@ -462,7 +463,7 @@ def _chunk_stats(x: Any, m: Any, spec: _ChunkSpec, beta: float) -> _Stats:
         observed = float(Mv.count_nonzero()) if sp.issparse(Mv) else float(np.count_nonzero(Mv))
     return _Stats(rows=Xv.shape[0], cols=Xv.shape[1], dtype=str(Xv.dtype),
                   xmax=float(values.max()) if values.size else -np.inf,
-                  total=float(Xv.sum(dtype=np.float64)), observed=observed)
+                  total=float(Xv.sum(dtype=np.float64)), observed=observed, sparse=sp.issparse(Xv))
 
 
 def _merge_stats(parts: Sequence[_Stats]) -> _Stats:
@@ -477,6 +478,8 @@ def _merge_stats(parts: Sequence[_Stats]) -> _Stats:
         out.xmax = max(out.xmax, p.xmax)
         out.total += p.total
         out.observed += p.observed
+        if p.sparse is not None:
+            out.sparse = p.sparse if out.sparse is None else out.sparse and p.sparse
     return out
 
 
@@ -881,7 +884,7 @@ def beta_nmf_dask(
         gamma = mm_exponent(beta) if update_rule == "mm" else 1.0
         # the in-memory H update of a sparse, unmasked X under the I-divergence is the kernel's, with its flush
         kernel_h = (beta == 1.0 and gamma == 1.0 and mask is None and not (pen_H.l1 or pen_H.l2)
-                    and sp.issparse(getattr(X, "_meta", None)))
+                    and bool(stats.sparse))
         rule = _Rule(beta, gamma, pen_W, scale, k, str(dtype), _kernels.flush_below(dtype) if kernel_h else None)
         # Each chunk's Problem (its validated rows of X / scale, and their CSR transpose for sparse data) is
         # built once and kept in the cluster's memory; out of core, it is rebuilt from the file in every pass.

@@ -57,8 +57,8 @@ def lowrank_at_nonzeros(indptr, indices, L, R, out):
 
 def flush_below(dtype) -> Any:
     """The square root of the smallest normal number of ``dtype`` (1.5e-154 in float64, 1.1e-19 in float32):
-    ``kl_update`` sets updated entries below it to zero, so that no product of two entries of the factors
-    underflows."""
+    ``kl_update`` sets the entries it lowers below it to zero, so that products of two such entries do not
+    underflow."""
     dtype = np.dtype(dtype)
     return dtype.type(np.sqrt(np.finfo(dtype).tiny))
 
@@ -107,8 +107,8 @@ def kl_update(indptr, indices, data, L, R, den, out, ratios=_NO_RATIOS, sums=_NO
     product formed again. Empty (the default): not kept.
 
     An entry that the update lowers below :func:`flush_below` (the square root of the smallest
-    normal number, 1.5e-154 in float64) is set to zero, so that no product of two such entries
-    underflows. The updates take some entries of a sparse X's factors down towards zero by many
+    normal number, 1.5e-154 in float64) is set to zero, so that products of two entries above it
+    do not underflow. The updates take some entries of a sparse X's factors down towards zero by many
     orders of magnitude per iteration, and a product that underflows to a subnormal number costs
     the processor about a hundred times an ordinary one: without the flush, the iterations of
     ``benchmarks/nmf.py``'s sparse case ran two to three times slower from about the 45th on. An

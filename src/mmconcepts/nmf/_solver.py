@@ -374,11 +374,12 @@ def beta_nmf(
     ``mmconcepts.nmf.beta_nmf_out_of_core``.
 
     The multiplicative updates set to zero an entry of W or H that they lower below the
-    smallest normal number (2.2e-308 in float64), or, for a sparse X under the I-divergence
-    without mask or penalty, below its square root (1.5e-154): a product that underflows, or
-    that has a subnormal operand, costs the processor about a hundred times an ordinary one, and
-    such entries change no product by more than that bound times k times the other factor's
-    largest entry. Entries that an update raises are kept however small.
+    smallest normal number (2.2e-308 in float64), or below its square root (1.5e-154) for a
+    factor updated by the sparse I-divergence kernel (X sparse, no mask, that factor
+    unpenalised): a product that underflows, or that has a subnormal operand, costs the
+    processor about a hundred times an ordinary one, and such entries change no product by more
+    than that bound times k times the other factor's largest entry. Entries that an update raises
+    are kept however small, so underflows become rarer, not impossible.
 
     Beta-divergences are homogeneous, :math:`d_\\beta(c x | c y) = c^\\beta d_\\beta(x | y)`, so
     the fit of c X from (W0, c H0) is (W, c H) up to rounding (c W with ``update_H=False`` or
