@@ -98,7 +98,7 @@ def kl_update(indptr, indices, data, L, R, den, out, ratios=_NO_RATIOS, sums=_NO
     and ``den`` the (k,) denominator row (R's column sums, zeros replaced by the caller). The
     kernel divides each row of N by ``den`` as soon as it is complete, while it is in the cache,
     and multiplies that row of L by the ratios: the same numbers, bit for bit, as the numerator
-    followed by ``L *= N / den`` in numpy (the kernel is compiled without reassociation, so
+    followed by ``L *= N / den`` in numpy, apart from the flush below (the kernel is compiled without reassociation, so
     ``L * (N / den)`` is not turned into ``(L * N) / den``). ``out`` receives N / den.
 
     ``ratios``, a float64 array of one value per stored entry p, receives x_p / y_p with the
@@ -110,8 +110,7 @@ def kl_update(indptr, indices, data, L, R, den, out, ratios=_NO_RATIOS, sums=_NO
     normal number, 1.5e-154 in float64) is set to zero, so that products of two entries above it
     do not underflow. The updates take some entries of a sparse X's factors down towards zero by many
     orders of magnitude per iteration, and a product that underflows to a subnormal number costs
-    the processor about a hundred times an ordinary one: without the flush, the iterations of
-    ``benchmarks/nmf.py``'s sparse case ran two to three times slower from about the 45th on. An
+    the processor about a hundred times an ordinary one (``benchmarks/README.md``). An
     entry that rises (a start of subnormal size, say) is kept however small. The flush changes a
     product by at most k times 1.5e-154 times the other factor's largest entry; a flushed entry
     stays zero, where the updates would have had to raise it by 150 orders of magnitude for it

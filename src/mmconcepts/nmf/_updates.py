@@ -112,9 +112,8 @@ def mu_update(side: Side, L: np.ndarray, R: np.ndarray, beta: float, gamma: floa
 
     An entry that the update lowers below ``flush`` is set to zero (:func:`flush_falling`), by
     default (None) the smallest normal number of L's type (2.2e-308 in float64): a subnormal entry makes
-    every product it enters take the processor about a hundred times longer (a dictionary with a
-    few dozen of them among 38 400 entries, as chapter 3's had, made its products 1.7 times
-    slower). An entry that rises is kept however small. (The sparse, unmasked I-divergence update
+    every product it enters take the processor about a hundred times longer
+    (``benchmarks/README.md``). An entry that rises is kept however small. (The sparse, unmasked I-divergence update
     flushes from a higher level: see :func:`~mmconcepts.nmf._kernels.kl_update`.)
     """
     if sparse_kl_applies(side, beta, gamma, penalty):
