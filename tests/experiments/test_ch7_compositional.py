@@ -189,6 +189,31 @@ def test_decompose_on_references_is_the_matrix_form_of_the_update():
     np.testing.assert_allclose(got, ref, atol=1e-5)
     assert not got[3].any()
 
+def test_decompose_on_references_reads_entries_below_the_smallest_normal_float32_as_zero(monkeypatch):
+    """The compiled loop never divides by a subnormal number: such entries of X reach it as zeros."""
+    rng = np.random.default_rng(5)
+    R = rng.random((4, 300)) + 0.1
+    X = rng.random((6, 4)) @ R
+    X[:, :40] = 1e-41  # subnormal once cast to float32
+    X[:, 40:50] = 2e-38  # normal in float32: kept
+    seen = []
+    kernel = common._decompose_rows
+
+    def spy(Xk, Rk, A, n_iter):
+        seen.append(Xk.copy())
+        return kernel(Xk, Rk, A, n_iter)
+
+    monkeypatch.setattr(common, "_decompose_rows", spy)
+    got = common.decompose_on_references(X, R, n_iter=30)
+    (Xk,) = seen
+    assert not Xk[:, :40].any()
+    np.testing.assert_array_equal(Xk[:, 40:50], np.float32(2e-38))
+    Xz = X.copy()
+    Xz[:, :40] = 0.0
+    monkeypatch.setattr(common, "_decompose_rows", kernel)
+    np.testing.assert_array_equal(got, common.decompose_on_references(Xz, R, n_iter=30))
+
+
 def test_given_number_chance_known_values():
     assert common.given_number_chance(10, [1]) == pytest.approx(0.1)
     assert common.given_number_chance(10, [2, 3]) == pytest.approx((1 / 45 + 1 / 120) / 2)

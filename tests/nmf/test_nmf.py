@@ -1540,6 +1540,50 @@ def test_the_curvature_blocks_are_the_gradients_derivative(rng, beta, case):
         np.testing.assert_allclose(curvature.product(V), directional, rtol=1e-6, atol=1e-8)
 
 
+def test_gathered_scaled_rows_are_numpys_fancy_indexing_bit_for_bit(rng):
+    """The kernel that stacks each row's scaled dictionary block equals numpy's indexing and product, to the bit:
+    rows in any order, an empty row, columns from a non-contiguous slice."""
+    from mmconcepts.nmf._kernels import gather_scaled_rows
+
+    X = sp.random(9, 40, density=0.3, format="csr", random_state=np.random.RandomState(1))
+    X = sp.csr_matrix(X.toarray() * (np.arange(9)[:, None] != 4))  # row 4 has no entry
+    R = rng.gamma(1.0, 1.0, (40, 7))
+    scale = rng.random(X.nnz) * 1e3
+    rows = np.array([8, 4, 0, 3, 3])
+    cols = np.array([rng.permutation(7) for _ in rows])[:, :5]  # non-contiguous
+    lengths = np.diff(X.indptr)[rows]
+    got = gather_scaled_rows(X.indptr, X.indices, scale, R, rows, cols, np.empty((lengths.sum(), 5)))
+    want = np.vstack([R[X.indices[X.indptr[r]:X.indptr[r + 1], None], cols[i]] * scale[X.indptr[r]:X.indptr[r + 1], None]
+                      for i, r in enumerate(rows)])
+    np.testing.assert_array_equal(got, want)
+
+
+def test_sparse_kl_curvature_blocks_are_the_products_of_the_scaled_dictionary(rng, monkeypatch):
+    """The I-divergence Hessian block of a row of a sparse X, for a subset of rows of a later row block, is A^T A
+    with A = H^T at the row's columns and the chosen coefficients, scaled by sqrt(x) / y (numpy's product)."""
+    from mmconcepts.nmf import _coefficients as C
+
+    n, m, k = 30, 50, 6
+    X = sp.csr_matrix(rng.gamma(1.0, 1.0, (n, m)) * (rng.random((n, m)) < 0.4))
+    Ht = rng.gamma(1.0, 1.0, (m, k)) + 0.1
+    W = rng.random((n, k)) + 0.2
+    model = C._rows_model(X, Ht, 1.0, C.Penalty(), None)
+    rows = np.arange(n)
+    y = C.lowrank_at_nonzeros(X.indptr, X.indices, W, Ht, np.empty(X.nnz))  # the products the model forms
+    c = np.sqrt(X.data) / np.maximum(y, C._FLOOR)
+    monkeypatch.setattr(C, "_BLOCK_CELLS", 10 * k)  # row blocks of 10 rows: the later blocks' rows start past 0
+    parts = list(model.derivatives(rows, W))
+    assert len(parts) == 3
+    part, _, _, curvature = parts[1]
+    sel = np.array([7, 2, 5])
+    order = np.array([rng.permutation(k)[:4] for _ in sel])
+    got = curvature.block(order, sel)
+    for i, r in enumerate(part.start + sel):
+        lo, hi = X.indptr[r], X.indptr[r + 1]
+        A = Ht[X.indices[lo:hi, None], order[i]] * c[lo:hi, None]
+        np.testing.assert_array_equal(got[i], A.T @ A)
+
+
 @pytest.mark.parametrize("masked", [False, True])
 def test_a_least_squares_step_solves_the_free_coefficients_where_the_held_ones_land(rng, masked):
     """beta = 2: a full projected Newton step leaves the free coefficients at the least-squares solution (numpy's

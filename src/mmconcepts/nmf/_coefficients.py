@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._beta import EPSILON, elementwise_beta_divergence
-from ._kernels import lowrank_at_nonzeros
+from ._kernels import gather_scaled_rows, lowrank_at_nonzeros
 from ._updates import Penalty, data_scale, scale_penalties
 
 __all__ = ["determined_rows", "solve_coefficients", "solves_coefficients"]
@@ -232,6 +232,7 @@ class _SparseKL(_Rows):
         super().__init__(Ht, 1.0, penalty)
         self.X = sp.csr_matrix(X, dtype=np.float64)
         self.colsum = Ht.sum(axis=0)
+        self.Ht2 = Ht**2
 
     def _at_nonzeros(self, rows, W):
         sub = self.X if len(rows) == self.X.shape[0] else self.X[rows]
@@ -255,15 +256,22 @@ class _SparseKL(_Rows):
         num = np.asarray(ratio @ self.Ht)
         den = np.broadcast_to(self.colsum, num.shape)
         c = np.sqrt(sub.data) / yc  # x / y^2 = c^2
-        diag = np.asarray(sp.csr_matrix((c**2, sub.indices, sub.indptr), shape=sub.shape) @ self.Ht**2)
+        diag = np.asarray(sp.csr_matrix((c**2, sub.indices, sub.indptr), shape=sub.shape) @ self.Ht2)
         Ht, indptr, indices = self.Ht, sub.indptr, sub.indices
 
         def block(start, order, sel):
-            B = np.empty((len(sel), order.shape[1], order.shape[1]))
-            for i, r in enumerate(start + sel):
-                lo, hi = indptr[r], indptr[r + 1]
-                A = Ht[indices[lo:hi, None], order[i]] * c[lo:hi, None]
+            # each row's A = Ht[its columns of X, order] scaled by c (A^T A its Hessian), stacked in one pass
+            rows = start + np.asarray(sel)
+            ends = np.cumsum(indptr[rows + 1] - indptr[rows])
+            f = order.shape[1]
+            stacked = gather_scaled_rows(indptr, indices, c, Ht, rows, order,
+                                         np.empty((int(ends[-1]) if ends.size else 0, f)))
+            B = np.empty((len(rows), f, f))
+            lo = 0
+            for i, hi in enumerate(ends):
+                A = stacked[lo:hi]
                 np.matmul(A.T, A, out=B[i])
+                lo = hi
             return B
 
         for part in self._row_blocks(len(rows), W.shape[1]):

@@ -332,3 +332,24 @@ def weighted_sum(X, V):  # pragma: no cover - compiled
         for j in range(m):
             total += np.float64(X[i, j]) * V[i, j]
     return total
+
+
+@njit(nogil=True, cache=True)
+def gather_scaled_rows(indptr, indices, scale, R, rows, cols, out):  # pragma: no cover - compiled
+    """Stack, for each ``rows[i]`` of a CSR matrix, ``R[j, cols[i]] * scale[p]`` over its stored entries p = (row, j).
+
+    ``out`` (sum of the rows' entry counts, ``cols.shape[1]``) receives the rows' blocks one
+    after another, each ``R[indices[p], cols[i]] * scale[p]`` in the order of the entries:
+    numpy's ``R[indices[lo:hi, None], cols[i]] * scale[lo:hi, None]``, the same numbers, without
+    building an index array per row. One product per value, no reassociation: bit for bit.
+    """
+    p = 0
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        for e in range(indptr[r], indptr[r + 1]):
+            j = indices[e]
+            s = scale[e]
+            for q in range(cols.shape[1]):
+                out[p, q] = R[j, cols[i, q]] * s
+            p += 1
+    return out

@@ -527,6 +527,13 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
     Returns
     -------
     ndarray of shape (n_examples, n_concepts), rows summing to one (zero rows stay zero)
+
+    Notes
+    -----
+    Entries of X below the smallest normal float32 number (1.2e-38, as reconstructions
+    ``W @ H`` hold where a product is tiny) are read as zero. Their ratio to the
+    reconstruction is far below float32's resolution beside the other columns' ratios, but
+    as subnormal numbers each division by them would take about a hundred times as long.
     """
     X = np.asarray(X, dtype=np.float64)
     R = np.asarray(R, dtype=np.float64)
@@ -540,6 +547,7 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
     keep = R.max(axis=0) > 0
     Rk = (R[:, keep] / mass[:, None]).astype(np.float32)
     Xk = X[:, keep].astype(np.float32)
+    Xk[Xk < np.finfo(np.float32).tiny] = 0.0  # subnormal after the cast (see the Notes)
     A = np.tile(Xk.sum(axis=1, keepdims=True) / R.shape[0], (1, R.shape[0])).astype(np.float32)
     A = _decompose_rows(np.ascontiguousarray(Xk), np.ascontiguousarray(Rk), A, int(n_iter)).astype(np.float64)
     s = A.sum(axis=1, keepdims=True)
