@@ -111,6 +111,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/tree.py
 	$(BIN)/python benchmarks/mdp.py
 	$(BIN)/python benchmarks/coefficients.py
+	$(BIN)/python benchmarks/codebooks.py
 
 clean:
 	rm -rf $(VENV) $(RESULTS) .pytest_cache .mypy_cache tests/.artifacts docs/_build docs/auto_examples docs/api/generated docs/sg_execution_times.rst

@@ -139,6 +139,30 @@ def test_lloyd_stops_where_kmeans2_is_at_its_fixed_point(seed, n, k, d, levels, 
     np.testing.assert_array_equal(cb, want_cb)
 
 
+@pytest.mark.parametrize("d", [1, 2, 3, 4])
+def test_a_lloyd_step_is_kmeans2s_iteration_with_equidistant_centroids(d):
+    """One compiled Lloyd step equals ``kmeans2(z, cb, iter=1, minit="matrix")`` to the bit where samples lie at
+    the same distance from several centroids (the first of them wins) and where a centroid gets no sample."""
+    from scipy.cluster.vq import kmeans2
+
+    from mmconcepts.motion.histograms import _lloyd_step
+
+    grid = np.stack(np.meshgrid(*[np.arange(-2.0, 3.0)] * min(d, 3), indexing="ij"), axis=-1).reshape(-1, min(d, 3))
+    z = np.hstack([grid, np.zeros((len(grid), d - grid.shape[1]))])
+    cb = np.zeros((2 * d + 1, d))
+    for f in range(d):  # one centroid on each side of the origin on every axis: the origin's 2d neighbours tie
+        cb[2 * f, f], cb[2 * f + 1, f] = 1.0, -1.0
+    cb[-1] = 50.0  # far from every sample: empty, keeps its place
+    labels, best = np.empty(len(z), dtype=np.int64), np.empty(len(z))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the empty cluster
+        want_cb, want_lab = kmeans2(z, cb, iter=1, minit="matrix")
+    got = _lloyd_step(np.ascontiguousarray(z.T), cb, labels, best)
+    np.testing.assert_array_equal(labels, want_lab)
+    np.testing.assert_array_equal(got, want_cb)
+    assert labels[np.flatnonzero((z == 0).all(axis=1))[0]] == 0  # the origin: every centroid but the last at 1
+
+
 def test_lloyd_with_few_iterations_stops_with_kmeans2():
     from scipy.cluster.vq import kmeans2
 
