@@ -86,34 +86,36 @@ def _lloyd_step(zt, cb, labels, best):  # pragma: no cover - compiled
     d, n = zt.shape
     k = cb.shape[0]
     best[:] = np.inf
-    dist = np.empty(n)
-    for c in range(k if d != 2 else 0):
-        a = cb[c, 0]
-        z0 = zt[0]
-        for i in range(n):
-            diff = a - z0[i]
-            dist[i] = diff * diff
-        for f in range(1, d):
-            a = cb[c, f]
-            zf = zt[f]
-            for i in range(n):
-                diff = a - zf[i]
-                dist[i] += diff * diff
-        for i in range(n):
-            if dist[i] < best[i]:
-                best[i] = dist[i]
-                labels[i] = c
-    for c in range(k if d == 2 else 0):  # angle-velocity pairs: the same sums in one pass
-        a0, a1 = cb[c, 0], cb[c, 1]
+    if d == 2:  # angle-velocity pairs: the same sums, in one pass over the samples per centroid
         z0, z1 = zt[0], zt[1]
-        for i in range(n):
-            e0 = a0 - z0[i]
-            e1 = a1 - z1[i]
-            s = e0 * e0
-            s += e1 * e1
-            if s < best[i]:
-                best[i] = s
-                labels[i] = c
+        for c in range(k):
+            a0, a1 = cb[c, 0], cb[c, 1]
+            for i in range(n):
+                e0 = a0 - z0[i]
+                e1 = a1 - z1[i]
+                s = e0 * e0
+                s += e1 * e1
+                if s < best[i]:
+                    best[i] = s
+                    labels[i] = c
+    else:
+        dist = np.empty(n)
+        for c in range(k):
+            a = cb[c, 0]
+            z0 = zt[0]
+            for i in range(n):
+                diff = a - z0[i]
+                dist[i] = diff * diff
+            for f in range(1, d):
+                a = cb[c, f]
+                zf = zt[f]
+                for i in range(n):
+                    diff = a - zf[i]
+                    dist[i] += diff * diff
+            for i in range(n):
+                if dist[i] < best[i]:
+                    best[i] = dist[i]
+                    labels[i] = c
     new = np.zeros((k, d))
     count = np.zeros(k, dtype=np.int64)
     for i in range(n):
