@@ -190,7 +190,8 @@ def test_decompose_on_references_is_the_matrix_form_of_the_update():
     assert not got[3].any()
 
 def test_decompose_on_references_reads_entries_below_the_smallest_normal_float32_as_zero(monkeypatch):
-    """The compiled loop never divides by a subnormal number: such entries of X reach it as zeros."""
+    """Entries of X that would be subnormal in float32 reach the compiled loop as zeros (as numerators, each of their
+    divisions would take about a hundred times as long); a row of tiny scale keeps its shares."""
     rng = np.random.default_rng(5)
     R = rng.random((4, 300)) + 0.1
     X = rng.random((6, 4)) @ R
@@ -212,6 +213,13 @@ def test_decompose_on_references_reads_entries_below_the_smallest_normal_float32
     Xz[:, :40] = 0.0
     monkeypatch.setattr(common, "_decompose_rows", kernel)
     np.testing.assert_array_equal(got, common.decompose_on_references(Xz, R, n_iter=30))
+    # a row at any scale has the shares it has at scale 1: a power of two exactly (entries of the scaled row are
+    # subnormal in float32), another scale to float32's rounding
+    Xs = rng.random((3, 4)) @ R * (rng.random((3, 300)) < 0.5)
+    at_one = common.decompose_on_references(Xs, R, n_iter=30)
+    assert at_one.min() < 0.9 and (at_one.sum(axis=1) > 0.99).all()
+    np.testing.assert_array_equal(common.decompose_on_references(Xs * 2.0**-130, R, n_iter=30), at_one)
+    np.testing.assert_allclose(common.decompose_on_references(Xs * 1e-41, R, n_iter=30), at_one, rtol=1e-4, atol=1e-6)
 
 
 def test_given_number_chance_known_values():

@@ -163,6 +163,29 @@ def test_a_lloyd_step_is_kmeans2s_iteration_with_equidistant_centroids(d):
     assert labels[np.flatnonzero((z == 0).all(axis=1))[0]] == 0  # the origin: every centroid but the last at 1
 
 
+@pytest.mark.parametrize("d", [3, 4])
+def test_a_lloyd_step_sums_the_features_in_scipys_order(d):
+    """A sample at the origin and two centroids with the same coordinates in reverse order: equidistant in exact
+    arithmetic, so the nearest one depends on the order in which the squares are summed (for about one centroid in
+    eight). The compiled step picks kmeans2's centroid every time."""
+    from scipy.cluster.vq import kmeans2
+
+    from mmconcepts.motion.histograms import _lloyd_step
+
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        c0 = rng.random(d)
+        cb = np.vstack([c0, c0[::-1]])
+        z = np.vstack([np.zeros(d), rng.random((5, d)) + 2.0])
+        labels, best = np.empty(len(z), dtype=np.int64), np.empty(len(z))
+        got = _lloyd_step(np.ascontiguousarray(z.T), cb, labels, best)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a centroid without samples
+            want_cb, want_lab = kmeans2(z, cb, iter=1, minit="matrix")
+        np.testing.assert_array_equal(labels, want_lab)
+        np.testing.assert_array_equal(got, want_cb)
+
+
 def test_lloyd_with_few_iterations_stops_with_kmeans2():
     from scipy.cluster.vq import kmeans2
 

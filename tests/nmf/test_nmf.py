@@ -1575,13 +1575,15 @@ def test_sparse_kl_curvature_blocks_are_the_products_of_the_scaled_dictionary(rn
     parts = list(model.derivatives(rows, W))
     assert len(parts) == 3
     part, _, _, curvature = parts[1]
-    sel = np.array([7, 2, 5])
+    sel = np.array([7, 2, 5, 0, 9])
     order = np.array([rng.permutation(k)[:4] for _ in sel])
-    got = curvature.block(order, sel)
-    for i, r in enumerate(part.start + sel):
-        lo, hi = X.indptr[r], X.indptr[r + 1]
-        A = Ht[X.indices[lo:hi, None], order[i]] * c[lo:hi, None]
-        np.testing.assert_array_equal(got[i], A.T @ A)
+    for cells in (4, 200, 1 << 22):  # rows gathered one at a time, a few at a time, all at once
+        monkeypatch.setattr(C, "_BLOCK_CELLS", cells)
+        got = curvature.block(order, sel)
+        for i, r in enumerate(part.start + sel):
+            lo, hi = X.indptr[r], X.indptr[r + 1]
+            A = Ht[X.indices[lo:hi, None], order[i]] * c[lo:hi, None]
+            np.testing.assert_array_equal(got[i], A.T @ A)
 
 
 @pytest.mark.parametrize("masked", [False, True])

@@ -68,7 +68,8 @@ class _IntPair:
         return f"a pair of ints >= {self.low}"
 
 
-#: scipy's ``vq`` measures distances term by term below this many features (above, through a matrix product).
+#: scipy's ``vq`` measures distances term by term below this many features (from this many on, through a matrix
+#: product, whose distances differ in their last bits).
 _NAIVE_FEATURES = 5
 
 

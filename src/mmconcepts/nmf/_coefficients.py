@@ -260,18 +260,24 @@ class _SparseKL(_Rows):
         Ht, indptr, indices = self.Ht, sub.indptr, sub.indices
 
         def block(start, order, sel):
-            # each row's A = Ht[its columns of X, order] scaled by c (A^T A its Hessian), stacked in one pass
+            # each row's A = Ht[its columns of X, order] scaled by c (A^T A its Hessian), stacked by a compiled pass
+            # over as many rows as _BLOCK_CELLS values hold (a row at least)
             rows = start + np.asarray(sel)
-            ends = np.cumsum(indptr[rows + 1] - indptr[rows])
             f = order.shape[1]
-            stacked = gather_scaled_rows(indptr, indices, c, Ht, rows, order,
-                                         np.empty((int(ends[-1]) if ends.size else 0, f)))
+            ends = np.cumsum(indptr[rows + 1] - indptr[rows])
             B = np.empty((len(rows), f, f))
-            lo = 0
-            for i, hi in enumerate(ends):
-                A = stacked[lo:hi]
-                np.matmul(A.T, A, out=B[i])
-                lo = hi
+            first, done = 0, 0
+            while first < len(rows):
+                last = max(first + 1, int(np.searchsorted(ends, done + _BLOCK_CELLS // max(f, 1), side="right")))
+                stacked = gather_scaled_rows(indptr, indices, c, Ht, rows[first:last], order[first:last],
+                                             np.empty((int(ends[last - 1]) - done, f)))
+                lo = 0
+                for i in range(first, last):
+                    hi = int(ends[i]) - done
+                    A = stacked[lo:hi]
+                    np.matmul(A.T, A, out=B[i])
+                    lo = hi
+                first, done = last, int(ends[last - 1])
             return B
 
         for part in self._row_blocks(len(rows), W.shape[1]):

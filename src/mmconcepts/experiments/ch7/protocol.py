@@ -530,10 +530,14 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
 
     Notes
     -----
-    Entries of X below the smallest normal float32 number (1.2e-38, as reconstructions
-    ``W @ H`` hold where a product is tiny) are read as zero. Their ratio to the
-    reconstruction is far below float32's resolution beside the other columns' ratios, but
-    as subnormal numbers each division by them would take about a hundred times as long.
+    The update is homogeneous in each row of X (scaling a row by c scales its coefficients
+    by c and leaves its shares unchanged), and scaling by a power of two is exact: a row
+    whose largest entry is below 2^-64 is first scaled by a power of two that brings that
+    entry into [0.5, 1). Then the entries below the smallest normal float32 number (1.2e-38,
+    as reconstructions ``W @ H`` hold where a product is tiny) are read as zero: each is at
+    least 2^62 times smaller than its row's largest, far below float32's resolution beside
+    it, but as a subnormal numerator each of its divisions would take about a hundred times
+    as long.
     """
     X = np.asarray(X, dtype=np.float64)
     R = np.asarray(R, dtype=np.float64)
@@ -546,7 +550,12 @@ def decompose_on_references(X: np.ndarray, R: np.ndarray, *, n_iter: int = 100) 
         raise DataError(f"reference(s) {np.flatnonzero(mass <= 0).tolist()} are all zero; every concept needs one.")
     keep = R.max(axis=0) > 0
     Rk = (R[:, keep] / mass[:, None]).astype(np.float32)
-    Xk = X[:, keep].astype(np.float32)
+    Xk = X[:, keep]
+    peak = Xk.max(axis=1)
+    tiny = (peak > 0) & (peak < 2.0**-64)
+    if tiny.any():  # a power of two brings the largest entry into [0.5, 1): the same shares (see the Notes)
+        Xk[tiny] = np.ldexp(Xk[tiny], -np.frexp(peak[tiny])[1][:, None])
+    Xk = Xk.astype(np.float32)
     Xk[Xk < np.finfo(np.float32).tiny] = 0.0  # subnormal after the cast (see the Notes)
     A = np.tile(Xk.sum(axis=1, keepdims=True) / R.shape[0], (1, R.shape[0])).astype(np.float32)
     A = _decompose_rows(np.ascontiguousarray(Xk), np.ascontiguousarray(Rk), A, int(n_iter)).astype(np.float64)
