@@ -146,20 +146,20 @@ def _lloyd(z: np.ndarray, k: int, *, seed: int, n_iter: int) -> tuple[np.ndarray
     labels : ndarray of shape (n_samples,)
     """
     cb, lab = kmeans2(z, k, iter=1, minit="++", seed=seed)
-    if z.ndim != 2 or z.dtype != np.float64 or z.shape[1] >= _NAIVE_FEATURES:
-        for _ in range(n_iter - 1):
-            cb, new = kmeans2(z, cb, iter=1, minit="matrix")
-            if np.array_equal(new, lab):
-                break
-            lab = new
-        return cb, lab
-    zt = np.ascontiguousarray(z.T)
-    labels, best = np.empty(len(z), dtype=np.int64), np.empty(len(z))
+    if z.ndim == 2 and z.dtype == np.float64 and z.shape[1] < _NAIVE_FEATURES:
+        zt = np.ascontiguousarray(z.T)
+        labels, best = np.empty(len(z), dtype=np.int64), np.empty(len(z))
+
+        def step(cb):
+            return _lloyd_step(zt, cb, labels, best), labels
+    else:
+        def step(cb):
+            return kmeans2(z, cb, iter=1, minit="matrix")
     for _ in range(n_iter - 1):
-        cb = _lloyd_step(zt, cb, labels, best)
-        if np.array_equal(labels, lab):
+        cb, new = step(cb)
+        if np.array_equal(new, lab):
             break
-        lab = labels.astype(lab.dtype)
+        lab = new.astype(lab.dtype)  # a copy: the compiled step writes its labels in place
     return cb, lab
 
 
