@@ -106,9 +106,10 @@ class Driver:
 
 def _main(conn: Any, parent_pid: int, log_path: str) -> None:
     """A driver's loop: run each (id, variant, kwargs) received, answer ("ok", record) or ("error", text)."""
-    from .workers import end_with_parent
+    from .workers import allocate_from_heap, end_with_parent
 
     end_with_parent(parent_pid)
+    allocate_from_heap()
     fd = os.open(log_path, os.O_WRONLY | os.O_APPEND)
     sys.stdout.flush()
     sys.stderr.flush()
