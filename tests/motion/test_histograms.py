@@ -197,3 +197,16 @@ def test_lloyd_with_few_iterations_stops_with_kmeans2():
         cb, lab = _lloyd(z, 9, seed=7, n_iter=n_iter)
         np.testing.assert_array_equal(cb, want_cb)
         np.testing.assert_array_equal(lab, want_lab)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(0, 40), d=st.integers(1, 4), levels=st.sampled_from([(0.0,), (0.0, -0.0), (0.0, -0.0, 1.0, -2.5),
+                                                                         (1e-300, 1e300, -1.0)]),
+       seed=st.integers(0, 2**32 - 1))
+def test_distinct_rows_counts_what_numpy_unique_counts(n, d, levels, seed):
+    """Rows drawn from a few values (repeats, -0.0 beside 0.0, rows equal up to one column) are counted as
+    ``np.unique(z, axis=0)`` counts them."""
+    from mmconcepts.motion.histograms import _distinct_rows
+
+    z = np.random.default_rng(seed).choice(np.asarray(levels), size=(n, d))
+    assert _distinct_rows(z) == len(np.unique(z, axis=0))

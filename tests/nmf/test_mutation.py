@@ -61,6 +61,11 @@ def test_features_take_every_index_numpy_takes_and_refuse_the_others():
     for idx in ([-n - 1], [n]):
         with pytest.raises(ParameterError, match="out of range"):
             resolve_features(idx, n)
+    # a column given twice, also as its negative index, and far apart: refused; each once, in any order: taken
+    for idx in ([1, 1], [0, -n], [4, 0, 2, 3, 4], [3, 2, 1, -2]):
+        with pytest.raises(ParameterError, match="repeated indices"):
+            resolve_features(idx, n)
+    np.testing.assert_array_equal(resolve_features([4, -5, 2, 3, 1], n), [4, 0, 2, 3, 1])
 
 
 @pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")

@@ -163,6 +163,16 @@ def _lloyd(z: np.ndarray, k: int, *, seed: int, n_iter: int) -> tuple[np.ndarray
     return cb, lab
 
 
+def _distinct_rows(z: np.ndarray) -> int:
+    """The number of distinct rows of a 2-D array of finite numbers, ``len(np.unique(z, axis=0))`` (-0.0 and 0.0
+    are one value), by a lexicographic sort of the columns (numpy's sorts the rows as records, about three times
+    slower)."""
+    if len(z) == 0:
+        return 0
+    s = z[np.lexsort(z.T[::-1])]
+    return 1 + int(np.count_nonzero((s[1:] != s[:-1]).any(axis=1)))
+
+
 class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
     """Concatenated per-dof histograms of angles and/or delayed velocities (Thesis 3.2).
 
@@ -395,7 +405,7 @@ class MotionHistograms(SaveLoadMixin, TransformerMixin, BaseEstimator):
                 z = c / s
                 if len(z) > self.max_fit_samples:
                     z = z[rng.choice(len(z), self.max_fit_samples, replace=False)]
-                n_unique = len(np.unique(z, axis=0))
+                n_unique = _distinct_rows(z)
                 if n_unique < k:
                     raise DataError(
                         f"A degree of freedom has only {n_unique} distinct training value(s), fewer than "
