@@ -174,9 +174,14 @@ class _Curvature:
         self.diag = diag + l2 if l2 else diag
         self._block, self._l2, self._product = block, l2, product
 
+    @property
+    def has_product(self) -> bool:
+        """Whether :meth:`product` is formed."""
+        return self._product is not None
+
     def product(self, V: np.ndarray) -> np.ndarray:
-        """The Hessian of each row of the block times its row of V (rows, k); formed by the models that reach
-        beta = 2, the only beta that uses it."""
+        """The Hessian of each row of the block times its row of V (rows, k); formed by the models of dense rows
+        (any beta) and of beta = 2 (:attr:`has_product`), not by the sparse I-divergence rows."""
         out = self._product(V)
         return out + self._l2 * V if self._l2 else out
 
@@ -398,8 +403,9 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
     Active (Bertsekas 1982): a coefficient at (or within eps of) zero whose gradient pushes it
     down; it moves along its gradient scaled by its curvature. The free ones take the Newton step
     of the problem restricted to them, with ``ridge`` (one per row, relative to each
-    coefficient's curvature) on the diagonal, at beta = 2 for the gradient where the active ones'
-    full step lands them (``slope``; g elsewhere); a climbing one (update factor above 1 +
+    coefficient's curvature) on the diagonal, where the model forms the Hessian's product (beta = 2,
+    and dense rows at any beta) for the gradient where the active ones' full step lands them
+    (``slope``; g elsewhere); a climbing one (update factor above 1 +
     :data:`_CLIMB`) takes that factor (``factor``, 1 elsewhere). Optimality is read in the
     multiplicative update's terms: with g = den - num, the ratio num / den (the update's factor)
     must be at most 1 + ``tol``, and at least 1 - ``tol`` where w is more than ``tol`` times the
@@ -431,10 +437,11 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         up = ~act & (Wp > 0) & (excess < -_CLIMB) & np.isfinite(excess) & (model.beta < 2.0)
         act = act | up
         everyone = np.arange(len(Wp))
-        # beta = 2, where the quadratic model is the objective: the free coefficients' step is taken where the held
-        # ones' own full step leaves the gradient (held ones zeroed at once change the fit the free ones' step
-        # assumes, and the next step undoes it: rows then alternate between most atoms held and none)
-        pushed = act & (gp > 0) if model.beta == 2.0 else np.zeros_like(act)
+        # where the model forms the Hessian's product (beta = 2; dense rows at any beta): the free coefficients' step
+        # is taken where the held ones' own full step leaves the gradient (held ones zeroed at once change the fit
+        # the free ones' step assumes, and the next step undoes it: rows then alternate between most atoms held and
+        # none; under beta < 2, a coefficient near zero between lifted by its own gradient and pushed back down)
+        pushed = act & (gp > 0) if curvature.has_product else np.zeros_like(act)
         rhs = gp
         if pushed.any():
             with np.errstate(over="ignore", invalid="ignore"):
