@@ -670,7 +670,8 @@ def _project_newton(model: _Rows, W: np.ndarray, rows: np.ndarray, max_iter: int
             ft = model.objective(rows[p], trial, Wr[p], start_products(p))
             # Armijo along the projection arc: the decrease the gradient predicts from the active ones' actual move,
             # and the free coefficients' Newton step against its own right-hand side (the gradient where the active
-            # ones land, beta = 2: the quadratic's decrease along it, which the raw gradient can understate)
+            # ones land, where the model forms the Hessian's product: the quadratic model's decrease along it, which
+            # the raw gradient can understate)
             predicted = np.where(active[p], g[p] * (Wr[p] - trial), alpha[todo, None] * slope[p] * d[p]).sum(axis=1)
             # from an infinite objective (beta = 1, a cell whose product underflowed to 0), any finite one is progress
             with np.errstate(invalid="ignore"):
