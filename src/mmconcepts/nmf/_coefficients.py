@@ -440,7 +440,8 @@ def _newton_directions(model: _Rows, rows: np.ndarray, W: np.ndarray, tol: float
         # where the model forms the Hessian's product (beta = 2; dense rows at any beta): the free coefficients' step
         # is taken where the held ones' own full step leaves the gradient (held ones zeroed at once change the fit
         # the free ones' step assumes, and the next step undoes it: rows then alternate between most atoms held and
-        # none; under beta < 2, a coefficient near zero between lifted by its own gradient and pushed back down)
+        # none; under beta < 2, a coefficient near zero lifted by its own gradient at one step, pushed back down at
+        # the next)
         pushed = act & (gp > 0) if curvature.has_product else np.zeros_like(act)
         rhs = gp
         if pushed.any():
