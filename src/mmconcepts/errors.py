@@ -17,6 +17,7 @@ __all__ = [
     "VersionMismatchError",
     "ExperimentError",
     "MissingExtraError",
+    "ClusterError",
     "ConvergenceWarning",
     "DataWarning",
     "ParameterWarning",
@@ -53,6 +54,11 @@ class MissingExtraError(MMConceptsError, ImportError):
 
     Subclass of :class:`ImportError`, so ``except ImportError`` keeps working.
     """
+
+
+class ClusterError(MMConceptsError, RuntimeError):
+    """A computation on a ``distributed`` cluster lost one of its workers, or one worker's part of it failed
+    and stopped the others' (the message names the worker and the first error)."""
 
 
 class ConvergenceWarning(_SklearnConvergenceWarning):

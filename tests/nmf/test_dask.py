@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 dask = pytest.importorskip("dask")
 da = pytest.importorskip("dask.array")
 
-from mmconcepts.errors import DataError, DataFormatError, ParameterError  # noqa: E402
+from mmconcepts.errors import ClusterError, DataError, DataFormatError, ParameterError  # noqa: E402
 from mmconcepts.nmf import NMF, beta_nmf  # noqa: E402
 from mmconcepts.nmf import _dask as nd  # noqa: E402
 
@@ -251,13 +251,17 @@ def test_transform_stopping_rule_matches(rng):
     assert rel(Tb, Ta) < RTOL
 
 
-def test_local_cluster_equals_in_memory(rng):
+@pytest.mark.filterwarnings("ignore:beta_nmf stopped at max_iter")
+@pytest.mark.parametrize("tol, max_iter, batches", [(0.0, 6, {4, 6}), (0.1, 12, {4, 8}), (0.0, 0, {0})],
+                         ids=["to_max_iter", "stops", "no_iteration"])
+def test_local_cluster_equals_in_memory(rng, tol, max_iter, batches):
     """A LocalCluster of two single-threaded workers (threads, 127.0.0.1): the same fit, bit for bit the fit of the
-    synchronous scheduler (the sums go in chunk order whichever worker runs a chunk), each chunk's tasks on one
-    worker, contiguous rows per worker."""
+    synchronous scheduler (the workers send each other their sums and add them up in chunk order), one task per
+    worker and batch of iterations (iterations 0 to the second check, then from one check to the next), each on
+    its worker, contiguous rows per worker; a fit that stops at a check returns that check's (W, H)."""
     distributed = pytest.importorskip("distributed")
     X, mask, W0, H0 = make_data(rng, True, 1.0, True)
-    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0, loss_every=4)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=max_iter, tol=tol, loss_every=4)
     r_mem = beta_nmf(X, K, mask=mask, **kw)
     r_sync = beta_nmf(to_dask(X), K, mask=to_dask(mask), **kw)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1", protocol="tcp://",
@@ -267,18 +271,144 @@ def test_local_cluster_equals_in_memory(rng):
         with dask.config.set(scheduler=client), distributed.get_task_stream(client) as stream:
             r_dask = beta_nmf(Xd, K, mask=Md, **kw)
             W = r_dask.W.compute()
+            assert_same_fit(r_mem, r_dask)
         workers = sorted(client.nthreads())
-    assert rel(W, r_mem.W) < RTOL and rel(r_dask.H, r_mem.H) < RTOL
+        assert _fit_keys_left(client, ("-host-",), wait=10.0) == []  # the workers' states, once W is read from them
+        assert len(_fit_keys_left(client, ("-w-",), wait=0.0)) == len(ROW_CHUNKS)  # W's chunks
+        assert r_dask.converged == (tol > 0) and r_dask.n_iter == max(batches)
+        assert np.array_equal(W, r_sync.W.compute()) and np.array_equal(r_dask.H, r_sync.H)
+        assert np.array_equal(r_dask.loss_history, r_sync.loss_history)
+        del r_dask
+        assert _fit_keys_left(client, ("-w-",), wait=10.0) == []
+    assert nd._MAILBOXES == {}  # (the workers were threads of this process)
+    ran: dict = {}
+    seen = set()
+    names = [task["key"] if isinstance(task["key"], str) else task["key"][0] for task in stream.data]
+    for name, task in zip(names, stream.data):
+        if "-host-" in name:
+            q, j = name.rsplit("-", 2)[1:]
+            ran.setdefault(int(j), set()).add(task["worker"])
+            seen.add(int(q))
+    # ROW_CHUNKS = (23, 40, 1, 36): the middle of chunk 1 (row 43) is in the first half of the 100 rows, so
+    # chunks 0 and 1 go to the first worker, 2 and 3 to the second, in every batch
+    assert ran == {0: {workers[0]}, 1: {workers[1]}}
+    assert seen == batches and sum("-host-" in n for n in names) == 2 * len(batches)
+    assert not any("-run-" in n or "-sum" in n for n in names)  # no task per iteration
+
+
+def _fit_keys_left(client, parts, wait: float) -> list:
+    """The keys of the scheduler's tasks whose names hold one of ``parts``, after up to ``wait`` seconds for them to go."""
+    import time
+
+    deadline = time.monotonic() + wait
+    while True:
+        keys = client.run_on_scheduler(lambda dask_scheduler: [str(k) for k in dask_scheduler.tasks])
+        left = [k for k in keys if any(p in k for p in parts)]
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.05)
+
+
+def test_the_scheduler_graph_on_a_cluster_when_chosen(rng):
+    """``mmconcepts.nmf.exchange: scheduler``: the graph of tasks per iteration on a cluster of two workers (the same
+    numbers, bit for bit); a value that is neither choice is refused."""
+    distributed = pytest.importorskip("distributed")
+    X, _, W0, H0 = make_data(rng, True, 1.0, False)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=5, tol=0, loss_every=3)
+    r_sync = beta_nmf(to_dask(X), K, **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  protocol="tcp://", dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        Xd = client.persist(to_dask(X))
+        with dask.config.set({"scheduler": client, nd.EXCHANGE_CONFIG: "scheduler"}), \
+                distributed.get_task_stream(client) as stream:
+            r_dask = beta_nmf(Xd, K, **kw)
+            assert np.array_equal(r_dask.W.compute(), r_sync.W.compute()) and np.array_equal(r_dask.H, r_sync.H)
+        names = [str(task["key"]) for task in stream.data]
+        assert any("-run-" in n for n in names) and not any("-host-" in n for n in names)
+        with dask.config.set({"scheduler": client, nd.EXCHANGE_CONFIG: "tree"}), \
+                pytest.raises(ParameterError, match="'workers' or 'scheduler'"):
+            beta_nmf(Xd, K, **kw)
+
+
+def test_worker_processes_exchange_their_sums():
+    """Two worker processes: the sums go between processes (the workers' handlers); ten chunks in four groups of the
+    tree (fan-in 3), one of them on both workers: the fit is the synchronous scheduler's, bit for bit."""
+    distributed = pytest.importorskip("distributed")
+    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
+    gen = np.random.default_rng(5)
+    W0, H0 = gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+    kw = dict(init="custom", W=W0, H=H0, beta=1.0, max_iter=5, tol=0, loss_every=2, split_every=3)
+    Xd = da.from_array(X, chunks=(20, -1), asarray=False)
+    r_sync = nd.beta_nmf_dask(Xd, K, **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        with dask.config.set(scheduler=client), distributed.get_task_stream(client) as stream:
+            r_dask = nd.beta_nmf_dask(client.persist(Xd), K, **kw)
+            W = r_dask.W.compute()
+        hosts = {task["worker"] for task in stream.data if "-host-" in str(task["key"])}
+    assert len(hosts) == 2
     assert np.array_equal(W, r_sync.W.compute()) and np.array_equal(r_dask.H, r_sync.H)
     assert np.array_equal(r_dask.loss_history, r_sync.loss_history)
-    ran = {}
-    for task in stream.data:
-        name = task["key"] if isinstance(task["key"], str) else task["key"][0]
-        if "-run-" in name:
-            ran.setdefault(int(name.rsplit("-", 1)[1]), set()).add(task["worker"])
-    # ROW_CHUNKS = (23, 40, 1, 36): the middle of chunk 1 (row 43) is in the first half of the 100 rows, so
-    # chunks 0 and 1 run together on the first worker, 2 and 3 on the second, at every iteration
-    assert ran == {0: {workers[0]}, 1: {workers[1]}}
+
+
+def test_an_error_on_one_worker_stops_the_others_and_is_raised(rng, monkeypatch):
+    """The first worker's task fails at an iteration: the second, waiting for its sums, stops too, and the fit raises
+    the first one's own error (not the second's stop)."""
+    distributed = pytest.importorskip("distributed")
+    X, _, W0, H0 = make_data(rng, True, 1.0, False)
+    fit_run = nd._fit_run
+
+    calls = {"n": 0}
+
+    def failing_at_third(sources, prev, Ht, rule, specs, *args, **kwargs):
+        if specs[0].index == 0:
+            calls["n"] += 1
+            if calls["n"] == 3:
+                raise DataError("boom in chunk 0")
+        return fit_run(sources, prev, Ht, rule, specs, *args, **kwargs)
+
+    monkeypatch.setattr(nd, "_fit_run", failing_at_third)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  protocol="tcp://", dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        with dask.config.set(scheduler=client), pytest.raises(DataError, match="boom in chunk 0"):
+            beta_nmf(client.persist(to_dask(X)), K, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=6, tol=0,
+                     loss_every=4)
+        assert calls["n"] == 3
+
+
+def test_a_mailbox_stops_waiting_when_a_worker_failed_or_left():
+    """A worker's mailbox returns what another put (made by whichever comes first), raises ClusterError naming the
+    worker whose task failed, asks whether its peers are still there while it waits, and is dropped at the end."""
+    import asyncio
+
+    asyncio.run(nd._put_handler("token", 0, "1-1", "parts"))  # before the task made it
+    box = nd._Mailbox.of("token", 0)
+    assert nd._Mailbox.of("token", 0) is box and nd._Mailbox.of("token", 1) is not box
+    assert box.take("1-1", alive=lambda: None) == "parts"
+    polls = []
+
+    def gone():
+        polls.append(1)
+        if len(polls) == 2:
+            raise ClusterError("worker left")
+
+    with pytest.raises(ClusterError, match="worker left"):
+        box.take("2-1", alive=gone, poll=0.01)
+    box.put(nd._ABORT, ("tcp://w1", "DataError: boom"))
+    with pytest.raises(ClusterError, match="tcp://w1 failed.*boom"):
+        box.take("2-1", alive=lambda: None)
+    nd._drop_mailboxes("token")
+    assert not any(k[0] == "token" for k in nd._MAILBOXES)
+
+
+def test_hosts_alive_names_a_worker_that_left():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  protocol="tcp://", dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        here = sorted(client.nthreads())
+        client.submit(nd._hosts_alive, here).result()
+        with pytest.raises(ClusterError, match="tcp://127.0.0.1:1"):
+            client.submit(nd._hosts_alive, [*here, "tcp://127.0.0.1:1"]).result()
 
 
 @pytest.mark.parametrize("tol, checks", [(0.0, [0, 5, 10, 12]), (0.05, [0, 5, 10])], ids=["to_max_iter", "stops"])

@@ -26,10 +26,15 @@ per iteration. On a ``distributed`` cluster, each chunk stays on one worker for 
 of the tree run as one task per iteration that hands their W to the next iteration's, each sum
 runs where its first chunk is, and the new H goes to the workers down a tree of the same
 fan-out: a few tasks per worker and iteration, and a few k x n_features arrays in and out of
-each worker. With no more workers than the fan-in (``split_every``), each worker instead
-receives the other workers' sums and adds up all of them itself, in the tree's order, to update
-its own copy of H: the same numbers, and one exchange between the workers per iteration where
-the tree has two (the sums up to the root, H back down).
+each worker. With no more workers than the fan-in (``split_every``), the scheduler is left out
+of the iterations: each worker runs one task per batch of iterations over all its chunks, sends
+its sums to the other workers (a handler of its own on each worker, installed by a worker
+plugin) and adds up everyone's itself, in the tree's order, to update its own copy of H: the same
+numbers, one exchange between the workers per iteration, and no scheduler round trip but one per
+batch. Those tasks wait for each other, so a worker lost during such a fit ends it with
+:class:`~mmconcepts.errors.ClusterError` (fit again); the scheduler's graph of the other cases has
+a lost chunk's tasks computed again instead, and ``dask.config.set({"mmconcepts.nmf.exchange":
+"scheduler"})`` chooses it for a few workers too.
 
 Memory
 ------
@@ -60,8 +65,10 @@ import operator
 import os
 import shutil
 import tempfile
+import threading
 import uuid
 import warnings
+import weakref
 import zipfile
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -73,7 +80,7 @@ import scipy.sparse as sp
 
 from .._io import atomic_path, replace_dir
 from .._validation import check_nonnegative_matrix, check_random_state
-from ..errors import ConvergenceWarning, DataError, DataFormatError, ParameterError
+from ..errors import ClusterError, ConvergenceWarning, DataError, DataFormatError, ParameterError
 from ._beta import check_beta_zeros, mm_exponent
 from ._coefficients import solve_coefficients
 from . import _kernels
@@ -707,12 +714,8 @@ def _chunk_workers(specs: Sequence[_ChunkSpec], n: int) -> list[str] | None:
     """
     import dask
 
-    client = getattr(dask.base.get_scheduler(), "__self__", None)
-    try:
-        from distributed import Client
-    except ImportError:  # pragma: no cover - distributed comes with the dask extra
-        return None
-    if not isinstance(client, Client):
+    client = _distributed_client(dask)
+    if client is None:
         return None
     workers = sorted(client.nthreads())
     if not workers:
@@ -1188,10 +1191,33 @@ class _Stopping:
 
 def _fit_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every,
               dask, check_scale):
-    """W and H updates: in batches of iterations in the cluster's memory, pass by pass on disk."""
+    """W and H updates: in batches of iterations in the cluster's memory, pass by pass on disk; on a ``distributed``
+    cluster of at most ``split_every`` workers, one task per worker and batch (:func:`_fit_loop_exchange`)."""
+    client = _distributed_client(dask) if store.folder is None and store.workers else None
+    if client is not None and _exchange_setting(dask) == "workers":
+        graph = _IterationGraph("layout", [None] * len(specs), specs, rule, pen_H, split_every, store.workers)
+        if len(graph.hosts) <= split_every:
+            return _fit_loop_exchange(client, graph, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol,
+                                      loss_every, dask, check_scale)
     loop = _fit_loop_in_memory if store.folder is None else _fit_loop_on_disk
     return loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every, split_every, dask,
                 check_scale)
+
+
+#: The dask configuration key that chooses how the workers of a distributed fit share their sums.
+EXCHANGE_CONFIG = "mmconcepts.nmf.exchange"
+
+
+def _exchange_setting(dask) -> str:
+    """``dask.config`` ``mmconcepts.nmf.exchange``: ``"workers"`` (the default: on a ``distributed`` cluster of
+    at most ``split_every`` workers, they send each other their sums, :func:`_fit_loop_exchange`) or
+    ``"scheduler"`` (always the scheduler's graph, :class:`_IterationGraph`, whose tasks are computed again on
+    another worker if theirs is lost)."""
+    value = dask.config.get(EXCHANGE_CONFIG, "workers")
+    if value not in ("workers", "scheduler"):
+        raise ParameterError(f"dask.config {EXCHANGE_CONFIG!r} must be 'workers' or 'scheduler'; got {value!r}. "
+                             f"Fix: dask.config.set({{{EXCHANGE_CONFIG!r}: 'scheduler'}}), or leave it unset.")
+    return value
 
 
 def _checks(max_iter: int, loss_every: int) -> list[int]:
@@ -1545,6 +1571,345 @@ def _fit_loop_on_disk(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, 
         i += 1
     final.update_bytes = update_bytes
     return W_refs, Ht, i, hist, its, converged, final
+
+
+# ---------------------------------------------------------------------------------------------
+# A few workers of a distributed cluster: one task per worker and batch, the sums sent between them
+
+
+_ABORT = "abort"
+_PUT = "mmconcepts_nmf_put"  # the handler the workers of a fit send their parts to
+_MAILBOXES: dict[tuple[str, int], _Mailbox] = {}  # (fit token, worker index): that worker's mailbox, in its process
+_MAILBOXES_LOCK = threading.Lock()
+
+
+class _Mailbox:
+    """Where the other workers' parts of one fit arrive on one worker.
+
+    The other workers' tasks send them to this worker's ``mmconcepts_nmf_put`` handler (installed by
+    :class:`_ExchangePlugin`; it runs on the worker's event loop and calls :meth:`put`); this worker's task
+    reads them with :meth:`take`. One per fit and worker, in :data:`_MAILBOXES`, made by whichever comes
+    first (a part may arrive before the task starts) and dropped by the client at the end of the fit.
+    """
+
+    def __init__(self) -> None:
+        self._box: dict[str, Any] = {}
+        self._arrived = threading.Condition()
+
+    @staticmethod
+    def of(token: str, host: int) -> _Mailbox:
+        with _MAILBOXES_LOCK:
+            return _MAILBOXES.setdefault((token, host), _Mailbox())
+
+    def put(self, tag: str, value: Any) -> None:
+        with self._arrived:
+            self._box[tag] = value
+            self._arrived.notify_all()
+
+    def take(self, tag: str, alive: Any, poll: float = 2.0) -> Any:
+        """The value put under ``tag``, waiting for it; ``alive()`` is called every ``poll`` seconds of waiting
+        (outside the lock: it may wait for this worker's event loop) and raises if waiting is pointless."""
+        while True:
+            with self._arrived:
+                if tag in self._box:
+                    return self._box.pop(tag)
+                if _ABORT in self._box:
+                    host, what = self._box[_ABORT]
+                    raise ClusterError(f"the fit stopped: its task on worker {host} failed ({what}).")
+                if self._arrived.wait(poll):
+                    continue
+            alive()
+
+
+async def _put_handler(token: str, host: int, tag: str, value: Any) -> None:
+    """The worker's handler of a part sent by another worker of a fit (see :class:`_Mailbox`)."""
+    _Mailbox.of(token, host).put(tag, value)
+
+
+def _drop_mailboxes(token: str) -> None:
+    """Forget this process's mailboxes of a fit (run on the workers at its end)."""
+    with _MAILBOXES_LOCK:
+        for key in [k for k in _MAILBOXES if k[0] == token]:
+            del _MAILBOXES[key]
+
+
+def _exchange_plugin():
+    """A ``distributed`` worker plugin that installs :func:`_put_handler` on every worker (those that join later too),
+    as ``distributed``'s own shuffle extension installs its handlers."""
+    from distributed import WorkerPlugin
+
+    class _ExchangePlugin(WorkerPlugin):
+        name = "mmconcepts-nmf-exchange"
+
+        def setup(self, worker: Any) -> None:
+            worker.handlers[_PUT] = _put_handler
+
+    return _ExchangePlugin()
+
+
+_PLUGGED: weakref.WeakSet = weakref.WeakSet()  # the clients whose clusters have the plugin
+
+
+def _send(token: str, host: str, j: int, tag: str, value: Any) -> Any:
+    """Send ``value`` to the mailbox of the fit on worker ``host`` (the j-th) from a task: a future of the reply."""
+    import asyncio
+
+    from distributed import get_worker
+    from distributed.protocol import to_serialize
+
+    worker = get_worker()
+    call = getattr(worker.rpc(host), _PUT)(token=token, host=j, tag=tag, value=to_serialize(value))
+    return asyncio.run_coroutine_threadsafe(call, cast(Any, worker.loop).asyncio_loop)  # tornado on asyncio
+
+
+@dataclass(frozen=True)
+class _Exchange:
+    """The layout of a fit whose workers exchange their sums directly (see :func:`_fit_loop_exchange`).
+
+    ``runs``, ``whole`` and the groups are those of :class:`_IterationGraph` (the same sums in the
+    same order); ``host_runs[j]``: the runs of the j-th worker (in the order of their first chunk),
+    ``groups``: the runs of each group of the tree's first level, in chunk order.
+    """
+
+    token: str
+    hosts: tuple[str, ...]
+    fan: int
+    runs: tuple[tuple[int, ...], ...]
+    whole: tuple[bool, ...]
+    host_runs: tuple[tuple[int, ...], ...]
+    groups: tuple[tuple[int, ...], ...]
+
+    @classmethod
+    def of(cls, graph: _IterationGraph, token: str) -> _Exchange:
+        groups: dict[int, list[int]] = {}
+        for r, chunks in enumerate(graph.runs):
+            groups.setdefault(graph.group_of[chunks[0]], []).append(r)
+        host_runs = tuple(tuple(r for r, chunks in enumerate(graph.runs) if graph.host_of[chunks[0]] == j)
+                          for j in range(len(graph.hosts)))
+        return cls(token, tuple(graph.hosts), graph.fan, tuple(tuple(r) for r in graph.runs), tuple(graph.whole),
+                   host_runs, tuple(tuple(groups[g]) for g in sorted(groups)))
+
+    def total(self, parts: dict[int, list[_Partial]]) -> _Partial:
+        """The sum of every run's parts, in the order of the tree of :class:`_IterationGraph` (a new part)."""
+        nodes = []
+        for runs in self.groups:
+            if len(runs) == 1 and self.whole[runs[0]]:  # the run is its group's sum
+                nodes.append(parts[runs[0]][0])
+            else:
+                nodes.append(_sum_nodes(*[parts[r] for r in runs]))
+        return _tree_sum(self.fan, *nodes)
+
+
+@dataclass
+class _HostState:
+    """What one worker's task of a batch leaves on its worker: its runs' W and its copy of H after the batch
+    (W^(q+1), H^(q+1); W^q, H^q when the batch ends at max_iter), W^q and H^q when the stopping rule may stop
+    at q, and the checks of the batch: (iteration, objective, summary) (on every worker: the same numbers)."""
+
+    ws: dict[int, list[Any]]
+    Ht: np.ndarray
+    ws_q: dict[int, list[Any]] | None
+    Ht_q: np.ndarray | None
+    checks: list[tuple[int, float, _Partial]]
+
+
+def _hosts_alive(hosts: Sequence[str]) -> None:
+    """Raise :class:`ClusterError` if a worker of the fit has left the cluster (its part will never come)."""
+    from distributed import get_client
+
+    present = set(get_client().nthreads())
+    gone = [h for h in hosts if h not in present]
+    if gone:
+        raise ClusterError(f"worker(s) {gone} left the cluster during the fit; their rows of W were lost with them. "
+                           "Fit again (the workers that remain take their chunks).")
+
+
+def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule: _Rule,
+                pen_H: Penalty, specs: list, start: int, q: int, checks: tuple[int, ...], max_iter: int,
+                keep_q: bool) -> _HostState:
+    """Iterations ``start`` to ``q`` of the fit on the j-th worker: its runs of chunks (:func:`_fit_run`), its parts
+    sent to every other worker and theirs read from its mailbox, then the whole sum in the tree's order
+    (:meth:`_Exchange.total`) and its own copy of the next H (:func:`_h_step`), as the other workers do; the
+    objective at the iterations of ``checks``.
+
+    ``sources`` and ``specs``: the worker's chunks in the order of its runs; ``prev``: their W (the first
+    batch), or the worker's state after the previous batch: the fit's own, updated in place (W^q is
+    kept with ``keep_q``). An error stops the other workers' tasks too (they raise :class:`ClusterError`
+    naming this one).
+    """
+    from distributed import get_worker
+
+    peers = [p for p in range(len(plan.hosts)) if p != j]
+    try:
+        if peers and get_worker().address != plan.hosts[j]:
+            raise ClusterError(f"the task of worker {plan.hosts[j]} ran on {get_worker().address}.")
+        box = _Mailbox.of(plan.token, j)
+        mine = plan.host_runs[j]
+        at: dict[int, tuple[list, list]] = {}  # the run's sources and specs
+        a = 0
+        for r in mine:
+            b = a + len(plan.runs[r])
+            at[r] = (sources[a:b], specs[a:b])
+            a = b
+        if isinstance(prev, _HostState):
+            ws, Ht = prev.ws, prev.Ht
+        else:  # the chunks' W in the order of the runs
+            ws, a = {}, 0
+            for r in mine:
+                ws[r], a = list(prev[a:a + len(plan.runs[r])]), a + len(plan.runs[r])
+        pending: list = []
+        ws_q = Ht_q = None
+        done: list[tuple[int, float, _Partial]] = []
+        for t in range(start, q + 1):
+            evaluate, update = t in checks, t < max_iter
+            keep = t == q and keep_q and update
+            if keep:
+                ws_q, Ht_q = ws, Ht
+            parts: dict[int, list[_Partial]] = {}
+            new: dict[int, list[Any]] = {}
+            for r in mine:
+                new[r], parts[r] = _fit_run(at[r][0], ws[r], Ht, rule, at[r][1], evaluate, update, plan.whole[r],
+                                            not keep)
+            if update:
+                ws = new
+            for f in pending:  # the previous iteration's deliveries (an error: a worker that left)
+                f.result()
+            # sent as they are (serialised on the event loop, later): never changed after this point
+            pending = [_send(plan.token, plan.hosts[p], p, f"{t}-{j}", parts) for p in peers]
+            every = dict(parts)
+            for p in peers:
+                every.update(box.take(f"{t}-{p}", lambda: _hosts_alive(plan.hosts)))
+            total = plan.total(every)
+            if evaluate:
+                done.append((t, *_check_part(total, Ht, pen_H)))
+            if update:
+                Ht = _h_step(total, Ht, rule, pen_H, own=True)
+        for f in pending:
+            f.result()
+    except Exception as exc:
+        for p in peers:  # not waited for: that worker may be gone
+            with contextlib.suppress(Exception):
+                _send(plan.token, plan.hosts[p], p, _ABORT, (plan.hosts[j], f"{type(exc).__name__}: {exc}"))
+        raise
+    return _HostState(ws, Ht, ws_q, Ht_q, done)
+
+
+def _state_checks(state: _HostState) -> list[tuple[int, float, _Partial]]:
+    return state.checks
+
+
+def _state_w(state: _HostState, r: int, i: int, at_q: bool) -> Any:
+    return cast(dict, state.ws_q if at_q else state.ws)[r][i]
+
+
+def _state_h(state: _HostState, at_q: bool) -> np.ndarray:
+    return cast(np.ndarray, state.Ht_q if at_q else state.Ht)
+
+
+def _distributed_client(dask) -> Any:
+    """The ``distributed`` client dask computes with, or None (another scheduler)."""
+    client = getattr(dask.base.get_scheduler(), "__self__", None)
+    try:
+        from distributed import Client
+    except ImportError:  # pragma: no cover - distributed comes with the dask extra
+        return None
+    return client if isinstance(client, Client) else None
+
+
+def _future(client, ref: Any) -> Any:
+    """The future of a persisted delayed value (computed now if it has none)."""
+    from distributed import futures_of
+
+    found = futures_of(ref)
+    return found[0] if len(found) == 1 and found[0].key == ref.key else client.compute(ref)
+
+
+def _wait_hosts(client, states: list) -> None:
+    """Wait for a batch's tasks; on an error, raise the first worker's own error, not the others' stop."""
+    import distributed
+
+    waiting = list(states)
+    with client.as_current():  # distributed.wait reads the current client (it may not be the default one)
+        while waiting and not any(s.status == "error" for s in states):
+            waiting = list(distributed.wait(waiting, return_when="FIRST_COMPLETED").not_done)
+        if not any(s.status == "error" for s in states):
+            return
+        with contextlib.suppress(distributed.TimeoutError, TimeoutError):
+            distributed.wait(states, timeout=10)  # the others stop once told
+    failed = [s for s in states if s.status == "error"]
+    first = next((s for s in failed if not isinstance(s.exception(), ClusterError)), failed[0])
+    try:
+        first.result()
+    finally:
+        client.cancel(states)
+
+
+def _fit_loop_exchange(client, graph: _IterationGraph, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol,
+                       loss_every, dask, check_scale):
+    """W and H updates with one task per worker and batch of iterations, the sums sent between the workers.
+
+    On a ``distributed`` cluster of at most ``split_every`` workers: the j-th worker's task
+    (:func:`_host_batch`) runs the batch's iterations on its chunks; at each, it sends its parts to
+    the other workers' mailboxes (:class:`_Mailbox`) and reads theirs, then sums all of them in the
+    tree's order and updates its own copy of H, as :class:`_IterationGraph` does with tasks, so the
+    iterates are the same bit for bit. The scheduler sees one task per worker and batch (and the
+    reads of the check) instead of a few per worker and iteration. A worker that leaves during a
+    batch ends the fit with :class:`ClusterError` (its rows of W are lost; the graph's tasks would be
+    recomputed, these cannot be, since they wait for each other). A single worker has no mailbox,
+    and its task may run elsewhere if it leaves.
+    """
+    plan = _Exchange.of(graph, uuid.uuid4().hex)
+    name = f"nmf-{plan.token}"
+    hosts = plan.hosts
+    if len(hosts) > 1 and client not in _PLUGGED:
+        client.register_plugin(_exchange_plugin())
+        _PLUGGED.add(client)
+    try:
+        chunks = [[c for r in plan.host_runs[j] for c in plan.runs[r]] for j in range(len(hosts))]
+        srcs = [[_future(client, sources[c]) for c in cs] for cs in chunks]
+        prev: list[Any] = [[_future(client, W_refs[c]) for c in cs] for cs in chunks]
+        hs: list[Any] = [client.scatter(Ht, workers=[h], hash=False) for h in hosts]
+        del W_refs
+        checks = _checks(max_iter, loss_every)
+        # the batches: iterations 0 to the second check (the first two checks), then from one check to the next
+        batches = [(0, checks[:2])] + [(a + 1, (b,)) for a, b in zip(checks[1:], checks[2:])]
+        hist: list[float] = []
+        its: list[int] = []
+        stop: _Stopping | None = None
+        converged = False
+        update_bytes = 0
+        strict = len(hosts) > 1  # the tasks of a batch wait for each other: each on its own worker
+        for start, evaluated in batches:
+            q = evaluated[-1]
+            keep_q = tol > 0 and 0 < q < max_iter  # W^q, H^q: the answer if the rule stops at q
+            states = [client.submit(_host_batch, plan, j, srcs[j], prev[j], hs[j], rule, pen_H,
+                                    [specs[c] for c in chunks[j]], start, q, evaluated, max_iter, keep_q,
+                                    key=f"{name}-host-{q}-{j}", workers=[h], allow_other_workers=not strict,
+                                    pure=False)
+                      for j, h in enumerate(hosts)]
+            _wait_hosts(client, states)
+            done = client.submit(_state_checks, states[0], key=f"{name}-check-{q}", workers=[hosts[0]],
+                                 pure=False).result()
+            for t, f, part in done:
+                stop, converged = _record_check(t, f, hist, its, stop, tol, rule, check_scale)
+                update_bytes = part.update_bytes or update_bytes
+            prev, hs = states, [None] * len(hosts)
+            if converged or q == max_iter:
+                break
+        at_q = converged and q < max_iter
+        W_out: list[Any] = [None] * len(specs)
+        for j, h in enumerate(hosts):
+            for r in plan.host_runs[j]:
+                for i, c in enumerate(plan.runs[r]):
+                    W_out[c] = dask.delayed(client.submit(_state_w, prev[j], r, i, at_q, key=f"{name}-w-{c}",
+                                                          workers=[h], pure=False))
+        Ht = np.asarray(client.submit(_state_h, prev[0], at_q, key=f"{name}-H", workers=[hosts[0]],
+                                      pure=False).result())
+    finally:
+        if len(hosts) > 1:
+            client.run(_drop_mailboxes, plan.token, workers=list(hosts), on_error="ignore")
+    part.update_bytes = update_bytes
+    return W_out, Ht, q, hist, its, converged, part
 
 
 def _transform_loop(store, sources, specs, W_refs, Ht, rule, pen_H, max_iter, tol, loss_every,
