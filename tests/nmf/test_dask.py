@@ -401,10 +401,20 @@ def test_a_mailbox_stops_waiting_when_a_worker_failed_or_left():
     assert not any(k[0] == "token" for k in nd._MAILBOXES)
 
 
-def test_hosts_alive_names_a_worker_that_left():
+def test_one_worker_fits_without_a_mailbox_and_hosts_alive_names_a_worker_that_left(rng):
+    """A cluster of one worker: one task per batch, the synchronous scheduler's numbers, no mailbox left behind; the
+    check that the other workers of a fit are still there names the one that is not."""
     distributed = pytest.importorskip("distributed")
+    X, _, W0, H0 = make_data(rng, True, 1.0, False)
+    kw = dict(init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=5, tol=0, loss_every=3)
+    r_sync = beta_nmf(to_dask(X), K, **kw)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
                                   protocol="tcp://", dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        with dask.config.set(scheduler=client), distributed.get_task_stream(client) as stream:
+            r_dask = beta_nmf(client.persist(to_dask(X)), K, **kw)
+            assert np.array_equal(r_dask.W.compute(), r_sync.W.compute()) and np.array_equal(r_dask.H, r_sync.H)
+        assert sum("-host-" in str(task["key"]) for task in stream.data) == 2  # iterations 0-3, then 4-5
+        assert nd._MAILBOXES == {}
         here = sorted(client.nthreads())
         client.submit(nd._hosts_alive, here).result()
         with pytest.raises(ClusterError, match="tcp://127.0.0.1:1"):

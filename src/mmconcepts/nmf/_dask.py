@@ -1587,7 +1587,7 @@ class _Mailbox:
     """Where the other workers' parts of one fit arrive on one worker.
 
     The other workers' tasks send them to this worker's ``mmconcepts_nmf_put`` handler (installed by
-    :class:`_ExchangePlugin`; it runs on the worker's event loop and calls :meth:`put`); this worker's task
+    :func:`_exchange_plugin`'s plugin; it runs on the worker's event loop and calls :meth:`put`); this worker's task
     reads them with :meth:`take`. One per fit and worker, in :data:`_MAILBOXES`, made by whichever comes
     first (a part may arrive before the task starts) and dropped by the client at the end of the fit.
     """
@@ -1743,7 +1743,7 @@ def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule
     try:
         if peers and get_worker().address != plan.hosts[j]:
             raise ClusterError(f"the task of worker {plan.hosts[j]} ran on {get_worker().address}.")
-        box = _Mailbox.of(plan.token, j)
+        box = _Mailbox.of(plan.token, j) if peers else None
         mine = plan.host_runs[j]
         at: dict[int, tuple[list, list]] = {}  # the run's sources and specs
         a = 0
@@ -1778,7 +1778,7 @@ def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule
             pending = [_send(plan.token, plan.hosts[p], p, f"{t}-{j}", parts) for p in peers]
             every = dict(parts)
             for p in peers:
-                every.update(box.take(f"{t}-{p}", lambda: _hosts_alive(plan.hosts)))
+                every.update(cast(_Mailbox, box).take(f"{t}-{p}", lambda: _hosts_alive(plan.hosts)))
             total = plan.total(every)
             if evaluate:
                 done.append((t, *_check_part(total, Ht, pen_H)))
