@@ -14,7 +14,10 @@ Two measurements, each compared with a reference in the same run (ratios, not ti
     The sparse KL case of ``benchmarks/nmf.py`` grown 10x (200 000 x 2 000, 1 % nonzeros,
     k = 50), persisted on a ``LocalCluster`` (127.0.0.1, worker processes with one thread, numba
     and BLAS on one thread) of 1 and of 2 workers, fitted in alternation ``--repeats`` times with
-    the in-memory ``beta_nmf`` in this process (one thread) as the reference: median time per
+    the in-memory ``beta_nmf`` in this process (one thread) as the reference (``--clusters one``,
+    the default: each fit on a cluster started for it alone and warmed up by a 2-iteration fit;
+    ``both``: the two clusters up through all the fits, each fit beside the other's idle
+    processes): median time per
     iteration (the fit's iterations, the objective's evaluations at the first and the last included,
     over the number of iterations; not the set-up), the ratio, and the bytes moved per iteration
     (the model: H to every chunk and each chunk's numerator/denominator back, an upper bound; and
@@ -209,14 +212,28 @@ def case_scaling(args) -> dict:
     env = {**os.environ, **SINGLE_THREAD_ENV}
     old_env = dict(os.environ)
     os.environ.update(SINGLE_THREAD_ENV)  # inherited by the worker processes
-    clusters = {}
+    clusters: dict = {}
+
+    def start(w: int):
+        cluster = distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                           dashboard_address=":0", memory_limit="4GiB")
+        return cluster, distributed.Client(cluster, set_as_default=False)
+
+    def stop(pair) -> None:
+        pair[1].close()
+        pair[0].close()
+
     try:
-        for w in (1, 2):
-            cluster = distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                               dashboard_address=":0", memory_limit="4GiB")
-            clusters[w] = (cluster, distributed.Client(cluster, set_as_default=False))
         del env
-        idle = _idle_cpu(clusters[2][1], seconds=5.0)
+        if args.clusters == "both":
+            clusters = {w: start(w) for w in (1, 2)}
+            idle = _idle_cpu(clusters[2][1], seconds=5.0)
+        else:
+            pair = start(2)
+            try:
+                idle = _idle_cpu(pair[1], seconds=5.0)
+            finally:
+                stop(pair)
         times: dict[int, list[float]] = {0: [], 1: [], 2: []}
         traffic: dict[int, list[float]] = {1: [], 2: []}
         client_cpu: dict[int, list[float]] = {1: [], 2: []}
@@ -231,21 +248,29 @@ def case_scaling(args) -> dict:
                     times[0].append((time.perf_counter() - t) / its)
                     results[0] = float(res.loss_history[-1])
             for w in (1, 2):
-                cluster, client = clusters[w]
+                if args.clusters == "both":
+                    cluster, client = clusters[w]
+                else:  # this cluster alone on the machine, warmed up by a short fit (its workers load the kernels)
+                    clusters[w] = start(w)
+                    cluster, client = clusters[w]
                 Xd = client.persist(da.from_array(X, chunks=(chunk, -1), asarray=False))
                 with client.as_current():
                     distributed.wait(Xd)
-                client.run(_reset_transfer_counters)
-                current["client"] = client
-                loops.clear()
-                nd._fit_loop = timed
-                try:
-                    with dask.config.set(scheduler=client), warnings.catch_warnings():
-                        warnings.filterwarnings("ignore", message="Sending large graph")  # W0, once, at the start
+                with dask.config.set(scheduler=client), warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Sending large graph")  # W0, once, at the start
+                    if args.clusters == "one":
+                        beta_nmf(Xd, k, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=2, tol=0, loss_every=2)
+                    client.run(_reset_transfer_counters)
+                    current["client"] = client
+                    loops.clear()
+                    nd._fit_loop = timed
+                    try:
                         res = beta_nmf(Xd, k, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=its, tol=0,
                                        loss_every=its)
-                finally:
-                    nd._fit_loop = inner
+                    finally:
+                        nd._fit_loop = inner
+                if args.clusters == "one":
+                    stop(clusters.pop(w))
                 if rep > 0:
                     elapsed, moved, cpu = loops[0]
                     times[w].append(elapsed / its)
@@ -255,7 +280,7 @@ def case_scaling(args) -> dict:
                     results[w] = float(res.loss_history[-1])
         t0, t1, t2 = (statistics.median(times[w]) for w in (0, 1, 2))
         row = dict(case="scaling", shape=[n, m], k=k, nnz=int(X.nnz), chunks=args.scaling_chunks,
-                   iterations=args.iterations, repeats=args.repeats, s_per_iter_in_memory=t0, s_per_iter_1=t1,
+                   clusters=args.clusters, iterations=args.iterations, repeats=args.repeats, s_per_iter_in_memory=t0, s_per_iter_1=t1,
                    s_per_iter_2=t2, speedup_2_vs_1=t1 / t2, model_bytes_per_iter=model,
                    s_per_iter_all={str(w): v for w, v in times.items()},
                    worker_transfer_bytes_per_iter_1=statistics.median(traffic[1]),
@@ -274,9 +299,8 @@ def case_scaling(args) -> dict:
               + ", ".join(f"{v:.3f}" for v in idle["workers"]), flush=True)
         return row
     finally:
-        for cluster, client in clusters.values():
-            client.close()
-            cluster.close()
+        for pair in clusters.values():
+            stop(pair)
         os.environ.clear()
         os.environ.update(old_env)
 
@@ -395,6 +419,10 @@ def main(argv=None):
     ap.add_argument("--slice-rows", type=int, default=200_000)
     ap.add_argument("--scaling-rows", type=int, default=200_000)
     ap.add_argument("--scaling-chunks", type=int, default=16)
+    ap.add_argument("--clusters", choices=["one", "both"], default="one",
+                    help="scaling: start each fit's cluster alone, warm it up, close it after (one, the default), or "
+                         "keep the 1- and 2-worker clusters up through all the fits (both: each fit shares the "
+                         "machine with the other cluster's idle processes)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--bandwidth", type=float, default=1.25e9, help="bytes/s between machines (10 GbE)")
     ap.add_argument("--latency", type=float, default=5e-4, help="seconds per message")
