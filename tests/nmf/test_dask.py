@@ -351,6 +351,43 @@ def test_worker_processes_exchange_their_sums():
     assert np.array_equal(r_dask.loss_history, r_sync.loss_history)
 
 
+def test_a_worker_lost_during_the_fit_ends_it_with_cluster_error():
+    """A worker process killed while the workers' tasks run (its nanny starts a new one at another address): the other
+    worker, waiting for its sums, finds it gone and the fit raises ClusterError naming it, instead of waiting forever."""
+    import os
+    import signal
+    import threading
+    import time
+
+    distributed = pytest.importorskip("distributed")
+    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
+    gen = np.random.default_rng(5)
+    W0, H0 = gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        Xd = client.persist(da.from_array(X, chunks=(50, -1), asarray=False))
+        first, second = sorted(client.nthreads())
+        killed = []
+
+        def kill_when_the_tasks_run():
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                running = client.processing()
+                if any("-host-" in str(key) for key in running.get(second, ())):
+                    os.kill(client.run(os.getpid, workers=[second])[second], signal.SIGKILL)
+                    killed.append(second)
+                    return
+                time.sleep(0.02)
+
+        killer = threading.Thread(target=kill_when_the_tasks_run, daemon=True)
+        killer.start()
+        started = time.monotonic()
+        with dask.config.set(scheduler=client), pytest.raises(ClusterError, match="left the cluster"):
+            beta_nmf(Xd, K, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=100_000, tol=0, loss_every=100_000)
+        killer.join(5)
+        assert killed == [second] and time.monotonic() - started < 30  # not the 30 s of a connection to it
+
+
 def test_an_error_on_one_worker_stops_the_others_and_is_raised(rng, monkeypatch):
     """The first worker's task fails at an iteration: the second, waiting for its sums, stops too, and the fit raises
     the first one's own error (not the second's stop)."""

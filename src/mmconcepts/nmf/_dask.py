@@ -1713,15 +1713,30 @@ class _HostState:
     checks: list[tuple[int, float, _Partial]]
 
 
-def _hosts_alive(hosts: Sequence[str]) -> None:
+def _hosts_alive(hosts: Sequence[str], client: Any = None) -> None:
     """Raise :class:`ClusterError` if a worker of the fit has left the cluster (its part will never come)."""
-    from distributed import get_client
+    if client is None:
+        from distributed import get_client
 
-    present = set(get_client().nthreads())
+        client = get_client()
+    present = set(client.nthreads())
     gone = [h for h in hosts if h not in present]
     if gone:
         raise ClusterError(f"worker(s) {gone} left the cluster during the fit; their rows of W were lost with them. "
                            "Fit again (the workers that remain take their chunks).")
+
+
+def _delivered(sent: Any, alive: Any, poll: float = 2.0) -> None:
+    """Wait for the reply to a part sent to another worker (:func:`_send`), calling ``alive()`` every ``poll`` seconds
+    (a connection to a worker that left is retried for ``distributed.comm.timeouts.connect``)."""
+    import concurrent.futures
+
+    while True:
+        try:
+            sent.result(timeout=poll)
+            return
+        except concurrent.futures.TimeoutError:
+            alive()
 
 
 def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule: _Rule,
@@ -1740,6 +1755,10 @@ def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule
     from distributed import get_worker
 
     peers = [p for p in range(len(plan.hosts)) if p != j]
+
+    def alive() -> None:
+        _hosts_alive(plan.hosts)
+
     try:
         if peers and get_worker().address != plan.hosts[j]:
             raise ClusterError(f"the task of worker {plan.hosts[j]} ran on {get_worker().address}.")
@@ -1773,19 +1792,19 @@ def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule
             if update:
                 ws = new
             for f in pending:  # the previous iteration's deliveries (an error: a worker that left)
-                f.result()
+                _delivered(f, alive)
             # sent as they are (serialised on the event loop, later): never changed after this point
             pending = [_send(plan.token, plan.hosts[p], p, f"{t}-{j}", parts) for p in peers]
             every = dict(parts)
             for p in peers:
-                every.update(cast(_Mailbox, box).take(f"{t}-{p}", lambda: _hosts_alive(plan.hosts)))
+                every.update(cast(_Mailbox, box).take(f"{t}-{p}", alive))
             total = plan.total(every)
             if evaluate:
                 done.append((t, *_check_part(total, Ht, pen_H)))
             if update:
                 Ht = _h_step(total, Ht, rule, pen_H, own=True)
         for f in pending:
-            f.result()
+            _delivered(f, alive)
     except Exception as exc:
         for p in peers:  # not waited for: that worker may be gone
             with contextlib.suppress(Exception):
@@ -1824,22 +1843,34 @@ def _future(client, ref: Any) -> Any:
     return found[0] if len(found) == 1 and found[0].key == ref.key else client.compute(ref)
 
 
-def _wait_hosts(client, states: list) -> None:
-    """Wait for a batch's tasks; on an error, raise the first worker's own error, not the others' stop."""
+def _wait_hosts(client, states: list, hosts: Sequence[str]) -> None:
+    """Wait for a batch's tasks; on an error, raise the first worker's own error, not the others' stop; a task whose
+    worker left (cancelled, its inputs lost with it) raises :class:`ClusterError` naming that worker."""
     import distributed
+    from distributed.client import FutureCancelledError, FuturesCancelledError
+
+    def ended() -> bool:
+        return any(s.status in ("error", "cancelled") for s in states)
 
     waiting = list(states)
     with client.as_current():  # distributed.wait reads the current client (it may not be the default one)
-        while waiting and not any(s.status == "error" for s in states):
-            waiting = list(distributed.wait(waiting, return_when="FIRST_COMPLETED").not_done)
-        if not any(s.status == "error" for s in states):
+        with contextlib.suppress(FutureCancelledError, FuturesCancelledError):
+            while waiting and not ended():
+                waiting = list(distributed.wait(waiting, return_when="FIRST_COMPLETED").not_done)
+        if not ended():
             return
-        with contextlib.suppress(distributed.TimeoutError, TimeoutError):
+        with contextlib.suppress(distributed.TimeoutError, TimeoutError, FutureCancelledError, FuturesCancelledError):
             distributed.wait(states, timeout=10)  # the others stop once told
-    failed = [s for s in states if s.status == "error"]
-    first = next((s for s in failed if not isinstance(s.exception(), ClusterError)), failed[0])
     try:
-        first.result()
+        failed = [s for s in states if s.status == "error"]
+        own = [s for s in failed if not isinstance(s.exception(), ClusterError)]
+        if own:
+            own[0].result()
+        _hosts_alive(hosts, client)  # a worker that left: name it
+        if failed:
+            failed[0].result()
+        raise ClusterError(f"the fit's tasks were cancelled ({[s.key for s in states if s.status == 'cancelled']}); "
+                           "fit again.")
     finally:
         client.cancel(states)
 
@@ -1887,7 +1918,7 @@ def _fit_loop_exchange(client, graph: _IterationGraph, sources, specs, W_refs, H
                                     key=f"{name}-host-{q}-{j}", workers=[h], allow_other_workers=not strict,
                                     pure=False)
                       for j, h in enumerate(hosts)]
-            _wait_hosts(client, states)
+            _wait_hosts(client, states, hosts)
             done = client.submit(_state_checks, states[0], key=f"{name}-check-{q}", workers=[hosts[0]],
                                  pure=False).result()
             for t, f, part in done:
@@ -1906,8 +1937,10 @@ def _fit_loop_exchange(client, graph: _IterationGraph, sources, specs, W_refs, H
         Ht = np.asarray(client.submit(_state_h, prev[0], at_q, key=f"{name}-H", workers=[hosts[0]],
                                       pure=False).result())
     finally:
-        if len(hosts) > 1:
-            client.run(_drop_mailboxes, plan.token, workers=list(hosts), on_error="ignore")
+        if len(hosts) > 1:  # on the workers still there (connecting to one that left waits for a timeout)
+            present = set(client.nthreads())
+            if any(h in present for h in hosts):
+                client.run(_drop_mailboxes, plan.token, workers=[h for h in hosts if h in present], on_error="ignore")
     part.update_bytes = update_bytes
     return W_out, Ht, q, hist, its, converged, part
 
