@@ -388,6 +388,40 @@ def test_a_worker_lost_during_the_fit_ends_it_with_cluster_error():
         assert killed == [second] and time.monotonic() - started < 30  # not the 30 s of a connection to it
 
 
+def test_the_workers_tasks_give_their_threads_back():
+    """While the workers' tasks of a fit run (they wait for each other), a worker with one thread still runs other
+    tasks: they secede from its thread pool, so fits that share single-threaded workers cannot wait for each other."""
+    import threading
+    import time
+
+    distributed = pytest.importorskip("distributed")
+    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
+    gen = np.random.default_rng(5)
+    W0, H0 = gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  protocol="tcp://", dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        Xd = client.persist(da.from_array(X, chunks=(50, -1), asarray=False))
+        first = sorted(client.nthreads())[0]
+        seen: dict = {}
+
+        def side_task_while_fitting():
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                if any("-host-" in str(key) for key in client.processing().get(first, ())):
+                    seen["side"] = client.submit(np.add, 1, 2, workers=[first], pure=False).result(timeout=30)
+                    seen["fit still running"] = any("-host-" in str(key) for keys in client.processing().values()
+                                                    for key in keys)
+                    return
+                time.sleep(0.02)
+
+        side = threading.Thread(target=side_task_while_fitting, daemon=True)
+        side.start()
+        with dask.config.set(scheduler=client):
+            beta_nmf(Xd, K, init="custom", W=W0, H=H0, beta_loss=1.0, max_iter=1_000, tol=0, loss_every=1_000)
+        side.join(30)
+    assert seen == {"side": 3, "fit still running": True}
+
+
 def test_an_error_on_one_worker_stops_the_others_and_is_raised(rng, monkeypatch):
     """The first worker's task fails at an iteration: the second, waiting for its sums, stops too, and the fit raises
     the first one's own error (not the second's stop)."""

@@ -1752,7 +1752,7 @@ def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule
     kept with ``keep_q``). An error stops the other workers' tasks too (they raise :class:`ClusterError`
     naming this one).
     """
-    from distributed import get_worker
+    from distributed import get_worker, secede
 
     peers = [p for p in range(len(plan.hosts)) if p != j]
 
@@ -1762,6 +1762,11 @@ def _host_batch(plan: _Exchange, j: int, sources: list, prev: Any, Ht: Any, rule
     try:
         if peers and get_worker().address != plan.hosts[j]:
             raise ClusterError(f"the task of worker {plan.hosts[j]} ran on {get_worker().address}.")
+        if peers:
+            # a task that waits for tasks on other workers gives its worker's thread back (distributed's long-running
+            # tasks): two fits on the same single-threaded workers whose tasks each worker starts in a different
+            # order would otherwise wait for each other forever, and other work would wait for the whole batch
+            secede()
         box = _Mailbox.of(plan.token, j) if peers else None
         mine = plan.host_runs[j]
         at: dict[int, tuple[list, list]] = {}  # the run's sources and specs
