@@ -68,6 +68,13 @@ def make_data(rng, sparse: bool, beta: float, masked: bool):
     return X, mask, W0, H0
 
 
+def two_hundred_rows():
+    """A sparse X of 200 rows and a start (W0, H0), the same in every call: for fits split into many chunks."""
+    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
+    gen = np.random.default_rng(5)
+    return X, gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+
+
 def to_dask(X, chunks=ROW_CHUNKS):
     return da.from_array(X, chunks=(chunks, -1), asarray=not sp.issparse(X))
 
@@ -334,9 +341,7 @@ def test_worker_processes_exchange_their_sums():
     """Two worker processes: the sums go between processes (the workers' handlers); ten chunks in four groups of the
     tree (fan-in 3), one of them on both workers: the fit is the synchronous scheduler's, bit for bit."""
     distributed = pytest.importorskip("distributed")
-    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
-    gen = np.random.default_rng(5)
-    W0, H0 = gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+    X, W0, H0 = two_hundred_rows()
     kw = dict(init="custom", W=W0, H=H0, beta=1.0, max_iter=5, tol=0, loss_every=2, split_every=3)
     Xd = da.from_array(X, chunks=(20, -1), asarray=False)
     r_sync = nd.beta_nmf_dask(Xd, K, **kw)
@@ -360,9 +365,7 @@ def test_a_worker_lost_during_the_fit_ends_it_with_cluster_error():
     import time
 
     distributed = pytest.importorskip("distributed")
-    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
-    gen = np.random.default_rng(5)
-    W0, H0 = gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+    X, W0, H0 = two_hundred_rows()
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         Xd = client.persist(da.from_array(X, chunks=(50, -1), asarray=False))
@@ -395,9 +398,7 @@ def test_the_workers_tasks_give_their_threads_back():
     import time
 
     distributed = pytest.importorskip("distributed")
-    X = sp.random(200, M, density=0.3, format="csr", random_state=np.random.RandomState(3)) * 10.0
-    gen = np.random.default_rng(5)
-    W0, H0 = gen.random((200, K)) + 0.1, gen.random((K, M)) + 0.1
+    X, W0, H0 = two_hundred_rows()
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, host="127.0.0.1",
                                   protocol="tcp://", dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         Xd = client.persist(da.from_array(X, chunks=(50, -1), asarray=False))
