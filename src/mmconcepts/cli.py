@@ -270,9 +270,9 @@ def build_parser() -> argparse.ArgumentParser:
         "verdicts", parents=[common], help="write the documentation's verdict page from a results folder",
         description="Read the JSON result records of DIR (one run of `mmconcepts reproduce`, real and generated "
                     "data) and print, or write to FILE, a Markdown page of every claim's verdict by kind of claim "
-                    "(thesis statements and where they replicate, magnitudes, our checks, sanity checks), stating "
-                    "the commit, code fingerprint, preset and seeds the records came from. The records must come "
-                    "from the installed code.",
+                    "(thesis statements and where they replicate, magnitudes, our checks, sanity checks) and of "
+                    "each run's recorded wall time, stating the commit, code fingerprint, preset and seeds the "
+                    "records came from. The records must come from the installed code.",
     )
     p.add_argument("dir", metavar="DIR", type=_folder, nargs="?", default=DEFAULT_RESULTS_DIR,
                    help="results folder (default: %(default)s)")

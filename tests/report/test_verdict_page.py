@@ -79,6 +79,25 @@ def test_the_page_refuses_records_of_other_code_or_mixed_runs(toy, tmp_path):
         verdict_page(tmp_path / "nowhere")
 
 
+def test_the_page_states_each_runs_recorded_time_and_their_totals(toy, tmp_path):
+    reproduce(output=tmp_path, ids=["toy-mean"], progress=False)
+    record = json.loads((tmp_path / "toy-mean.json").read_text())
+    times = {"toy-mean": (90.0, "2026-01-02T10:00:00Z"), "toy-other": (45.0, "2026-01-02T10:01:00+00:00"),
+             "toy-third": (None, "2026-01-02T09:00:00Z")}
+    for name, (seconds, start) in times.items():
+        other = dict(record, experiment=name)
+        if name != "toy-mean":  # a record of another experiment, as its run would have written it
+            other["digest"] = content_digest(other)
+        # the run time is outside the digest: the record is still the one the run wrote
+        (tmp_path / f"{name}.json").write_text(json.dumps(dict(other, elapsed_s=seconds, started_at=start)))
+    section = verdict_page(tmp_path, commit="abc1234").split("## Run time", 1)[1]
+    assert "| toy-mean | 1 min 30 s |" in section and "| toy-other | 45.0 s |" in section
+    assert "| toy-third | not recorded |" in section
+    assert "| all runs | 2 min 15 s |" in section
+    # from 10:00:00 to 10:01:45 (the run without a time has no end, and is left out)
+    assert "All runs: 2 min 15 s; from the first run's start to the last run's end: 1 min 45 s" in section
+
+
 def test_the_command_writes_the_page_and_the_readmes_tallies(toy, tmp_path, capsys):
     reproduce(output=tmp_path / "r", ids=["toy-mean"], progress=False)
     readme = tmp_path / "README.md"

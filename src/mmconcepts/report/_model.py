@@ -348,6 +348,8 @@ class ExperimentView:
     explorer_note: str = ""
     omitted: dict[str, int] = field(default_factory=dict)  # what the record holds past the report's limits
     digest_ok: bool | None = True  # False: edited after it was written; None: a record without a digest (older)
+    elapsed_s: float | None = None  # the run's wall time in seconds, as recorded
+    started_at: str = ""  # when it started (ISO 8601, UTC), as recorded
 
     def left_out(self, *whats: str) -> str:
         """``9000 more claims, 7 more notes``: what of ``whats`` (default: everything) the report leaves out."""
@@ -599,7 +601,18 @@ def build_view(record: ResultRecord, results_dir: Path, source: Path) -> Experim
         explorer_note=explorer_note,
         omitted=shown.omitted,
         digest_ok=record.digest_ok,
+        elapsed_s=_seconds(record.elapsed_s),
+        started_at=text(record.started_at),
     )
+
+
+def _seconds(value: Any) -> float | None:
+    """A recorded run time as a finite number of seconds >= 0, else None."""
+    try:
+        s = float(value)
+    except (TypeError, ValueError):
+        return None
+    return s if math.isfinite(s) and s >= 0 else None
 
 
 def _looks_like_a_record(raw: bytes) -> bool:

@@ -4,7 +4,7 @@
 (``make reproduce DATA_ROOT=...`` writes both the real-data and the generated-data records)
 and writes one Markdown page: the tallies by kind of claim and data, then every claim in a
 table of its kind with its verdict on each data (and, for magnitudes, the ratio ours /
-thesis with its interval). The page says which commit, code fingerprint, preset and seeds
+thesis with its interval), and last each run's wall time as its record states it. The page says which commit, code fingerprint, preset and seeds
 the records came from, so that no verdict in the documentation is typed by hand or outlives
 the code that decided it: the records must all come from the installed code (else an error,
 unless ``allow_stale``).
@@ -15,13 +15,15 @@ from __future__ import annotations
 import os
 import subprocess
 from collections.abc import Sequence
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 from .._fingerprint import code_fingerprint
 from .._io import atomic_write
 from ..errors import ExperimentError
 from ..engine.uncertainty import LEVEL
-from ._model import KIND_SECTIONS, VARIANT_LABELS, ExperimentView, chance_line, collect, kind_tally_rows
+from ._model import (KIND_SECTIONS, VARIANT_LABELS, ExperimentView, chance_line, collect, format_duration,
+                     kind_tally_rows)
 
 __all__ = ["verdict_page", "write_verdict_page", "update_tallies", "comparison_page", "GENERATED_MARK", "TALLIES_START", "TALLIES_END"]
 
@@ -85,6 +87,40 @@ def _runs(views: list[ExperimentView]) -> tuple[list[str], list[ExperimentView]]
     return variants, [v for v in views if v.status == "ok" and v.variant in variants]
 
 
+def _instant(text: str) -> datetime | None:
+    """A record's ``started_at`` (ISO 8601) as an aware datetime, or None when it is not one."""
+    try:
+        when = datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return when if when.tzinfo is not None else when.replace(tzinfo=timezone.utc)
+
+
+def _run_times(ran: list[ExperimentView], variants: Sequence[str]) -> list[str]:
+    """The section of each run's recorded wall time, by experiment and data, with the totals."""
+    cells: dict[str, list[str]] = {}
+    totals = [0.0] * len(variants)
+    for view in ran:
+        row = cells.setdefault(view.id, [NOT_RUN] * len(variants))
+        col = variants.index(view.variant)
+        row[col] = format_duration(view.elapsed_s) or "not recorded"
+        totals[col] += view.elapsed_s or 0.0
+    rows = [[exp_id, *row] for exp_id, row in sorted(cells.items())]
+    rows.append(["all runs", *(format_duration(t) for t in totals)])
+    out = ["## Run time", "",
+           "Each run's wall time as its record states it (from the experiment's start to its record, its worker "
+           "processes included), on the machine that made the records.", ""]
+    out += _table(["experiment", *(VARIANT_LABELS[v] for v in variants)], rows)
+    spans = [(start, start + timedelta(seconds=v.elapsed_s)) for v in ran
+             if v.elapsed_s is not None and (start := _instant(v.started_at)) is not None]
+    if spans:
+        span = max(end for _, end in spans) - min(start for start, _ in spans)
+        out += [f"- All runs: {format_duration(sum(totals))}; from the first run's start to the last run's end: "
+                f"{format_duration(span.total_seconds())} (runs made at the same time overlap in it; a pause "
+                "between runs adds to it).", ""]
+    return out
+
+
 def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts: which of the thesis' statements "
                  "replicate", command: str = "", commit: str | None = None, allow_stale: bool = False) -> str:
     """The Markdown verdict page for the records of ``results_dir``.
@@ -106,6 +142,9 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
     Returns
     -------
     str
+        The page: the tallies, a table per kind of claim, and the section *Run time* (each run's
+        ``elapsed_s`` by experiment and data, their sum, and the span from the first run's
+        ``started_at`` to the last run's end).
 
     Raises
     ------
@@ -182,6 +221,7 @@ def verdict_page(results_dir: str | os.PathLike[str], *, title: str = "Verdicts:
         if kind == "thesis" and len(variants) == 2:
             cols.append("replicates on")
         out += _table(cols, body)
+    out += _run_times(ran, variants)
     return "\n".join(out).rstrip("\n") + "\n"
 
 
