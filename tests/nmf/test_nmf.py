@@ -272,6 +272,70 @@ def test_projected_gradient_decreases_loss(rng, beta):
     assert (res.W >= 0).all() and (res.H >= 0).all()
 
 
+def _lin_steps(f, gradient, L, alpha, n_inner=5, sigma=0.01, shrink=0.1):
+    """Lin's (2007) projected-gradient steps with the Armijo rule along the projection arc, every objective
+    evaluated afresh by ``f``: the reference for :meth:`_Solver._pg_step`. Returns (L, the step carried to the next
+    call)."""
+    for _ in range(n_inner):
+        grad, f0 = gradient(L), f(L)
+
+        def trial(a):
+            Ln = np.maximum(L - a * grad, 0.0)
+            fn = f(Ln)
+            return bool(np.isfinite(fn)) and fn - f0 <= sigma * float(np.sum(grad * (Ln - L))), Ln
+
+        ok, Ln = trial(alpha)
+        if ok:
+            for _ in range(20):
+                ok2, Ln2 = trial(alpha / shrink)
+                if not ok2 or np.array_equal(Ln2, Ln):
+                    break
+                alpha, Ln = alpha / shrink, Ln2
+        else:
+            start = alpha
+            for _ in range(40):
+                alpha *= shrink
+                ok, Ln = trial(alpha)
+                if ok:
+                    break
+            if not ok:
+                return L, start  # stationary: the step stays the one this inner step started with
+        L = Ln
+    return L, alpha
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), beta=st.sampled_from([0.5, 1.0, 1.5]), side=st.sampled_from([0, 1]),
+       step=st.sampled_from([1e-4, 1e-2, 1.0]))
+def test_the_projected_gradient_step_is_lins_rule_with_every_objective_evaluated(seed, beta, side, step):
+    """The projected gradient's inner steps start from the objective its accepted trial evaluated: the same steps as
+    Lin's rule evaluating the objective afresh (numpy, thesis eq. 2.3, infinite where a product is 0) at every inner
+    step."""
+    from mmconcepts.nmf._problem import Problem
+    from mmconcepts.nmf._solver import _Solver
+    from mmconcepts.nmf._updates import Penalty
+
+    g = np.random.default_rng(seed)
+    X = g.gamma(1.0, 1.0, (15, 11)) + 0.01
+    W, Ht = g.gamma(1.0, 1.0, (15, 3)) + 0.1, g.gamma(1.0, 1.0, (11, 3)) + 0.1
+    solver = _Solver(Problem(X), beta, "pg", "mm", (Penalty(), Penalty()), (None, None))
+    solver.step[side] = step
+    L, R, Xs = (W, Ht, X) if side == 0 else (Ht, W, X.T)
+
+    def f(L):  # X > 0 everywhere; a step that zeroes a row of L makes the divergence infinite for beta <= 1
+        Y = L @ R.T
+        with np.errstate(divide="ignore"):
+            if beta == 1.0:
+                return np.sum(Xs * np.log(Xs / Y) - Xs + Y)
+            return np.sum(Xs**beta + (beta - 1) * Y**beta - beta * Xs * Y ** (beta - 1)) / (beta * (beta - 1))
+
+    expected, alpha = _lin_steps(f,
+                                 lambda L: solver._gradient(side, solver.problem.sides[side], L, R), L.copy(), step)
+    got = solver._pg_step(side, solver.problem.sides[side], L.copy(), R)
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=0)
+    assert solver.step[side] == pytest.approx(alpha, rel=1e-12)
+
+
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), sparse=st.booleans(), l1=st.sampled_from([0.0, 0.3]),
        l2=st.sampled_from([0.0, 0.7]), side=st.sampled_from([0, 1]), scale=st.sampled_from([1e-3, 1.0, 1e3]))

@@ -158,41 +158,43 @@ class _Solver:
         """
         l2 = self.penalties[s].l2
         gram = R.T @ R if self.beta == 2.0 and side.mask is None and side.weights is None else None
+        f_at: float | None = None  # the side objective at L, when the accepted trial evaluated it
         for _ in range(n_inner):
             grad = self._gradient(s, side, L, R)
-            f0 = self._side_objective(s, L, R) if gram is None else 0.0
+            f0 = (self._side_objective(s, L, R) if f_at is None else f_at) if gram is None else 0.0
             alpha = self.step[s]
 
             def trial(a: float, L=L, grad=grad, f0=f0):
                 Ln = np.maximum(L - a * grad, 0.0).astype(L.dtype, copy=False)
                 D = Ln - L
                 slope = float(np.sum(grad * D, dtype=np.float64))
+                fn = None
                 if gram is None:  # f0 may be infinite (beta <= 1, W @ H zero where X > 0): leaving it is a decrease
                     fn = self._side_objective(s, Ln, R)
                     ok = bool(np.isfinite(fn)) and fn - f0 <= sigma * slope
                 else:
                     change = _quadratic_change(slope, D, gram, l2)
                     ok = bool(np.isfinite(change)) and change <= sigma * slope
-                return ok, Ln
+                return ok, Ln, fn
 
-            ok, Ln = trial(alpha)
+            ok, Ln, fn = trial(alpha)
             if ok:  # grow the step while the Armijo condition holds
                 for _ in range(20):
                     a2 = alpha / shrink
-                    ok2, Ln2 = trial(a2)
+                    ok2, Ln2, fn2 = trial(a2)
                     if not ok2 or np.array_equal(Ln2, Ln):
                         break
-                    alpha, Ln = a2, Ln2
+                    alpha, Ln, fn = a2, Ln2, fn2
             else:  # shrink until it holds
                 for _ in range(40):
                     alpha *= shrink
-                    ok, Ln = trial(alpha)
+                    ok, Ln, fn = trial(alpha)
                     if ok:
                         break
                 if not ok:
                     return L  # no decrease along the gradient: L is (numerically) stationary
             self.step[s] = alpha
-            L = Ln
+            L, f_at = Ln, fn  # the next inner step starts where this one's objective is known (same side, same R)
         return L
 
     def _hoyer_step(self, s: int, side: Side, L: np.ndarray, R: np.ndarray, hoyer: _Hoyer) -> np.ndarray:
