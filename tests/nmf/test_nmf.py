@@ -2022,6 +2022,70 @@ def test_objective_read_in_the_w_update_equals_the_objective_evaluated_apart(see
     np.testing.assert_allclose(fused.extra["divergence"], _beta_divergence(Xe, fused.W, fused.H, 1.0), rtol=1e-10)
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), max_iter=st.integers(0, 25), loss_every=st.integers(1, 6),
+       tol=st.sampled_from([0.0, 1e-4, 1e-2, 0.2]), update_H=st.booleans(), beta=st.sampled_from([0.5, 1.5, 2.5, 3.0]),
+       rule=st.sampled_from(["mm", "heuristic"]), masked=st.booleans(), zero_row=st.booleans())
+def test_dense_fractional_objective_read_in_the_w_update_equals_the_objective_evaluated_apart(
+        seed, max_iter, loss_every, tol, update_H, beta, rule, masked, zero_row):
+    """Dense fits under a beta outside {0, 1, 2} read each recorded objective from the next W update, which forms
+    the product and its power beta - 1: the same iterates and stopping iteration as evaluating it apart, the same
+    objectives to rounding, each scikit-learn's beta-divergence of the factors it was recorded for. A row of zeros
+    drives its products below the update's floor, where the divergence is taken from the product as it is."""
+    from mmconcepts.nmf import _solver
+
+    rng = np.random.default_rng(seed)
+    X = rng.gamma(1.0, 1.0, (30, 25)) * (rng.random((30, 25)) < 0.7)
+    if zero_row:
+        X[3] = 0.0
+    mask = (rng.random(X.shape) < 0.8).astype(float) if masked else None
+    W0, H0 = rng.random((30, 4)) + 0.1, rng.random((4, 25)) + 0.1
+    if zero_row:
+        W0[3] = 1e-9  # its products start below the floor (float32's eps)
+    kw = dict(beta_loss=beta, init="custom", W=W0, H=H0, update_H=update_H, max_iter=max_iter, tol=tol,
+              loss_every=loss_every, update_rule=rule, mask=mask)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        original = _solver._Solver.objective_in_update
+        assert original(_solver._Solver(_solver.Problem(X, mask), beta, "mu", rule, (_solver.Penalty(),) * 2,
+                                        (None, None)))  # the path this test compares with the reference
+        try:
+            fused = beta_nmf(X, 4, **kw)
+            _solver._Solver.objective_in_update = lambda self: False  # type: ignore[method-assign]
+            apart = beta_nmf(X, 4, **kw)
+        finally:
+            _solver._Solver.objective_in_update = original  # type: ignore[method-assign]
+    assert (fused.n_iter, fused.converged) == (apart.n_iter, apart.converged)
+    np.testing.assert_array_equal(fused.loss_iterations, apart.loss_iterations)
+    np.testing.assert_array_equal(fused.W, apart.W)
+    np.testing.assert_array_equal(fused.H, apart.H)
+    np.testing.assert_allclose(fused.loss_history, apart.loss_history, rtol=1e-11)
+    if mask is None:
+        np.testing.assert_allclose(fused.extra["divergence"], _beta_divergence(X, fused.W, fused.H, beta),
+                                   rtol=1e-10)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), beta=st.sampled_from([0.5, 1.5, 2.5, 3.0]), masked=st.booleans(),
+       dtype=st.sampled_from([np.float64, np.float32]))
+def test_the_fractional_divergence_from_the_updates_power_is_the_divergence_without_its_terms_in_x(
+        seed, beta, masked, dtype):
+    """sum m (d_beta(x | y) - x^beta / (beta (beta - 1))) from y and y^(beta - 1): numpy's elementwise
+    divergence (thesis eq. 2.3), zeros of X and unobserved cells included."""
+    from mmconcepts.nmf import _kernels
+    from mmconcepts.nmf._beta import elementwise_beta_divergence
+
+    rng = np.random.default_rng(seed)
+    X = (rng.gamma(1.0, 1.0, (9, 7)) * (rng.random((9, 7)) < 0.6)).astype(dtype)
+    Y = (rng.gamma(1.0, 1.0, (9, 7)) + 1e-3).astype(dtype)
+    M = (rng.random((9, 7)) < 0.7).astype(dtype) if masked else np.empty((0, 0), dtype=dtype)
+    x, y = X.astype(np.float64), Y.astype(np.float64)
+    terms = elementwise_beta_divergence(x, y, beta) - x**beta / (beta * (beta - 1.0))
+    expected = float(np.sum(terms * (M if masked else 1.0)))
+    got = _kernels.fractional_divergence_from_power(X, Y, Y ** dtype(beta - 1.0), M, beta)
+    assert got == pytest.approx(expected, rel=1e-5 if dtype == np.float32 else 1e-12)
+
+
 @pytest.mark.parametrize("n", [1, 63, 64, 65, 300, 1000])
 def test_kl_update_sums_the_updated_factor_the_same_way_for_any_number_of_threads(rng, n):
     """The column sums the sparse I-divergence kernel adds while it updates L: those of numpy on the updated L (to

@@ -300,6 +300,40 @@ def dense_divergence(X, Y, M, beta, with_x=True):  # pragma: no cover - compiled
 
 
 @njit(parallel=False, **_OPTS)
+def fractional_divergence_from_power(X, Y, Yb1, M, beta):  # pragma: no cover - compiled
+    r"""sum_ij m_ij d_beta(X_ij | Y_ij) less the terms in X alone, from Y and Y^(beta - 1), in float64.
+
+    For beta outside {0, 1, 2} (thesis eq. 2.3), with y^beta = y y^(beta-1):
+
+    .. math:: d_\beta(x|y) - \frac{x^\beta}{\beta(\beta-1)} = y^{\beta-1}\Big(\frac{y}{\beta}
+              - \frac{x}{\beta-1}\Big)
+
+    ``Yb1`` is Y^(beta - 1) as the multiplicative update forms it; no power is taken here (the
+    value of :func:`dense_divergence` with ``with_x=False``, to rounding). A cell with x = 0 counts
+    y^beta / beta; ``M`` is an empty array when every cell is observed, and an unobserved cell
+    counts 0. Y must be positive where beta < 1 (as the update makes it, y >= eps).
+    """
+    n, m = X.shape
+    has_m = M.shape[0] > 0
+    a, c = 1.0 / beta, 1.0 / (beta - 1.0)
+    total = 0.0
+    for i in range(n):
+        for j in range(m):
+            w = 1.0
+            if has_m:
+                w = M[i, j]
+                if w == 0.0:
+                    continue
+            p = np.float64(Yb1[i, j])
+            d = p * (a * np.float64(Y[i, j]))
+            x = np.float64(X[i, j])
+            if x > 0.0:
+                d -= p * (c * x)
+            total += w * d
+    return total
+
+
+@njit(parallel=False, **_OPTS)
 def kl_log_ratio_pass(X, Y, M, out):  # pragma: no cover - compiled
     """The first pass of the I-divergence of a block: out <- x / y (1 where x = 0 or unobserved).
 

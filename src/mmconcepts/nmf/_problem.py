@@ -158,6 +158,8 @@ class Side:
     kept_numerator: tuple[np.ndarray, np.ndarray] | None = None  # ... as (R, a copy of it), for Problem.divergence
     x_terms: dict[float, float] = field(default_factory=dict)  # dense only: per beta, the divergence's terms in X
     # alone (beta outside {0, 1, 2}: sum m x^beta / (beta (beta - 1))), summed once
+    want_divergence: bool = False  # dense, beta outside {0, 1, 2}, float64: the next update also forms ...
+    found_divergence: float | None = None  # ... D_beta(X | L R^T) of the L it starts from (see _dense_nd)
 
     @property
     def sparse(self) -> bool:
@@ -257,8 +259,17 @@ class Side:
             _kernels.divide_clipped(X, Y, Y.dtype.type(EPSILON))
             Y *= M
             return rdot(Y), rdot(M)
+        # the divergence of L (wanted by the caller): from the powers the update forms where no cell is clipped
+        fused = self.want_divergence and beta not in (0.0, 1.0) and Y.dtype == np.float64
+        if fused and beta < 2.0 and not Y.min() >= EPSILON:  # a cell will be clipped: the divergence of Y as it is
+            self.found_divergence = self._x_terms(beta) + float(_kernels.dense_divergence(
+                X, Y, np.empty((0, 0), dtype=X.dtype) if M is None else M, beta, False))
+            fused = False
         np.maximum(Y, EPSILON if beta < 2.0 else 0.0, out=Y)
         Yb1 = Y ** (beta - 1.0)  # Y^(beta-1)
+        if fused:
+            self.found_divergence = self._x_terms(beta) + float(_kernels.fractional_divergence_from_power(
+                X, Y, Yb1, np.empty((0, 0), dtype=X.dtype) if M is None else M, beta))
         if beta == 0.0:
             Y = Yb1 * Yb1  # Y^-2
         elif beta < 2.0:  # Y >= eps > 0: Y^(beta-2) = Y^(beta-1) / Y, a division where a power costs ten times more
@@ -445,6 +456,17 @@ class Side:
                 P = np.where(M != 0, P * M, 0.0)  # an unobserved cell counts 0 even where x^beta is infinite
         return float(P.sum()) / (beta * (beta - 1.0))
 
+    def _x_terms(self, beta: float) -> float:
+        """sum m x^beta / (beta (beta - 1)) over a dense X (beta outside {0, 1, 2}), summed once per beta by the
+        divergence's blocks of rows."""
+        if beta not in self.x_terms:
+            X, M = self.X, self.mask
+            n, m = X.shape
+            b = max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
+            self.x_terms[beta] = sum(self._x_power_sum(X[s:s + b], None if M is None else M[s:s + b], beta)
+                                     for s in range(0, n, b))
+        return self.x_terms[beta]
+
     def _dense_divergence(self, L: np.ndarray, R: np.ndarray, beta: float) -> float:
         """D_beta of a dense X by blocks of its stored rows, each block of the product used while in cache.
 
@@ -467,12 +489,8 @@ class Side:
         empty = np.empty((0, 0), dtype=X.dtype)
         sums = [0.0] * n_stripes
         # fractional beta: the terms in X alone are the same at every evaluation, summed once
-        constant, fractional = 0.0, beta not in (0.0, 1.0, 2.0)
-        if fractional:
-            if beta not in self.x_terms:
-                self.x_terms[beta] = sum(self._x_power_sum(X[s:s + b], None if M is None else M[s:s + b], beta)
-                                         for s in starts)
-            constant = self.x_terms[beta]
+        fractional = beta not in (0.0, 1.0, 2.0)
+        constant = self._x_terms(beta) if fractional else 0.0
 
         def run(i: int, t: int) -> None:
             total = 0.0

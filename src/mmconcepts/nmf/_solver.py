@@ -89,15 +89,34 @@ class _Solver:
         return side.divergence(L, R, self.beta) + self.penalties[s].value(L)
 
     def objective_in_update(self) -> bool:
-        """Whether :meth:`update_W_with_objective` applies: W's multiplicative update under the I-divergence, W
-        unpenalised and unconstrained, X sparse and unmasked (the update forms every product the objective needs)."""
-        return (self.solver == "mu" and self.hoyer[0] is None
-                and sparse_kl_applies(self.problem.sides[0], self.beta, self.gamma, self.penalties[0]))
+        """Whether :meth:`update_W_with_objective` applies: W's multiplicative update, W unpenalised and
+        unconstrained, and either the I-divergence on a sparse, unmasked X (the update forms every product the
+        objective needs) or a beta outside {0, 1, 2} on a dense float64 X (the update forms Y and Y^(beta-1))."""
+        side, pen = self.problem.sides[0], self.penalties[0]
+        if self.solver != "mu" or self.hoyer[0] is not None:
+            return False
+        if sparse_kl_applies(side, self.beta, self.gamma, pen):
+            return True
+        return (not side.sparse and self.beta not in (0.0, 1.0, 2.0) and not (pen.l1 or pen.l2)
+                and self.problem.dtype == np.float64)
 
     def update_W_with_objective(self, W: np.ndarray, Ht: np.ndarray) -> float:
         """W's update in place (:meth:`update`); returns the objective of (W, Ht) before it, as :meth:`objective`
-        would (where :meth:`objective_in_update`)."""
-        self.last_divergence = self._sparse_kl(0, W, Ht, divergence=True)
+        would, to rounding (where :meth:`objective_in_update`)."""
+        side = self.problem.sides[0]
+        if side.sparse:
+            self.last_divergence = self._sparse_kl(0, W, Ht, divergence=True)
+        else:
+            side.want_divergence, side.found_divergence = True, None
+            try:
+                self.update(0, W, Ht)
+            finally:
+                side.want_divergence = False
+            found, side.found_divergence = side.found_divergence, None
+            if found is None:  # a W of another type than the problem's (not made by this module)
+                raise RuntimeError(f"W's update did not evaluate the divergence: W is {W.dtype}, the problem "
+                                   f"{self.problem.dtype}; expected both float64")
+            self.last_divergence = found
         return self.last_divergence + self.penalties[1].value(Ht)  # W is unpenalised
 
     def _sum(self, s: int, R: np.ndarray) -> np.ndarray | None:
