@@ -60,8 +60,10 @@ def measure(exp_id: str, args: argparse.Namespace) -> dict:
 
 def _records(output: Path, exp_id: str) -> dict[str, float | None]:
     """The wall time each of the experiment's records states, by data ("real", "synthetic")."""
+    from mmconcepts.engine.outputs import record_path
+
     out: dict[str, float | None] = {}
-    for path in [output / f"{exp_id}.json", *sorted((output / exp_id).glob("*.json"))]:
+    for path in (record_path(output, exp_id), record_path(output, exp_id, secondary=True)):
         try:
             record = json.loads(path.read_text())
         except (OSError, ValueError):
