@@ -6,6 +6,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mmconcepts.errors import DataError, ParameterError
 from mmconcepts.tasks import (
@@ -280,3 +282,32 @@ def test_bad_rewards_and_trajectories_are_refused(world):
         GradIRL().fit(world, [np.array([[0, 1]])])
     with pytest.raises(ParameterError, match="features"):
         GradIRL(np.zeros((3, 3))).fit(world, [[np.array([[0, 1]])]])
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), shape=st.sampled_from([(1, 4, 7), (3, 5, 2), (2, 1, 6), (4, 3, 3)]),
+       axis=st.sampled_from([0, 1, 2]), scale=st.sampled_from([1e-3, 1.0, 300.0]),
+       special=st.sampled_from(["none", "minus_inf", "all_minus_inf", "plus_inf"]))
+def test_the_soft_values_logsumexp_is_scipys(seed, shape, axis, scale, special):
+    """The log-sum-exp of the soft values: scipy's ``special.logsumexp`` to rounding, infinite entries included."""
+    from scipy.special import logsumexp as scipy_logsumexp
+
+    from mmconcepts.tasks.mdp import _logsumexp
+
+    rng = np.random.default_rng(seed)
+    Q = rng.normal(size=shape) * scale
+    if special == "minus_inf":
+        Q[rng.random(shape) < 0.3] = -np.inf
+    elif special == "all_minus_inf":  # one whole line along the axis
+        line = [int(rng.integers(n)) for n in shape]
+        line[axis] = slice(None)
+        Q[tuple(line)] = -np.inf
+    elif special == "plus_inf":
+        Q.flat[rng.integers(Q.size)] = np.inf
+    expected = scipy_logsumexp(Q, axis=axis)
+    got = _logsumexp(Q, axis)
+    assert got.shape == expected.shape
+    np.testing.assert_array_equal(np.isposinf(got), np.isposinf(expected))
+    np.testing.assert_array_equal(np.isneginf(got), np.isneginf(expected))
+    finite = np.isfinite(expected)
+    np.testing.assert_allclose(got[finite], expected[finite], rtol=1e-12, atol=1e-12 * scale)

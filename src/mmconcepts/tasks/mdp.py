@@ -24,7 +24,6 @@ import warnings
 from typing import Any
 
 import numpy as np
-from scipy.special import logsumexp
 
 from .._validation import InstanceOf, Interval, check_random_state, validate_params
 from ..errors import ConvergenceWarning, DataError, ParameterError
@@ -427,6 +426,29 @@ def policy_iteration_unchecked(mdp: MDP, rewards: Any, *, max_iter: int = 1000, 
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
 
 
+def _logsumexp(Q: np.ndarray, axis: int) -> np.ndarray:
+    """``log sum exp Q`` along ``axis``, shifted by the maximum (scipy's ``special.logsumexp`` to rounding).
+
+    Parameters
+    ----------
+    Q : ndarray
+        At least one entry along ``axis``; entries may be infinite.
+    axis : int
+
+    Returns
+    -------
+    ndarray
+        ``Q``'s shape without ``axis``: ``m + log sum exp(Q - m)`` with m the maximum along ``axis``
+        (0 where that maximum is infinite: -inf where every entry is -inf, inf where one is inf).
+        The soft values' inner loop calls it at every sweep on small arrays, where scipy's general
+        function costs several times the arithmetic (``benchmarks/mdp.py``).
+    """
+    m = Q.max(axis=axis, keepdims=True)
+    m = np.where(np.isfinite(m), m, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.exp(Q - m).sum(axis=axis)) + np.squeeze(m, axis)
+
+
 def soft_value_iteration(mdp: MDP, rewards: Any = None, *, tol: float = 1e-10, max_iter: int = 10_000,
                          init: Any = None) -> tuple[np.ndarray, np.ndarray]:
     """Soft (maximum causal entropy) values: ``V(s) = log sum_a exp Q(s, a)``, batched.
@@ -446,7 +468,7 @@ def soft_value_iteration_unchecked(mdp: MDP, rewards: Any, *, tol: float = 1e-10
     T, A, S = V.shape[0], mdp.n_actions, mdp.n_states
     for _ in range(max_iter):
         Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S)
-        V_new = logsumexp(Q, axis=1)
+        V_new = _logsumexp(Q, axis=1)
         delta = np.abs(V_new - V).max() if T else 0.0
         V = V_new
         if delta < tol:
@@ -455,7 +477,7 @@ def soft_value_iteration_unchecked(mdp: MDP, rewards: Any, *, tol: float = 1e-10
         warnings.warn(f"soft value iteration stopped after max_iter={max_iter} sweeps with change {delta:.3g}.",
                       ConvergenceWarning, stacklevel=3)
     Q = (RT + mdp.discount * (V @ Pf.T)).reshape(T, A, S).transpose(0, 2, 1)
-    V = logsumexp(Q, axis=2)
+    V = _logsumexp(Q, axis=2)
     return V.reshape(batch + (S,)), Q.reshape(batch + (S, A))
 
 
