@@ -139,6 +139,11 @@ class _StripeBuffers:
     # stripe 0 sums into num
 
 
+def _divergence_block_rows(n: int, m: int) -> int:
+    """Rows per block of a dense divergence (at least 16, about :data:`_DIVERGENCE_BLOCK_BYTES` of float64)."""
+    return max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
+
+
 @dataclass
 class Side:
     """Data for updating the left factor of X_side ~ L @ R.T."""
@@ -261,15 +266,15 @@ class Side:
             return rdot(Y), rdot(M)
         # the divergence of L (wanted by the caller): from the powers the update forms where no cell is clipped
         fused = self.want_divergence and beta not in (0.0, 1.0) and Y.dtype == np.float64
+        observed = M if M is not None or not fused else np.empty((0, 0), dtype=X.dtype)  # kernels: empty = every cell
         if fused and beta < 2.0 and not Y.min() >= EPSILON:  # a cell will be clipped: the divergence of Y as it is
-            self.found_divergence = self._x_terms(beta) + float(_kernels.dense_divergence(
-                X, Y, np.empty((0, 0), dtype=X.dtype) if M is None else M, beta, False))
+            self.found_divergence = self._x_terms(beta) + float(_kernels.dense_divergence(X, Y, observed, beta, False))
             fused = False
         np.maximum(Y, EPSILON if beta < 2.0 else 0.0, out=Y)
         Yb1 = Y ** (beta - 1.0)  # Y^(beta-1)
         if fused:
-            self.found_divergence = self._x_terms(beta) + float(_kernels.fractional_divergence_from_power(
-                X, Y, Yb1, np.empty((0, 0), dtype=X.dtype) if M is None else M, beta))
+            self.found_divergence = self._x_terms(beta) + float(
+                _kernels.fractional_divergence_from_power(X, Y, Yb1, observed, beta))
         if beta == 0.0:
             Y = Yb1 * Yb1  # Y^-2
         elif beta < 2.0:  # Y >= eps > 0: Y^(beta-2) = Y^(beta-1) / Y, a division where a power costs ten times more
@@ -461,10 +466,9 @@ class Side:
         divergence's blocks of rows."""
         if beta not in self.x_terms:
             X, M = self.X, self.mask
-            n, m = X.shape
-            b = max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
+            b = _divergence_block_rows(*X.shape)
             self.x_terms[beta] = sum(self._x_power_sum(X[s:s + b], None if M is None else M[s:s + b], beta)
-                                     for s in range(0, n, b))
+                                     for s in range(0, X.shape[0], b))
         return self.x_terms[beta]
 
     def _dense_divergence(self, L: np.ndarray, R: np.ndarray, beta: float) -> float:
@@ -478,7 +482,7 @@ class Side:
         """
         X, M = self.X, self.mask
         n, m = X.shape
-        b = max(16, min(n, _DIVERGENCE_BLOCK_BYTES // (8 * max(m, 1))))
+        b = _divergence_block_rows(n, m)
         starts = range(0, n, b)
         n_stripes = max(1, min(8, len(starts)))
         stripes = _stripe_starts(n, b, n_stripes)
