@@ -74,12 +74,9 @@ def _records(output: Path, exp_id: str) -> dict[str, float | None]:
 
 
 def _duration(seconds: float | None) -> str:
-    if seconds is None:
-        return "-"
-    s = int(round(seconds))
-    if s < 60:
-        return f"{s} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min" if s >= 3600 else f"{s // 60} min {s % 60:02d} s"
+    from mmconcepts.report._model import format_duration  # the report's own form of a run time
+
+    return "-" if seconds is None else format_duration(seconds)
 
 
 def _measured(output: Path) -> list[dict]:
