@@ -4,7 +4,8 @@ Runs ``mmconcepts reproduce --full --workers N --only ID --output OUTPUT`` (with
 each experiment on the real sets found there and on generated data) for each experiment in turn, each in a
 child process measured as ``/usr/bin/time`` measures it (``os.wait4``): the wall time, the CPU time (user +
 system) of the child and of the worker processes it waited for, and the peak resident memory of the largest of
-them. The wall time of each run (real data, generated data) is the one its result record states.
+them. The wall time of each run (real data, generated data) is the one its result record states when the child
+ends (kept with the measurement: a later run that rewrites the records does not change the table).
 
 Each child's measurement is appended to ``OUTPUT/timings.jsonl`` as it ends (its warnings and errors to
 ``OUTPUT/timings.log``), and an experiment measured there without error is not run again: run the same command
@@ -55,7 +56,7 @@ def measure(exp_id: str, args: argparse.Namespace) -> dict:
     return {"experiment": exp_id, "started_at": started, "wall_s": round(time.perf_counter() - t0, 3),
             "cpu_s": round(usage.ru_utime + usage.ru_stime, 3), "peak_rss_kb": int(usage.ru_maxrss),
             "returncode": child.returncode, "workers": args.workers, "preset": args.preset,
-            "data_root": bool(args.data_root)}
+            "data_root": bool(args.data_root), "records": _records(args.output, exp_id)}
 
 
 def _records(output: Path, exp_id: str) -> dict[str, float | None]:
@@ -94,7 +95,7 @@ def table(output: Path) -> str:
     totals = {"real": 0.0, "synthetic": 0.0, "wall": 0.0, "cpu": 0.0}
     peak = 0
     for exp_id, entry in last.items():
-        walls = _records(output, exp_id)
+        walls = entry["records"] if "records" in entry else _records(output, exp_id)
         note = "" if entry["returncode"] == 0 else f" (exit {entry['returncode']})"
         rows.append(f"| {exp_id}{note} | {_duration(walls.get('real'))} | {_duration(walls.get('synthetic'))} | "
                     f"{_duration(entry['wall_s'])} | {_duration(entry['cpu_s'])} | "
