@@ -12,7 +12,8 @@ Two measurements, each compared with a reference in the same run (ratios, not ti
     peak memory.
 ``scaling``
     The sparse KL case of ``benchmarks/nmf.py`` grown 10x (200 000 x 2 000, 1 % nonzeros,
-    k = 50), persisted on a ``LocalCluster`` (127.0.0.1, worker processes with one thread, numba
+    k = 50), persisted on a ``LocalCluster`` (the one ``--scheduler local:N`` starts,
+    ``mmconcepts.engine.cluster.local_cluster``: 127.0.0.1, worker processes with one thread, numba
     and BLAS on one thread) of 1 and of 2 workers, fitted in alternation ``--repeats`` times with
     the in-memory ``beta_nmf`` in this process (one thread) as the reference (``--clusters one``,
     the default: each fit on a cluster started for it alone and warmed up by a 2-iteration fit;
@@ -183,6 +184,7 @@ def case_scaling(args) -> dict:
     import dask.array as da
     import distributed
 
+    from mmconcepts.engine.cluster import local_cluster
     from mmconcepts.nmf import _dask as nd
     from mmconcepts.nmf import beta_nmf
 
@@ -215,8 +217,7 @@ def case_scaling(args) -> dict:
     clusters: dict = {}
 
     def start(w: int):
-        cluster = distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                           dashboard_address=":0", memory_limit="4GiB")
+        cluster = local_cluster(w, memory_limit="4GiB")  # the cluster `--scheduler local:N` starts
         return cluster, distributed.Client(cluster, set_as_default=False)
 
     def stop(pair) -> None:

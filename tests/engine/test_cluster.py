@@ -21,17 +21,15 @@ distributed = pytest.importorskip("distributed", reason="the dask extra (dask.di
 from mmconcepts.cli import main  # noqa: E402
 from mmconcepts.errors import ExperimentError, ParameterError  # noqa: E402
 from mmconcepts.experiments import RunContext, run_experiment  # noqa: E402
-from mmconcepts.engine.cluster import map_in_order, open_client, parse_scheduler  # noqa: E402
+from mmconcepts.engine.cluster import (LOCAL_CLUSTER_CONFIG, local_cluster, map_in_order, open_client,  # noqa: E402
+                                       parse_scheduler)
 
 pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture(scope="module")
 def client():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                           dashboard_address=None)
+    cluster = local_cluster(2)  # the cluster --scheduler local:2 starts
     with distributed.Client(cluster) as c:
         yield c
     cluster.close()
@@ -110,6 +108,35 @@ def test_cli_unreachable_scheduler_names_it(tmp_path, capsys, monkeypatch):
 
 
 # ------------------------------------------------------------------ RunContext.parallel on the cluster
+def _periodic(dask_worker=None, dask_scheduler=None) -> dict:
+    """The periodic callbacks of a worker or the scheduler, with their periods in ms, and its dask settings."""
+    import dask
+
+    server = dask_worker if dask_worker is not None else dask_scheduler
+    return dict(callbacks={k: pc.callback_time for k, pc in server.periodic_callbacks.items()},
+                config={k: dask.config.get(k) for k in LOCAL_CLUSTER_CONFIG})
+
+
+def test_the_local_cluster_runs_with_its_quiet_settings_and_leaves_the_callers(client):
+    """Each worker process and the scheduler started with LOCAL_CLUSTER_CONFIG (no sampling profiler, rarer ticks
+    and monitors), whatever this process's dask configuration, which stays as it was."""
+    import dask
+
+    before = {k: dask.config.get(k, None) for k in LOCAL_CLUSTER_CONFIG}
+    workers = client.run(_periodic)
+    assert len(workers) == 2
+    for seen in workers.values():
+        assert seen["config"] == LOCAL_CLUSTER_CONFIG
+        assert "profile" not in seen["callbacks"] and "profile-cycle" not in seen["callbacks"]
+        assert seen["callbacks"]["memory_monitor"] == 500
+        assert seen["callbacks"]["monitor"] == 2000
+        assert seen["callbacks"]["tick"] == 200
+    scheduler = client.run_on_scheduler(_periodic)
+    assert scheduler["callbacks"]["tick"] == 200 and scheduler["callbacks"]["monitor"] == 2000
+    assert {k: dask.config.get(k, None) for k in LOCAL_CLUSTER_CONFIG} == before
+    assert before["distributed.worker.profile.enabled"] is True  # distributed's default, untouched here
+
+
 def test_parallel_on_the_cluster_equals_the_loop_in_order_with_warnings(client):
     ctx = RunContext(client=client)
     seen: list[tuple[int, int]] = []

@@ -30,13 +30,27 @@ from typing import Any, TypeVar
 from .._optional import optional_import
 from ..errors import ExperimentError, ParameterError
 
-__all__ = ["parse_scheduler", "open_client", "map_in_order", "DEFAULT_CONNECT_TIMEOUT"]
+__all__ = ["parse_scheduler", "open_client", "local_cluster", "map_in_order", "DEFAULT_CONNECT_TIMEOUT",
+           "LOCAL_CLUSTER_CONFIG"]
 
 _T = TypeVar("_T")
 _R = TypeVar("_R")
 
 #: Seconds to wait for a remote scheduler before giving up.
 DEFAULT_CONNECT_TIMEOUT = 10.0
+
+#: The dask settings of the clusters :func:`local_cluster` starts (and so ``--scheduler local:N``): the periodic
+#: work of the cluster's own processes made rarer. With as many busy workers as cores, that work (the workers'
+#: sampling profiler every 10 ms, the event loops' tick every 20 ms, the system monitor every 0.5 s and the
+#: memory monitors every 0.1 s, distributed's defaults) takes its CPU from the tasks. Here the profiler (shown
+#: only on a dashboard, which these clusters do not open) is off, and the memory limits are checked every half
+#: second. A cluster started otherwise (``dask worker``) can be given the same settings in its dask configuration.
+LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "200ms",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "500ms",
+}
 
 _LOCAL = re.compile(r"^local:(\d+)$")
 _ADDRESS = re.compile(r"^(?:(tcp|tls|inproc|ucx|ws|wss)://)?([^\s/:]+|\[[0-9a-fA-F:]+\]):(\d{1,5})$")
@@ -86,12 +100,42 @@ def _distributed() -> Any:
     return optional_import("distributed", "dask", "a Dask cluster (--scheduler)")
 
 
+def local_cluster(n_workers: int, **kwargs: Any) -> Any:
+    """A ``distributed.LocalCluster`` of ``n_workers`` single-threaded worker processes on 127.0.0.1.
+
+    No dashboard, distributed's log messages below ERROR silenced, and the settings of
+    :data:`LOCAL_CLUSTER_CONFIG` (given to the scheduler, the nannies and the worker
+    processes when they start; the caller's dask configuration is left as it was).
+
+    Parameters
+    ----------
+    n_workers : int
+        Worker processes, each with one thread.
+    **kwargs
+        Passed on to ``LocalCluster`` (e.g. ``memory_limit``), over the defaults above.
+
+    Returns
+    -------
+    distributed.LocalCluster
+        Started; the caller closes it.
+    """
+    import dask
+
+    distributed = _distributed()
+    options: dict[str, Any] = dict(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+    options.update(kwargs)
+    with dask.config.set(LOCAL_CLUSTER_CONFIG), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # distributed's notes about ports and memory limits
+        return distributed.LocalCluster(**options)
+
+
 @contextlib.contextmanager
 def open_client(spec: str, *, timeout: float | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for ``spec`` (see :func:`parse_scheduler`), closed on exit.
 
     ``local:N`` starts a ``LocalCluster`` of N single-threaded worker processes listening
-    on 127.0.0.1 only, without a dashboard, and stops it on exit. ``timeout`` (seconds)
+    on 127.0.0.1 only, without a dashboard (:func:`local_cluster`), and stops it on exit. ``timeout`` (seconds)
     bounds the wait for a remote scheduler (default :data:`DEFAULT_CONNECT_TIMEOUT`).
 
     Raises
@@ -106,11 +150,7 @@ def open_client(spec: str, *, timeout: float | None = None) -> Iterator[Any]:
     timeout = DEFAULT_CONNECT_TIMEOUT if timeout is None else timeout
     distributed = _distributed()
     if kind == "local":
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # distributed's notes about ports and memory limits
-            cluster = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
-                                               host="127.0.0.1", dashboard_address=None,
-                                               silence_logs=logging.ERROR)
+        cluster = local_cluster(value)
         try:
             with distributed.Client(cluster) as client:
                 logger.info("started a local Dask cluster of %d worker(s) at %s", value, cluster.scheduler_address)

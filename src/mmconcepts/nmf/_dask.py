@@ -1933,14 +1933,15 @@ def _fit_loop_exchange(client, graph: _IterationGraph, sources, specs, W_refs, H
             if converged or q == max_iter:
                 break
         at_q = converged and q < max_iter
+        # H first: the client waits for it, and the first worker runs its tasks in the order they come
+        h_out = client.submit(_state_h, prev[0], at_q, key=f"{name}-H", workers=[hosts[0]], pure=False)
         W_out: list[Any] = [None] * len(specs)
         for j, h in enumerate(hosts):
             for r in plan.host_runs[j]:
                 for i, c in enumerate(plan.runs[r]):
                     W_out[c] = dask.delayed(client.submit(_state_w, prev[j], r, i, at_q, key=f"{name}-w-{c}",
                                                           workers=[h], pure=False))
-        Ht = np.asarray(client.submit(_state_h, prev[0], at_q, key=f"{name}-H", workers=[hosts[0]],
-                                      pure=False).result())
+        Ht = np.asarray(h_out.result())
     finally:
         if len(hosts) > 1:  # on the workers still there (connecting to one that left waits for a timeout)
             present = set(client.nthreads())
