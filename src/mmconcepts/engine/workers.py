@@ -142,7 +142,9 @@ def workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
 #: own guard against leaks is 300 MB). A run's workers keep what they load on purpose, from one
 #: task and one experiment to the next: the numba kernels, librosa, the text-to-speech voice
 #: (its size is in ``benchmarks/README.md``); at 300 MB loky kept replacing them, and each new
-#: worker imported and loaded all of it again.
+#: worker imported and loaded all of it again. loky measures a worker's memory only where psutil is
+#: installed (it comes with the ``dask`` and ``dev`` extras, not with ``all``): without it, loky
+#: replaces no worker, whatever its memory.
 WORKER_MEMORY_GROWTH = 2**30
 
 
