@@ -16,6 +16,16 @@ this process, so calls after the first cost nothing more. It hooks numba's
 ``Dispatcher._compile_for_args`` (what a call runs when no compiled version matches); with a
 numba that does not have it, kernels compile as plain ``numba.njit`` would.
 
+Some kernels take seconds to compile, and the process that compiles them keeps several hundred
+MB of the compiler's data for as long as it lives (numba keeps each compiled function's LLVM
+module, to link it into later kernels); a worker process that compiled them stays that much
+larger than one that loaded them from the cache. Those kernels are made with
+``njit(compile_apart=True)``: when a process must compile one of them (its argument types are
+neither compiled in the process nor in numba's disk cache), a short-lived child process
+(:data:`sys.executable`) imports the kernel's module, compiles it for those types and writes
+numba's cache, and the process then loads it from the cache. The child costs its imports
+(about two seconds); where it cannot run or fails, the process compiles the kernel itself.
+
 Compiling takes long the first time (a fresh install, an emptied cache), so the first
 process that has to compile says so on stderr, once (:data:`COMPILE_NOTICE`): when numba
 starts compiling (its ``numba:compile`` event) one of these kernels, or librosa's kernels in a
@@ -45,7 +55,8 @@ from numba.core import event as nb_event
 from ._io import folder_lock
 from ._progress import QUIET_ENV
 
-__all__ = ["COMPILE_NOTICE", "njit", "lock_file", "first_use", "notice_compilation", "single_threaded"]
+__all__ = ["COMPILE_NOTICE", "compile_in_child", "compiles_apart", "first_use", "in_disk_cache", "lock_file", "njit", "notice_compilation",
+           "single_threaded"]
 
 #: What a process prints on stderr when it starts compiling (once; see the module docstring).
 COMPILE_NOTICE = ("mmconcepts: compiling numerical kernels on their first use (about a minute in all, once per "
@@ -78,7 +89,7 @@ def lock_file(dispatcher: Any) -> Path:
     return _lock_dir() / f"{func.__module__}.{func.__qualname__}.{where}.lock"
 
 
-def _shared(dispatcher: Any) -> Any:
+def _shared(dispatcher: Any, apart: bool = False) -> Any:
     compile_for_args = getattr(dispatcher, "_compile_for_args", None)
     if compile_for_args is None:  # pragma: no cover - a numba without the hook
         return dispatcher
@@ -91,13 +102,21 @@ def _shared(dispatcher: Any) -> Any:
                 stack.enter_context(folder_lock(path.parent, path.name))
             # numba looks in its disk cache before compiling: filled by whoever held the lock before
             with _noticing():
+                if apart and not kws:
+                    compile_in_child(dispatcher, args)
                 return compile_for_args(*args, **kws)
 
     dispatcher._compile_for_args = locked
+    locked.compile_apart = apart  # type: ignore[attr-defined]
     return dispatcher
 
 
-def njit(*args: Any, **options: Any) -> Any:
+def compiles_apart(dispatcher: Any) -> bool:
+    """Whether ``dispatcher`` was made with ``njit(cache=True, compile_apart=True)``."""
+    return bool(getattr(vars(dispatcher).get("_compile_for_args"), "compile_apart", False))
+
+
+def njit(*args: Any, compile_apart: bool = False, **options: Any) -> Any:
     """``numba.njit`` whose compilation, when ``cache=True``, is shared between processes.
 
     Used as ``@njit(**options)`` or ``@njit``, exactly as ``numba.njit``. With
@@ -109,13 +128,111 @@ def njit(*args: Any, **options: Any) -> Any:
     ----------
     *args, **options
         Those of ``numba.njit``.
+    compile_apart : bool, default False
+        With ``cache=True``: compile new argument types in a short-lived child process,
+        which writes numba's disk cache, and load the code from there
+        (:func:`compile_in_child`), so that the calling process does not keep the compiler's
+        memory. For kernels that are called from Python and take seconds to compile; the
+        kernels they call are compiled with them. A kernel must be an attribute of its module
+        (``module.qualname``) for the child to find it.
     """
-    if len(args) == 1 and callable(args[0]) and not options:
+    if len(args) == 1 and callable(args[0]) and not options and not compile_apart:
         return nb.njit(args[0])
     decorate: Callable[[Any], Any] = nb.njit(*args, **options)
     if not options.get("cache", False):
         return decorate
-    return lambda func: _shared(decorate(func))
+    return lambda func: _shared(decorate(func), compile_apart)
+
+
+def _argument_types(dispatcher: Any, args: tuple[Any, ...]) -> tuple[Any, ...]:
+    """The numba types ``dispatcher`` compiles a call with ``args`` for (as its ``_compile_for_args`` types them)."""
+    from numba.core import types
+    from numba.core.dispatcher import OmittedArg
+
+    return tuple(types.Omitted(a.value) if isinstance(a, OmittedArg) else dispatcher.typeof_pyval(a) for a in args)
+
+
+def in_disk_cache(dispatcher: Any, argtypes: tuple[Any, ...]) -> bool | None:
+    """Whether numba's disk cache holds ``dispatcher`` compiled for ``argtypes`` (None: cannot tell).
+
+    Reads the cache's index as numba does before it loads an overload (the index key of the
+    types and the machine, under the source file's stamp), without loading the code.
+
+    Parameters
+    ----------
+    dispatcher : numba.core.registry.CPUDispatcher
+        A kernel made with ``cache=True``.
+    argtypes : tuple of numba types
+        The types of a call's arguments.
+    """
+    try:
+        cache = dispatcher._cache
+        if not cache._enabled:
+            return None
+        dispatcher.targetctx.refresh()
+        key = cache._index_key(tuple(argtypes), dispatcher.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001 - numba's private layout changed, or an unreadable index: cannot tell
+        return None
+
+
+def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
+    """Compile ``dispatcher`` for the types of ``args`` in a child process that writes numba's disk cache.
+
+    Does nothing when the disk cache already holds those types, or when it cannot tell. The
+    child is ``sys.executable`` with this process's ``sys.path`` and numba cache folder; it
+    imports the kernel's module, compiles (printing :data:`COMPILE_NOTICE` as a compiling
+    process does) and ends. The caller then loads the code from the cache; if the child
+    could not write it (it failed, or could not start), the caller compiles the kernel itself,
+    which also raises numba's own error for arguments it cannot type.
+
+    Parameters
+    ----------
+    dispatcher : numba.core.registry.CPUDispatcher
+        A kernel made with ``cache=True``, an attribute of its module.
+    args : tuple
+        The arguments of the call that needs the kernel.
+
+    Returns
+    -------
+    bool
+        Whether a child compiled the kernel and the disk cache now holds it.
+    """
+    import pickle
+    import subprocess
+
+    try:
+        argtypes = _argument_types(dispatcher, args)
+        if in_disk_cache(dispatcher, argtypes) is not False or not sys.executable:
+            return False
+        func = dispatcher.py_func
+        payload = pickle.dumps((list(sys.path), func.__module__, func.__qualname__, argtypes))
+    except Exception:  # noqa: BLE001 - types numba cannot pickle: the caller compiles
+        return False
+    env = dict(os.environ)
+    cache_dir = getattr(nb.config, "CACHE_DIR", "")  # set by NUMBA_CACHE_DIR, or in this process
+    if cache_dir:
+        env["NUMBA_CACHE_DIR"] = str(cache_dir)
+    try:
+        done = subprocess.run([sys.executable, "-c", "from mmconcepts._jit import _child_main; _child_main()"],
+                              input=payload, stdout=subprocess.DEVNULL, env=env, check=False)
+    except OSError:
+        return False
+    return done.returncode == 0 and in_disk_cache(dispatcher, argtypes) is True
+
+
+def _child_main() -> None:
+    """The child of :func:`compile_in_child`: read ``(sys.path, module, qualname, types)`` from stdin, compile."""
+    import importlib
+    import pickle
+
+    path, module, qualname, argtypes = pickle.loads(sys.stdin.buffer.read())
+    sys.path[:] = path
+    kernel: Any = importlib.import_module(module)
+    for name in qualname.split("."):
+        kernel = getattr(kernel, name)
+    with _noticing():
+        kernel.compile(tuple(argtypes))
 
 
 _FIRST_USES: set[str] = set()

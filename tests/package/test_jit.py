@@ -34,6 +34,14 @@ MODULE = textwrap.dedent("""
     @njit(nogil=True)
     def uncached(x):
         return x - 1.0
+
+    @njit(cache=True, compile_apart=True)
+    def apart(x):
+        return inner(x) * 3.0
+
+    @njit(cache=True, compile_apart=True)
+    def untypable(x):
+        return x.no_such_attribute
 """)
 
 CHILD = textwrap.dedent("""
@@ -315,3 +323,63 @@ def test_a_second_process_never_compiles(tmp_path):
         assert code in ("0", "None"), child.stdout
         counts.append(int(compiled))
     assert counts[0] > 0 and counts[1] == 0, counts
+
+
+def _compiled_here(kernel):
+    return sum(kernel.stats.cache_misses.values()), sum(kernel.stats.cache_hits.values())
+
+
+def test_a_kernel_compiled_apart_is_compiled_by_a_child_and_loaded_from_the_cache(jitmod, notice, capfd):
+    mod, _, _ = jitmod
+    with numba.core.event.install_recorder("numba:compile") as compiled:
+        assert mod.apart(1.5) == 9.0
+    assert _compiled_here(mod.apart) == (0, 1)  # no compilation in this process: loaded from the cache
+    assert not [e for e in compiled.buffer if getattr(e[1].data.get("dispatcher"), "py_func", None) is mod.apart.py_func]
+    assert capfd.readouterr().err.count(_jit.COMPILE_NOTICE) == 1  # the child says it compiles
+    assert mod.apart(np.float32(1.0)) == 6.0  # new types: a child again
+    assert _compiled_here(mod.apart) == (0, 2)
+    assert mod.apart(2.0) == mod.apart.py_func(2.0) == 12.0
+
+
+def test_no_child_when_the_cache_holds_the_types(jitmod, monkeypatch):
+    mod, _, _ = jitmod
+    mod.apart(1.5)
+    sys.modules.pop("jitmod")
+    again = importlib.import_module("jitmod")  # new dispatchers, the same disk cache
+    assert _jit.in_disk_cache(again.apart, (numba.float64,)) is True
+    assert _jit.in_disk_cache(again.apart, (numba.int16,)) is False
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: pytest.fail("a child was started"))
+    assert again.apart(1.5) == 9.0
+    assert _compiled_here(again.apart) == (0, 1)
+
+
+def test_where_no_child_can_run_the_process_compiles_itself(jitmod, monkeypatch):
+    mod, _, _ = jitmod
+    monkeypatch.setattr(sys, "executable", "")
+    assert _jit.compile_in_child(mod.apart, (1.5,)) is False
+    assert mod.apart(1.5) == 9.0
+    assert _compiled_here(mod.apart) == (1, 0)
+
+
+def test_a_failed_child_leaves_numba_s_own_error_to_the_caller(jitmod):
+    mod, _, _ = jitmod
+    assert _jit.compile_in_child(mod.untypable, (1.5,)) is False
+    with pytest.raises(numba.core.errors.TypingError, match="no_such_attribute"):
+        mod.untypable(1.5)
+
+
+def test_whether_the_cache_holds_a_kernel_without_a_cache_cannot_be_told(jitmod):
+    mod, _, _ = jitmod
+    assert _jit.in_disk_cache(mod.uncached, (numba.float64,)) is None
+
+
+def test_the_package_kernels_that_compile_longest_compile_apart():
+    """The cluster tree's, DTW's and the sparse NMF kernels called from Python: each a child's work, once."""
+    from mmconcepts.nmf import _kernels
+    from mmconcepts.sound import dtw, tree
+
+    apart = {f"{m.__name__}.{name}" for m in (_kernels, tree, dtw) for name, value in vars(m).items()
+             if isinstance(value, numba.core.registry.CPUDispatcher) and _jit.compiles_apart(value)}
+    assert apart == {"mmconcepts.sound.tree._search_batch", "mmconcepts.sound.tree._insert_batch",
+                     "mmconcepts.sound.tree._kmeans", "mmconcepts.sound.dtw._pairs_serial",
+                     "mmconcepts.nmf._kernels._mu_numerator", "mmconcepts.nmf._kernels._lowrank_at_nonzeros"}

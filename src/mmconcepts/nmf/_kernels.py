@@ -136,7 +136,7 @@ def _row_dot(L, i, R, j, k):  # pragma: no cover - compiled
     return acc
 
 
-@njit(parallel=True, **_OPTS)
+@njit(parallel=True, compile_apart=True, **_OPTS)
 def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: no cover - compiled
     n = indptr.shape[0] - 1
     m, k = R.shape[0], L.shape[1]
@@ -158,7 +158,7 @@ def _lowrank_at_nonzeros(indptr, indices, L, R, out, groups, tile):  # pragma: n
 _OPTS_ORDERED: dict[str, Any] = dict(_OPTS, fastmath={"contract"})
 
 
-@njit(parallel=True, **_OPTS_ORDERED)
+@njit(parallel=True, compile_apart=True, **_OPTS_ORDERED)
 def _mu_numerator(indptr, indices, data, weights, L, R, beta, eps, tiny, out, den, groups, tile, factors,  # pragma: no cover
                   ratios, sums):
     # Two passes over each row's entries in a tile: their factors e_p first (a dot product each,

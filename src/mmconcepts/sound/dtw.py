@@ -375,7 +375,7 @@ def _prepare(A, a_off, B, b_off):  # pragma: no cover - compiled
     return BI, g_off, lengths
 
 
-@njit(parallel=False, **_OPTS)
+@njit(parallel=False, compile_apart=True, **_OPTS)
 def _pairs_serial(A, a_off, B, b_off, rperm, cperm, symmetric, radius, squared, out):  # pragma: no cover
     BI, g_off, lengths = _prepare(A, a_off, B, b_off)
     U = _n_units(a_off.shape[0] - 1, g_off.shape[0] - 1, symmetric)

@@ -319,7 +319,7 @@ def _query_one(q, metric, T, mode, b, path_priority, center, child, nchild, leaf
                        hp, hn, hs, dbuf, cand)
 
 
-@njit(**_OPTS)
+@njit(compile_apart=True, **_OPTS)
 def _search_batch(Q, metric, T, mode, b, path_priority, center, child, nchild, leaf_of, node_of_leaf, n_nodes,
                   n_leaves, out_node, out_d, out_n):  # pragma: no cover - compiled
     """:func:`_search_one` for every row of ``Q``."""
@@ -362,7 +362,7 @@ def _new_leaf(father, x, parent, child, nchild, sums, count, center, leaf_of, no
     return new
 
 
-@njit(**_OPTS)
+@njit(compile_apart=True, **_OPTS)
 def _insert_batch(X, start, metric, T, r_max, n_max, parent, child, nchild, sums, count, center, leaf_of,
                   node_of_leaf, n_nodes, n_leaves, out):  # pragma: no cover - compiled
     """Thesis Algorithm 1 for rows ``start, start + 1, ...`` of ``X`` (metric as :func:`_search_one`).
@@ -404,7 +404,7 @@ def _insert_batch(X, start, metric, T, r_max, n_max, parent, child, nchild, sums
     return X.shape[0], n_nodes, n_leaves, -1
 
 
-@njit(**_OPTS)
+@njit(compile_apart=True, **_OPTS)
 def _kmeans(P, k, u, max_iter):  # pragma: no cover - compiled
     """Thesis Algorithm 2 on the rows of ``P``: greedy k-means++ seeding (as scikit-learn:
     each new centre is the best of ``u.shape[2]`` candidates drawn with probability
