@@ -55,8 +55,8 @@ from numba.core import event as nb_event
 from ._io import folder_lock
 from ._progress import QUIET_ENV
 
-__all__ = ["COMPILE_NOTICE", "compile_in_child", "compiles_apart", "first_use", "in_disk_cache", "lock_file", "njit", "notice_compilation",
-           "single_threaded"]
+__all__ = ["COMPILE_NOTICE", "compile_in_child", "compiles_apart", "first_use", "in_disk_cache", "lock_file", "njit",
+           "notice_compilation", "single_threaded"]
 
 #: What a process prints on stderr when it starts compiling (once; see the module docstring).
 COMPILE_NOTICE = ("mmconcepts: compiling numerical kernels on their first use (about a minute in all, once per "
@@ -206,7 +206,8 @@ def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
         if in_disk_cache(dispatcher, argtypes) is not False or not sys.executable:
             return False
         func = dispatcher.py_func
-        payload = pickle.dumps((list(sys.path), func.__module__, func.__qualname__, argtypes))
+        # the path first: the child finds this package (and numba, to read the types) where this process does
+        payload = pickle.dumps(list(sys.path)) + pickle.dumps((func.__module__, func.__qualname__, argtypes))
     except Exception:  # noqa: BLE001 - types numba cannot pickle: the caller compiles
         return False
     env = dict(os.environ)
@@ -214,25 +215,35 @@ def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
     if cache_dir:
         env["NUMBA_CACHE_DIR"] = str(cache_dir)
     try:
-        done = subprocess.run([sys.executable, "-c", "from mmconcepts._jit import _child_main; _child_main()"],
-                              input=payload, stdout=subprocess.DEVNULL, env=env, check=False)
+        done = subprocess.run([sys.executable, "-c", _CHILD], input=payload, stdout=subprocess.DEVNULL, env=env,
+                              check=False)
     except OSError:
         return False
     return done.returncode == 0 and in_disk_cache(dispatcher, argtypes) is True
 
 
-def _child_main() -> None:
-    """The child of :func:`compile_in_child`: read ``(sys.path, module, qualname, types)`` from stdin, compile."""
+_CHILD = ("import pickle, sys; sys.path[:] = pickle.load(sys.stdin.buffer); "
+          "from mmconcepts._jit import _child_main; _child_main(sys.stdin.buffer)")
+
+
+def _child_main(stream: Any) -> None:
+    """The child of :func:`compile_in_child`: read ``(module, qualname, types)`` from ``stream`` and compile.
+
+    Ends with exit status 1, silently, when the kernel cannot be compiled: the caller then
+    compiles it itself and raises numba's error, once.
+    """
     import importlib
     import pickle
 
-    path, module, qualname, argtypes = pickle.loads(sys.stdin.buffer.read())
-    sys.path[:] = path
-    kernel: Any = importlib.import_module(module)
-    for name in qualname.split("."):
-        kernel = getattr(kernel, name)
-    with _noticing():
-        kernel.compile(tuple(argtypes))
+    try:
+        module, qualname, argtypes = pickle.load(stream)
+        kernel: Any = importlib.import_module(module)
+        for name in qualname.split("."):
+            kernel = getattr(kernel, name)
+        with _noticing():
+            kernel.compile(tuple(argtypes))
+    except Exception:  # noqa: BLE001 - reported by the caller's own compilation
+        sys.exit(1)
 
 
 _FIRST_USES: set[str] = set()
