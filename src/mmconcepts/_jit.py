@@ -24,7 +24,9 @@ larger than one that loaded them from the cache. Those kernels are made with
 neither compiled in the process nor in numba's disk cache), a short-lived child process
 (:data:`sys.executable`) imports the kernel's module, compiles it for those types and writes
 numba's cache, and the process then loads it from the cache. The child costs its imports
-(about two seconds); where it cannot run or fails, the process compiles the kernel itself.
+(about two seconds); where it cannot run, fails or takes longer than :data:`CHILD_TIMEOUT`, the
+process compiles the kernel itself. In the child, kernels compile in place, without the lock
+(which its caller holds) and without children of their own.
 
 Compiling takes long the first time (a fresh install, an emptied cache), so the first
 process that has to compile says so on stderr, once (:data:`COMPILE_NOTICE`): when numba
@@ -55,8 +57,8 @@ from numba.core import event as nb_event
 from ._io import folder_lock
 from ._progress import QUIET_ENV
 
-__all__ = ["COMPILE_NOTICE", "compile_in_child", "compiles_apart", "first_use", "in_disk_cache", "lock_file", "njit",
-           "notice_compilation", "single_threaded"]
+__all__ = ["CHILD_TIMEOUT", "COMPILE_NOTICE", "compile_in_child", "compiles_apart", "first_use", "in_disk_cache",
+           "lock_file", "njit", "notice_compilation", "single_threaded"]
 
 #: What a process prints on stderr when it starts compiling (once; see the module docstring).
 COMPILE_NOTICE = ("mmconcepts: compiling numerical kernels on their first use (about a minute in all, once per "
@@ -106,8 +108,14 @@ def _shared(dispatcher: Any, apart: bool = False) -> Any:
                     compile_in_child(dispatcher, args)
                 return compile_for_args(*args, **kws)
 
-    dispatcher._compile_for_args = locked
-    locked.compile_apart = apart  # type: ignore[attr-defined]
+    @functools.wraps(compile_for_args)
+    def dispatch(*args: Any, **kws: Any) -> Any:
+        if _IN_CHILD:  # a compiling child: its caller holds the lock, and the child compiles everything itself
+            return compile_for_args(*args, **kws)
+        return locked(*args, **kws)
+
+    dispatcher._compile_for_args = dispatch
+    dispatch.compile_apart = apart  # type: ignore[attr-defined]
     return dispatcher
 
 
@@ -216,11 +224,18 @@ def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
         env["NUMBA_CACHE_DIR"] = str(cache_dir)
     try:
         done = subprocess.run([sys.executable, "-c", _CHILD], input=payload, stdout=subprocess.DEVNULL, env=env,
-                              check=False)
-    except OSError:
+                              check=False, timeout=CHILD_TIMEOUT)
+    except (OSError, subprocess.TimeoutExpired):
         return False
     return done.returncode == 0 and in_disk_cache(dispatcher, argtypes) is True
 
+
+#: How long a caller of :func:`compile_in_child` waits for its child (seconds) before it ends it and compiles the
+#: kernel itself: the slowest kernel takes well under a minute to compile.
+CHILD_TIMEOUT = 600.0
+
+#: Whether this process is a child of :func:`compile_in_child` (set by :func:`_child_main`).
+_IN_CHILD = False
 
 _CHILD = ("import pickle, sys; sys.path[:] = pickle.load(sys.stdin.buffer); "
           "from mmconcepts._jit import _child_main; _child_main(sys.stdin.buffer)")
@@ -235,6 +250,8 @@ def _child_main(stream: Any) -> None:
     import importlib
     import pickle
 
+    global _IN_CHILD
+    _IN_CHILD = True  # a kernel the module calls as it is imported compiles here, without the caller's lock
     try:
         module, qualname, argtypes = pickle.load(stream)
         kernel: Any = importlib.import_module(module)

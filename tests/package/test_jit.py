@@ -384,3 +384,29 @@ def test_the_package_kernels_that_compile_longest_compile_apart():
     assert apart == {"mmconcepts.sound.tree._search_batch", "mmconcepts.sound.tree._insert_batch",
                      "mmconcepts.sound.tree._kmeans", "mmconcepts.sound.dtw._pairs_serial",
                      "mmconcepts.nmf._kernels._mu_numerator", "mmconcepts.nmf._kernels._lowrank_at_nonzeros"}
+
+
+EAGER = textwrap.dedent("""
+    from mmconcepts._jit import njit
+
+    @njit(cache=True, compile_apart=True)
+    def eager(x):
+        return x + 1.0
+
+    WARM = eager(1.0)  # called as the module is imported: in the compiling child too
+""")
+
+
+@pytest.mark.timeout(300)
+def test_a_kernel_called_at_import_compiles_apart_without_waiting_for_its_own_lock(tmp_path):
+    """The child imports the kernel's module; a kernel called there must not wait for the lock its caller holds."""
+    (tmp_path / "eagermod.py").write_text(EAGER)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), MMCONCEPTS_DATA=str(tmp_path / "data"),
+               MMCONCEPTS_QUIET="1")
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import eagermod; "
+            "print(eagermod.WARM, *(sum(v.values()) for v in (eagermod.eager.stats.cache_misses, "
+            "eagermod.eager.stats.cache_hits)))")
+    child = subprocess.run([sys.executable, "-c", code, str(tmp_path)], env=env, text=True, capture_output=True,
+                           timeout=240)
+    assert child.returncode == 0, child.stderr
+    assert child.stdout.split() == ["2.0", "0", "1"]  # compiled by the child, loaded from the cache
