@@ -334,7 +334,8 @@ def test_a_kernel_compiled_apart_is_compiled_by_a_child_and_loaded_from_the_cach
     with numba.core.event.install_recorder("numba:compile") as compiled:
         assert mod.apart(1.5) == 9.0
     assert _compiled_here(mod.apart) == (0, 1)  # no compilation in this process: loaded from the cache
-    assert not [e for e in compiled.buffer if getattr(e[1].data.get("dispatcher"), "py_func", None) is mod.apart.py_func]
+    here = [e for e in compiled.buffer if getattr(e[1].data.get("dispatcher"), "py_func", None) is mod.apart.py_func]
+    assert not here
     assert capfd.readouterr().err.count(_jit.COMPILE_NOTICE) == 1  # the child says it compiles
     assert mod.apart(np.float32(1.0)) == 6.0  # new types: a child again
     assert _compiled_here(mod.apart) == (0, 2)
