@@ -16,7 +16,7 @@ this process, so calls after the first cost nothing more. It hooks numba's
 ``Dispatcher._compile_for_args`` (what a call runs when no compiled version matches); with a
 numba that does not have it, kernels compile as plain ``numba.njit`` would.
 
-Some kernels take seconds to compile, and the process that compiles them keeps several hundred
+Some kernels take seconds to compile, and the process that compiles them keeps 100 to 250
 MB of the compiler's data for as long as it lives (numba keeps each compiled function's LLVM
 module, to link it into later kernels); a worker process that compiled them stays that much
 larger than one that loaded them from the cache. Those kernels are made with
