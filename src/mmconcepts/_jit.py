@@ -16,17 +16,17 @@ this process, so calls after the first cost nothing more. It hooks numba's
 ``Dispatcher._compile_for_args`` (what a call runs when no compiled version matches); with a
 numba that does not have it, kernels compile as plain ``numba.njit`` would.
 
-Some kernels take seconds to compile, and the process that compiles them keeps 100 to 250
-MB of the compiler's data for as long as it lives (numba keeps each compiled function's LLVM
-module, to link it into later kernels); a worker process that compiled them stays that much
-larger than one that loaded them from the cache. Those kernels are made with
-``njit(compile_apart=True)``: when a process must compile one of them (its argument types are
-neither compiled in the process nor in numba's disk cache), a short-lived child process
-(:data:`sys.executable`) imports the kernel's module, compiles it for those types and writes
-numba's cache, and the process then loads it from the cache. The child costs its imports
-(about two seconds); where it cannot run, fails or takes longer than :data:`CHILD_TIMEOUT`, the
-process compiles the kernel itself. In the child, kernels compile in place, without the lock
-(which its caller holds) and without children of their own.
+Some kernels take long to compile, and the process that compiles them keeps the compiler's
+data for as long as it lives (numba keeps each compiled function's LLVM module, to link it
+into later kernels); a worker process that compiled them stays that much larger than one
+that loaded them from the cache (the sizes are in ``benchmarks/README.md``). Those kernels
+are made with ``njit(compile_apart=True)``: when a process must compile one of them (its
+argument types are neither compiled in the process nor in numba's disk cache), a short-lived
+child process (:data:`sys.executable`) imports the kernel's module, compiles it for those
+types and writes numba's cache, and the process then loads it from the cache. The child
+costs its imports; where it cannot run, fails or takes longer than :data:`CHILD_TIMEOUT`,
+the process compiles the kernel itself. In the child, kernels compile in place, without the
+lock (which its caller holds) and without children of their own.
 
 Compiling takes long the first time (a fresh install, an emptied cache), so the first
 process that has to compile says so on stderr, once (:data:`COMPILE_NOTICE`): when numba
@@ -140,7 +140,7 @@ def njit(*args: Any, compile_apart: bool = False, **options: Any) -> Any:
         With ``cache=True``: compile new argument types in a short-lived child process,
         which writes numba's disk cache, and load the code from there
         (:func:`compile_in_child`), so that the calling process does not keep the compiler's
-        memory. For kernels that are called from Python and take seconds to compile; the
+        memory. For kernels that are called from Python and take long to compile; the
         kernels they call are compiled with them. A kernel must be an attribute of its module
         (``module.qualname``) for the child to find it.
     """
@@ -231,7 +231,7 @@ def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
 
 
 #: How long a caller of :func:`compile_in_child` waits for its child (seconds) before it ends it and compiles the
-#: kernel itself: the slowest kernel takes well under a minute to compile.
+#: kernel itself: far longer than the slowest kernel takes to compile.
 CHILD_TIMEOUT = 600.0
 
 #: Whether this process is a child of :func:`compile_in_child` (set by :func:`_child_main`).
