@@ -98,6 +98,8 @@ def _shared(dispatcher: Any, apart: bool = False) -> Any:
 
     @functools.wraps(compile_for_args)
     def locked(*args: Any, **kws: Any) -> Any:
+        if _IN_CHILD:  # a compiling child: its caller holds the lock, and the child compiles everything itself
+            return compile_for_args(*args, **kws)
         path = lock_file(dispatcher)
         with contextlib.ExitStack() as stack:
             with contextlib.suppress(OSError):  # no writable cache folder: compile unlocked
@@ -108,14 +110,8 @@ def _shared(dispatcher: Any, apart: bool = False) -> Any:
                     compile_in_child(dispatcher, args)
                 return compile_for_args(*args, **kws)
 
-    @functools.wraps(compile_for_args)
-    def dispatch(*args: Any, **kws: Any) -> Any:
-        if _IN_CHILD:  # a compiling child: its caller holds the lock, and the child compiles everything itself
-            return compile_for_args(*args, **kws)
-        return locked(*args, **kws)
-
-    dispatcher._compile_for_args = dispatch
-    dispatch.compile_apart = apart  # type: ignore[attr-defined]
+    dispatcher._compile_for_args = locked
+    locked.compile_apart = apart  # type: ignore[attr-defined]
     return dispatcher
 
 
