@@ -67,6 +67,12 @@ def _no_data_root_from_the_environment(monkeypatch):
     monkeypatch.delenv("MMCONCEPTS_DATA_ROOT", raising=False)
 
 
+@pytest.fixture(autouse=True)
+def _no_background_warm_up(monkeypatch):
+    """``reproduce --concurrent`` in a test starts no kernel warm-up (tests/package/test_warmup.py starts it)."""
+    monkeypatch.setenv("MMCONCEPTS_WARMUP", "0")
+
+
 @pytest.fixture(scope="session")
 def data_root() -> Path:
     """The data root holding the real sets (skips the test when there is none)."""

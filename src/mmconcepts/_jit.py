@@ -58,7 +58,7 @@ from ._io import folder_lock
 from ._progress import QUIET_ENV
 
 __all__ = ["CHILD_TIMEOUT", "COMPILE_NOTICE", "compile_in_child", "compiles_apart", "first_use", "in_disk_cache",
-           "lock_file", "njit", "notice_compilation", "single_threaded"]
+           "lock_dir", "lock_file", "njit", "notice_compilation", "single_threaded"]
 
 #: What a process prints on stderr when it starts compiling (once; see the module docstring).
 COMPILE_NOTICE = ("mmconcepts: compiling numerical kernels on their first use (about a minute in all, once per "
@@ -69,7 +69,7 @@ COMPILE_NOTICE = ("mmconcepts: compiling numerical kernels on their first use (a
 GROUP_NOTICE_SECONDS = 3600.0
 
 
-def _lock_dir() -> Path:
+def lock_dir() -> Path:
     """``<cache>/.locks/numba``: the user's cache folder (:func:`mmconcepts._paths.data_home`), where every lock of
     the package is (:data:`mmconcepts._store.LOCKS`), never a folder shared with other users."""
     from ._paths import data_home
@@ -88,7 +88,7 @@ def lock_file(dispatcher: Any) -> Path:
     """
     func = dispatcher.py_func
     where = hashlib.sha1(os.path.abspath(func.__code__.co_filename).encode()).hexdigest()[:12]
-    return _lock_dir() / f"{func.__module__}.{func.__qualname__}.{where}.lock"
+    return lock_dir() / f"{func.__module__}.{func.__qualname__}.{where}.lock"
 
 
 def _shared(dispatcher: Any, apart: bool = False) -> Any:
@@ -106,7 +106,7 @@ def _shared(dispatcher: Any, apart: bool = False) -> Any:
                 stack.enter_context(folder_lock(path.parent, path.name))
             # numba looks in its disk cache before compiling: filled by whoever held the lock before
             with _noticing():
-                if apart and not kws:
+                if apart and not kws and not _IN_PLACE:
                     compile_in_child(dispatcher, args)
                 return compile_for_args(*args, **kws)
 
@@ -233,6 +233,11 @@ CHILD_TIMEOUT = 600.0
 #: Whether this process is a child of :func:`compile_in_child` (set by :func:`_child_main`).
 _IN_CHILD = False
 
+#: Whether this process compiles kernels made with ``compile_apart=True`` itself, under their lock, instead of in
+#: a child: set by a process that ends once they are compiled (:mod:`mmconcepts._warmup`), whose memory does not
+#: matter.
+_IN_PLACE = False
+
 _CHILD = ("import pickle, sys; sys.path[:] = pickle.load(sys.stdin.buffer); "
           "from mmconcepts._jit import _child_main; _child_main(sys.stdin.buffer)")
 
@@ -283,7 +288,7 @@ def first_use(name: str) -> Iterator[None]:
     if name in _FIRST_USES:
         yield
         return
-    path = _lock_dir() / f"first-use.{name}.lock"
+    path = lock_dir() / f"first-use.{name}.lock"
     with contextlib.ExitStack() as stack:
         with contextlib.suppress(OSError):  # no writable temporary folder: run unlocked
             stack.enter_context(folder_lock(path.parent, path.name))
@@ -322,7 +327,7 @@ def _first_in_group() -> bool:
     getpgrp = getattr(os, "getpgrp", None)
     if getpgrp is None:  # pragma: no cover - not POSIX
         return True
-    path = _lock_dir() / f"compile-notice.{getpgrp()}"
+    path = lock_dir() / f"compile-notice.{getpgrp()}"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError:

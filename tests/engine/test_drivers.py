@@ -6,6 +6,7 @@ by this process and by the drivers (spawned: they know only what the environment
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 import os
@@ -67,9 +68,19 @@ def _compared(path: Path) -> dict:
 @pytest.mark.slow
 def test_concurrent_runs_give_the_records_of_one_at_a_time_on_reused_processes(toy, monkeypatch):
     ids = ["cluster-a", "cluster-b"]
+    warm_ups = []  # the kernel warm-up: beside concurrent runs only
+
+    @contextlib.contextmanager
+    def warm_up():
+        warm_ups.append("started")
+        yield None
+
+    monkeypatch.setattr("mmconcepts._warmup.in_background", warm_up)
     local = reproduce(ids=ids, output=toy / "local", progress=False)
+    assert warm_ups == []
     monkeypatch.setenv("CLUSTER_TEST_PID_FILE", str(toy / "pids"))
     conc = reproduce(ids=ids, output=toy / "conc", concurrent=2, workers=2, progress=False)
+    assert warm_ups == ["started"]
     assert [r.status for r in local] == [r.status for r in conc] == ["ok", "ok"]
     assert [r.experiment for r in conc] == ids  # in the order asked, whichever ends first
     for exp_id in ids:

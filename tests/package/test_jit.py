@@ -77,8 +77,8 @@ def test_cached_kernels_are_numba_dispatchers_with_the_lock(jitmod):
         assert isinstance(f, numba.core.registry.CPUDispatcher)
     assert "_compile_for_args" in vars(mod.outer) and "_compile_for_args" in vars(mod.inner)
     assert "_compile_for_args" not in vars(mod.uncached)  # cache=False: nothing to share
-    assert _jit.lock_file(mod.outer).parent == _jit._lock_dir()
-    assert _jit.lock_file(mod.outer) != _jit._lock_dir() / _jit.lock_file(mod.inner).name
+    assert _jit.lock_file(mod.outer).parent == _jit.lock_dir()
+    assert _jit.lock_file(mod.outer) != _jit.lock_dir() / _jit.lock_file(mod.inner).name
 
 
 @pytest.mark.slow  # two processes compiling
@@ -137,7 +137,7 @@ def test_first_use_waits_for_a_process_that_holds_its_lock(tmp_path, monkeypatch
     (tmp_path / "tmp").mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
     env = dict(os.environ, TMPDIR=str(tmp_path / "tmp"))
-    lock = _jit._lock_dir() / "first-use.probe.lock"
+    lock = _jit.lock_dir() / "first-use.probe.lock"
     with folder_lock(lock.parent, lock.name):
         child = subprocess.Popen([sys.executable, "-c", FIRST_USE_CHILD], env=env, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True)
@@ -195,7 +195,7 @@ def test_the_compile_locks_are_in_the_user_s_cache_folder(tmp_path, monkeypatch)
     from mmconcepts._store import LOCKS
 
     monkeypatch.setenv("MMCONCEPTS_DATA", str(tmp_path / "cache"))
-    assert _jit._lock_dir() == tmp_path / "cache" / LOCKS / "numba"
+    assert _jit.lock_dir() == tmp_path / "cache" / LOCKS / "numba"
 
 
 # --------------------------------------------------------------------------- the notice of compilation

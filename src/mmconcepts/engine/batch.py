@@ -82,7 +82,9 @@ def reproduce(
         Run up to this many experiments at the same time, on as many processes that each
         run one experiment after another (sharing the cluster when there is one, else
         each with ``workers`` worker processes, kept from one experiment to the next);
-        the records are the same as one at a time. An experiment whose process dies (a
+        the records are the same as one at a time. Without a cluster, a process of its own
+        compiles the package's slowest numerical kernels meanwhile, when they are not compiled
+        yet (:mod:`mmconcepts._warmup`). An experiment whose process dies (a
         crash, the out-of-memory killer) gets a failed record with the process's exit
         code and last output lines, and the others still run.
     force : bool, default=False
@@ -123,8 +125,13 @@ def reproduce(
                                       force=force, progress=progress, raise_errors=False)
         if concurrent == 1 or len(runs) <= 1:
             records = [run_experiment(exp, variant=variant, **common) for exp, variant in runs]
-        else:
+        elif client is not None:
             records = run_concurrently(runs, concurrent, common)
+        else:  # the slowest kernels compile meanwhile, beside the first experiments (mmconcepts._warmup)
+            from .._warmup import in_background
+
+            with in_background():
+                records = run_concurrently(runs, concurrent, common)
     counts = {s: sum(r.status == s for r in records) for s in ("ok", "failed", "skipped")}
     logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
     return records
