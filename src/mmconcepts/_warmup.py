@@ -18,9 +18,9 @@ kept: results do not depend on whether it ran.
 
 :func:`in_background` starts it beside other work (``mmconcepts reproduce`` with
 ``--concurrent`` does, so that the kernels compile while the first experiments run rather
-than one after another later, while the experiments that need them wait), unless it already ran to its end for this code, this numba and
-this interpreter (a marker file in the lock folder :func:`mmconcepts._jit.lock_dir`), or
-``MMCONCEPTS_WARMUP=0`` is set.
+than one after another later, while the experiments that need them wait), unless it already
+ran to its end for this code, this numba and this interpreter (a marker file in the lock
+folder :func:`mmconcepts._jit.lock_dir`), or ``MMCONCEPTS_WARMUP=0`` is set.
 """
 
 from __future__ import annotations

@@ -4,6 +4,7 @@ failures: :func:`reproduce`, one at a time in this process or several at a time 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 from collections.abc import Mapping, Sequence
@@ -125,12 +126,11 @@ def reproduce(
                                       force=force, progress=progress, raise_errors=False)
         if concurrent == 1 or len(runs) <= 1:
             records = [run_experiment(exp, variant=variant, **common) for exp, variant in runs]
-        elif client is not None:
-            records = run_concurrently(runs, concurrent, common)
-        else:  # the slowest kernels compile meanwhile, beside the first experiments (mmconcepts._warmup)
+        else:
             from .._warmup import in_background
 
-            with in_background():
+            # without a cluster, the slowest kernels compile meanwhile, beside the first experiments
+            with in_background() if client is None else contextlib.nullcontext():
                 records = run_concurrently(runs, concurrent, common)
     counts = {s: sum(r.status == s for r in records) for s in ("ok", "failed", "skipped")}
     logger.info("reproduce: %d ok, %d failed, %d skipped", counts["ok"], counts["failed"], counts["skipped"])
