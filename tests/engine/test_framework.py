@@ -566,23 +566,37 @@ def _leak_guard(_):
     return process_executor._MAX_MEMORY_LEAK_SIZE
 
 
+def _leak_check_delay(_):
+    from joblib.externals.loky import process_executor
+
+    return process_executor._MEMORY_LEAK_CHECK_DELAY
+
+
 def test_a_runs_workers_keep_what_they_load(toy, tmp_path):
     """loky replaces a worker whose memory grew by 300 MB since its first task (its guard against
-    leaks); a run's workers keep the voice, librosa and numba kernels they load, so the guard is
-    raised in every worker of the run, those of ctx.parallel and of the library's own joblib calls."""
+    leaks), and checks for that, or runs a full garbage collection without psutil, after any task
+    that ends a second after the last check; a run's workers keep the voice, librosa and numba
+    kernels they load, so the guard is raised and the checks spaced out in every worker of the
+    run, those of ctx.parallel and of the library's own joblib calls."""
     from joblib import Parallel, delayed
     from joblib.externals.loky import process_executor
 
-    from mmconcepts.engine.workers import WORKER_MEMORY_GROWTH
+    from mmconcepts.engine.workers import WORKER_GC_INTERVAL, WORKER_MEMORY_GROWTH
 
     assert WORKER_MEMORY_GROWTH > process_executor._MAX_MEMORY_LEAK_SIZE  # loky's own, in this process
+    assert WORKER_GC_INTERVAL > process_executor._MEMORY_LEAK_CHECK_DELAY
 
     def run(config, ctx):
-        own = Parallel(n_jobs=2)(delayed(_leak_guard)(i) for i in range(4))
-        return Result(metrics={"ctx": float(min(ctx.parallel(_leak_guard, range(4)))), "own": float(min(own))})
+        metrics = {}
+        for name, fn in (("size", _leak_guard), ("delay", _leak_check_delay)):
+            own = Parallel(n_jobs=2)(delayed(fn)(i) for i in range(4))
+            metrics[f"{name}.ctx"] = float(min(ctx.parallel(fn, range(4))))
+            metrics[f"{name}.own"] = float(min(own))
+        return Result(metrics=metrics)
 
     rec = run_experiment(toy.make_experiment("toy-leak", run), output=tmp_path, workers=2, progress=False)
-    assert rec["metrics"] == {"ctx": float(WORKER_MEMORY_GROWTH), "own": float(WORKER_MEMORY_GROWTH)}
+    assert rec["metrics"] == {"size.ctx": float(WORKER_MEMORY_GROWTH), "size.own": float(WORKER_MEMORY_GROWTH),
+                              "delay.ctx": WORKER_GC_INTERVAL, "delay.own": WORKER_GC_INTERVAL}
 
 
 # --------------------------------------------------------------------------- a config instead of a preset

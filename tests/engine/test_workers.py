@@ -111,8 +111,9 @@ def test_allocate_from_heap_does_nothing_without_mallopt(monkeypatch):
 def test_a_worker_allocates_from_the_heap(monkeypatch):
     from joblib.externals.loky import process_executor
 
-    # init_worker raises loky's leak guard in this process: restored after the test
+    # init_worker raises loky's leak guard and its delay in this process: restored after the test
     monkeypatch.setattr(process_executor, "_MAX_MEMORY_LEAK_SIZE", process_executor._MAX_MEMORY_LEAK_SIZE)
+    monkeypatch.setattr(process_executor, "_MEMORY_LEAK_CHECK_DELAY", process_executor._MEMORY_LEAK_CHECK_DELAY)
     calls = []
     monkeypatch.setattr(workers, "end_with_parent", lambda pid: calls.append(("parent", pid)))
     monkeypatch.setattr(workers, "allocate_from_heap", lambda: calls.append("heap") or True)

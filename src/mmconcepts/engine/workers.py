@@ -18,8 +18,8 @@ import warnings
 from collections.abc import Callable
 from typing import Any, cast
 
-__all__ = ["HEAP_THRESHOLD", "WORKER_MEMORY_GROWTH", "WarningsCarried", "allocate_from_heap", "end_with_parent",
-           "init_worker", "progress_enabled", "release_free_memory", "workers_end_with_this_process"]
+__all__ = ["HEAP_THRESHOLD", "WORKER_GC_INTERVAL", "WORKER_MEMORY_GROWTH", "WarningsCarried", "allocate_from_heap",
+           "end_with_parent", "init_worker", "progress_enabled", "release_free_memory", "workers_end_with_this_process"]
 
 
 class WarningsCarried:
@@ -148,9 +148,18 @@ def workers_end_with_this_process() -> contextlib.AbstractContextManager[Any]:
 WORKER_MEMORY_GROWTH = 2**30
 
 
+#: The least time between two of loky's checks of a worker for leaks (s), each a full garbage collection where
+#: psutil is not installed (loky's own delay is 1 s: a collection after nearly every task). A run's worker holds
+#: what it loaded (the modules, numba's kernels, the voice), hundreds of thousands of objects that every full
+#: collection visits again (``benchmarks/README.md``). Python's own collections of the young generations still
+#: free the reference cycles a task leaves.
+WORKER_GC_INTERVAL = 60.0
+
+
 def init_worker(parent_pid: int) -> None:
     """Initializer of a worker process: :func:`end_with_parent`, :func:`allocate_from_heap`, and loky's leak
-    guard at :data:`WORKER_MEMORY_GROWTH` (a private loky setting, read by the worker after each task)."""
+    guard at :data:`WORKER_MEMORY_GROWTH`, checked at most every :data:`WORKER_GC_INTERVAL` seconds (private loky
+    settings, read by the worker after each task)."""
     end_with_parent(parent_pid)
     allocate_from_heap()
     with contextlib.suppress(ImportError):
@@ -159,6 +168,9 @@ def init_worker(parent_pid: int) -> None:
         if isinstance(getattr(process_executor, "_MAX_MEMORY_LEAK_SIZE", None), int):
             process_executor._MAX_MEMORY_LEAK_SIZE = max(process_executor._MAX_MEMORY_LEAK_SIZE,
                                                          WORKER_MEMORY_GROWTH)
+        if isinstance(getattr(process_executor, "_MEMORY_LEAK_CHECK_DELAY", None), (int, float)):
+            process_executor._MEMORY_LEAK_CHECK_DELAY = max(process_executor._MEMORY_LEAK_CHECK_DELAY,
+                                                            WORKER_GC_INTERVAL)
 
 
 def end_with_parent(parent_pid: int) -> None:
