@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -68,17 +70,46 @@ def test_all_is_what_a_user_needs_and_developer_tools_stay_apart(project):
         assert _requirements(extras, name) <= dev, name
 
 
-@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
-def test_make_reproduce_installs_the_speech_extra(tmp_path):
-    # what `make reproduce` would run (make -n: printed, not run) in a copy of the checkout's Makefile
+def _make_dry_run(tmp_path, target: str) -> list[str]:
+    """The commands ``make TARGET`` would run (``make -n``) in a copy of the checkout's Makefile."""
     shutil.copy(ROOT / "Makefile", tmp_path / "Makefile")
     (tmp_path / "pyproject.toml").touch()
     env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL")}  # not a sub-make
-    done = subprocess.run(["make", "-n", "--no-print-directory", "reproduce"], cwd=tmp_path, env=env,
+    done = subprocess.run(["make", "-n", "--no-print-directory", target], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    lines = done.stdout.splitlines()
+    return done.stdout.splitlines()
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_reproduce_installs_the_speech_extra(tmp_path):
+    # what `make reproduce` would run (make -n: printed, not run) in a copy of the checkout's Makefile
+    lines = _make_dry_run(tmp_path, "reproduce")
     run = next(i for i, line in enumerate(lines) if line.startswith(".venv/bin/mmconcepts reproduce"))
     installs = [set(extras.split(",")) for line in lines[:run]
                 for extras in re.findall(r"pip install .*?-e \"\.\[([\w,]+)\]\"", line)]
     assert any({"all", "speech"} <= extras for extras in installs), installs
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+@pytest.mark.parametrize(("target", "command"), [("reproduce", ".venv/bin/mmconcepts reproduce"),
+                                                 ("test", ".venv/bin/python -m pytest")])
+def test_the_readme_commands_write_the_packages_byte_code_first(tmp_path, target, command):
+    # the editable install leaves the package's own modules without byte code: each run writes it before it starts,
+    # so that no process of the run compiles them where writing byte code on import is off
+    lines = _make_dry_run(tmp_path, target)
+    run = next(i for i, line in enumerate(lines) if line.startswith(command))
+    compiles = [line for line in lines[:run] if re.search(r"-m compileall\b.* src/mmconcepts\b", line)]
+    assert compiles, lines[:run]
+
+
+def test_the_byte_code_step_writes_byte_code_where_imports_do_not(tmp_path):
+    # the step the Makefile runs, on a package of one module, with writing on import turned off
+    package = tmp_path / "src" / "mmconcepts"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("x = 1\n")
+    recipe = (ROOT / "Makefile").read_text().split("define compile_package", 1)[1].split("endef", 1)[0].strip()
+    command = recipe.replace("$(BIN)/python", shlex.quote(sys.executable))
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+    subprocess.run(command, shell=True, cwd=tmp_path, env=env, check=True, timeout=60)
+    assert list((package / "__pycache__").glob("__init__.*.pyc"))
