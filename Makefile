@@ -23,11 +23,9 @@ define install
 endef
 
 # The byte code of the package's own modules, which an editable install leaves to be written on first import: where
-# that is off (PYTHONDONTWRITEBYTECODE), every process of a run would compile them again (about 0.3 s of CPU per
-# process that imports them all). Written before each run; files already up to date are skipped.
-define compile_package
-	$(BIN)/python -m compileall -q src/mmconcepts > /dev/null
-endef
+# that is off (PYTHONDONTWRITEBYTECODE), every process of a run would compile them again. Written before each run;
+# files already up to date are skipped.
+COMPILE_PACKAGE = $(BIN)/python -m compileall -q src/mmconcepts > /dev/null
 
 # The package with every modality (extra "all"); the experiments add the text-to-speech that speaks the generated
 # caregiver corpus (extra "speech"), the tests and the benchmarks their tools.
@@ -50,12 +48,12 @@ $(VENV)/.installed-dev: $(STAMP)
 ## after another, each with a worker per core: what one leaves idle, the other uses; shared caches and numba's
 ## compiled kernels are made once, under a lock)
 reproduce: $(VENV)/.installed-speech
-	$(compile_package)
+	$(COMPILE_PACKAGE)
 	$(BIN)/mmconcepts reproduce --quick --workers -1 --concurrent 2 --output $(RESULTS) $(if $(DATA_ROOT),--data-root $(DATA_ROOT))
 
 ## Run the test-suite (slow tests included), then the type check and the documentation build (what CI runs)
 test: $(VENV)/.installed-dev browser
-	$(compile_package)
+	$(COMPILE_PACKAGE)
 	$(BIN)/python -m pytest -q
 	$(MAKE) --no-print-directory typecheck docs
 

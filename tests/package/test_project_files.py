@@ -108,8 +108,9 @@ def test_the_byte_code_step_writes_byte_code_where_imports_do_not(tmp_path):
     package = tmp_path / "src" / "mmconcepts"
     package.mkdir(parents=True)
     (package / "__init__.py").write_text("x = 1\n")
-    recipe = (ROOT / "Makefile").read_text().split("define compile_package", 1)[1].split("endef", 1)[0].strip()
-    command = recipe.replace("$(BIN)/python", shlex.quote(sys.executable))
+    recipe = re.search(r"^COMPILE_PACKAGE = (.+)$", (ROOT / "Makefile").read_text(), re.MULTILINE)
+    assert recipe, "the Makefile defines COMPILE_PACKAGE"
+    command = recipe.group(1).replace("$(BIN)/python", shlex.quote(sys.executable))
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
     subprocess.run(command, shell=True, cwd=tmp_path, env=env, check=True, timeout=60)
     assert list((package / "__pycache__").glob("__init__.*.pyc"))
